@@ -1,0 +1,53 @@
+"""hammerstein_ctrl: continuous-time Hammerstein identification on top of python-control.
+
+A Hammerstein model ``y = H(p) g(u)`` is a static nonlinearity ``g`` followed by
+a linear transfer function ``H``.  This package identifies such models from
+sampled input/output records with the normalized SPSA (N-SPSA) method of the
+paper and its rivals, simulates them exactly and fast, and hands them to
+python-control (``control.TransferFunction``, ``control.NonlinearIOSystem``)
+for analysis and controller design.
+
+Examples
+--------
+>>> import hammerstein_ctrl as hc
+>>> case = hc.presets.trs()
+>>> r = hc.minimize(case.cost, case.x0, seed=0, **case.minimize_kwargs("nspsa"))
+>>> model = case.structure.model(r.x)
+>>> bool(r.fun < 180), type(model.linear).__name__
+(True, 'TransferFunction')
+"""
+
+from . import datasets, metrics, nonlinearities, optimize, presets, simulate
+from .datasets import IOData, load_emps, load_trs, make_trs_reconstruction, read_record
+from .exceptions import DataError, HammersteinError, ParameterError, UnknownNameError
+from .metrics import fit_percent, fit_report, nrmse, rmse, sse
+from .model import HammersteinModel
+from .nonlinearities import (
+    Coulomb,
+    CustomNonlinearity,
+    DeadZone,
+    Nonlinearity,
+    PiecewiseLinear,
+    Polynomial,
+    Saturation,
+    Tanh,
+    nonlinearity_from_name,
+)
+from .objective import HammersteinCost
+from .optimize import PerturbationGain, StepGain, minimize
+from .structure import HammersteinStructure, LinearStructure
+
+__version__ = "0.1.0"
+
+__all__ = [
+    "datasets", "metrics", "nonlinearities", "optimize", "presets", "simulate",
+    "IOData", "load_emps", "load_trs", "make_trs_reconstruction", "read_record",
+    "DataError", "HammersteinError", "ParameterError", "UnknownNameError",
+    "fit_percent", "fit_report", "nrmse", "rmse", "sse",
+    "HammersteinModel",
+    "Nonlinearity", "Tanh", "Coulomb", "Polynomial", "Saturation", "DeadZone", "PiecewiseLinear",
+    "CustomNonlinearity", "nonlinearity_from_name",
+    "HammersteinCost", "HammersteinStructure", "LinearStructure",
+    "minimize", "StepGain", "PerturbationGain",
+    "__version__",
+]

@@ -1,0 +1,76 @@
+"""Small input-validation helpers shared by the data, model and simulation modules."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .exceptions import DataError
+
+#: Largest allowed deviation of a sample time from the uniform grid ``t0 + k*dt``,
+#: as a fraction of ``dt``.  Grids within this tolerance are regularised to exactly
+#: ``t0 + k*dt``; EMPS's stored ``t`` deviates by at most 3.2e-5*dt.
+GRID_TOLERANCE = 1e-3
+
+
+def as_signal(x, name: str, *, allow_empty: bool = False) -> np.ndarray:
+    """Return ``x`` as a finite 1-D float array or raise a :class:`DataError`.
+
+    Column vectors such as MATLAB's ``(N, 1)`` arrays are flattened.
+    """
+    try:
+        a = np.asarray(x, dtype=float)
+    except (TypeError, ValueError) as exc:
+        raise DataError(f"{name} must be numeric: {exc}") from None
+    if a.ndim == 2 and 1 in a.shape:
+        a = a.ravel()
+    if a.ndim == 0:
+        a = a.reshape(1)
+    if a.ndim != 1:
+        raise DataError(f"{name} must be a 1-D signal, got an array of shape {a.shape}")
+    if a.size == 0 and not allow_empty:
+        raise DataError(f"{name} is empty")
+    bad = ~np.isfinite(a)
+    if bad.any():
+        k = int(np.flatnonzero(bad)[0])
+        kind = "NaN" if np.isnan(a[k]) else "inf"
+        raise DataError(
+            f"{name} contains {int(bad.sum())} non-finite value(s); first is {kind} at sample {k}"
+        )
+    return a
+
+
+def uniform_grid(t, name: str = "t", *, tolerance: float = GRID_TOLERANCE) -> tuple[np.ndarray, float]:
+    """Check that ``t`` is a uniform time grid and return ``(t0 + k*dt, dt)``.
+
+    The step is estimated as ``(t[-1] - t[0]) / (N - 1)`` and rounded to 12
+    significant digits (so a grid stored in single precision such as EMPS's
+    ``0.00100002`` spacing gives ``dt = 0.001``).  Every sample must lie within
+    ``tolerance * dt`` of ``t0 + k*dt``; the regularised grid is returned.
+
+    Raises
+    ------
+    DataError
+        If ``t`` has fewer than two samples, is not strictly increasing, or is
+        irregular beyond the tolerance.
+    """
+    t = as_signal(t, name)
+    if t.size < 2:
+        raise DataError(f"{name} needs at least two samples to define a sampling interval")
+    steps = np.diff(t)
+    if np.any(steps <= 0):
+        k = int(np.flatnonzero(steps <= 0)[0])
+        raise DataError(
+            f"{name} is not strictly increasing: {name}[{k + 1}] = {t[k + 1]!r} "
+            f"follows {name}[{k}] = {t[k]!r}"
+        )
+    dt = float(f"{(t[-1] - t[0]) / (t.size - 1):.12g}")
+    grid = t[0] + dt * np.arange(t.size)
+    dev = np.abs(t - grid)
+    k = int(np.argmax(dev))
+    if dev[k] > tolerance * dt:
+        raise DataError(
+            f"{name} is an irregular time grid: sample {k} is {dev[k]:.3g} s away from the uniform "
+            f"grid t0 + k*dt with dt = {dt:.6g} s (allowed: {tolerance:g}*dt); resample the record "
+            "onto a uniform grid first"
+        )
+    return grid, dt

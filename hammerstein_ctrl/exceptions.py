@@ -1,0 +1,24 @@
+"""Exception types raised by hammerstein_ctrl.
+
+Every error the package raises on bad input derives from :class:`HammersteinError`
+and from :class:`ValueError`, so ``except ValueError`` keeps working for callers
+who do not care about the distinction.
+"""
+
+__all__ = ["HammersteinError", "DataError", "ParameterError", "UnknownNameError"]
+
+
+class HammersteinError(ValueError):
+    """Base class of every input error raised by hammerstein_ctrl."""
+
+
+class DataError(HammersteinError):
+    """Measured data are unusable (NaN, mismatched lengths, irregular time, ...)."""
+
+
+class ParameterError(HammersteinError):
+    """A parameter vector has the wrong length, shape or values."""
+
+
+class UnknownNameError(HammersteinError):
+    """A method, nonlinearity or preset name is not known."""

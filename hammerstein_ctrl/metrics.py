@@ -1,0 +1,74 @@
+"""Goodness-of-fit measures between a measured and a simulated output.
+
+``sse`` is the paper's objective J (Eq. 4/13).  ``nrmse`` and ``fit_percent``
+follow MATLAB's System Identification Toolbox (``goodnessOfFit`` with 'NRMSE'
+and ``compare``): ``fit = 100 (1 - ||y - yhat|| / ||y - mean(y)||)``.
+
+Examples
+--------
+>>> import numpy as np
+>>> y = np.array([0.0, 1.0, 2.0, 3.0]); yhat = np.array([0.0, 1.0, 2.0, 2.0])
+>>> sse(y, yhat), rmse(y, yhat)
+(1.0, 0.5)
+>>> round(fit_percent(y, yhat), 3)
+55.279
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ._checks import as_signal
+from .exceptions import DataError
+
+__all__ = ["sse", "rmse", "nrmse", "fit_percent", "fit_report"]
+
+
+def _pair(y, yhat):
+    y = as_signal(y, "y")
+    yhat = as_signal(yhat, "yhat")
+    if y.size != yhat.size:
+        raise DataError(f"length mismatch: y has {y.size} samples but yhat has {yhat.size}")
+    return y, yhat
+
+
+def sse(y, yhat) -> float:
+    """Sum of squared errors ``J = sum (y - yhat)^2`` (paper Eq. 13)."""
+    y, yhat = _pair(y, yhat)
+    return float(np.sum((y - yhat) ** 2))
+
+
+def rmse(y, yhat) -> float:
+    """Root-mean-square error."""
+    y, yhat = _pair(y, yhat)
+    return float(np.sqrt(np.mean((y - yhat) ** 2)))
+
+
+def nrmse(y, yhat) -> float:
+    """Normalised RMSE ``||y - yhat|| / ||y - mean(y)||`` (0 is perfect).
+
+    Raises
+    ------
+    DataError
+        If ``y`` is constant (the normalisation is undefined).
+    """
+    y, yhat = _pair(y, yhat)
+    scale = np.linalg.norm(y - y.mean())
+    if scale == 0:
+        raise DataError("y is constant: NRMSE and fit % are undefined")
+    return float(np.linalg.norm(y - yhat) / scale)
+
+
+def fit_percent(y, yhat) -> float:
+    """Fit in percent, ``100 (1 - nrmse)`` (100 is perfect, can be negative)."""
+    return 100.0 * (1.0 - nrmse(y, yhat))
+
+
+def fit_report(y, yhat) -> dict:
+    """All measures at once: ``{"sse", "rmse", "nrmse", "fit_percent"}``."""
+    return {
+        "sse": sse(y, yhat),
+        "rmse": rmse(y, yhat),
+        "nrmse": nrmse(y, yhat),
+        "fit_percent": fit_percent(y, yhat),
+    }

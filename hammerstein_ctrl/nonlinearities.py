@@ -1,0 +1,428 @@
+"""Static nonlinearities ``g(u; delta)`` of a Hammerstein model.
+
+Each class is a *parametric family*: it knows its parameter names and count and
+evaluates ``g`` for a parameter vector ``delta`` of shape ``(n_params,)`` or for a
+batch of parameter vectors of shape ``(B, n_params)``.  Evaluation is vectorised
+over the samples ``u`` (shape ``(N,)``) and over the batch, returning ``(N,)`` or
+``(B, N)`` respectively.
+
+Examples
+--------
+>>> import numpy as np
+>>> from hammerstein_ctrl.nonlinearities import Tanh, Coulomb
+>>> Tanh()(np.array([0.0, 1.0]), [2.0, 0.5]).round(4)
+array([0.    , 0.9242])
+>>> Coulomb().param_names
+('d0', 'd1', 'd2')
+>>> Coulomb()(np.array([-1.0, 1.0]), [[0.5, -0.4, 0.0], [1.0, 0.0, 0.1]])
+array([[-0.1,  0.1],
+       [-0.9,  1.1]])
+"""
+
+from __future__ import annotations
+
+from typing import Callable, Sequence
+
+import numpy as np
+
+from .exceptions import ParameterError, UnknownNameError
+
+__all__ = [
+    "Nonlinearity",
+    "Tanh",
+    "Coulomb",
+    "Polynomial",
+    "Saturation",
+    "DeadZone",
+    "PiecewiseLinear",
+    "CustomNonlinearity",
+    "nonlinearity_from_name",
+    "NONLINEARITIES",
+]
+
+
+class Nonlinearity:
+    """Base class of a parametric static nonlinearity ``v = g(u; delta)``.
+
+    Subclasses set :attr:`param_names` and implement :meth:`_evaluate`
+    (and, where it is known in closed form, :meth:`_derivative`).
+    """
+
+    #: Short name used in reprs, the CLI and :func:`nonlinearity_from_name`.
+    name: str = "nonlinearity"
+    #: Names of the parameters, in the order of the parameter vector.
+    param_names: tuple[str, ...] = ()
+
+    @property
+    def n_params(self) -> int:
+        """Number of parameters of the family."""
+        return len(self.param_names)
+
+    # -- parameter handling -------------------------------------------------
+    def check_params(self, params) -> np.ndarray:
+        """Return ``params`` as a float array of shape ``(n,)`` or ``(B, n)``.
+
+        Raises
+        ------
+        ParameterError
+            If the last dimension does not equal :attr:`n_params`.
+        """
+        p = np.asarray(params, dtype=float)
+        if p.ndim == 0 or p.ndim > 2 or p.shape[-1] != self.n_params:
+            got = p.shape[-1] if p.ndim else "a scalar"
+            raise ParameterError(
+                f"{self.name} nonlinearity takes {self.n_params} parameter(s) "
+                f"{list(self.param_names)}, got {got} (array of shape {p.shape})"
+            )
+        return p
+
+    @staticmethod
+    def _columns(p: np.ndarray) -> tuple:
+        """Split a parameter array into per-parameter columns that broadcast over ``u``.
+
+        A 1-D vector gives scalars; a ``(B, n)`` batch gives ``(B, 1)`` columns.
+        """
+        if p.ndim == 1:
+            return tuple(p)
+        return tuple(p[:, i : i + 1] for i in range(p.shape[1]))
+
+    # -- evaluation ---------------------------------------------------------
+    def __call__(self, u, params) -> np.ndarray:
+        """Evaluate ``g(u; params)``; see :meth:`evaluate`."""
+        return self.evaluate(u, params)
+
+    def evaluate(self, u, params) -> np.ndarray:
+        """Evaluate the nonlinearity.
+
+        Parameters
+        ----------
+        u : array_like, shape (N,) or scalar
+            Input samples.
+        params : array_like, shape (n_params,) or (B, n_params)
+            One parameter vector or a batch of them.
+
+        Returns
+        -------
+        ndarray, shape (N,) or (B, N)
+        """
+        p = self.check_params(params)
+        return self._evaluate(np.asarray(u, dtype=float), p)
+
+    def derivative(self, u, params) -> np.ndarray:
+        """Return ``dg/du`` at ``u`` for one parameter vector.
+
+        Closed form where the family has one (away from discontinuities, where
+        the classical derivative is used: e.g. the ``sign`` term of
+        :class:`Coulomb` contributes nothing); otherwise a central difference.
+        """
+        p = self.check_params(params)
+        return self._derivative(np.asarray(u, dtype=float), p)
+
+    def _evaluate(self, u: np.ndarray, p: np.ndarray) -> np.ndarray:  # pragma: no cover
+        raise NotImplementedError
+
+    def _derivative(self, u: np.ndarray, p: np.ndarray) -> np.ndarray:
+        h = 1e-6 * np.maximum(1.0, np.abs(u))
+        return (self._evaluate(u + h, p) - self._evaluate(u - h, p)) / (2 * h)
+
+    def __repr__(self) -> str:
+        return f"{type(self).__name__}()"
+
+    def describe(self, params) -> str:
+        """Human-readable formula with the given parameter values substituted."""
+        p = self.check_params(params)
+        vals = ", ".join(f"{n}={v:.6g}" for n, v in zip(self.param_names, np.atleast_1d(p)))
+        return f"{self.name}({vals})"
+
+
+class Tanh(Nonlinearity):
+    r"""Hyperbolic tangent, the TRS nonlinearity (paper Eq. 17).
+
+    .. math:: g(u) = \delta_0 \tanh(\delta_1 u)
+
+    Examples
+    --------
+    >>> Tanh()(0.0, [-4.7, 0.12])
+    array(-0.)
+    """
+
+    name = "tanh"
+    param_names = ("d0", "d1")
+
+    def _evaluate(self, u, p):
+        d0, d1 = self._columns(p)
+        return d0 * np.tanh(d1 * u)
+
+    def _derivative(self, u, p):
+        d0, d1 = self._columns(p)
+        return d0 * d1 / np.cosh(d1 * u) ** 2
+
+
+class Coulomb(Nonlinearity):
+    r"""Linear gain plus Coulomb friction plus offset, the EMPS nonlinearity (Eq. 19).
+
+    .. math:: g(u) = \delta_0 u + \delta_1 \operatorname{sign}(u) + \delta_2
+
+    ``sign(0) = 0``, as in numpy and MATLAB.
+
+    Examples
+    --------
+    >>> Coulomb()([-2.0, 0.0, 2.0], [0.5, -0.4, 0.05])
+    array([-0.55,  0.05,  0.65])
+    """
+
+    name = "coulomb"
+    param_names = ("d0", "d1", "d2")
+
+    def _evaluate(self, u, p):
+        d0, d1, d2 = self._columns(p)
+        return d0 * u + d1 * np.sign(u) + d2
+
+    def _derivative(self, u, p):
+        return np.full(np.shape(u), p[0], dtype=float)
+
+
+class Polynomial(Nonlinearity):
+    r"""Polynomial without constant term (paper Eq. 3 with ``g(0) = 0``).
+
+    .. math:: g(u) = \sum_{i=1}^{M} d_i u^i
+
+    Parameters
+    ----------
+    degree : int
+        The degree ``M >= 1``.
+
+    Examples
+    --------
+    >>> Polynomial(3)([1.0, 2.0], [1.0, 0.0, 0.5])
+    array([1.5, 6. ])
+    """
+
+    name = "polynomial"
+
+    def __init__(self, degree: int = 3):
+        if int(degree) != degree or degree < 1:
+            raise ParameterError(f"polynomial degree must be an integer >= 1, got {degree!r}")
+        self.degree = int(degree)
+        self.param_names = tuple(f"d{i}" for i in range(1, self.degree + 1))
+
+    def _evaluate(self, u, p):
+        cols = self._columns(p)
+        acc = cols[-1] * np.ones_like(u)
+        for c in reversed(cols[:-1]):
+            acc = acc * u + c
+        return acc * u
+
+    def _derivative(self, u, p):
+        cols = self._columns(p)
+        acc = self.degree * cols[-1] * np.ones_like(u)
+        for i in range(self.degree - 1, 0, -1):
+            acc = acc * u + i * cols[i - 1]
+        return acc
+
+    def __repr__(self):
+        return f"Polynomial(degree={self.degree})"
+
+
+class Saturation(Nonlinearity):
+    r"""Symmetric saturation with a gain.
+
+    .. math:: g(u) = k \, \min(\max(u, -|a|), |a|)
+
+    Examples
+    --------
+    >>> Saturation()([-3.0, 0.5, 3.0], [2.0, 1.0])
+    array([-2.,  1.,  2.])
+    """
+
+    name = "saturation"
+    param_names = ("gain", "limit")
+
+    def _evaluate(self, u, p):
+        k, a = self._columns(p)
+        a = np.abs(a)
+        return k * np.clip(u, -a, a)
+
+    def _derivative(self, u, p):
+        k, a = p
+        return np.where(np.abs(u) < abs(a), k, 0.0)
+
+
+class DeadZone(Nonlinearity):
+    r"""Symmetric dead zone with a gain.
+
+    .. math:: g(u) = k\,(u - \min(\max(u, -|a|), |a|))
+
+    Examples
+    --------
+    >>> DeadZone()([-3.0, 0.5, 3.0], [2.0, 1.0])
+    array([-4.,  0.,  4.])
+    """
+
+    name = "deadzone"
+    param_names = ("gain", "width")
+
+    def _evaluate(self, u, p):
+        k, a = self._columns(p)
+        a = np.abs(a)
+        return k * (u - np.clip(u, -a, a))
+
+    def _derivative(self, u, p):
+        k, a = p
+        return np.where(np.abs(u) > abs(a), k, 0.0)
+
+
+class PiecewiseLinear(Nonlinearity):
+    """Piecewise-linear function through fixed breakpoints.
+
+    The parameters are the values of ``g`` at the breakpoints; between them
+    ``g`` is interpolated linearly and outside them it is extrapolated with the
+    slope of the first or last segment.
+
+    Parameters
+    ----------
+    breakpoints : array_like
+        Strictly increasing input values, at least two.
+
+    Examples
+    --------
+    >>> g = PiecewiseLinear([-1.0, 0.0, 1.0])
+    >>> g.param_names
+    ('g0', 'g1', 'g2')
+    >>> g([-2.0, -0.5, 0.5, 2.0], [-1.0, 0.0, 2.0])
+    array([-2. , -0.5,  1. ,  4. ])
+    """
+
+    name = "piecewise_linear"
+
+    def __init__(self, breakpoints: Sequence[float]):
+        bp = np.asarray(breakpoints, dtype=float)
+        if bp.ndim != 1 or bp.size < 2 or not np.all(np.isfinite(bp)) or np.any(np.diff(bp) <= 0):
+            raise ParameterError(
+                "PiecewiseLinear needs at least two finite, strictly increasing breakpoints"
+            )
+        self.breakpoints = bp
+        self.param_names = tuple(f"g{i}" for i in range(bp.size))
+
+    def _segments(self, u):
+        bp = self.breakpoints
+        idx = np.clip(np.searchsorted(bp, u, side="right") - 1, 0, bp.size - 2)
+        w = (u - bp[idx]) / (bp[idx + 1] - bp[idx])
+        return idx, w
+
+    def _evaluate(self, u, p):
+        idx, w = self._segments(u)
+        return p[..., idx] * (1.0 - w) + p[..., idx + 1] * w
+
+    def _derivative(self, u, p):
+        idx, _ = self._segments(u)
+        bp = self.breakpoints
+        return (p[idx + 1] - p[idx]) / (bp[idx + 1] - bp[idx])
+
+    def __repr__(self):
+        return f"PiecewiseLinear(breakpoints={self.breakpoints.tolist()})"
+
+
+class CustomNonlinearity(Nonlinearity):
+    """A user-supplied static function with a declared number of parameters.
+
+    Parameters
+    ----------
+    func : callable
+        ``func(u, params) -> v`` with ``u`` of shape ``(N,)`` and ``params`` of
+        shape ``(n_params,)``.  With ``vectorized=True`` it is also called with a
+        ``(B, n_params)`` batch and must then return ``(B, N)``.
+    n_params : int
+        Number of parameters.
+    param_names : sequence of str, optional
+        Defaults to ``p0, p1, ...``.
+    vectorized : bool, default False
+        Whether ``func`` accepts a batch of parameter vectors.
+    name : str, default "custom"
+
+    Examples
+    --------
+    >>> cubic = CustomNonlinearity(lambda u, p: p[0] * u + p[1] * u**3, n_params=2)
+    >>> cubic([1.0, 2.0], [1.0, 0.5])
+    array([1.5, 6. ])
+    """
+
+    def __init__(
+        self,
+        func: Callable,
+        n_params: int,
+        param_names: Sequence[str] | None = None,
+        *,
+        vectorized: bool = False,
+        name: str = "custom",
+    ):
+        if not callable(func):
+            raise ParameterError("CustomNonlinearity needs a callable func(u, params)")
+        if int(n_params) != n_params or n_params < 0:
+            raise ParameterError(f"n_params must be a non-negative integer, got {n_params!r}")
+        names = tuple(param_names) if param_names is not None else tuple(f"p{i}" for i in range(int(n_params)))
+        if len(names) != n_params:
+            raise ParameterError(f"{len(names)} parameter names given for n_params={n_params}")
+        self.func = func
+        self.param_names = names
+        self.vectorized = bool(vectorized)
+        self.name = name
+
+    def _evaluate(self, u, p):
+        if p.ndim == 1 or self.vectorized:
+            v = np.asarray(self.func(u, p), dtype=float)
+        else:
+            v = np.stack([np.asarray(self.func(u, row), dtype=float) for row in p])
+        expected = p.shape[:-1] + np.shape(u)
+        if v.shape != expected:
+            try:
+                v = np.broadcast_to(v, expected).copy()
+            except ValueError:
+                raise ParameterError(
+                    f"custom nonlinearity {self.name!r} returned shape {v.shape}, expected {expected}"
+                ) from None
+        return v
+
+    def __repr__(self):
+        return f"CustomNonlinearity({self.name!r}, n_params={self.n_params})"
+
+
+#: Nonlinearity families known by name (for the CLI and configuration files).
+NONLINEARITIES: dict[str, type[Nonlinearity]] = {
+    "tanh": Tanh,
+    "coulomb": Coulomb,
+    "polynomial": Polynomial,
+    "saturation": Saturation,
+    "deadzone": DeadZone,
+    "piecewise_linear": PiecewiseLinear,
+}
+
+
+def nonlinearity_from_name(name: str, **kwargs) -> Nonlinearity:
+    """Create a nonlinearity family from its name.
+
+    Parameters
+    ----------
+    name : str
+        One of ``tanh``, ``coulomb``, ``polynomial``, ``saturation``,
+        ``deadzone``, ``piecewise_linear`` (case-insensitive; ``-`` and ``_``
+        are interchangeable).
+    **kwargs
+        Passed to the class (``degree`` for polynomial, ``breakpoints`` for
+        piecewise_linear).
+
+    Examples
+    --------
+    >>> nonlinearity_from_name("polynomial", degree=2).param_names
+    ('d1', 'd2')
+    """
+    key = str(name).strip().lower().replace("-", "_").replace(" ", "_")
+    key = {"dead_zone": "deadzone", "pwl": "piecewise_linear", "sign": "coulomb"}.get(key, key)
+    if key not in NONLINEARITIES:
+        raise UnknownNameError(
+            f"unknown nonlinearity {name!r}; known: {', '.join(sorted(NONLINEARITIES))}"
+        )
+    try:
+        return NONLINEARITIES[key](**kwargs)
+    except TypeError as exc:
+        raise ParameterError(f"bad arguments for nonlinearity {key!r}: {exc}") from None

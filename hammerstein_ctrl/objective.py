@@ -1,0 +1,118 @@
+"""The identification objective J(beta) (paper Eq. 13) on a record.
+
+:class:`HammersteinCost` is what the optimisers minimise.  It is a plain
+callable ``cost(beta) -> float`` with a vectorised ``cost.batch(betas)``, and
+it never raises or warns for a hostile candidate: a candidate whose
+simulation is non-finite (overflow, NaN parameters) scores ``inf``.  A wrong
+*length* of beta is a programming error and raises
+:class:`~hammerstein_ctrl.exceptions.ParameterError`.
+
+Unstable candidates are simulated like any other by default, because that is
+what the paper does: EMPS's initial point (Table 5, ``a1 = -1``) is unstable
+and has the finite cost 3.82e11 that the SPSA family starts from.  Pass
+``reject_unstable=True`` to score every candidate with a right-half-plane pole
+as ``inf`` instead.
+
+Examples
+--------
+>>> from hammerstein_ctrl import presets
+>>> p = presets.trs()
+>>> round(p.cost(p.true_beta), 6)
+178.5
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .exceptions import ParameterError
+from .simulate import simulate_batch, sse_batch
+from .structure import HammersteinStructure
+
+__all__ = ["HammersteinCost"]
+
+
+class HammersteinCost:
+    """Sum of squared output errors of a Hammerstein structure on a record.
+
+    Parameters
+    ----------
+    data : IOData
+        The estimation record (uniform time grid).
+    structure : HammersteinStructure
+        Maps beta to a model.
+    reject_unstable : bool, default False
+        Score candidates with a pole in the open right half-plane as ``inf``.
+
+    Attributes
+    ----------
+    n_params : int
+    param_names : tuple of str
+    """
+
+    def __init__(self, data, structure: HammersteinStructure, *, reject_unstable: bool = False):
+        from .datasets import IOData
+
+        if not isinstance(data, IOData):
+            raise ParameterError(f"data must be an IOData record, got {type(data).__name__}")
+        if not isinstance(structure, HammersteinStructure):
+            raise ParameterError(
+                f"structure must be a HammersteinStructure, got {type(structure).__name__}"
+            )
+        self.data = data
+        self.structure = structure
+        self.reject_unstable = bool(reject_unstable)
+        self._y = np.ascontiguousarray(data.y, dtype=float)
+
+    @property
+    def n_params(self) -> int:
+        return self.structure.n_params
+
+    @property
+    def param_names(self) -> tuple[str, ...]:
+        return self.structure.param_names
+
+    def _pieces(self, betas):
+        b = np.atleast_2d(self.structure.check_beta(betas))
+        lin, nl = self.structure.split(b)
+        num, den = self.structure.linear.coefficients(lin)
+        with np.errstate(all="ignore"):
+            V = self.structure.nonlinearity(self.data.u, nl)
+        return num, den, V
+
+    def __call__(self, beta) -> float:
+        """J at one beta (``inf`` if the candidate cannot be simulated)."""
+        b = self.structure.check_beta(beta)
+        if b.ndim != 1:
+            raise ParameterError("cost(beta) takes one vector; use cost.batch for a batch")
+        return float(self.batch(b)[0])
+
+    def batch(self, betas) -> np.ndarray:
+        """J for each row of ``betas`` (shape ``(B, n_params)``), in one compiled pass."""
+        num, den, V = self._pieces(betas)
+        return sse_batch(num, den, V, self.data.dt, self._y, reject_unstable=self.reject_unstable)
+
+    def simulate(self, beta) -> np.ndarray:
+        """Simulated output ŷ for one beta (NaN where the simulation fails)."""
+        b = self.structure.check_beta(beta)
+        if b.ndim != 1:
+            raise ParameterError("simulate(beta) takes one vector")
+        num, den, V = self._pieces(b)
+        with np.errstate(all="ignore"):
+            return simulate_batch(num, den, V, self.data.dt)[0]
+
+    def residuals(self, beta) -> np.ndarray:
+        """``y - ŷ`` for one beta, for least-squares solvers (``J = sum(residuals**2)``).
+
+        Non-finite residuals are replaced by a large finite value so that
+        trust-region solvers back off instead of failing.
+        """
+        with np.errstate(all="ignore"):
+            r = self._y - self.simulate(beta)
+        bad = ~np.isfinite(r)
+        if bad.any():
+            r[bad] = 1e150
+        return r
+
+    def __repr__(self):
+        return f"HammersteinCost({self.data.name!r}, {self.structure.describe()})"

@@ -1,0 +1,19 @@
+"""Optimisers for Hammerstein identification: SPSA, NL-SPSA, N-SPSA and AMVO-SCA.
+
+Use :func:`minimize` (``scipy.optimize.minimize`` style) or the individual
+functions.  Every routine takes a ``seed`` (int or ``numpy.random.Generator``),
+counts every objective evaluation in ``nfev`` and never exceeds ``maxfev``.
+"""
+
+from ._common import CALLBACK_STOP, COMPLETED, DIVERGED, NO_FINITE_VALUE, SOLVER_FAILED
+from .amvo_sca import amvo_sca
+from .gains import SPALL_ALPHA, SPALL_GAMMA, GainSequence, PerturbationGain, StepGain
+from .minimize import METHODS, SCIPY_METHODS, canonical_method, minimize
+from .spsa import nlspsa, normalized_difference, nspsa, spsa
+
+__all__ = [
+    "minimize", "canonical_method", "METHODS", "SCIPY_METHODS",
+    "spsa", "nlspsa", "nspsa", "amvo_sca", "normalized_difference",
+    "GainSequence", "StepGain", "PerturbationGain", "SPALL_ALPHA", "SPALL_GAMMA",
+    "COMPLETED", "CALLBACK_STOP", "DIVERGED", "NO_FINITE_VALUE", "SOLVER_FAILED",
+]

@@ -1,0 +1,189 @@
+"""Machinery shared by the optimisers: counted evaluation, bounds, results."""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+from scipy.optimize import Bounds, OptimizeResult
+
+from ..exceptions import ParameterError
+
+# Result status codes (``OptimizeResult.status``).
+COMPLETED = 0  #: ran its full iteration/evaluation budget
+CALLBACK_STOP = 1  #: the callback asked to stop
+DIVERGED = 2  #: the iterates or objective blew up (SPSA's expected failure mode)
+NO_FINITE_VALUE = 3  #: every evaluation was non-finite
+SOLVER_FAILED = 4  #: a delegated scipy solver reported failure
+
+#: Arithmetic errors raised by an objective that are scored as ``inf`` instead
+#: of aborting the search (e.g. Python-float overflow in ``x ** 3``).
+_SCORED_AS_INF = (OverflowError, ZeroDivisionError, FloatingPointError)
+
+
+class BudgetExhausted(RuntimeError):
+    """Raised by :class:`CountedObjective` instead of exceeding ``maxfev``."""
+
+
+class CountedObjective:
+    """Wrap ``fun`` to count evaluations, track the best point, and tame values.
+
+    * Every call counts; a batch of ``B`` points counts ``B``.  An evaluation
+      that would exceed ``maxfev`` raises :class:`BudgetExhausted` instead.
+    * Arithmetic errors (overflow, division by zero) score ``inf``.
+    * If ``fun`` has a ``batch`` method (like
+      :class:`~hammerstein_ctrl.objective.HammersteinCost`) batches use it.
+    """
+
+    def __init__(self, fun, args=(), maxfev: int | None = None):
+        if not callable(fun):
+            raise ParameterError(f"fun must be callable, got {type(fun).__name__}")
+        self.fun = fun
+        self.args = tuple(args)
+        self._batch = getattr(fun, "batch", None) if not self.args else None
+        self.maxfev = maxfev
+        self.nfev = 0
+        self.best_x: np.ndarray | None = None
+        self.best_fun = np.inf
+
+    @property
+    def remaining(self) -> float:
+        return np.inf if self.maxfev is None else self.maxfev - self.nfev
+
+    def _charge(self, count: int):
+        if self.maxfev is not None and self.nfev + count > self.maxfev:
+            raise BudgetExhausted(f"evaluation budget exhausted ({self.nfev} + {count} > {self.maxfev})")
+        self.nfev += count
+
+    def _scalar(self, x) -> float:
+        try:
+            val = self.fun(x, *self.args)
+        except _SCORED_AS_INF:
+            return np.inf
+        try:
+            val = float(np.asarray(val, dtype=float).reshape(()))
+        except (TypeError, ValueError):
+            raise ParameterError(
+                f"the objective must return a scalar, got {type(val).__name__} {np.shape(val)}"
+            ) from None
+        return val
+
+    def _track(self, X, F):
+        with np.errstate(invalid="ignore"):
+            i = int(np.argmin(np.where(np.isnan(F), np.inf, F)))
+        if F[i] < self.best_fun:
+            self.best_fun = float(F[i])
+            self.best_x = np.array(X[i], dtype=float)
+
+    def __call__(self, x) -> float:
+        self._charge(1)
+        f = self._scalar(x)
+        self._track([x], np.array([f]))
+        return f
+
+    def many(self, X) -> np.ndarray:
+        """Evaluate each row of ``X``."""
+        X = np.asarray(X, dtype=float)
+        self._charge(X.shape[0])
+        if self._batch is not None:
+            F = np.asarray(self._batch(X), dtype=float).reshape(X.shape[0])
+        else:
+            F = np.array([self._scalar(x) for x in X])
+        self._track(X, F)
+        return F
+
+
+def as_rng(seed) -> np.random.Generator:
+    """A :class:`numpy.random.Generator` from a seed, a Generator, or None."""
+    if isinstance(seed, np.random.Generator):
+        return seed
+    if isinstance(seed, np.random.RandomState):
+        raise ParameterError("pass an int seed or a numpy.random.Generator, not a RandomState")
+    return np.random.default_rng(seed)
+
+
+def as_x0(x0) -> np.ndarray:
+    x = np.array(x0, dtype=float).reshape(-1)
+    if x.size == 0:
+        raise ParameterError("x0 is empty")
+    if not np.all(np.isfinite(x)):
+        raise ParameterError(f"x0 must be finite, got {x.tolist()}")
+    return x
+
+
+def as_bounds(bounds, n: int):
+    """Return ``(lower, upper)`` arrays of length ``n`` or ``None``.
+
+    Accepts :class:`scipy.optimize.Bounds` or a sequence of ``(low, high)``
+    pairs (``None`` for an open side), like :func:`scipy.optimize.minimize`.
+    """
+    if bounds is None:
+        return None
+    if isinstance(bounds, Bounds):
+        lo = np.broadcast_to(np.asarray(bounds.lb, dtype=float), (n,)).copy()
+        hi = np.broadcast_to(np.asarray(bounds.ub, dtype=float), (n,)).copy()
+    else:
+        pairs = list(bounds)
+        if len(pairs) != n:
+            raise ParameterError(f"bounds has {len(pairs)} pairs but x0 has {n} entries")
+        try:
+            lo = np.array([-np.inf if p[0] is None else p[0] for p in pairs], dtype=float)
+            hi = np.array([np.inf if p[1] is None else p[1] for p in pairs], dtype=float)
+        except (TypeError, IndexError, ValueError):
+            raise ParameterError("bounds must be a sequence of (low, high) pairs or a scipy Bounds") from None
+    if np.any(np.isnan(lo)) or np.any(np.isnan(hi)) or np.any(lo > hi):
+        raise ParameterError(f"invalid bounds: lower {lo.tolist()} upper {hi.tolist()}")
+    return lo, hi
+
+
+class History:
+    """Per-iteration record: ``nit, nfev, fun`` (the iteration's value) and ``best``."""
+
+    def __init__(self):
+        self._rows: list[tuple[int, int, float, float]] = []
+
+    def append(self, nit: int, nfev: int, fun: float, best: float):
+        self._rows.append((nit, nfev, float(fun), float(best)))
+
+    def as_dict(self) -> dict:
+        a = np.array(self._rows, dtype=float).reshape(-1, 4)
+        return {"nit": a[:, 0].astype(int), "nfev": a[:, 1].astype(int), "fun": a[:, 2], "best": a[:, 3]}
+
+
+def call_back(callback, x, fun, nit, nfev) -> bool:
+    """Call a user callback with an :class:`OptimizeResult`; True means stop."""
+    if callback is None:
+        return False
+    try:
+        return bool(callback(OptimizeResult(x=np.array(x, copy=True), fun=fun, nit=nit, nfev=nfev)))
+    except StopIteration:
+        return True
+
+
+def make_result(*, x, fun, obj: CountedObjective, nit, status, message, history: History,
+                method: str, started: float, **extra) -> OptimizeResult:
+    """Assemble the :class:`scipy.optimize.OptimizeResult` every optimiser returns."""
+    res = OptimizeResult(
+        x=np.asarray(x, dtype=float),
+        fun=float(fun),
+        nfev=obj.nfev,
+        nit=int(nit),
+        success=status in (COMPLETED, CALLBACK_STOP) and np.isfinite(fun),
+        status=int(status),
+        message=message,
+        history=history.as_dict(),
+        best_x=None if obj.best_x is None else obj.best_x.copy(),
+        best_fun=float(obj.best_fun),
+        method=method,
+        elapsed=time.perf_counter() - started,
+    )
+    res.update(extra)
+    return res
+
+
+def check_options(method: str, options: dict, allowed: set):
+    unknown = set(options) - allowed
+    if unknown:
+        raise ParameterError(
+            f"unknown option(s) {sorted(unknown)} for method {method!r}; valid: {sorted(allowed)}"
+        )

@@ -1,0 +1,169 @@
+"""One entry point for every optimiser, in the style of :func:`scipy.optimize.minimize`.
+
+Examples
+--------
+>>> import numpy as np
+>>> from hammerstein_ctrl.optimize import minimize, StepGain, PerturbationGain
+>>> f = lambda x: float(np.sum((x - 1.0) ** 2))
+>>> r = minimize(f, np.zeros(2), method="nspsa", maxfev=1001, seed=0,
+...              options={"a": StepGain(0.5, 10), "c": PerturbationGain(0.1)})
+>>> r.nfev, r.success
+(1001, True)
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+import scipy.optimize
+
+from ..exceptions import UnknownNameError
+from ._common import (
+    COMPLETED,
+    SOLVER_FAILED,
+    BudgetExhausted,
+    CountedObjective,
+    History,
+    as_x0,
+    check_options,
+    make_result,
+)
+from .amvo_sca import amvo_sca
+from .spsa import nlspsa, nspsa, spsa
+
+__all__ = ["minimize", "canonical_method", "METHODS", "SCIPY_METHODS"]
+
+#: The paper's methods, by canonical name.
+METHODS = {"spsa": spsa, "nlspsa": nlspsa, "nspsa": nspsa, "amvo-sca": amvo_sca}
+
+#: Local methods of :func:`scipy.optimize.minimize` that can be used through
+#: :func:`minimize` with the same counting and budget rules.
+SCIPY_METHODS = ("nelder-mead", "powell", "l-bfgs-b", "bfgs", "tnc", "slsqp", "cobyla", "trust-constr")
+
+_ALIASES = {
+    "nl-spsa": "nlspsa", "n-spsa": "nspsa", "amvosca": "amvo-sca", "amvo_sca": "amvo-sca",
+    "mvo-sca": "amvo-sca", "neldermead": "nelder-mead", "nelder_mead": "nelder-mead",
+}
+
+_OPTIONS = {
+    "spsa": {"a", "c", "divergence_factor"},
+    "nlspsa": {"a", "c", "norm_limit", "divergence_factor"},
+    "nspsa": {"a", "c", "divergence_factor"},
+    "amvo-sca": {"pop_size", "wep_min", "wep_max", "include_x0"},
+}
+
+
+def canonical_method(method: str) -> str:
+    """Canonical lower-case name of a method (``"N-SPSA"`` -> ``"nspsa"``).
+
+    Raises
+    ------
+    UnknownNameError
+        Listing the known methods.
+    """
+    key = str(method).strip().lower()
+    key = _ALIASES.get(key, key)
+    if key not in METHODS and key not in SCIPY_METHODS:
+        raise UnknownNameError(
+            f"unknown method {method!r}; known: {', '.join(METHODS)} "
+            f"(and scipy's {', '.join(SCIPY_METHODS)})"
+        )
+    return key
+
+
+def minimize(fun, x0, method: str = "nspsa", *, args=(), maxfev: int | None = None,
+             maxiter: int | None = None, seed=None, options: dict | None = None,
+             callback=None, bounds=None):
+    """Minimise ``fun`` from ``x0`` with one of the paper's methods (or scipy's).
+
+    Parameters
+    ----------
+    fun : callable
+        ``fun(x, *args) -> float``.  Objects with a ``batch(X)`` method (such
+        as :class:`~hammerstein_ctrl.objective.HammersteinCost`) are evaluated a
+        population at a time by AMVO-SCA and a pair at a time by the SPSA family.
+    x0 : array_like
+        Initial point.
+    method : str, default "nspsa"
+        ``"spsa"``, ``"nlspsa"``, ``"nspsa"``, ``"amvo-sca"``, or one of
+        :data:`SCIPY_METHODS` (delegated to :func:`scipy.optimize.minimize`).
+    args : tuple
+        Extra arguments for ``fun``.
+    maxfev : int, optional
+        Evaluation budget; never exceeded.
+    maxiter : int, optional
+        Iteration limit (``k_max`` for the SPSA family).
+    seed : int or numpy.random.Generator, optional
+        Every random choice comes from it; the same seed gives the same result
+        bit for bit.
+    options : dict, optional
+        Method options: ``a``, ``c`` (gain sequences), ``norm_limit``
+        (NL-SPSA's delta) and ``divergence_factor`` for the SPSA family;
+        ``pop_size``, ``wep_min``, ``wep_max``, ``include_x0`` for AMVO-SCA;
+        scipy's own options for scipy methods.
+    callback : callable, optional
+        Called after each iteration with an ``OptimizeResult(x, fun, nit, nfev)``;
+        returning True or raising StopIteration stops the run.
+    bounds : scipy.optimize.Bounds or sequence of (low, high), optional
+        Box constraints (required by AMVO-SCA).
+
+    Returns
+    -------
+    scipy.optimize.OptimizeResult
+        With ``x, fun, nfev, nit, success, status, message``, ``history`` (a dict
+        of per-iteration arrays ``nit, nfev, fun, best``), ``best_x``,
+        ``best_fun``, ``method`` and ``elapsed`` (seconds).
+
+    Raises
+    ------
+    UnknownNameError
+        For an unknown method.
+    ParameterError
+        For unknown options or invalid settings.
+    """
+    key = canonical_method(method)
+    options = dict(options or {})
+    if key in METHODS:
+        check_options(key, options, _OPTIONS[key])
+        return METHODS[key](fun, x0, args=args, maxfev=maxfev, maxiter=maxiter, seed=seed,
+                            bounds=bounds, callback=callback, **options)
+    return _scipy_minimize(key, fun, x0, args=args, maxfev=maxfev, maxiter=maxiter,
+                           options=options, callback=callback, bounds=bounds)
+
+
+def _scipy_minimize(method, fun, x0, *, args, maxfev, maxiter, options, callback, bounds):
+    started = time.perf_counter()
+    x0 = as_x0(x0)
+    obj = CountedObjective(fun, args, maxfev=maxfev)
+    history = History()
+    nit = 0
+
+    def wrapped(x):
+        with np.errstate(all="ignore"):
+            return obj(x)
+
+    def step(intermediate_result):
+        nonlocal nit
+        nit += 1
+        history.append(nit, obj.nfev, float(intermediate_result.fun), obj.best_fun)
+        if callback is not None and callback(intermediate_result):
+            raise StopIteration
+
+    opts = dict(options)
+    if maxfev is not None and method in ("nelder-mead", "powell"):
+        opts.setdefault("maxfev", maxfev)
+    if maxiter is not None:
+        opts.setdefault("maxiter", maxiter)
+    try:
+        res = scipy.optimize.minimize(wrapped, x0, method=method, bounds=bounds, options=opts,
+                                      callback=step)
+        x, fun_x, message = res.x, float(res.fun), str(res.message)
+        status = COMPLETED if res.success else SOLVER_FAILED
+    except BudgetExhausted:
+        x, fun_x = obj.best_x, obj.best_fun
+        status, message = COMPLETED, f"evaluation budget of {maxfev} exhausted"
+    if x is None:  # budget exhausted before any evaluation
+        x, fun_x = x0, np.nan
+    return make_result(x=x, fun=fun_x, obj=obj, nit=nit, status=status, message=message,
+                       history=history, method=method, started=started)

@@ -1,0 +1,284 @@
+"""SPSA, norm-limited SPSA (NL-SPSA) and normalized SPSA (N-SPSA).
+
+All three share Spall's simultaneous-perturbation iteration (paper Eq. 6-7):
+at iteration ``k = 1, 2, ..., k_max`` draw ``Delta ~ Bernoulli(+-1)^n``, evaluate
+``f+ = f(theta + c(k) Delta)`` and ``f- = f(theta - c(k) Delta)`` (two
+evaluations) and step ``theta <- theta - s``.  They differ in ``s``:
+
+* **SPSA** (Spall 1992): ``s = a(k) (f+ - f-) / (2 c(k) Delta)``.
+* **NL-SPSA** (Tanaka, Azuma & Sugie 2015; Ahmad et al. 2016): the same ``s``
+  with its Euclidean norm limited to ``delta``: if ``||s|| > delta`` then
+  ``s <- delta s / ||s||``.
+* **N-SPSA** (the paper, Eq. 9-12, Algorithm 4.2): ``s = a(k) hbar / (2 c(k) Delta)``
+  with ``hbar = f~+ - f~-``, ``f~± = f± / max(f+, f-)``, and ``hbar = 1`` on a tie.
+
+The final estimate is the last iterate ``theta(k_max)`` (paper section 4.3,
+step 3); it is evaluated once more to report ``fun``, so a run of ``k_max``
+iterations uses ``2 k_max + 1`` evaluations.  The best point seen among all
+evaluations is reported too (``best_x``, ``best_fun``).
+
+Corner cases the paper leaves open, decided here:
+
+* **N-SPSA normalisation** divides by ``max(|f+|, |f-|)``.  For the non-negative
+  objectives of identification this is exactly Eq. (12); for negative values it
+  keeps ``hbar`` a descent direction (dividing by a negative maximum would flip it).
+* ``max = 0`` (both values zero) is a tie: ``hbar = 1``.
+* NaN values count as ``+inf`` (a failed evaluation is the worst possible).
+  With one infinite value the normalised values are its sign (±1) and 0 for the
+  finite one, so ``hbar = ±1``; two equal infinities are a tie (``hbar = 1``).
+  ``hbar`` therefore always lies in [-2, 2] and N-SPSA cannot overflow.
+* **NL-SPSA** with an infinite difference steps ``delta`` along
+  ``-sign(f+ - f-) Delta / sqrt(n)`` (the limit of the normalised step); with
+  an undefined difference (NaN, or inf - inf) it does not move.
+* **Divergence.**  A run stops with ``status = 2`` and ``success = False``
+  ("diverged") when an iterate becomes non-finite (SPSA with an infinite
+  difference), when the better of the two values of an iteration exceeds
+  ``divergence_factor`` (default 1e6) times its value at the first iteration,
+  or when the iterate's norm exceeds ``divergence_factor * max(1, ||x0||)``.
+  This is how SPSA's expected blow-up on the paper's problems is reported: on
+  the EMPS its first step throws the parameters from O(1) to 1e7-1e9 (the
+  paper's Table 8 lists +-1.5662e6), where the model's output is nearly zero
+  and the objective stays finite but useless.
+
+Examples
+--------
+>>> import numpy as np
+>>> from hammerstein_ctrl.optimize import nspsa, StepGain, PerturbationGain
+>>> f = lambda x: float(np.sum((x - 1.0) ** 2))
+>>> r = nspsa(f, np.zeros(3), a=StepGain(0.5, 10, 0.602), c=PerturbationGain(0.1), maxiter=500, seed=1)
+>>> r.nfev, bool(r.fun < 1e-2)
+(1001, True)
+"""
+
+from __future__ import annotations
+
+import math
+import time
+
+import numpy as np
+
+from ..exceptions import ParameterError
+from ._common import (
+    CALLBACK_STOP,
+    COMPLETED,
+    DIVERGED,
+    CountedObjective,
+    History,
+    as_bounds,
+    as_rng,
+    as_x0,
+    call_back,
+    make_result,
+)
+from .gains import PerturbationGain, StepGain, as_gain
+
+__all__ = ["spsa", "nlspsa", "nspsa", "normalized_difference", "DEFAULT_MAXITER"]
+
+DEFAULT_MAXITER = 1000
+
+
+def normalized_difference(f_plus: float, f_minus: float) -> float:
+    """N-SPSA's ``hbar`` (paper Eq. 11-12) with the corner cases documented above.
+
+    Examples
+    --------
+    >>> normalized_difference(2.0, 1.0)
+    0.5
+    >>> normalized_difference(3.0, 3.0), normalized_difference(0.0, 0.0)
+    (1.0, 1.0)
+    >>> normalized_difference(float("inf"), 5.0), normalized_difference(float("nan"), 5.0)
+    (1.0, 1.0)
+    >>> normalized_difference(-2.0, -1.0)   # f+ better: move towards theta+
+    -0.5
+    """
+    fp = math.inf if f_plus != f_plus else f_plus
+    fm = math.inf if f_minus != f_minus else f_minus
+    m = max(abs(fp), abs(fm))
+    if m == 0.0:
+        return 1.0
+    if math.isinf(m):
+        tp = math.copysign(1.0, fp) if math.isinf(fp) else 0.0
+        tm = math.copysign(1.0, fm) if math.isinf(fm) else 0.0
+    else:
+        tp, tm = fp / m, fm / m
+    h = tp - tm
+    return 1.0 if h == 0.0 else h
+
+
+def _norm_limited(step: np.ndarray, diff: float, delta: np.ndarray, limit: float) -> np.ndarray:
+    """NL-SPSA's step: ``step`` with its norm clipped to ``limit``, safe for inf/NaN."""
+    if math.isnan(diff):
+        return np.zeros_like(delta)
+    norm = math.sqrt(float(step @ step)) if math.isfinite(diff) else math.inf
+    if math.isfinite(norm):
+        return step * (limit / norm) if norm > limit else step
+    # infinite difference or overflow in the raw step: keep only the direction
+    return (limit * math.copysign(1.0, diff) / math.sqrt(delta.size)) * delta
+
+
+def _nanmin2(a: float, b: float) -> float:
+    if a != a:
+        return b
+    if b != b:
+        return a
+    return min(a, b)
+
+
+def _run(
+    variant: str,
+    fun,
+    x0,
+    *,
+    args=(),
+    a=None,
+    c=None,
+    norm_limit: float | None = None,
+    maxiter: int | None = None,
+    maxfev: int | None = None,
+    divergence_factor: float = 1e6,
+    bounds=None,
+    seed=None,
+    callback=None,
+):
+    started = time.perf_counter()
+    theta = as_x0(x0)
+    n = theta.size
+    rng = as_rng(seed)
+    box = as_bounds(bounds, n)
+    if box is not None and (np.any(theta < box[0]) or np.any(theta > box[1])):
+        raise ParameterError(f"x0 {theta.tolist()} lies outside the bounds")
+    kmax = DEFAULT_MAXITER if maxiter is None else int(maxiter)
+    if maxfev is not None:
+        if maxfev < 1:
+            raise ParameterError(f"maxfev must be >= 1, got {maxfev}")
+        kmax = min(kmax, (int(maxfev) - 1) // 2)
+    if kmax < 0:
+        raise ParameterError(f"maxiter must be >= 0, got {maxiter}")
+    a = as_gain(StepGain.spall(0.1, max(kmax, 1)) if a is None else a, StepGain, "a")
+    c = as_gain(PerturbationGain(0.1) if c is None else c, PerturbationGain, "c")
+    if variant == "nlspsa":
+        if norm_limit is None or not (np.isfinite(norm_limit) and norm_limit > 0):
+            raise ParameterError(f"NL-SPSA needs a positive finite norm_limit (delta), got {norm_limit!r}")
+    if not divergence_factor > 1:
+        raise ParameterError(f"divergence_factor must exceed 1, got {divergence_factor!r}")
+
+    radius = divergence_factor * max(1.0, math.sqrt(float(theta @ theta)))
+    obj = CountedObjective(fun, args, maxfev=2 * kmax + 1)
+    history = History()
+    status, message = COMPLETED, f"completed {kmax} iterations"
+    f_ref = None
+    nit = 0
+    pair = np.empty((2, n))
+    with np.errstate(all="ignore"):
+        for k in range(1, kmax + 1):
+            delta = rng.integers(0, 2, n) * 2.0 - 1.0
+            ak, ck = a(k), c(k)
+            np.add(theta, ck * delta, out=pair[0])
+            np.subtract(theta, ck * delta, out=pair[1])
+            if box is not None:
+                np.clip(pair, box[0], box[1], out=pair)
+            f_plus, f_minus = obj.many(pair)
+            f_plus, f_minus = float(f_plus), float(f_minus)
+            if variant == "nspsa":
+                step = (ak * normalized_difference(f_plus, f_minus) / (2.0 * ck)) / delta
+            else:
+                diff = f_plus - f_minus
+                step = (ak * diff / (2.0 * ck)) / delta
+                if variant == "nlspsa":
+                    step = _norm_limited(step, diff, delta, norm_limit)
+            new = theta - step
+            if box is not None:
+                np.clip(new, box[0], box[1], out=new)
+            nit = k
+            f_k = _nanmin2(f_plus, f_minus)
+            history.append(k, obj.nfev, f_k, obj.best_fun)
+            if f_ref is None and math.isfinite(f_k):
+                f_ref = max(abs(f_k), np.finfo(float).tiny)
+            if not np.all(np.isfinite(new)):
+                status = DIVERGED
+                message = (f"diverged at iteration {k}: the update became non-finite "
+                           f"(f+ = {f_plus:.4g}, f- = {f_minus:.4g})")
+                break
+            theta = new
+            if f_ref is not None and f_k > divergence_factor * f_ref:
+                status = DIVERGED
+                message = (f"diverged at iteration {k}: objective {f_k:.4g} exceeds "
+                           f"{divergence_factor:g} x its first value {f_ref:.4g}")
+                break
+            if math.sqrt(float(theta @ theta)) > radius:
+                status = DIVERGED
+                message = (f"diverged at iteration {k}: the iterate's norm "
+                           f"{math.sqrt(float(theta @ theta)):.4g} exceeds {radius:.4g} "
+                           f"({divergence_factor:g} x max(1, ||x0||))")
+                break
+            if call_back(callback, theta, f_k, k, obj.nfev):
+                status, message = CALLBACK_STOP, f"stopped by the callback after {k} iterations"
+                break
+        fun_final = obj(theta)
+    if status == COMPLETED and not math.isfinite(fun_final):
+        message += "; the final estimate has a non-finite objective"
+    return make_result(
+        x=theta, fun=fun_final, obj=obj, nit=nit, status=status, message=message,
+        history=history, method=variant, started=started,
+    )
+
+
+def spsa(fun, x0, *, a=None, c=None, maxiter=None, maxfev=None, seed=None, args=(),
+         bounds=None, callback=None, divergence_factor=1e6):
+    """Spall's SPSA (paper Eq. 6-7).
+
+    Parameters
+    ----------
+    fun : callable
+        ``fun(x, *args) -> float``.
+    x0 : array_like
+        Initial point theta(0).
+    a : StepGain or float, optional
+        Step gains ``a(k)``; default ``StepGain.spall(0.1, maxiter)``.
+    c : PerturbationGain or float, optional
+        Perturbation gains ``c(k)``; default ``PerturbationGain(0.1)``.
+    maxiter : int, optional
+        Iterations ``k_max`` (default 1000).
+    maxfev : int, optional
+        Evaluation budget; caps ``k_max`` at ``(maxfev - 1) // 2``.
+    seed : int or numpy.random.Generator, optional
+        Source of the perturbations; the same seed gives the same run.
+    args : tuple
+        Extra arguments for ``fun``.
+    bounds : scipy.optimize.Bounds or sequence of (low, high), optional
+        Box; iterates and perturbed points are clipped to it.
+    callback : callable, optional
+        ``callback(OptimizeResult(x, fun, nit, nfev))`` after each iteration;
+        returning True or raising StopIteration stops the run.
+    divergence_factor : float, default 1e6
+        See the module notes.
+
+    Returns
+    -------
+    scipy.optimize.OptimizeResult
+        ``x, fun, nfev, nit, success, status, message, history, best_x, best_fun``.
+    """
+    return _run("spsa", fun, x0, a=a, c=c, maxiter=maxiter, maxfev=maxfev, seed=seed, args=args,
+                bounds=bounds, callback=callback, divergence_factor=divergence_factor)
+
+
+def nlspsa(fun, x0, *, a=None, c=None, norm_limit=0.01, maxiter=None, maxfev=None, seed=None,
+           args=(), bounds=None, callback=None, divergence_factor=1e6):
+    """Norm-limited SPSA: SPSA whose update vector's norm is capped at ``norm_limit``.
+
+    Parameters are those of :func:`spsa` plus ``norm_limit`` (the paper's
+    ``sat_delta``, default 0.01).
+    """
+    return _run("nlspsa", fun, x0, a=a, c=c, norm_limit=norm_limit, maxiter=maxiter, maxfev=maxfev,
+                seed=seed, args=args, bounds=bounds, callback=callback,
+                divergence_factor=divergence_factor)
+
+
+def nspsa(fun, x0, *, a=None, c=None, maxiter=None, maxfev=None, seed=None, args=(), bounds=None,
+          callback=None, divergence_factor=1e6):
+    """Normalized SPSA (the paper's Algorithm 4.2).
+
+    Parameters are those of :func:`spsa`.
+    """
+    return _run("nspsa", fun, x0, a=a, c=c, maxiter=maxiter, maxfev=maxfev, seed=seed, args=args,
+                bounds=bounds, callback=callback, divergence_factor=divergence_factor)
