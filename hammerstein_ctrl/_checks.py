@@ -39,12 +39,24 @@ def as_signal(x, name: str, *, allow_empty: bool = False) -> np.ndarray:
     return a
 
 
+def _simplest_decimal(x: float, radius: float) -> float:
+    """The value with the fewest significant digits within ``radius`` of ``x``."""
+    if abs(x) <= radius:
+        return 0.0
+    for digits in range(1, 17):
+        r = float(f"{x:.{digits}g}")
+        if abs(r - x) <= radius:
+            return r
+    return x
+
+
 def uniform_grid(t, name: str = "t", *, tolerance: float = GRID_TOLERANCE) -> tuple[np.ndarray, float]:
     """Check that ``t`` is a uniform time grid and return ``(t0 + k*dt, dt)``.
 
-    The step is estimated as ``(t[-1] - t[0]) / (N - 1)`` and rounded to 12
-    significant digits (so a grid stored in single precision such as EMPS's
-    ``0.00100002`` spacing gives ``dt = 0.001``).  Every sample must lie within
+    ``t0`` and ``dt`` are fitted by least squares and then rounded to the
+    simplest decimal consistent with the observed jitter (so a grid stored in
+    single precision, such as EMPS's ``0.00100002`` spacing, gives exactly
+    ``dt = 0.001`` and ``t0 = 0``).  Every sample must lie within
     ``tolerance * dt`` of ``t0 + k*dt``; the regularised grid is returned.
 
     Raises
@@ -63,13 +75,18 @@ def uniform_grid(t, name: str = "t", *, tolerance: float = GRID_TOLERANCE) -> tu
             f"{name} is not strictly increasing: {name}[{k + 1}] = {t[k + 1]!r} "
             f"follows {name}[{k}] = {t[k]!r}"
         )
-    dt = float(f"{(t[-1] - t[0]) / (t.size - 1):.12g}")
-    grid = t[0] + dt * np.arange(t.size)
+    n = t.size
+    k = np.arange(n)
+    dt, t0 = np.polyfit(k, t, 1) if n > 2 else (t[1] - t[0], t[0])
+    jitter = float(np.max(np.abs(t - (t0 + dt * k))))
+    dt = _simplest_decimal(float(dt), 2.0 * jitter / (n - 1))
+    t0 = _simplest_decimal(float(t0), jitter)
+    grid = t0 + dt * k
     dev = np.abs(t - grid)
-    k = int(np.argmax(dev))
-    if dev[k] > tolerance * dt:
+    i = int(np.argmax(dev))
+    if dev[i] > tolerance * dt:
         raise DataError(
-            f"{name} is an irregular time grid: sample {k} is {dev[k]:.3g} s away from the uniform "
+            f"{name} is an irregular time grid: sample {i} is {dev[i]:.3g} s away from the uniform "
             f"grid t0 + k*dt with dt = {dt:.6g} s (allowed: {tolerance:g}*dt); resample the record "
             "onto a uniform grid first"
         )

@@ -1,0 +1,58 @@
+"""Shared fixtures.
+
+EMPS tests need the benchmark files.  They are looked up through
+``$HAMMERSTEIN_CTRL_DATA`` (CI sets it to ``../shared/data``) or, for a developer
+checkout, ``../shared/data`` next to the repository.  When the files are truly
+absent those tests skip with a reason, unless ``HAMMERSTEIN_CTRL_REQUIRE_DATA=1``
+(set by ``.ci/run``), in which case they fail: CI must always exercise them.
+"""
+
+import os
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+REPO = Path(__file__).resolve().parents[1]
+
+
+def _emps_dir():
+    candidates = []
+    if os.environ.get("HAMMERSTEIN_CTRL_DATA"):
+        candidates.append(Path(os.environ["HAMMERSTEIN_CTRL_DATA"]) / "emps")
+    candidates.append(REPO.parent / "shared" / "data" / "emps")
+    for c in candidates:
+        if (c / "DATA_EMPS.mat").is_file() and (c / "DATA_EMPS_PULSES.mat").is_file():
+            return c
+    return None
+
+
+@pytest.fixture(scope="session")
+def emps_dir():
+    d = _emps_dir()
+    if d is None:
+        msg = ("EMPS files DATA_EMPS.mat / DATA_EMPS_PULSES.mat not found via $HAMMERSTEIN_CTRL_DATA "
+               "or ../shared/data")
+        if os.environ.get("HAMMERSTEIN_CTRL_REQUIRE_DATA") == "1":
+            pytest.fail(msg + " (HAMMERSTEIN_CTRL_REQUIRE_DATA=1: CI must have them)")
+        pytest.skip(msg)
+    return d
+
+
+@pytest.fixture(scope="session")
+def emps_case(emps_dir):
+    from hammerstein_ctrl import presets
+
+    return presets.emps(path=emps_dir)
+
+
+@pytest.fixture(scope="session")
+def trs_case():
+    from hammerstein_ctrl import presets
+
+    return presets.trs()
+
+
+@pytest.fixture
+def rng():
+    return np.random.default_rng(12345)

@@ -1,0 +1,87 @@
+import numpy as np
+import pytest
+
+from hammerstein_ctrl import (
+    Coulomb, CustomNonlinearity, DeadZone, ParameterError, PiecewiseLinear, Polynomial,
+    Saturation, Tanh, UnknownNameError, nonlinearity_from_name,
+)
+
+U = np.linspace(-2.0, 2.0, 41)
+
+CASES = [
+    (Tanh(), [-4.7, 0.12], lambda u: -4.7 * np.tanh(0.12 * u)),
+    (Coulomb(), [0.54, -0.4, 0.045], lambda u: 0.54 * u - 0.4 * np.sign(u) + 0.045),
+    (Polynomial(3), [1.0, -0.5, 0.25], lambda u: u - 0.5 * u**2 + 0.25 * u**3),
+    (Saturation(), [2.0, 1.5], lambda u: 2.0 * np.clip(u, -1.5, 1.5)),
+    (DeadZone(), [3.0, 0.5], lambda u: 3.0 * np.where(np.abs(u) > 0.5, u - 0.5 * np.sign(u), 0.0)),
+    (PiecewiseLinear([-1.0, 0.0, 1.0]), [-2.0, 0.0, 1.0],
+     lambda u: np.where(u < 0, 2.0 * u, u)),
+]
+
+
+@pytest.mark.parametrize("g, p, ref", CASES, ids=lambda c: getattr(c, "name", None))
+def test_values_match_closed_form(g, p, ref):
+    np.testing.assert_allclose(g(U, p), ref(U), rtol=1e-14, atol=1e-14)
+
+
+@pytest.mark.parametrize("g, p, ref", CASES, ids=lambda c: getattr(c, "name", None))
+def test_batch_equals_rows(g, p, ref, rng):
+    P = np.asarray(p) + 0.1 * rng.standard_normal((4, len(p)))
+    out = g(U, P)
+    assert out.shape == (4, U.size)
+    for row, pr in zip(out, P):
+        np.testing.assert_allclose(row, g(U, pr), rtol=1e-14, atol=1e-14)
+
+
+@pytest.mark.parametrize("g, p, ref", CASES, ids=lambda c: getattr(c, "name", None))
+def test_wrong_parameter_count_is_named(g, p, ref):
+    with pytest.raises(ParameterError, match=f"takes {g.n_params} parameter"):
+        g(U, list(p) + [1.0])
+    with pytest.raises(ParameterError):
+        g(U, 3.0)
+
+
+@pytest.mark.parametrize("g, p, ref", CASES[:3], ids=lambda c: getattr(c, "name", None))
+def test_derivative_matches_finite_difference(g, p, ref):
+    u = np.array([-1.3, -0.4, 0.7, 1.9])
+    h = 1e-6
+    fd = (g(u + h, p) - g(u - h, p)) / (2 * h)
+    np.testing.assert_allclose(g.derivative(u, p), fd, rtol=1e-6)
+
+
+def test_polynomial_has_no_constant_term():
+    g = Polynomial(4)
+    assert g.param_names == ("d1", "d2", "d3", "d4")
+    assert g(0.0, [1.0, 2.0, 3.0, 4.0]) == 0.0
+    with pytest.raises(ParameterError):
+        Polynomial(0)
+
+
+def test_piecewise_linear_extrapolates_and_validates():
+    g = PiecewiseLinear([0.0, 1.0])
+    np.testing.assert_allclose(g([-1.0, 2.0], [1.0, 3.0]), [-1.0, 5.0])
+    with pytest.raises(ParameterError, match="strictly increasing"):
+        PiecewiseLinear([1.0, 0.0])
+
+
+def test_custom_callable_scalar_and_vectorised():
+    f = lambda u, p: p[0] * u + p[1] * u**3
+    g = CustomNonlinearity(f, n_params=2, param_names=["k", "c"])
+    assert g.param_names == ("k", "c")
+    P = np.array([[1.0, 0.5], [2.0, 0.0]])
+    np.testing.assert_allclose(g(U, P), np.stack([f(U, P[0]), f(U, P[1])]))
+    gv = CustomNonlinearity(lambda u, p: p[..., :1] * u, n_params=1, vectorized=True)
+    assert gv(U, [[1.0], [2.0]]).shape == (2, U.size)
+    with pytest.raises(ParameterError, match="takes 2 parameter"):
+        g(U, [1.0])
+    bad = CustomNonlinearity(lambda u, p: np.ones(3), n_params=1)
+    with pytest.raises(ParameterError, match="returned shape"):
+        bad(U, [1.0])
+
+
+def test_lookup_by_name():
+    assert isinstance(nonlinearity_from_name("TANH"), Tanh)
+    assert nonlinearity_from_name("dead-zone").name == "deadzone"
+    assert nonlinearity_from_name("polynomial", degree=2).n_params == 2
+    with pytest.raises(UnknownNameError, match="unknown nonlinearity 'cubic'.*known: coulomb"):
+        nonlinearity_from_name("cubic")
