@@ -118,6 +118,24 @@ class Nonlinearity:
         p = self.check_params(params)
         return self._derivative(np.asarray(u, dtype=float), p)
 
+    def basis(self, u) -> np.ndarray | None:
+        """Regressors ``Phi`` with ``g(u; p) = p @ Phi`` if ``g`` is linear in its parameters.
+
+        Returns an array of shape ``(n_params, N)``, or ``None`` for families
+        that are not linear in their parameters.  The objective uses it to form
+        a whole batch of signals ``g(u)`` with one matrix product.
+
+        Examples
+        --------
+        >>> Coulomb().basis([-2.0, 3.0])
+        array([[-2.,  3.],
+               [-1.,  1.],
+               [ 1.,  1.]])
+        >>> Tanh().basis([1.0]) is None
+        True
+        """
+        return None
+
     def _evaluate(self, u: np.ndarray, p: np.ndarray) -> np.ndarray:  # pragma: no cover
         raise NotImplementedError
 
@@ -181,6 +199,10 @@ class Coulomb(Nonlinearity):
     def _derivative(self, u, p):
         return np.full(np.shape(u), p[0], dtype=float)
 
+    def basis(self, u):
+        u = np.asarray(u, dtype=float)
+        return np.stack([u, np.sign(u), np.ones_like(u)])
+
 
 class Polynomial(Nonlinearity):
     r"""Polynomial without constant term (paper Eq. 3 with ``g(0) = 0``).
@@ -219,6 +241,10 @@ class Polynomial(Nonlinearity):
         for i in range(self.degree - 1, 0, -1):
             acc = acc * u + i * cols[i - 1]
         return acc
+
+    def basis(self, u):
+        u = np.asarray(u, dtype=float)
+        return np.stack([u**i for i in range(1, self.degree + 1)])
 
     def __repr__(self):
         return f"Polynomial(degree={self.degree})"
@@ -318,6 +344,15 @@ class PiecewiseLinear(Nonlinearity):
         idx, _ = self._segments(u)
         bp = self.breakpoints
         return (p[idx + 1] - p[idx]) / (bp[idx + 1] - bp[idx])
+
+    def basis(self, u):
+        u = np.atleast_1d(np.asarray(u, dtype=float))
+        idx, w = self._segments(u)
+        phi = np.zeros((self.breakpoints.size, u.size))
+        cols = np.arange(u.size)
+        phi[idx, cols] = 1.0 - w
+        phi[idx + 1, cols] = w
+        return phi
 
     def __repr__(self):
         return f"PiecewiseLinear(breakpoints={self.breakpoints.tolist()})"

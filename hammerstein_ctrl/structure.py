@@ -134,11 +134,15 @@ class LinearStructure:
         den : ndarray, shape (B, den_order + 1)
         """
         theta = np.atleast_2d(np.asarray(theta, dtype=float))
-        if theta.shape[-1] != self.n_params:
+        if theta.ndim != 2 or theta.shape[-1] != self.n_params:
             raise ParameterError(
                 f"linear block takes {self.n_params} parameter(s) {list(self.param_names)}, "
                 f"got {theta.shape[-1]}"
             )
+        return self._coefficients(theta)
+
+    def _coefficients(self, theta: np.ndarray):
+        """:meth:`coefficients` for a validated ``(B, n_params)`` float array."""
         batch = theta.shape[0]
         num = np.repeat(self._num0[None, :], batch, axis=0)
         den = np.repeat(self._den0[None, :], batch, axis=0)

@@ -85,3 +85,14 @@ def test_lookup_by_name():
     assert nonlinearity_from_name("polynomial", degree=2).n_params == 2
     with pytest.raises(UnknownNameError, match="unknown nonlinearity 'cubic'.*known: coulomb"):
         nonlinearity_from_name("cubic")
+
+
+@pytest.mark.parametrize("g, p, ref", CASES, ids=lambda c: getattr(c, "name", None))
+def test_basis_reproduces_evaluation_when_linear_in_parameters(g, p, ref, rng):
+    phi = g.basis(U)
+    if g.name in ("tanh", "saturation", "deadzone"):
+        assert phi is None
+        return
+    assert phi.shape == (g.n_params, U.size)
+    P = np.asarray(p) + rng.standard_normal((3, len(p)))
+    np.testing.assert_allclose(P @ phi, g(U, P), rtol=1e-13, atol=1e-13)

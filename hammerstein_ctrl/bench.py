@@ -1,0 +1,95 @@
+"""Side-by-side speed measurements (``hammerstein-ctrl bench``).
+
+Timings on a shared machine are noisy, so every figure here is a ratio of two
+measurements taken in the same run, each the median of several repeats.
+"""
+
+from __future__ import annotations
+
+import statistics
+import time
+
+import numpy as np
+
+__all__ = ["time_call", "evaluation_speed", "optimizer_speed"]
+
+
+def time_call(fn, *, repeat: int = 5, number: int = 1) -> float:
+    """Median wall time of ``fn()`` in seconds over ``repeat`` runs of ``number`` calls."""
+    fn()  # warm-up (compilation, caches)
+    runs = []
+    for _ in range(repeat):
+        t0 = time.perf_counter()
+        for _ in range(number):
+            fn()
+        runs.append((time.perf_counter() - t0) / number)
+    return statistics.median(runs)
+
+
+def evaluation_speed(case, beta=None, *, batch: int = 50, reference_repeats: int = 5) -> dict:
+    """Time one cost evaluation through python-control and through our paths.
+
+    Returns a dict with seconds per evaluation (``forced_response``,
+    ``single``, ``batched`` per candidate) and the ratios, plus the largest
+    relative difference between the two outputs (a correctness check).
+    """
+    import control
+
+    beta = np.asarray(case.x0 if beta is None else beta, dtype=float)
+    model = case.structure.model(beta)
+    t, u, y = case.data.t, case.data.u, case.data.y
+
+    def via_control():
+        yhat = control.forced_response(model.linear, t, model.g(u)).outputs
+        return float(np.sum((y - yhat) ** 2))
+
+    rng = np.random.default_rng(0)
+    betas = beta + 1e-3 * rng.standard_normal((batch, beta.size))
+    ref = time_call(via_control, repeat=reference_repeats)
+    single = time_call(lambda: case.cost(beta), repeat=7, number=50)
+    batched = time_call(lambda: case.cost.batch(betas), repeat=7, number=5) / batch
+    yref = control.forced_response(model.linear, t, model.g(u)).outputs
+    err = float(np.max(np.abs(case.cost.simulate(beta) - yref)) / np.max(np.abs(yref)))
+    return {
+        "case": case.name, "samples": len(case.data), "forced_response_s": ref, "single_s": single,
+        "batched_s": batched, "batch": batch, "single_speedup": ref / single,
+        "batched_speedup": ref / batched, "max_rel_error": err,
+        "J_control": via_control(), "J_fast": case.cost(beta),
+    }
+
+
+def optimizer_speed(case, method: str = "nspsa", *, seed: int = 0, repeat: int = 3) -> dict:
+    """Wall time of one preset optimisation run, and the same NFE through python-control (estimated)."""
+    from .optimize import minimize
+
+    kwargs = case.minimize_kwargs(method)
+    result = minimize(case.cost, case.x0, seed=seed, **kwargs)
+    seconds = time_call(lambda: minimize(case.cost, case.x0, seed=seed, **kwargs), repeat=repeat)
+    return {"case": case.name, "method": method, "nfev": result.nfev, "seconds": seconds,
+            "fun": result.fun, "per_eval_s": seconds / result.nfev}
+
+
+def format_report(evals: list[dict], runs: list[dict]) -> str:
+    """Plain-text report of :func:`evaluation_speed` and :func:`optimizer_speed` results."""
+    lines = ["Cost evaluation J(beta): python-control vs hammerstein_ctrl (median wall time)", ""]
+    lines.append(f"{'case':<6}{'N':>7}{'forced_response':>17}{'ours, single':>15}{'ratio':>9}"
+                 f"{'ours, batched':>16}{'ratio':>9}{'max rel diff':>14}")
+    for e in evals:
+        lines.append(
+            f"{e['case']:<6}{e['samples']:>7}{e['forced_response_s'] * 1e3:>14.2f} ms"
+            f"{e['single_s'] * 1e6:>12.1f} us{e['single_speedup']:>8.0f}x"
+            f"{e['batched_s'] * 1e6:>13.1f} us{e['batched_speedup']:>8.0f}x{e['max_rel_error']:>14.1e}"
+        )
+    if evals:
+        lines.append(f"(batched: {evals[0]['batch']} candidates per call, time per candidate)")
+    if runs:
+        lines += ["", "Whole optimisation runs (paper presets)", ""]
+        ref = {e["case"]: e["forced_response_s"] for e in evals}
+        for r in runs:
+            est = ref.get(r["case"], np.nan) * r["nfev"]
+            lines.append(
+                f"{r['case']:<6}{r['method']:<10}{r['nfev']:>6} evaluations in {r['seconds']:.3f} s "
+                f"(J = {r['fun']:.4g}); through forced_response ~{est:.0f} s, "
+                f"{est / r['seconds']:.0f}x"
+            )
+    return "\n".join(lines)
