@@ -1,0 +1,201 @@
+import math
+import warnings
+
+import numpy as np
+import pytest
+
+from hammerstein_ctrl import ParameterError, UnknownNameError, minimize
+from hammerstein_ctrl.optimize import (
+    CALLBACK_STOP, COMPLETED, DIVERGED, NO_FINITE_VALUE, PerturbationGain, StepGain, amvo_sca,
+    normalized_difference, nspsa,
+)
+from hammerstein_ctrl.optimize.presets import eq8_methods, eq8_objective
+
+SEEDS = range(5)
+
+
+@pytest.fixture(autouse=True)
+def no_warnings():
+    """Hostile objectives must not flood the user with numpy warnings."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        yield
+
+
+# -- Section 4.1 (Eq. 8) ---------------------------------------------------------------
+@pytest.mark.parametrize("seed", SEEDS)
+def test_eq8_spsa_blows_up_and_says_so(seed):
+    r = minimize(eq8_objective, np.zeros(10), seed=seed, maxiter=1000, **eq8_methods()["spsa"])
+    fun = r.history["fun"][:30]
+    assert np.any(~np.isfinite(fun) | (fun > 1e6))
+    assert r.status == DIVERGED and not r.success and "diverged" in r.message
+    assert r.nit <= 30
+
+
+@pytest.mark.parametrize("seed", SEEDS)
+def test_eq8_nspsa_converges(seed):
+    r = minimize(eq8_objective, np.zeros(10), seed=seed, maxiter=1000, **eq8_methods()["nspsa"])
+    assert r.success and r.status == COMPLETED and r.nit == 1000 and r.nfev == 2001
+    assert r.fun < 0.2
+    assert r.fun == pytest.approx(eq8_objective(r.x), rel=0, abs=0)
+
+
+# -- N-SPSA's hbar corners ------------------------------------------------------------------
+@pytest.mark.parametrize("fp, fm, h", [
+    (2.0, 1.0, 0.5), (1.0, 2.0, -0.5),            # Eq. 11-12
+    (3.0, 3.0, 1.0), (0.0, 0.0, 1.0),              # ties, including max = 0
+    (math.inf, 5.0, 1.0), (5.0, math.inf, -1.0),   # one infinite value
+    (math.inf, math.inf, 1.0), (math.nan, math.nan, 1.0),
+    (math.nan, 5.0, 1.0), (5.0, math.nan, -1.0),   # NaN counts as +inf
+    (-2.0, -1.0, -0.5), (-1.0, -2.0, 0.5),         # negatives keep the descent direction
+    (-math.inf, 1.0, -1.0), (1.0, 0.0, 1.0),
+])
+def test_normalized_difference_corners(fp, fm, h):
+    assert normalized_difference(fp, fm) == h
+
+
+# -- determinism and counting ---------------------------------------------------------------
+@pytest.mark.parametrize("method", ["spsa", "nlspsa", "nspsa", "amvo-sca"])
+def test_same_seed_same_result_bit_for_bit(trs_case, method):
+    kw = trs_case.minimize_kwargs(method)
+    kw.pop("maxiter", None)
+    kw["maxfev"] = 601
+    r1 = minimize(trs_case.cost, trs_case.x0, seed=7, **kw)
+    r2 = minimize(trs_case.cost, trs_case.x0, seed=np.random.default_rng(7), **kw)
+    r3 = minimize(trs_case.cost, trs_case.x0, seed=8, **kw)
+    assert np.array_equal(r1.x, r2.x) and r1.fun == r2.fun and r1.nfev == r2.nfev
+    assert np.array_equal(r1.history["fun"], r2.history["fun"], equal_nan=True)
+    if method != "spsa":  # SPSA may diverge identically in one step for two seeds
+        assert not np.array_equal(r1.x, r3.x)
+
+
+@pytest.mark.parametrize("maxfev", [1, 2, 3, 100, 101, 999])
+def test_nfev_is_exact_and_maxfev_never_exceeded(maxfev):
+    calls = []
+
+    def f(x):
+        calls.append(1)
+        return float(np.sum(x**2))
+
+    r = nspsa(f, np.ones(3), maxfev=maxfev, seed=0)
+    assert r.nfev == len(calls) <= maxfev
+    assert r.nfev == 2 * ((maxfev - 1) // 2) + 1
+    calls.clear()
+    r = amvo_sca(f, np.ones(3), bounds=[(-2, 2)] * 3, maxfev=maxfev + 10, pop_size=10, seed=0)
+    assert r.nfev == len(calls) == 10 * ((maxfev + 10) // 10) <= maxfev + 10
+    calls.clear()
+    r = minimize(f, np.ones(3), method="nelder-mead", maxfev=maxfev + 5)
+    assert r.nfev == len(calls) <= maxfev + 5
+
+
+def test_batch_evaluation_is_used_and_counted(trs_case):
+    r = minimize(trs_case.cost, trs_case.x0, seed=0, **trs_case.minimize_kwargs("amvo-sca"))
+    assert r.nfev == 5000 and r.nit == 100
+    assert np.all(np.diff(r.history["best"]) <= 0)
+    assert r.fun == pytest.approx(trs_case.cost(r.x), rel=1e-12)
+    assert np.all(r.x >= [b[0] for b in trs_case.methods["amvo-sca"]["bounds"]])
+
+
+# -- hostile objectives -------------------------------------------------------------------------
+def test_overflowing_objective_makes_spsa_report_divergence():
+    def f(x):  # Python-float overflow raises OverflowError: scored as inf
+        return float(sum(abs(v) ** 50.0 for v in x.tolist())) if np.max(np.abs(x)) > 3 else float(np.sum(x**2))
+
+    r = minimize(f, np.full(4, 2.0), method="spsa", seed=0, maxiter=200,
+                 options={"a": StepGain(10.0, 0, 0.602), "c": PerturbationGain(0.5)})
+    assert r.status == DIVERGED and not r.success and "diverged" in r.message
+
+
+@pytest.mark.parametrize("method", ["spsa", "nlspsa", "nspsa"])
+def test_all_nan_objective_does_not_crash(method):
+    r = minimize(lambda x: float("nan"), np.zeros(3), method=method, seed=0, maxiter=50,
+                 options={"norm_limit": 0.1} if method == "nlspsa" else None)
+    assert not r.success and r.nfev <= 101 and np.all(np.isfinite(r.x))
+
+
+def test_all_inf_objective_in_amvo_sca():
+    r = amvo_sca(lambda x: math.inf, np.zeros(2), bounds=[(-1, 1)] * 2, maxfev=200, pop_size=10, seed=0)
+    assert r.status == NO_FINITE_VALUE and not r.success and "no universe" in r.message
+
+
+def test_zero_objective_keeps_nspsa_moving():
+    r = nspsa(lambda x: 0.0, np.zeros(2), maxiter=10, seed=0, a=StepGain(0.1, 1), c=PerturbationGain(0.1))
+    assert r.success and r.fun == 0.0 and not np.allclose(r.x, 0.0)  # hbar = 1 on the tie
+
+
+def test_negative_objective_is_minimised_by_nspsa():
+    f = lambda x: -float(np.exp(-np.sum((x - 2.0) ** 2)))
+    r = nspsa(f, np.full(2, 1.5), maxiter=2000, seed=3, a=StepGain(0.05, 10, 0.602), c=PerturbationGain(0.05))
+    assert r.fun < -0.99 and np.allclose(r.x, 2.0, atol=0.1)
+
+
+def test_nlspsa_steps_respect_the_norm_limit():
+    xs = []
+    minimize(lambda x: float(np.sum(x**4)) * 1e6, np.full(3, 5.0), method="nlspsa", seed=0, maxiter=100,
+             options={"a": StepGain(1.0, 10, 0.6), "c": PerturbationGain(0.1), "norm_limit": 0.05},
+             callback=lambda r: xs.append(r.x))
+    steps = np.linalg.norm(np.diff(np.array(xs), axis=0), axis=1)
+    assert steps.max() <= 0.05 + 1e-12 and steps.max() > 0.049
+
+
+def test_nlspsa_with_an_infinite_side_takes_a_limited_step():
+    f = lambda x: math.inf if x[0] > 1.0 else float(np.sum(x**2))
+    r = minimize(f, np.array([1.0, 1.0]), method="nlspsa", seed=0, maxiter=20,
+                 options={"a": StepGain(0.1), "c": PerturbationGain(0.2), "norm_limit": 0.1})
+    assert np.all(np.isfinite(r.x)) and r.fun < 2.0
+
+
+# -- API ------------------------------------------------------------------------------------
+def test_api_errors():
+    f = lambda x: float(np.sum(x**2))
+    with pytest.raises(UnknownNameError, match="unknown method 'pso'"):
+        minimize(f, [1.0], method="pso")
+    with pytest.raises(ParameterError, match=r"unknown option\(s\) \['alpha'\] for method 'nspsa'"):
+        minimize(f, [1.0], options={"alpha": 1})
+    with pytest.raises(ParameterError, match="amvo-sca needs finite bounds"):
+        minimize(f, [1.0], method="amvo-sca")
+    with pytest.raises(ParameterError, match="bounds has 1 pairs but x0 has 2"):
+        minimize(f, [1.0, 2.0], bounds=[(0, 1)])
+    with pytest.raises(ParameterError, match="x0 must be finite"):
+        minimize(f, [np.nan])
+    with pytest.raises(ParameterError, match="option 'a' must be a StepGain"):
+        minimize(f, [1.0], options={"a": "big"})
+
+
+def test_callback_and_bounds():
+    seen = []
+
+    def cb(res):
+        seen.append(res.x)
+        return len(seen) == 5
+
+    r = minimize(lambda x: float(np.sum((x - 3) ** 2)), [0.0, 0.0], seed=0, bounds=[(-1, 1), (-1, 1)],
+                 options={"a": StepGain(1.0), "c": PerturbationGain(0.1)}, callback=cb)
+    assert r.status == CALLBACK_STOP and r.nit == 5 and r.success
+    assert np.all(np.abs(np.array(seen)) <= 1.0)
+
+
+def test_gain_sequences():
+    a = StepGain(0.66, 24, 0.9)
+    assert a(1) == pytest.approx(0.66 / 25**0.9)
+    c = PerturbationGain(0.2, 1 / 6)
+    assert c(3) == pytest.approx(0.2 / 4 ** (1 / 6))
+    assert StepGain.spall(1.0, 500) == StepGain(1.0, 50.0, 0.602)
+    with pytest.raises(ParameterError, match="scale must be positive"):
+        StepGain(-1.0)
+
+
+# -- the paper's presets, a few seeds (the 25-seed statistics are in the study benchmark) --------
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_emps_presets_few_seeds(emps_case, seed):
+    r = {m: minimize(emps_case.cost, emps_case.x0, seed=seed, **emps_case.minimize_kwargs(m))
+         for m in ("spsa", "nlspsa", "nspsa")}
+    assert r["spsa"].status == DIVERGED
+    assert r["nspsa"].success and r["nspsa"].fun < 1.5 and r["nspsa"].nfev == 2501
+    assert r["nlspsa"].success and r["nlspsa"].fun < 10.0
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_trs_nspsa_few_seeds(trs_case, seed):
+    r = minimize(trs_case.cost, trs_case.x0, seed=seed, **trs_case.minimize_kwargs("nspsa"))
+    assert 178.4 < r.fun < 180.0 and r.nfev == 2001
