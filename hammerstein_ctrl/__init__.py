@@ -20,6 +20,7 @@ Examples
 from . import datasets, metrics, nonlinearities, optimize, presets, simulate
 from .datasets import IOData, load_emps, load_trs, make_trs_reconstruction, read_record
 from .exceptions import DataError, HammersteinError, ParameterError, UnknownNameError
+from .identify import IdentificationResult, identify
 from .metrics import fit_percent, fit_report, nrmse, rmse, sse
 from .model import HammersteinModel
 from .nonlinearities import (
@@ -44,7 +45,7 @@ __all__ = [
     "IOData", "load_emps", "load_trs", "make_trs_reconstruction", "read_record",
     "DataError", "HammersteinError", "ParameterError", "UnknownNameError",
     "fit_percent", "fit_report", "nrmse", "rmse", "sse",
-    "HammersteinModel",
+    "HammersteinModel", "identify", "IdentificationResult",
     "Nonlinearity", "Tanh", "Coulomb", "Polynomial", "Saturation", "DeadZone", "PiecewiseLinear",
     "CustomNonlinearity", "nonlinearity_from_name",
     "HammersteinCost", "HammersteinStructure", "LinearStructure",

@@ -17,6 +17,7 @@ Examples
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -27,7 +28,24 @@ from .nonlinearities import Coulomb, Tanh
 from .objective import HammersteinCost
 from .structure import HammersteinStructure, LinearStructure
 
-__all__ = ["Preset", "trs", "emps", "get", "PRESETS"]
+__all__ = ["Preset", "trs", "emps", "get", "PRESETS", "STRUCTURES", "X0",
+           "trs_structure", "emps_structure"]
+
+
+def trs_structure() -> HammersteinStructure:
+    """TRS (Eq. 16-17): ``(p + b0)/(p^2 + a1 p + a0)`` and ``d0 tanh(d1 u)``."""
+    return HammersteinStructure(LinearStructure(1, 2), Tanh())
+
+
+def emps_structure() -> HammersteinStructure:
+    """EMPS (Eq. 18-19): ``1/(p^2 + a1 p)`` and ``d0 u + d1 sign(u) + d2``."""
+    return HammersteinStructure(LinearStructure(0, 2, fixed={"a0": 0.0}), Coulomb())
+
+
+#: Structures of the case studies, by name.
+STRUCTURES = {"trs": trs_structure, "emps": emps_structure}
+#: The paper's initial points theta(0) (Tables 1 and 5).
+X0 = {"trs": (-2.0, 0.0, 5.0, -5.0, 0.0), "emps": (-1.0, 0.5, -0.4, 0.0)}
 
 
 @dataclass(frozen=True)
@@ -100,7 +118,7 @@ def trs(data: IOData | None = None, *, reject_unstable: bool = False) -> Preset:
     from .optimize.presets import trs_methods
 
     data = load_trs() if data is None else data
-    structure = HammersteinStructure(LinearStructure(1, 2), Tanh())
+    structure = trs_structure()
     paper = {
         "spsa": _paper_row(None, 1.41e32, None, None, 2000, [-2.3635e14, 2.3635e14, 2.3635e14, 2.3635e14, -2.3635e14]),
         "nlspsa": _paper_row(185.3377, 182.9412, 189.2094, 1.8982, 2000, [-1.95, 0.11, 4.75, -1.15, 0.49]),
@@ -112,7 +130,7 @@ def trs(data: IOData | None = None, *, reject_unstable: bool = False) -> Preset:
         name="trs",
         data=data,
         structure=structure,
-        x0=np.array([-2.0, 0.0, 5.0, -5.0, 0.0]),
+        x0=np.array(X0["trs"]),
         cost=HammersteinCost(data, structure, reject_unstable=reject_unstable),
         methods=trs_methods(),
         paper=paper,
@@ -143,7 +161,7 @@ def emps(path=None, *, duration: float = 12.0, reject_unstable: bool = False) ->
     from .optimize.presets import emps_methods
 
     data = load_emps("estimation", duration=duration, path=path)
-    structure = HammersteinStructure(LinearStructure(0, 2, fixed={"a0": 0.0}), Coulomb())
+    structure = emps_structure()
     paper = {
         "spsa": _paper_row(None, None, None, None, 2500, [-1.5662e6, -1.5662e6, 1.5662e6, -1.5662e6]),
         "nlspsa": _paper_row(1.8550, 0.3022, 7.2260, 1.8067, 2500, [3.1102, 0.6361, -0.5352, 0.0552]),
@@ -152,18 +170,15 @@ def emps(path=None, *, duration: float = 12.0, reject_unstable: bool = False) ->
         "ranksum": {"pair": ("nspsa", "nlspsa"), "p": 0.0015, "h": 1},
     }
 
-    def validation(path=path, duration=duration):
-        return load_emps("validation", duration=duration, path=path)
-
     return Preset(
         name="emps",
         data=data,
         structure=structure,
-        x0=np.array([-1.0, 0.5, -0.4, 0.0]),
+        x0=np.array(X0["emps"]),
         cost=HammersteinCost(data, structure, reject_unstable=reject_unstable),
         methods=emps_methods(),
         paper=paper,
-        validation=validation,
+        validation=functools.partial(load_emps, "validation", duration=duration, path=path),
     )
 
 

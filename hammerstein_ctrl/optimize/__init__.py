@@ -7,13 +7,14 @@ counts every objective evaluation in ``nfev`` and never exceeds ``maxfev``.
 
 from ._common import CALLBACK_STOP, COMPLETED, DIVERGED, NO_FINITE_VALUE, SOLVER_FAILED
 from .amvo_sca import amvo_sca
+from .least_squares import levenberg_marquardt
 from .gains import SPALL_ALPHA, SPALL_GAMMA, GainSequence, PerturbationGain, StepGain
 from .minimize import METHODS, SCIPY_METHODS, canonical_method, minimize
 from .spsa import nlspsa, normalized_difference, nspsa, spsa
 
 __all__ = [
     "minimize", "canonical_method", "METHODS", "SCIPY_METHODS",
-    "spsa", "nlspsa", "nspsa", "amvo_sca", "normalized_difference",
+    "spsa", "nlspsa", "nspsa", "amvo_sca", "levenberg_marquardt", "normalized_difference",
     "GainSequence", "StepGain", "PerturbationGain", "SPALL_ALPHA", "SPALL_GAMMA",
     "COMPLETED", "CALLBACK_STOP", "DIVERGED", "NO_FINITE_VALUE", "SOLVER_FAILED",
 ]

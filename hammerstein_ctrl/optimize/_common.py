@@ -45,6 +45,7 @@ class CountedObjective:
         self.nfev = 0
         self.best_x: np.ndarray | None = None
         self.best_fun = np.inf
+        self.nfev_monitor = 0
 
     @property
     def remaining(self) -> float:
@@ -80,6 +81,14 @@ class CountedObjective:
         f = self._scalar(x)
         self._track([x], np.array([f]))
         return f
+
+    def peek(self, x) -> float:
+        """Evaluate for monitoring only: not counted in ``nfev``, not tracked as best.
+
+        Counted separately in ``nfev_monitor``; the search never sees the value.
+        """
+        self.nfev_monitor += 1
+        return self._scalar(x)
 
     def many(self, X) -> np.ndarray:
         """Evaluate each row of ``X``."""
@@ -137,17 +146,31 @@ def as_bounds(bounds, n: int):
 
 
 class History:
-    """Per-iteration record: ``nit, nfev, fun`` (the iteration's value) and ``best``."""
+    """Per-iteration record.
+
+    Columns: ``nit``, ``nfev`` (evaluations so far), ``fun`` (the iteration's
+    value: the better of f+ and f- for the SPSA family, the best universe of
+    the iteration for AMVO-SCA), ``best`` (best value evaluated so far) and
+    ``estimate`` (the objective at the method's current estimate: theta(k) for
+    the SPSA family where monitored, NaN elsewhere; the best point for the
+    other methods).
+    """
 
     def __init__(self):
-        self._rows: list[tuple[int, int, float, float]] = []
+        self._rows: list[tuple] = []
 
-    def append(self, nit: int, nfev: int, fun: float, best: float):
-        self._rows.append((nit, nfev, float(fun), float(best)))
+    def append(self, nit: int, nfev: int, fun: float, best: float, estimate: float = np.nan):
+        self._rows.append((nit, nfev, float(fun), float(best), float(estimate)))
+
+    def set_last_estimate(self, estimate: float):
+        """Record the objective at the final estimate on the last row."""
+        if self._rows:
+            self._rows[-1] = self._rows[-1][:4] + (float(estimate),)
 
     def as_dict(self) -> dict:
-        a = np.array(self._rows, dtype=float).reshape(-1, 4)
-        return {"nit": a[:, 0].astype(int), "nfev": a[:, 1].astype(int), "fun": a[:, 2], "best": a[:, 3]}
+        a = np.array(self._rows, dtype=float).reshape(-1, 5)
+        return {"nit": a[:, 0].astype(int), "nfev": a[:, 1].astype(int), "fun": a[:, 2], "best": a[:, 3],
+                "estimate": a[:, 4]}
 
 
 def call_back(callback, x, fun, nit, nfev) -> bool:
@@ -174,6 +197,7 @@ def make_result(*, x, fun, obj: CountedObjective, nit, status, message, history:
         history=history.as_dict(),
         best_x=None if obj.best_x is None else obj.best_x.copy(),
         best_fun=float(obj.best_fun),
+        nfev_monitor=int(getattr(obj, "nfev_monitor", 0)),
         method=method,
         elapsed=time.perf_counter() - started,
     )

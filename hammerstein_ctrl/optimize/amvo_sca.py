@@ -155,7 +155,7 @@ def amvo_sca(fun, x0, *, bounds, maxfev: int | None = 5000, maxiter: int | None 
             if F[i] < best_f:
                 best_f, best_x = float(F[i]), U[i].copy()
             nit = t
-            history.append(t, obj.nfev, float(F[i]), obj.best_fun)
+            history.append(t, obj.nfev, float(F[i]), obj.best_fun, best_f)
             if call_back(callback, best_x, best_f, t, obj.nfev):
                 status, message = CALLBACK_STOP, f"stopped by the callback after {t} iterations"
                 break

@@ -30,12 +30,14 @@ from ._common import (
     make_result,
 )
 from .amvo_sca import amvo_sca
+from .least_squares import levenberg_marquardt
 from .spsa import nlspsa, nspsa, spsa
 
 __all__ = ["minimize", "canonical_method", "METHODS", "SCIPY_METHODS"]
 
-#: The paper's methods, by canonical name.
-METHODS = {"spsa": spsa, "nlspsa": nlspsa, "nspsa": nspsa, "amvo-sca": amvo_sca}
+#: The paper's methods and the least-squares rival, by canonical name.
+METHODS = {"spsa": spsa, "nlspsa": nlspsa, "nspsa": nspsa, "amvo-sca": amvo_sca,
+           "lm": levenberg_marquardt}
 
 #: Local methods of :func:`scipy.optimize.minimize` that can be used through
 #: :func:`minimize` with the same counting and budget rules.
@@ -44,13 +46,15 @@ SCIPY_METHODS = ("nelder-mead", "powell", "l-bfgs-b", "bfgs", "tnc", "slsqp", "c
 _ALIASES = {
     "nl-spsa": "nlspsa", "n-spsa": "nspsa", "amvosca": "amvo-sca", "amvo_sca": "amvo-sca",
     "mvo-sca": "amvo-sca", "neldermead": "nelder-mead", "nelder_mead": "nelder-mead",
+    "levenberg-marquardt": "lm", "least-squares": "lm", "least_squares": "lm",
 }
 
 _OPTIONS = {
-    "spsa": {"a", "c", "divergence_factor"},
-    "nlspsa": {"a", "c", "norm_limit", "divergence_factor"},
-    "nspsa": {"a", "c", "divergence_factor"},
+    "spsa": {"a", "c", "divergence_factor", "monitor"},
+    "nlspsa": {"a", "c", "norm_limit", "divergence_factor", "monitor"},
+    "nspsa": {"a", "c", "divergence_factor", "monitor"},
     "amvo-sca": {"pop_size", "wep_min", "wep_max", "include_x0"},
+    "lm": {"ftol", "xtol", "gtol"},
 }
 
 
@@ -86,8 +90,10 @@ def minimize(fun, x0, method: str = "nspsa", *, args=(), maxfev: int | None = No
     x0 : array_like
         Initial point.
     method : str, default "nspsa"
-        ``"spsa"``, ``"nlspsa"``, ``"nspsa"``, ``"amvo-sca"``, or one of
-        :data:`SCIPY_METHODS` (delegated to :func:`scipy.optimize.minimize`).
+        ``"spsa"``, ``"nlspsa"``, ``"nspsa"``, ``"amvo-sca"``, ``"lm"``
+        (Levenberg-Marquardt on the residuals; needs an objective with a
+        ``residuals`` method such as :class:`~hammerstein_ctrl.objective.HammersteinCost`),
+        or one of :data:`SCIPY_METHODS` (delegated to :func:`scipy.optimize.minimize`).
     args : tuple
         Extra arguments for ``fun``.
     maxfev : int, optional
@@ -99,7 +105,7 @@ def minimize(fun, x0, method: str = "nspsa", *, args=(), maxfev: int | None = No
         bit for bit.
     options : dict, optional
         Method options: ``a``, ``c`` (gain sequences), ``norm_limit``
-        (NL-SPSA's delta) and ``divergence_factor`` for the SPSA family;
+        (NL-SPSA's delta), ``divergence_factor`` and ``monitor`` for the SPSA family;
         ``pop_size``, ``wep_min``, ``wep_max``, ``include_x0`` for AMVO-SCA;
         scipy's own options for scipy methods.
     callback : callable, optional
@@ -146,7 +152,7 @@ def _scipy_minimize(method, fun, x0, *, args, maxfev, maxiter, options, callback
     def step(intermediate_result):
         nonlocal nit
         nit += 1
-        history.append(nit, obj.nfev, float(intermediate_result.fun), obj.best_fun)
+        history.append(nit, obj.nfev, float(intermediate_result.fun), obj.best_fun, obj.best_fun)
         if callback is not None and callback(intermediate_result):
             raise StopIteration
 

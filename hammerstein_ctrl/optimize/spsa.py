@@ -139,6 +139,7 @@ def _run(
     bounds=None,
     seed=None,
     callback=None,
+    monitor: int = 0,
 ):
     started = time.perf_counter()
     theta = as_x0(x0)
@@ -161,6 +162,9 @@ def _run(
             raise ParameterError(f"NL-SPSA needs a positive finite norm_limit (delta), got {norm_limit!r}")
     if not divergence_factor > 1:
         raise ParameterError(f"divergence_factor must exceed 1, got {divergence_factor!r}")
+    if int(monitor) != monitor or monitor < 0:
+        raise ParameterError(f"monitor must be a non-negative integer, got {monitor!r}")
+    every = max(1, kmax // int(monitor)) if monitor else 0
 
     radius = divergence_factor * max(1.0, math.sqrt(float(theta @ theta)))
     obj = CountedObjective(fun, args, maxfev=2 * kmax + 1)
@@ -191,7 +195,8 @@ def _run(
                 np.clip(new, box[0], box[1], out=new)
             nit = k
             f_k = _nanmin2(f_plus, f_minus)
-            history.append(k, obj.nfev, f_k, obj.best_fun)
+            estimate = obj.peek(new) if every and k % every == 0 and k < kmax else math.nan
+            history.append(k, obj.nfev, f_k, obj.best_fun, estimate)
             if f_ref is None and math.isfinite(f_k):
                 f_ref = max(abs(f_k), np.finfo(float).tiny)
             if not np.all(np.isfinite(new)):
@@ -215,6 +220,7 @@ def _run(
                 status, message = CALLBACK_STOP, f"stopped by the callback after {k} iterations"
                 break
         fun_final = obj(theta)
+    history.set_last_estimate(fun_final)
     if status == COMPLETED and not math.isfinite(fun_final):
         message += "; the final estimate has a non-finite objective"
     return make_result(
@@ -224,7 +230,7 @@ def _run(
 
 
 def spsa(fun, x0, *, a=None, c=None, maxiter=None, maxfev=None, seed=None, args=(),
-         bounds=None, callback=None, divergence_factor=1e6):
+         bounds=None, callback=None, divergence_factor=1e6, monitor=0):
     """Spall's SPSA (paper Eq. 6-7).
 
     Parameters
@@ -252,6 +258,11 @@ def spsa(fun, x0, *, a=None, c=None, maxiter=None, maxfev=None, seed=None, args=
         returning True or raising StopIteration stops the run.
     divergence_factor : float, default 1e6
         See the module notes.
+    monitor : int, default 0
+        Evaluate f at the iterate theta(k) at about this many evenly spaced
+        iterations, for convergence curves (``history["estimate"]``).  These
+        evaluations never influence the search and are counted in
+        ``nfev_monitor``, not in ``nfev``.
 
     Returns
     -------
@@ -259,11 +270,11 @@ def spsa(fun, x0, *, a=None, c=None, maxiter=None, maxfev=None, seed=None, args=
         ``x, fun, nfev, nit, success, status, message, history, best_x, best_fun``.
     """
     return _run("spsa", fun, x0, a=a, c=c, maxiter=maxiter, maxfev=maxfev, seed=seed, args=args,
-                bounds=bounds, callback=callback, divergence_factor=divergence_factor)
+                bounds=bounds, callback=callback, divergence_factor=divergence_factor, monitor=monitor)
 
 
 def nlspsa(fun, x0, *, a=None, c=None, norm_limit=0.01, maxiter=None, maxfev=None, seed=None,
-           args=(), bounds=None, callback=None, divergence_factor=1e6):
+           args=(), bounds=None, callback=None, divergence_factor=1e6, monitor=0):
     """Norm-limited SPSA: SPSA whose update vector's norm is capped at ``norm_limit``.
 
     Parameters are those of :func:`spsa` plus ``norm_limit`` (the paper's
@@ -271,14 +282,14 @@ def nlspsa(fun, x0, *, a=None, c=None, norm_limit=0.01, maxiter=None, maxfev=Non
     """
     return _run("nlspsa", fun, x0, a=a, c=c, norm_limit=norm_limit, maxiter=maxiter, maxfev=maxfev,
                 seed=seed, args=args, bounds=bounds, callback=callback,
-                divergence_factor=divergence_factor)
+                divergence_factor=divergence_factor, monitor=monitor)
 
 
 def nspsa(fun, x0, *, a=None, c=None, maxiter=None, maxfev=None, seed=None, args=(), bounds=None,
-          callback=None, divergence_factor=1e6):
+          callback=None, divergence_factor=1e6, monitor=0):
     """Normalized SPSA (the paper's Algorithm 4.2).
 
     Parameters are those of :func:`spsa`.
     """
     return _run("nspsa", fun, x0, a=a, c=c, maxiter=maxiter, maxfev=maxfev, seed=seed, args=args,
-                bounds=bounds, callback=callback, divergence_factor=divergence_factor)
+                bounds=bounds, callback=callback, divergence_factor=divergence_factor, monitor=monitor)
