@@ -121,8 +121,13 @@ def _structure_from_args(args):
     from .structure import HammersteinStructure, LinearStructure
 
     if args.structure:
-        if args.orders or args.nonlinearity:
-            raise HammersteinError("give either --structure or --orders/--nonlinearity, not both")
+        extra = [flag for flag, given in (("--orders", args.orders), ("--nonlinearity", args.nonlinearity),
+                                          ("--fix", args.fix), ("--degree", args.degree is not None),
+                                          ("--breakpoints", args.breakpoints), ("--free-gain", args.free_gain))
+                 if given]
+        if extra:
+            raise HammersteinError(f"{', '.join(extra)} cannot be combined with --structure {args.structure} "
+                                   "(use --orders/--nonlinearity to build your own structure)")
         return presets.STRUCTURES[args.structure](), presets.X0[args.structure]
     if not (args.orders and args.nonlinearity):
         raise HammersteinError("give --structure trs|emps, or --orders L M and --nonlinearity NAME")

@@ -26,7 +26,7 @@ import numpy as np
 
 __all__ = [
     "time_response", "error_response", "psd", "dominant_frequency", "bode", "convergence",
-    "nonlinearity", "final_cost", "study_figures",
+    "nonlinearity", "final_cost", "study_figure_set", "study_figures",
 ]
 
 
@@ -239,8 +239,9 @@ def convergence(source, *, quantity: str = "estimate", title=None, ax=None, band
                   "fun": "J of the iteration"}.get(quantity, quantity)
     fig, (a,) = _figure(ax)
     for label, runs in curves.items():
-        runs = [(n, v) for n, v in runs if n.size]
+        runs = [(n, v) for n, v in runs if n.size and np.isfinite(v).any()]
         if not runs:
+            a.plot([], [], " ", label=f"{label}: no finite value (diverged)")
             continue
         grid = np.unique(np.concatenate([n for n, _ in runs]))
         stack = np.array([_step_interp(grid, n, b) for n, b in runs])
@@ -312,22 +313,20 @@ def final_cost(study, *, title=None, ax=None):
 
 
 def _zoom_window(data) -> tuple[float, float]:
-    span = data.duration
-    start = data.t[0] + 0.25 * span
-    return (float(start), float(start + 0.1 * span))
+    """A tenth of the record, a quarter of the way in, on round numbers."""
+    width = float(f"{0.1 * data.duration:.2g}")
+    start = float(f"{data.t[0] + 0.25 * data.duration:.2g}")
+    return (start, start + width)
 
 
-def study_figures(study, out_dir, *, formats=("png",), validation=None) -> list[Path]:
-    """Write the paper's figures for a study's best models into ``out_dir``.
+def study_figure_set(study, *, validation=None) -> dict:
+    """The paper's figures for a study's best models, as ``{name: Figure}``.
 
     Methods whose every trial diverged are left out of the model figures (their
-    outputs would swamp the scale) and named in the titles.  Returns the paths.
+    outputs would swamp the scale) and named in the titles.
     """
     from .report import METHOD_LABELS
 
-    plt = _pyplot()
-    out_dir = Path(out_dir)
-    out_dir.mkdir(parents=True, exist_ok=True)
     case, data = study.case, study.case.data
     summary = study.summary()
     shown, dropped = {}, []
@@ -352,8 +351,16 @@ def study_figures(study, out_dir, *, formats=("png",), validation=None) -> list[
     if validation is not None:
         figures["validation"] = time_response(validation, shown, zoom=_zoom_window(validation),
                                               title=f"{validation.name}: best models on the validation record{note}")
+    return figures
+
+
+def study_figures(study, out_dir, *, formats=("png",), validation=None) -> list[Path]:
+    """Write :func:`study_figure_set` into ``out_dir`` (one file per figure and format); return the paths."""
+    plt = _pyplot()
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
     paths = []
-    for name, fig in figures.items():
+    for name, fig in study_figure_set(study, validation=validation).items():
         for fmt in formats:
             path = out_dir / f"{name}.{fmt}"
             fig.savefig(path, dpi=120)

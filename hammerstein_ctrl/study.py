@@ -150,6 +150,12 @@ def _read_records(path: Path) -> list[dict]:
     return records
 
 
+def _ends_with_newline(path: Path) -> bool:
+    with open(path, "rb") as fh:
+        fh.seek(-1, os.SEEK_END)
+        return fh.read(1) == b"\n"
+
+
 def _make_executor(executor, jobs: int | None):
     if executor is None:
         workers = jobs or os.cpu_count() or 1
@@ -228,7 +234,12 @@ def run_study(case, methods, trials: int = 25, seed: int = 0, executor=None, res
 
         bar = tqdm(total=len(methods) * int(trials), initial=len(done), unit="trial",
                    desc=f"{case.name}: {'/'.join(methods)}")
-    out = open(path, "a") if path is not None else None
+    out = None
+    if path is not None:
+        out = open(path, "a")
+        if path.stat().st_size and not _ends_with_newline(path):
+            out.write("\n")  # close a line cut short by an interruption; it is skipped when read
+            out.flush()
     started = time.perf_counter()
     try:
         def finish(rec):

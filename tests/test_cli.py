@@ -1,0 +1,95 @@
+import json
+
+import numpy as np
+import pytest
+
+from hammerstein_ctrl import load_trs
+from hammerstein_ctrl.cli import main
+
+
+@pytest.fixture
+def trs_csv(tmp_path):
+    return load_trs()[:2000].to_csv(tmp_path / "trs.csv")
+
+
+def run(capsys, *argv):
+    code = main(list(argv))
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def test_identify_a_users_csv(capsys, tmp_path, trs_csv):
+    code, out, err = run(capsys, "identify", "--data", str(trs_csv), "--structure", "trs", "--method", "lm",
+                         "--maxfev", "800", "--out", str(tmp_path / "m.json"), "--plot", str(tmp_path / "m.png"))
+    assert code == 0, err
+    assert "lm on 'trs': J =" in out and "fit =" in out
+    model = json.loads((tmp_path / "m.json").read_text())
+    assert set(model["params"]) == {"b0", "a0", "a1", "d0", "d1"}
+    assert (tmp_path / "m.png").stat().st_size > 10_000
+
+
+def test_identify_with_explicit_structure(capsys, trs_csv):
+    code, out, err = run(capsys, "identify", "--data", str(trs_csv), "--orders", "1", "2",
+                         "--nonlinearity", "tanh", "--x0", "-2", "0.1", "5", "-5", "0.1",
+                         "--method", "nspsa", "--maxfev", "401", "--gain-a", "0.025", "11", "0.3",
+                         "--gain-c", "0.2", "0.3333")
+    assert code == 0, err
+    assert "nfev = 401" in out
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["identify", "--data", "nope.csv", "--structure", "trs"], "data file not found: nope.csv"),
+    (["identify", "--data", "{csv}", "--structure", "trs", "--method", "pso"], "unknown method 'pso'"),
+    (["identify", "--data", "{csv}", "--structure", "trs", "--input", "volts"], "no input column 'volts'"),
+    (["identify", "--data", "{bad}", "--structure", "trs"], "data row 2 has a non-numeric field"),
+    (["identify", "--data", "{csv}", "--orders", "1", "2", "--nonlinearity", "cubic", "--x0", "1"],
+     "unknown nonlinearity 'cubic'"),
+    (["identify", "--data", "{csv}", "--orders", "1", "2", "--nonlinearity", "tanh", "--x0", "1", "2"],
+     "beta must have 5 entries"),
+    (["identify", "--data", "{csv}", "--orders", "1", "2", "--nonlinearity", "tanh", "--fix", "a0"],
+     "--fix expects NAME=VALUE"),
+    (["identify", "--data", "{csv}", "--structure", "trs", "--fix", "a0=0"],
+     "--fix cannot be combined with --structure trs"),
+    (["reproduce", "trs", "--data", "x"], "--data applies to the EMPS case only"),
+])
+def test_bad_inputs_exit_nonzero_with_one_clear_line(capsys, tmp_path, trs_csv, argv, message):
+    bad = tmp_path / "bad.csv"
+    bad.write_text("t,u,y\n0,1,2\n0.1,oops,3\n")
+    argv = [a.replace("{csv}", str(trs_csv)).replace("{bad}", str(bad)) for a in argv]
+    code, out, err = run(capsys, *argv)
+    assert code == 2
+    assert err.startswith("hammerstein-ctrl: error: ") and message in err.splitlines()[0]
+    assert "Traceback" not in err
+
+
+def test_argparse_rejects_bad_numbers(capsys):
+    with pytest.raises(SystemExit) as exc:
+        main(["identify", "--data", "x.csv", "--structure", "trs", "--x0", "1", "abc"])
+    assert exc.value.code == 2
+    assert "invalid float value: 'abc'" in capsys.readouterr().err
+
+
+def test_reproduce_writes_tables_models_and_figures(capsys, tmp_path):
+    out_dir = tmp_path / "trs"
+    code, out, err = run(capsys, "reproduce", "trs", "--trials", "3", "--methods", "nspsa", "nlspsa", "spsa",
+                         "--out", str(out_dir), "--jobs", "1", "--svg", "--no-progress")
+    assert code == 0, err
+    assert "paper" in out and "N-SPSA" in out and "Wilcoxon rank-sum" in out
+    assert "forced_response" in out
+    for name in ("results.jsonl", "summary.json", "summary.md", "summary.csv", "best_models.json"):
+        assert (out_dir / name).stat().st_size > 0
+    summary = json.loads((out_dir / "summary.json").read_text())
+    assert summary["nspsa"]["n"] == 3 and summary["spsa"]["diverged"] == 3
+    for fig in ("time_response", "error", "psd", "bode", "nonlinearity", "convergence", "final_cost"):
+        for ext in ("png", "svg"):
+            assert (out_dir / "figures" / f"{fig}.{ext}").stat().st_size > 5_000
+    # rerunning resumes from results.jsonl
+    code, out, err = run(capsys, "reproduce", "trs", "--trials", "3", "--methods", "nspsa", "nlspsa", "spsa",
+                         "--out", str(out_dir), "--jobs", "1", "--no-figures", "--no-progress")
+    assert code == 0 and "9 trials reused" in out
+
+
+def test_bench_prints_ratios(capsys):
+    code, out, err = run(capsys, "bench", "--cases", "trs")
+    assert code == 0
+    assert "forced_response" in out and "x" in out and "evaluations in" in out

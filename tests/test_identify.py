@@ -1,0 +1,61 @@
+import control as ct
+import numpy as np
+import pytest
+
+from hammerstein_ctrl import (
+    Coulomb, HammersteinStructure, IOData, LinearStructure, ParameterError, Polynomial, identify,
+)
+
+
+def test_identify_known_truth_polynomial_system():
+    """A noise-free synthetic system: LM recovers the true parameters."""
+    structure = HammersteinStructure(LinearStructure(0, 2), Polynomial(3))
+    truth = np.array([2.0, 1.5, 1.0, 0.0, 0.3])  # H = 1/(p^2 + 1.5p + 2), g = u + 0.3u^3
+    rng = np.random.default_rng(4)
+    t = np.arange(3000) * 0.01
+    u = np.repeat(rng.uniform(-1.5, 1.5, 60), 50)
+    y = structure.model(truth).simulate(t, u)
+    data = IOData(u, y, t, name="synthetic")
+    res = identify(data, structure, method="lm", x0=[1.0, 1.0, 0.5, 0.1, 0.1], maxfev=2000)
+    np.testing.assert_allclose(res.x, truth, rtol=1e-6, atol=1e-8)
+    assert res.fun < 1e-12 and res.fit_percent > 99.999
+    assert isinstance(res.model.linear, ct.TransferFunction)
+    assert res.params["a1"] == pytest.approx(1.5, rel=1e-6)
+
+
+def test_identify_trs_nspsa_result_is_usable_in_python_control(trs_case):
+    kw = {k: v for k, v in trs_case.minimize_kwargs("nspsa").items() if k != "method"}
+    res = identify(trs_case.data, trs_case.structure, method="nspsa", x0=trs_case.x0, seed=3, **kw)
+    assert 178.4 < res.fun < 180.0 and res.nfev == 2001 and res.success
+    assert res.fun == pytest.approx(trs_case.cost(res.x), rel=1e-12)
+    # the fitted model wires into a loop with a controller
+    sys = res.model.to_iosys()
+    loop = ct.interconnect([ct.summing_junction(["r", "-y"], "e"),
+                            ct.tf([0.5], [1.0], inputs="e", outputs="u"), sys], inputs="r", outputs="y")
+    assert loop.ninputs == 1 and loop.noutputs == 1
+    d = res.to_dict()
+    assert d["params"]["b0"] == res.x[0] and d["linear"]["den"][0] == 1.0
+    assert "fit =" in res.summary()
+
+
+def test_identify_emps_by_preset_name_and_validation(emps_case):
+    res = identify(emps_case.data, "emps", method="lm", maxfev=600)
+    assert res.fun == pytest.approx(0.208517, abs=2e-6)
+    assert res.nfev < 600
+    val = res.validate(emps_case.validation())
+    assert 75 < val["fit_percent"] < 90
+
+
+def test_identify_input_errors(trs_case):
+    s = HammersteinStructure(LinearStructure(0, 2, fixed={"a0": 0.0}), Coulomb())
+    with pytest.raises(ParameterError, match=r"give an initial point x0 = \[a1, d0, d1, d2\]"):
+        identify(trs_case.data, s)
+    with pytest.raises(ParameterError, match="beta must have 4 entries"):
+        identify(trs_case.data, s, x0=[1, 2, 3])
+    with pytest.raises(ParameterError, match="unknown structure 'cstr'"):
+        identify(trs_case.data, "cstr")
+    with pytest.raises(ParameterError, match="data must be an IOData"):
+        identify(np.zeros(10), s, x0=[1, 1, 1, 1])
+    res = identify(trs_case.data, s, method="amvo-sca", bounds=[(0, 5), (0, 1), (-1, 1), (-1, 1)],
+                   maxfev=200, seed=0)
+    assert res.nfev == 200  # x0 defaulted to the centre of the box
