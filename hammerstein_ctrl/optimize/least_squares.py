@@ -19,6 +19,7 @@ import time
 
 import numpy as np
 import scipy.optimize
+from threadpoolctl import threadpool_limits
 
 from ..exceptions import ParameterError
 from ._common import (
@@ -106,7 +107,11 @@ def levenberg_marquardt(fun, x0, *, maxfev: int | None = None, maxiter=None, see
     else:
         kwargs.update(method="trf", bounds=box)
     try:
-        res = scipy.optimize.least_squares(counted, x0, **kwargs)
+        # The residual vectors are long enough for OpenBLAS to thread its dot
+        # products; handing off to those threads between compiled simulations
+        # made each evaluation ~50x slower on a 2-core machine.
+        with threadpool_limits(limits=1, user_api="blas"):
+            res = scipy.optimize.least_squares(counted, x0, **kwargs)
         x, status, message = res.x, (COMPLETED if res.success else SOLVER_FAILED), str(res.message)
         fun_x = float(2.0 * res.cost)
     except BudgetExhausted:
