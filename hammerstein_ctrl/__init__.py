@@ -17,7 +17,7 @@ Examples
 (True, 'TransferFunction')
 """
 
-from . import datasets, metrics, nonlinearities, optimize, presets, simulate
+from . import datasets, metrics, nonlinearities, optimize, plots, presets, simulate, study
 from .datasets import IOData, load_emps, load_trs, make_trs_reconstruction, read_record
 from .exceptions import DataError, HammersteinError, ParameterError, UnknownNameError
 from .identify import IdentificationResult, identify
@@ -37,11 +37,12 @@ from .nonlinearities import (
 from .objective import HammersteinCost
 from .optimize import PerturbationGain, StepGain, minimize
 from .structure import HammersteinStructure, LinearStructure
+from .study import StudyResult, run_study
 
 __version__ = "0.1.0"
 
 __all__ = [
-    "datasets", "metrics", "nonlinearities", "optimize", "presets", "simulate",
+    "datasets", "metrics", "nonlinearities", "optimize", "plots", "presets", "simulate", "study",
     "IOData", "load_emps", "load_trs", "make_trs_reconstruction", "read_record",
     "DataError", "HammersteinError", "ParameterError", "UnknownNameError",
     "fit_percent", "fit_report", "nrmse", "rmse", "sse",
@@ -49,6 +50,6 @@ __all__ = [
     "Nonlinearity", "Tanh", "Coulomb", "Polynomial", "Saturation", "DeadZone", "PiecewiseLinear",
     "CustomNonlinearity", "nonlinearity_from_name",
     "HammersteinCost", "HammersteinStructure", "LinearStructure",
-    "minimize", "StepGain", "PerturbationGain",
+    "minimize", "StepGain", "PerturbationGain", "run_study", "StudyResult",
     "__version__",
 ]

@@ -11,7 +11,7 @@ import time
 
 import numpy as np
 
-__all__ = ["time_call", "evaluation_speed", "optimizer_speed"]
+__all__ = ["time_call", "forced_response_cost", "evaluation_speed", "optimizer_speed", "format_report"]
 
 
 def time_call(fn, *, repeat: int = 5, number: int = 1) -> float:
@@ -26,6 +26,15 @@ def time_call(fn, *, repeat: int = 5, number: int = 1) -> float:
     return statistics.median(runs)
 
 
+def forced_response_cost(case, model):
+    """J of ``model`` on the case's record computed the slow way, through ``control.forced_response``."""
+    import control
+
+    t, u, y = case.data.t, case.data.u, case.data.y
+    yhat = control.forced_response(model.linear, t, model.g(u)).outputs
+    return float(np.sum((y - yhat) ** 2))
+
+
 def evaluation_speed(case, beta=None, *, batch: int = 50, reference_repeats: int = 5) -> dict:
     """Time one cost evaluation through python-control and through our paths.
 
@@ -37,15 +46,10 @@ def evaluation_speed(case, beta=None, *, batch: int = 50, reference_repeats: int
 
     beta = np.asarray(case.x0 if beta is None else beta, dtype=float)
     model = case.structure.model(beta)
-    t, u, y = case.data.t, case.data.u, case.data.y
-
-    def via_control():
-        yhat = control.forced_response(model.linear, t, model.g(u)).outputs
-        return float(np.sum((y - yhat) ** 2))
-
+    t, u = case.data.t, case.data.u
     rng = np.random.default_rng(0)
     betas = beta + 1e-3 * rng.standard_normal((batch, beta.size))
-    ref = time_call(via_control, repeat=reference_repeats)
+    ref = time_call(lambda: forced_response_cost(case, model), repeat=reference_repeats)
     single = time_call(lambda: case.cost(beta), repeat=7, number=50)
     batched = time_call(lambda: case.cost.batch(betas), repeat=7, number=5) / batch
     yref = control.forced_response(model.linear, t, model.g(u)).outputs
@@ -54,7 +58,7 @@ def evaluation_speed(case, beta=None, *, batch: int = 50, reference_repeats: int
         "case": case.name, "samples": len(case.data), "forced_response_s": ref, "single_s": single,
         "batched_s": batched, "batch": batch, "single_speedup": ref / single,
         "batched_speedup": ref / batched, "max_rel_error": err,
-        "J_control": via_control(), "J_fast": case.cost(beta),
+        "J_control": forced_response_cost(case, model), "J_fast": case.cost(beta),
     }
 
 

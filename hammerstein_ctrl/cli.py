@@ -48,8 +48,9 @@ def _cmd_reproduce(args) -> int:
     from pathlib import Path
 
     from . import presets
-    from .bench import time_call
+    from .bench import forced_response_cost, time_call
     from .plots import study_figures
+    from .report import best_models
     from .study import run_study
 
     kwargs = {"path": args.data} if (args.case == "emps" and args.data) else {}
@@ -67,21 +68,7 @@ def _cmd_reproduce(args) -> int:
     study.to_json(out / "summary.json")
 
     validation = case.validation() if case.validation is not None else None
-    best = {}
-    for m in study.methods:
-        rec = study.best(m)
-        model = study.best_model(m)
-        entry = {"trial": rec["trial"], "seed": rec["seed"], "J": rec["fun"],
-                 "params": dict(zip(case.structure.param_names, rec["x"])),
-                 "linear": {"num": [float(v) for v in model.linear.num[0][0]],
-                            "den": [float(v) for v in model.linear.den[0][0]]},
-                 "diverged": rec["diverged"]}
-        if validation is not None and not rec["diverged"]:
-            from .metrics import fit_report
-
-            with np.errstate(all="ignore"):
-                entry["validation"] = fit_report(validation.y, model.simulate(validation))
-        best[m] = entry
+    best = best_models(study, validation)
     (out / "best_models.json").write_text(json.dumps(best, indent=2, default=str))
     if validation is not None:
         print(f"\nBest models on the validation record ({validation.name}):")
@@ -96,13 +83,7 @@ def _cmd_reproduce(args) -> int:
     # g(u) = 0 and forced_response would take its zero-input shortcut)
     finite = [r for r in study.records if np.isfinite(float(r["fun"]))]
     model = case.structure.model(np.array(min(finite, key=lambda r: float(r["fun"]))["x"], dtype=float))
-
-    def via_control():
-        import control
-
-        control.forced_response(model.linear, case.data.t, model.g(case.data.u))
-
-    reference = time_call(via_control, repeat=3)
+    reference = time_call(lambda: forced_response_cost(case, model), repeat=3)
     print(f"\n{len(study.records)} trials, {nfev} evaluations: {study.elapsed:.1f} s wall here"
           + (f" ({study.resumed} trials reused from {out / 'results.jsonl'})" if study.resumed else ""))
     print(f"per evaluation: ours {ours * 1e6:.0f} us (in the trials) vs control.forced_response "

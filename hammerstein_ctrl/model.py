@@ -22,7 +22,7 @@ Examples
 >>> t = np.arange(0, 10, 0.1)
 >>> y = m.simulate(t, np.ones_like(t))
 >>> m.linearize(0.0).num[0][0].round(4)
-array([-0.5792,  1.0519])
+array([-0.5793,  1.0519])
 """
 
 from __future__ import annotations

@@ -160,8 +160,8 @@ class Tanh(Nonlinearity):
 
     Examples
     --------
-    >>> Tanh()(0.0, [-4.7, 0.12])
-    array(-0.)
+    >>> Tanh()([0.0, 1.0], [2.0, 0.5]).round(4)
+    array([0.    , 0.9242])
     """
 
     name = "tanh"

@@ -91,9 +91,8 @@ class HammersteinCost:
     def param_names(self) -> tuple[str, ...]:
         return self.structure.param_names
 
-    def _pieces(self, betas):
-        b = self.structure.check_beta(betas)
-        b = b.reshape(-1, b.shape[-1])
+    def _pieces(self, b: np.ndarray):
+        """Coefficients and signals for a validated ``(B, n_params)`` array."""
         k = self._n_linear
         num, den = self.structure.linear._coefficients(b[:, :k])
         with np.errstate(all="ignore"):
@@ -108,11 +107,15 @@ class HammersteinCost:
         b = self.structure.check_beta(beta)
         if b.ndim != 1:
             raise ParameterError("cost(beta) takes one vector; use cost.batch for a batch")
-        return float(self.batch(b)[0])
+        return float(self._sse(b[None, :])[0])
 
     def batch(self, betas) -> np.ndarray:
         """J for each row of ``betas`` (shape ``(B, n_params)``), in one compiled pass."""
-        num, den, V = self._pieces(betas)
+        b = self.structure.check_beta(betas)
+        return self._sse(b.reshape(-1, b.shape[-1]))
+
+    def _sse(self, b: np.ndarray) -> np.ndarray:
+        num, den, V = self._pieces(b)
         return sse_batch(num, den, V, self.data.dt, self._y, reject_unstable=self.reject_unstable)
 
     def simulate(self, beta) -> np.ndarray:
@@ -120,7 +123,7 @@ class HammersteinCost:
         b = self.structure.check_beta(beta)
         if b.ndim != 1:
             raise ParameterError("simulate(beta) takes one vector")
-        num, den, V = self._pieces(b)
+        num, den, V = self._pieces(b[None, :])
         with np.errstate(all="ignore"):
             return simulate_batch(num, den, V, self.data.dt)[0]
 

@@ -6,7 +6,9 @@ import csv
 import io
 import math
 
-__all__ = ["study_table", "METHOD_LABELS", "PAPER_TABLES"]
+import numpy as np
+
+__all__ = ["study_table", "best_models", "METHOD_LABELS", "PAPER_TABLES"]
 
 #: Display names of the methods.
 METHOD_LABELS = {"spsa": "SPSA", "nlspsa": "NL-SPSA", "nspsa": "N-SPSA", "amvo-sca": "AMVO-SCA",
@@ -67,7 +69,7 @@ def study_table(study, fmt: str = "text", *, paper: bool = True, alpha: float = 
     """Render :meth:`StudyResult.summary` as ``"text"``, ``"markdown"`` or ``"csv"``."""
     rows, notes = _rows(study, paper, alpha)
     header = ["method", "source", *_COLUMNS, "nfev", "diverged", "s/trial"]
-    n = max((int(r["diverged"].split("/")[1]) for r in rows if "/" in r["diverged"]), default=0)
+    n = max((sum(r["method"] == m for r in study.records) for m in study.methods), default=0)
     title = (f"{study.case.name.upper()}: final J = sum (y - yhat)^2 over {n} independent trials, "
              f"seed {study.seed}" + (f"; paper: {PAPER_TABLES.get(study.case.name, '')}" if paper else ""))
     if fmt == "csv":
@@ -92,3 +94,28 @@ def study_table(study, fmt: str = "text", *, paper: bool = True, alpha: float = 
     out = [title, "", line({h: h for h in header}), line({h: "-" * widths[h] for h in header})]
     out += [line(r) for r in rows]
     return "\n".join(out + [""] + notes)
+
+
+def best_models(study, validation=None) -> dict:
+    """Per method, the best trial's parameters, transfer function and (optionally) validation fit.
+
+    Returns a JSON-able ``{method: {"trial", "seed", "J", "params", "linear", "diverged",
+    "validation"?}}``; ``validation`` (an IOData record) adds ``sse, rmse, nrmse, fit_percent``
+    for every method that did not diverge.
+    """
+    from .metrics import fit_report
+
+    out = {}
+    for m in study.methods:
+        rec = study.best(m)
+        model = study.best_model(m)
+        entry = {"trial": rec["trial"], "seed": rec["seed"], "J": rec["fun"],
+                 "params": dict(zip(study.case.structure.param_names, rec["x"])),
+                 "linear": {"num": [float(v) for v in model.linear.num[0][0]],
+                            "den": [float(v) for v in model.linear.den[0][0]]},
+                 "diverged": rec["diverged"]}
+        if validation is not None and not rec["diverged"]:
+            with np.errstate(all="ignore"):
+                entry["validation"] = fit_report(validation.y, model.simulate(validation))
+        out[m] = entry
+    return out

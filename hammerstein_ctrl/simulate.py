@@ -80,34 +80,29 @@ def companion_realization(num, den):
     >>> A[0]
     array([[-3., -4.],
            [ 1.,  0.]])
-    >>> C[0], D[0]
+    >>> C[0], float(D[0])
     (array([1., 2.]), 0.0)
     """
     num = np.atleast_2d(np.asarray(num, dtype=float))
     den = np.atleast_2d(np.asarray(den, dtype=float))
+    num, den = _broadcast_rows(num, den)
     n = den.shape[1] - 1
+    M, C, D = _tf_augmented(np.ascontiguousarray(num), np.ascontiguousarray(den), 1.0)
+    return M[:, :n, :n].copy(), M[:, :n, n].copy(), C, D
+
+
+def _broadcast_rows(num: np.ndarray, den: np.ndarray):
+    """Check properness and give num and den the same number of rows."""
     if num.shape[1] > den.shape[1]:
         raise ParameterError(
             f"improper transfer function: numerator degree {num.shape[1] - 1} exceeds "
-            f"denominator degree {n}"
+            f"denominator degree {den.shape[1] - 1}"
         )
-    batch = max(num.shape[0], den.shape[0])
-    num = np.broadcast_to(num, (batch, num.shape[1]))
-    den = np.broadcast_to(den, (batch, den.shape[1]))
-    lead = den[:, :1]
-    den_m = den / lead
-    num_p = np.zeros((batch, n + 1))
-    num_p[:, n + 1 - num.shape[1] :] = num / lead
-    A = np.zeros((batch, n, n))
-    if n:
-        A[:, 0, :] = -den_m[:, 1:]
-        A[:, np.arange(1, n), np.arange(n - 1)] = 1.0
-    B = np.zeros((batch, n))
-    if n:
-        B[:, 0] = 1.0
-    D = num_p[:, 0].copy()
-    C = num_p[:, 1:] - D[:, None] * den_m[:, 1:]
-    return A, B, C, D
+    if num.shape[0] != den.shape[0]:
+        batch = max(num.shape[0], den.shape[0])
+        num = np.broadcast_to(num, (batch, num.shape[1]))
+        den = np.broadcast_to(den, (batch, den.shape[1]))
+    return num, den
 
 
 def _augmented(A: np.ndarray, B: np.ndarray, dt: float) -> np.ndarray:
@@ -404,7 +399,7 @@ def simulate(linear, nonlinearity, params, t, u) -> np.ndarray:
     >>> t = np.arange(0, 5, 0.1); u = np.ones_like(t)
     >>> y = simulate(ct.tf([1], [1, 1]), Tanh(), [2.0, 1.0], t, u)
     >>> round(float(y[-1]), 4)  # 2*tanh(1)*(1 - exp(-4.9))
-    1.5107
+    1.5118
     """
     dt, u = _check_pair(t, u, "u")
     return lsim(linear, np.arange(u.size) * dt, nonlinearity(u, params))
@@ -417,17 +412,8 @@ def _tf_system(num, den, dt: float):
     are replaced by a harmless system (their results are overwritten by the
     caller), so the matrix exponential never sees inf or NaN.
     """
-    num = np.atleast_2d(np.asarray(num, dtype=float))
-    den = np.atleast_2d(np.asarray(den, dtype=float))
-    if num.shape[1] > den.shape[1]:
-        raise ParameterError(
-            f"improper transfer function: numerator degree {num.shape[1] - 1} exceeds "
-            f"denominator degree {den.shape[1] - 1}"
-        )
-    if num.shape[0] != den.shape[0]:
-        batch = max(num.shape[0], den.shape[0])
-        num = np.broadcast_to(num, (batch, num.shape[1]))
-        den = np.broadcast_to(den, (batch, den.shape[1]))
+    num, den = _broadcast_rows(np.atleast_2d(np.asarray(num, dtype=float)),
+                               np.atleast_2d(np.asarray(den, dtype=float)))
     ok = np.isfinite(num).all(axis=1) & np.isfinite(den).all(axis=1) & (den[:, 0] != 0)
     if not ok.all():
         num = np.where(ok[:, None], num, 0.0)

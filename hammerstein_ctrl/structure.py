@@ -15,8 +15,9 @@ The EMPS structure, ``H(p) = 1/(p^2 + a1 p)`` and a Coulomb nonlinearity:
 >>> s = HammersteinStructure(LinearStructure(0, 2, fixed={"a0": 0.0}), Coulomb())
 >>> s.param_names
 ('a1', 'd0', 'd1', 'd2')
->>> s.linear.transfer_function([3.0])
-TransferFunction(array([1.]), array([1., 3., 0.]))
+>>> H = s.linear.transfer_function([3.0])
+>>> H.num[0][0], H.den[0][0]
+(array([1.]), array([1., 3., 0.]))
 """
 
 from __future__ import annotations

@@ -191,7 +191,7 @@ def make_result(*, x, fun, obj: CountedObjective, nit, status, message, history:
         fun=float(fun),
         nfev=obj.nfev,
         nit=int(nit),
-        success=status in (COMPLETED, CALLBACK_STOP) and np.isfinite(fun),
+        success=bool(status in (COMPLETED, CALLBACK_STOP) and np.isfinite(fun)),
         status=int(status),
         message=message,
         history=history.as_dict(),

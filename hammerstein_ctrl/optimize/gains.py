@@ -9,12 +9,12 @@ Examples
 --------
 >>> a = StepGain(0.66, 24, 0.9)      # EMPS N-SPSA (paper Table 6)
 >>> round(a(1), 6)
-0.036491
+0.036425
 >>> c = PerturbationGain(0.2, 1 / 6)
 >>> round(c(1), 6)
-0.178180
+0.17818
 >>> StepGain.spall(0.1, maxiter=1000)
-StepGain(a=0.1, A=100.0, alpha=0.602)
+StepGain(a=0.1, A=100, alpha=0.602)
 """
 
 from __future__ import annotations

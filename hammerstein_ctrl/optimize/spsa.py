@@ -45,8 +45,8 @@ Examples
 >>> import numpy as np
 >>> from hammerstein_ctrl.optimize import nspsa, StepGain, PerturbationGain
 >>> f = lambda x: float(np.sum((x - 1.0) ** 2))
->>> r = nspsa(f, np.zeros(3), a=StepGain(0.5, 10, 0.602), c=PerturbationGain(0.1), maxiter=500, seed=1)
->>> r.nfev, bool(r.fun < 1e-2)
+>>> r = nspsa(f, np.zeros(3), a=StepGain(0.1, 10, 0.602), c=PerturbationGain(0.1), maxiter=500, seed=1)
+>>> r.nfev, bool(r.fun < 1e-6)
 (1001, True)
 """
 
