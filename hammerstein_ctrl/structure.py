@@ -211,7 +211,7 @@ class LinearStructure:
     def describe(self) -> str:
         """The structure as a formula, e.g. ``(p + b0)/(p^2 + a1 p + a0)``."""
 
-        def poly(order, prefix, fixed_lead):
+        def poly(order, prefix):
             terms = []
             for i in range(order, -1, -1):
                 name = f"{prefix}{i}"
@@ -230,7 +230,7 @@ class LinearStructure:
                     terms.append(f"{coef:g} {power}".strip())
             return " + ".join(terms) or "0"
 
-        return f"({poly(self.num_order, 'b', True)})/({poly(self.den_order, 'a', True)})"
+        return f"({poly(self.num_order, 'b')})/({poly(self.den_order, 'a')})"
 
     def __repr__(self):
         fixed = {k: v for k, v in self.fixed.items() if not (self.monic_numerator and k == f"b{self.num_order}")}

@@ -1,6 +1,5 @@
 import json
 
-import numpy as np
 import pytest
 
 from hammerstein_ctrl import load_trs

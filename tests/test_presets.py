@@ -1,6 +1,5 @@
 """DESIGN.md section 2 oracles on the presets."""
 
-import numpy as np
 import pytest
 
 from hammerstein_ctrl import ParameterError, UnknownNameError, presets

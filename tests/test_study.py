@@ -5,7 +5,6 @@ import subprocess
 import sys
 import time
 
-import numpy as np
 import pytest
 
 from hammerstein_ctrl import presets
@@ -17,6 +16,8 @@ SMALL = {  # short budgets keep these tests quick; the paper's settings are exer
     "nlspsa": {"method": "nlspsa", "maxiter": 150,
                "options": presets.trs().methods["nlspsa"]["options"]},
 }
+# ~0.1 s per trial: leaves a wide window to kill the study between its 5th and 16th trial
+KILLABLE = {m: {**kw, "maxiter": 600} for m, kw in SMALL.items()}
 
 
 def _summary_numbers(study):
@@ -49,7 +50,7 @@ def test_interrupted_study_resumes_to_the_same_summary(trs_case, tmp_path):
         "from hammerstein_ctrl.study import run_study\n"
         "import tests.test_study as T\n"
         f"run_study(presets.trs(), ['nspsa', 'nlspsa'], trials=8, seed=5, executor='serial', "
-        f"results_path={str(path)!r}, settings=T.SMALL)\n"
+        f"results_path={str(path)!r}, settings=T.KILLABLE)\n"
     )
     repo = os.path.dirname(os.path.dirname(__file__))
     proc = subprocess.Popen([sys.executable, "-c", script], cwd=repo)
@@ -67,14 +68,14 @@ def test_interrupted_study_resumes_to_the_same_summary(trs_case, tmp_path):
     with open(path, "a") as fh:  # an interruption can also leave half a line behind
         fh.write('{"case": "trs", "method": "nsp')
     resumed = run_study(trs_case, ["nspsa", "nlspsa"], trials=8, seed=5, executor="serial",
-                        results_path=path, settings=SMALL)
+                        results_path=path, settings=KILLABLE)
     assert resumed.resumed == len(written)
-    fresh = run_study(trs_case, ["nspsa", "nlspsa"], trials=8, seed=5, executor="serial", settings=SMALL)
+    fresh = run_study(trs_case, ["nspsa", "nlspsa"], trials=8, seed=5, executor="serial", settings=KILLABLE)
     assert _summary_numbers(resumed) == _summary_numbers(fresh)
     assert resumed.summary()["ranksum"] == fresh.summary()["ranksum"]
     # a second rerun runs nothing
     again = run_study(trs_case, ["nspsa", "nlspsa"], trials=8, seed=5, executor="serial",
-                      results_path=path, settings=SMALL)
+                      results_path=path, settings=KILLABLE)
     assert again.resumed == 16
 
 
