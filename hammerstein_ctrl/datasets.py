@@ -279,9 +279,10 @@ def load_emps(kind: str = "estimation", duration: float | None = None, path=None
 
     Examples
     --------
-    >>> d = load_emps(duration=12)          # doctest: +SKIP
-    >>> len(d), d.dt                         # doctest: +SKIP
-    (12000, 0.001)
+    With the files in ``$HAMMERSTEIN_CTRL_DATA/emps`` (exercised by ``tests/test_datasets.py``)::
+
+        d = load_emps(duration=12)      # the paper's first 12 s
+        len(d), d.dt                    # (12000, 0.001)
     """
     if kind not in _EMPS_FILES:
         raise DataError(f"unknown EMPS record {kind!r}; choose 'estimation' or 'validation'")
