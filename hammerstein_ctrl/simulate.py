@@ -370,6 +370,11 @@ def lsim(linear, t, v) -> np.ndarray:
     ndarray, shape (N,)
     """
     dt, v = _check_pair(t, v)
+    return _response(linear, dt, v)
+
+
+def _response(linear, dt: float, v: np.ndarray) -> np.ndarray:
+    """:func:`lsim` for an already validated sampling interval and signal."""
     E, C, D = _lti_system(linear, dt)
     Y = np.empty((1, v.size))
     _kernel(E.shape[1] - 2, "outputs")(E, C, D, v[None, :], Y)
@@ -402,7 +407,7 @@ def simulate(linear, nonlinearity, params, t, u) -> np.ndarray:
     1.5118
     """
     dt, u = _check_pair(t, u, "u")
-    return lsim(linear, np.arange(u.size) * dt, nonlinearity(u, params))
+    return _response(linear, dt, as_signal(nonlinearity(u, params), "g(u)"))
 
 
 def _tf_system(num, den, dt: float):
