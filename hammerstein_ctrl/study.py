@@ -254,9 +254,9 @@ def run_study(case, methods, trials: int = 25, seed: int = 0, executor=None, res
             for m, i in todo:
                 finish(_run_trial(case, m, plan[m][0], i, trial_seed(seed, i), plan[m][1]))
         else:
-            if owned and todo:  # compile the kernels once; forked workers inherit them
+            if owned and todo:  # compile both kernels once (J, and outputs for lm); forked workers inherit them
                 case.cost.batch(np.stack([case.x0, case.x0]))
-                case.cost(case.x0)
+                case.cost.simulate(case.x0)
             futures = [pool.submit(_run_trial, case, m, plan[m][0], i, trial_seed(seed, i), plan[m][1])
                        for m, i in todo]
             try:
