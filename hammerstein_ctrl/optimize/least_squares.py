@@ -26,6 +26,7 @@ from ._common import (
     COMPLETED,
     SOLVER_FAILED,
     BudgetExhausted,
+    CountedObjective,
     History,
     as_bounds,
     as_x0,
@@ -35,25 +36,19 @@ from ._common import (
 __all__ = ["levenberg_marquardt"]
 
 
-class _CountedResiduals:
-    """Counts residual evaluations, tracks the best point and records J per evaluation."""
+class _CountedResiduals(CountedObjective):
+    """:class:`CountedObjective` for a residual vector: counts, budgets and tracks J = r @ r."""
 
     def __init__(self, residuals, maxfev):
-        self.residuals = residuals
-        self.maxfev = maxfev
-        self.nfev = 0
-        self.best_x, self.best_fun = None, np.inf
+        super().__init__(residuals, (), maxfev)
         self.history = History()
 
     def __call__(self, x):
-        if self.maxfev is not None and self.nfev + 1 > self.maxfev:
-            raise BudgetExhausted(f"evaluation budget of {self.maxfev} exhausted")
-        self.nfev += 1
+        self._charge(1)
         with np.errstate(all="ignore"):
-            r = np.asarray(self.residuals(x), dtype=float)
+            r = np.asarray(self.fun(x), dtype=float)
         f = float(r @ r)
-        if f < self.best_fun:
-            self.best_fun, self.best_x = f, np.array(x, dtype=float)
+        self._track([x], np.array([f]))
         self.history.append(self.nfev, self.nfev, f, self.best_fun, self.best_fun)
         return r
 
