@@ -12,6 +12,18 @@ from .exceptions import DataError
 GRID_TOLERANCE = 1e-3
 
 
+#: Intersample behaviours of an input (MATLAB ``iddata`` ``InterSample``).
+INTERSAMPLE = ("foh", "zoh")
+
+
+def check_intersample(value) -> str:
+    """Return ``"foh"`` or ``"zoh"`` (case-insensitive) or raise a :class:`DataError`."""
+    key = str(value).strip().lower()
+    if key not in INTERSAMPLE:
+        raise DataError(f"intersample must be one of {INTERSAMPLE}, got {value!r}")
+    return key
+
+
 def as_signal(x, name: str, *, allow_empty: bool = False) -> np.ndarray:
     """Return ``x`` as a finite 1-D float array or raise a :class:`DataError`.
 

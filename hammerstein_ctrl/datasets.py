@@ -34,7 +34,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ._checks import GRID_TOLERANCE, as_signal, uniform_grid
+from ._checks import GRID_TOLERANCE, as_signal, check_intersample, uniform_grid
 from .exceptions import DataError
 
 __all__ = [
@@ -75,6 +75,11 @@ class IOData:
         Labels and units used on plot axes.
     tolerance : float, default 1e-3
         Allowed deviation of ``t`` from the uniform grid, as a fraction of dt.
+    intersample : {"foh", "zoh"}, default "foh"
+        How the input behaves between samples, as MATLAB's ``iddata``
+        ``InterSample`` property: ``"foh"`` (linear between samples, the
+        paper's semantics) or ``"zoh"`` (held constant, as from a DAC).
+        Simulation and identification on this record honour it exactly.
 
     Raises
     ------
@@ -96,7 +101,9 @@ class IOData:
         input_unit: str = "",
         output_unit: str = "",
         tolerance: float = GRID_TOLERANCE,
+        intersample: str = "foh",
     ):
+        self.intersample = check_intersample(intersample)
         u = as_signal(u, "u")
         y = as_signal(y, "y")
         if u.size != y.size:
@@ -146,6 +153,7 @@ class IOData:
         kw = dict(
             u=self.u, y=self.y, t=self.t, name=self.name, input_name=self.input_name,
             output_name=self.output_name, input_unit=self.input_unit, output_unit=self.output_unit,
+            intersample=self.intersample,
         )
         kw.update(changes)
         return IOData(**kw)
