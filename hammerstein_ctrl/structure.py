@@ -152,6 +152,28 @@ class LinearStructure:
         den[:, self._den_pos] = theta[:, k:]
         return num, den
 
+    def free_parameters(self, num, den) -> np.ndarray:
+        """The free coefficients of ``num/den`` (descending powers), fixed ones ignored.
+
+        The denominator is made monic first; the numerator is padded to
+        ``num_order + 1`` coefficients.  Unlike :meth:`parameters` this does not
+        check the fixed coefficients: it projects any block onto the structure.
+
+        Examples
+        --------
+        >>> LinearStructure(0, 2, fixed={"a0": 0.0}).free_parameters([1.0], [1.0, 3.0, 2.0])
+        array([3.])
+        """
+        num = np.atleast_1d(np.asarray(num, dtype=float))
+        den = np.atleast_1d(np.asarray(den, dtype=float))
+        if den.size != self.den_order + 1 or num.size > self.num_order + 1:
+            raise ParameterError(
+                f"coefficients of degree {num.size - 1}/{den.size - 1} do not fit "
+                f"{self.num_order}/{self.den_order}")
+        num, den = num / den[0], den / den[0]
+        num = np.concatenate([np.zeros(self.num_order + 1 - num.size), num])
+        return np.concatenate([num[self._num_pos], den[self._den_pos]])
+
     def transfer_function(self, theta, **kwargs):
         """The :class:`control.TransferFunction` for one parameter vector.
 
