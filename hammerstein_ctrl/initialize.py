@@ -218,9 +218,10 @@ class _Regression:
 
     def solve(self, Phi):
         """Coefficients and residual of the least-squares fit (``None`` if not finite)."""
-        if not np.all(np.isfinite(Phi)):
+        with np.errstate(all="ignore"):
+            scale = np.sqrt(np.sum(Phi * Phi, axis=0))
+        if not (np.all(np.isfinite(Phi)) and np.all(np.isfinite(scale))):
             return None, None
-        scale = np.linalg.norm(Phi, axis=0)
         scale[scale == 0] = 1.0
         w, *_ = np.linalg.lstsq(Phi / scale, self.y, rcond=None)
         w = w / scale
