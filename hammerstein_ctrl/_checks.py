@@ -124,8 +124,8 @@ def increasing_times(t, name: str = "t") -> np.ndarray:
         k = int(np.flatnonzero(steps <= 0)[0])
         what = "a duplicated time stamp" if steps[k] == 0 else "time runs backwards"
         raise DataError(
-            f"{name} is not strictly increasing: {name}[{k + 1}] = {t[k + 1]!r} follows "
-            f"{name}[{k}] = {t[k]!r} ({what}); sort the samples or remove the repeated ones"
+            f"{name} is not strictly increasing: {name}[{k + 1}] = {float(t[k + 1])!r} follows "
+            f"{name}[{k}] = {float(t[k])!r} ({what}); sort the samples or remove the repeated ones"
         )
     return t
 
@@ -248,8 +248,8 @@ def resampling_grid(t, dt=None, *, name: str = "t", max_gap: float = MAX_RESAMPL
     Raises
     ------
     DataError
-        If ``t`` is not strictly increasing, a step exceeds ``max_gap * dt``
-        (interpolating across it would invent data), or the grid would have
+        If ``t`` is not strictly increasing, a step exceeds ``max_gap`` typical
+        (median) steps (interpolating across it would invent data), or the grid would have
         fewer than two or more than ``MAX_UPSAMPLING`` times as many points.
 
     Examples
@@ -260,21 +260,19 @@ def resampling_grid(t, dt=None, *, name: str = "t", max_gap: float = MAX_RESAMPL
     """
     t = increasing_times(t, name)
     steps = np.diff(t)
-    if dt is None:
-        h = float(np.median(steps))
-        with np.errstate(over="ignore"):
-            counts = np.rint(np.minimum(steps / h, max_gap + 1.0))
-        k = np.concatenate([[0.0], np.cumsum(counts)])
-        t0, dt, _ = _fit_grid(t, k)
-    else:
-        t0, dt = float(t[0]), check_dt(dt)
+    h = float(np.median(steps))
     i = int(np.argmax(steps))
-    if steps[i] > max_gap * dt:
+    if steps[i] > max_gap * h:
         raise DataError(
-            f"{name} has a gap of {steps[i] / dt:.3g}*dt between sample {i} ({name} = {t[i]:.10g} s) and "
+            f"{name} has a gap of {steps[i] / h:.3g}*dt (typical step dt = {h:.6g} s) between sample {i} ({name} = {t[i]:.10g} s) and "
             f"sample {i + 1} ({name} = {t[i + 1]:.10g} s), longer than the {max_gap:g}*dt that "
             "resampling interpolates across; keep a part without it (start=/stop=)"
         )
+    if dt is None:
+        k = np.concatenate([[0.0], np.cumsum(np.rint(steps / h))])
+        t0, dt, _ = _fit_grid(t, k)
+    else:
+        t0, dt = float(t[0]), check_dt(dt)
     span = (t[-1] - t0) / dt
     if span > MAX_UPSAMPLING * t.size:
         raise DataError(
