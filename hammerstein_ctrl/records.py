@@ -41,6 +41,8 @@ _INPUT_NAMES = ("u", "input", "vir")
 _OUTPUT_NAMES = ("y", "output", "qm")
 #: Longest excerpt of a bad field or parser message quoted in an error.
 _QUOTE = 60
+#: Most column names listed in an error.
+_LISTED = 12
 #: Delimiters recognised in text files, by priority (None: whitespace).
 _DELIMITERS = (";", ",", "\t")
 
@@ -62,13 +64,18 @@ def _decode(path: Path) -> str:
     if raw.startswith((codecs.BOM_UTF16_LE, codecs.BOM_UTF16_BE)):
         raise DataError(f"{path}: the file is UTF-16 text; save it as UTF-8 (or plain ASCII) CSV")
     try:
-        return raw.decode("utf-8-sig")
+        text = raw.decode("utf-8-sig")
     except UnicodeDecodeError as exc:
         line = raw[: exc.start].count(b"\n") + 1
         raise DataError(
             f"{path}: not UTF-8 text (byte 0x{raw[exc.start]:02x} on line {line}); "
             "save the file as UTF-8 (or plain ASCII) CSV"
         ) from None
+    if "\x00" in text:
+        line = text[: text.index("\x00")].count("\n") + 1
+        raise DataError(f"{path}: NUL bytes on line {line}: binary data, or UTF-16 text without a "
+                        "byte-order mark; save the file as UTF-8 CSV")
+    return text
 
 
 def _content_lines(text: str) -> list[tuple[int, str]]:
@@ -206,6 +213,8 @@ def _read_npz_columns(path: Path) -> dict:
             except Exception as exc:  # noqa: BLE001 - truncated/corrupt members
                 raise DataError(f"{path}: array {key!r} is unreadable, the archive looks truncated or "
                                 f"corrupt ({type(exc).__name__}: {_quote(exc)})") from None
+            if not isinstance(columns[key], np.ndarray):  # NpzFile returns raw bytes of non-.npy members
+                raise DataError(f"{path}: member {key!r} of the archive is not a NumPy array")
     if not columns:
         raise DataError(f"{path}: the NPZ archive holds no arrays")
     return columns
@@ -248,25 +257,30 @@ def _base(name: str) -> str:
 
 def _describe(columns: dict) -> str:
     parts = []
-    for k, v in columns.items():
+    for k, v in list(columns.items())[:_LISTED]:
         shape = np.shape(v)
         parts.append(k if len(shape) == 1 else f"{k} {shape}")
-    return ", ".join(parts) or "(none)"
+    more = f", ... ({len(columns)} in all)" if len(columns) > _LISTED else ""
+    return ", ".join(parts) + more
 
 
 def _pick(columns: dict, wanted, defaults, role: str, path) -> str | None:
+    """The column for ``role``: ``wanted`` (exactly, else without case/units), else a default name."""
     if wanted is not None:
         if wanted in columns:
             return wanted
         matches = [c for c in columns if _base(c) == _base(wanted)]
-        if len(matches) == 1:
-            return matches[0]
-        raise DataError(f"{path}: no {role} column {wanted!r}; available: {_describe(columns)}")
-    for default in defaults:
-        matches = [c for c in columns if _base(c) == default]
-        if matches:
-            return matches[0]
-    return None
+        if len(matches) > 1:
+            raise DataError(f"{path}: several {role} columns match {wanted!r}: {', '.join(matches)}; "
+                            "give the exact name")
+        if not matches:
+            raise DataError(f"{path}: no {role} column {wanted!r}; available: {_describe(columns)}")
+        return matches[0]
+    matches = [c for c in columns if _base(c) in defaults]
+    if len(matches) > 1:
+        raise DataError(f"{path}: several columns could be the {role}: {', '.join(matches)}; "
+                        f"choose one with {role}= (--{role} on the command line)")
+    return matches[0] if matches else None
 
 
 def _select(path: Path, columns: dict, input, output, time, dt):
