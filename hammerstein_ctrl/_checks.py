@@ -76,42 +76,38 @@ MAX_UPSAMPLING = 100
 _SUGGESTION_DIGITS = 2
 
 
+def finite_float(value, what: str, expected: str = "a finite number") -> float:
+    """``value`` as a finite float, else a :class:`DataError` "``what`` must be ``expected``"."""
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        v = np.nan
+    if not np.isfinite(v):
+        raise DataError(f"{what} must be {expected}, got {value!r}")
+    return v
+
+
 def check_tolerance(tolerance) -> float:
     """Return ``tolerance`` as a float in ``[0, 0.5)`` or raise a :class:`DataError`."""
-    try:
-        tol = float(tolerance)
-    except (TypeError, ValueError):
-        raise DataError(f"tolerance must be a number (a fraction of dt), got {tolerance!r}") from None
+    expected = f"in [0, {MAX_GRID_TOLERANCE:g}) (a fraction of dt)"
+    tol = finite_float(tolerance, "tolerance", expected)
     if not 0.0 <= tol < MAX_GRID_TOLERANCE:
-        raise DataError(
-            f"tolerance must be in [0, {MAX_GRID_TOLERANCE:g}) (a fraction of dt), got {tolerance!r}; "
-            "for larger irregularities resample the record instead"
-        )
+        raise DataError(f"tolerance must be {expected}, got {tolerance!r}; "
+                        "for larger irregularities resample the record instead")
     return tol
 
 
 def check_dt(dt) -> float:
     """Return ``dt`` as a positive finite float or raise a :class:`DataError`."""
-    try:
-        step = float(dt)
-    except (TypeError, ValueError):
-        raise DataError(f"dt must be a positive finite number, got {dt!r}") from None
-    if not (np.isfinite(step) and step > 0):
+    step = finite_float(dt, "dt", "a positive finite number")
+    if step <= 0:
         raise DataError(f"dt must be a positive finite number, got {dt!r}")
     return step
 
 
 def optional_time(value, what: str) -> float | None:
     """``None`` or ``value`` as a finite float (a time in seconds), else a :class:`DataError`."""
-    if value is None:
-        return None
-    try:
-        v = float(value)
-    except (TypeError, ValueError):
-        raise DataError(f"{what} must be a time in seconds, got {value!r}") from None
-    if not np.isfinite(v):
-        raise DataError(f"{what} must be a finite time in seconds, got {value!r}")
-    return v
+    return None if value is None else finite_float(value, what, "a finite time in seconds")
 
 
 def increasing_times(t, name: str = "t") -> np.ndarray:

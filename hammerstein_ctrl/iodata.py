@@ -37,11 +37,11 @@ import numpy as np
 
 from ._checks import (
     GRID_TOLERANCE,
-    MAX_RESAMPLE_GAP,
     as_signal,
     check_dt,
     check_intersample,
     check_tolerance,
+    finite_float,
     optional_time,
     resampling_grid,
     uniform_grid,
@@ -294,13 +294,7 @@ class IOData:
             if isinstance(value, str):
                 _check_choice(value, ("initial",), f"{label} offset")
                 return x[0]
-            try:
-                c = float(value)
-            except (TypeError, ValueError):
-                raise DataError(f"{label} offset must be a number or 'initial', got {value!r}") from None
-            if not np.isfinite(c):
-                raise DataError(f"{label} offset must be finite, got {value!r}")
-            return c
+            return finite_float(value, f"{label} offset", "a finite number or 'initial'")
 
         return self._replace(u=self.u - offset(u, self.u, "u"), y=self.y - offset(y, self.y, "y"))
 

@@ -206,7 +206,7 @@ case("csv-misplaced-stamp", "r.csv", rows(t=np.r_[T[:5], 0.041, T[6:]]), Err(r"e
 case("csv-gap-too-long-to-resample", "r.csv", rows(np.r_[T, 1.0], np.r_[U, 0], np.r_[Y, 0]),
      Err(r"gap of 93\*dt .* between sample 7 \(t = 0.07 s\) and sample 8 \(t = 1 s\)"), resample="linear")
 case("csv-tolerance-too-big", "r.csv", GOOD_CSV, Err(r"tolerance must be in \[0, 0.5\)"), tolerance=0.7)
-case("csv-tolerance-text", "r.csv", GOOD_CSV, Err("tolerance must be a number"), tolerance="big")
+case("csv-tolerance-text", "r.csv", GOOD_CSV, Err(r"tolerance must be in \[0, 0.5\) \(a fraction of dt\), got 'big'"), tolerance="big")
 case("csv-resample-unknown", "r.csv", GOOD_CSV, Err("resample must be one of"), resample="cubic")
 case("csv-intersample-unknown", "r.csv", GOOD_CSV, Err("intersample must be one of"), intersample="spline")
 case("csv-dt-zero", "r.csv", rows(t=None, header=None), Err("dt must be a positive finite number"), dt=0.0)
@@ -217,7 +217,7 @@ case("csv-dt-disagrees", "r.csv", GOOD_CSV, Err(r"dt = 0.02 disagrees with the s
 case("csv-window-empty", "r.csv", GOOD_CSV, Err("start=1.0, stop=None keep 0 sample"), start=1.0)
 case("csv-window-one", "r.csv", GOOD_CSV, Err("keep 1 sample"), start=0.07)
 case("csv-window-nan", "r.csv", GOOD_CSV, Err("start must be a finite time"), start=float("nan"))
-case("csv-window-text", "r.csv", GOOD_CSV, Err("stop must be a time in seconds"), stop="end")
+case("csv-window-text", "r.csv", GOOD_CSV, Err("stop must be a finite time in seconds, got 'end'"), stop="end")
 case("csv-units-row", "r.csv", b"t,u,y\ns,V,m\n0,1,2\n1,2,3\n", Err(r"line 2: column 't' holds 's', not a number"))
 case("csv-excel-sep-line", "r.csv", b"sep=;\nt;u;y\n0;1;2\n1;2;3\n", Err("column 2 of the header has no name"))
 case("csv-decimal-comma-in-comma-file", "r.csv", b"t,u,y\n0,0,5,1\n1,1,5,2\n", Err("line 2 has 4 fields, expected 3"))

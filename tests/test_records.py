@@ -188,9 +188,9 @@ def test_remove_offset():
     d = IOData([1.0, 2.0, 4.0], [0.5, 0.7, 0.9], dt=1.0)
     assert d.remove_offset(y=0.5).y.tolist() == pytest.approx([0.0, 0.2, 0.4])
     assert d.remove_offset(u="initial").u.tolist() == [0.0, 1.0, 3.0]
-    with pytest.raises(DataError, match="y offset must be a number or 'initial'"):
+    with pytest.raises(DataError, match="y offset must be a finite number or 'initial'"):
         d.remove_offset(y=[1, 2])
-    with pytest.raises(DataError, match="u offset must be finite"):
+    with pytest.raises(DataError, match="u offset must be a finite number or 'initial', got inf"):
         d.remove_offset(u=np.inf)
 
 
