@@ -147,7 +147,8 @@ def _round_up(x: float) -> float:
     return float(f"{np.ceil(x / 10.0**e) * 10.0**e:.{_SUGGESTION_DIGITS}g}")
 
 
-_RESAMPLE_HINT = "resample='linear' (or 'zoh') to interpolate the record onto a uniform grid"
+_RESAMPLE_HINT = ("resample='linear' or 'zoh' (--resample) to interpolate the record onto a uniform grid")
+_WINDOW_HINT = "keep a part without it (start=/stop=, --start/--stop)"
 
 
 def _step_anomaly(t: np.ndarray, name: str) -> str | None:
@@ -170,7 +171,7 @@ def _step_anomaly(t: np.ndarray, name: str) -> str | None:
     more = f" ({odd.size} irregular steps in all)" if odd.size > 1 else ""
     return (
         f"{name} is an irregular time grid (typical step dt = {h:.6g} s): {what}{more}; "
-        f"pass {_RESAMPLE_HINT}, or keep a part without it (start=/stop=)"
+        f"pass {_RESAMPLE_HINT}, or {_WINDOW_HINT}"
     )
 
 
@@ -185,7 +186,7 @@ def _jitter_message(t, dev, dt, tolerance, name) -> str:
         first = f"; the first irregular step is from sample {i} to {i + 1} ({steps[i]:.3g}*dt)"
     hint = f"pass {_RESAMPLE_HINT}"
     if worst < MAX_GRID_TOLERANCE:
-        hint = (f"pass tolerance={_round_up(worst)} to accept the time stamps as a uniform grid "
+        hint = (f"pass tolerance={_round_up(worst)} (--tolerance) to accept the time stamps as a uniform grid "
                 f"(a noisy clock), or {_RESAMPLE_HINT}")
     return (
         f"{name} is an irregular time grid beyond tolerance={tolerance:g} (a fraction of "
@@ -218,7 +219,7 @@ def uniform_grid(t, name: str = "t", *, tolerance: float = GRID_TOLERANCE) -> tu
     >>> uniform_grid([0.0, 0.1, 0.3, 0.4])
     Traceback (most recent call last):
     ...
-    hammerstein_ctrl.exceptions.DataError: t is an irregular time grid (typical step dt = 0.1 s): a gap: about 1 sample(s) missing between sample 1 (t = 0.1 s) and sample 2 (t = 0.3 s), a step of 2*dt; pass resample='linear' (or 'zoh') to interpolate the record onto a uniform grid, or keep a part without it (start=/stop=)
+    hammerstein_ctrl.exceptions.DataError: t is an irregular time grid (typical step dt = 0.1 s): a gap: about 1 sample(s) missing between sample 1 (t = 0.1 s) and sample 2 (t = 0.3 s), a step of 2*dt; pass resample='linear' or 'zoh' (--resample) to interpolate the record onto a uniform grid, or keep a part without it (start=/stop=, --start/--stop)
     """
     t = increasing_times(t, name)
     tolerance = check_tolerance(tolerance)
@@ -262,7 +263,7 @@ def resampling_grid(t, dt=None, *, name: str = "t", max_gap: float = MAX_RESAMPL
         raise DataError(
             f"{name} has a gap of {steps[i] / h:.3g}*dt (typical step dt = {h:.6g} s) between sample {i} ({name} = {t[i]:.10g} s) and "
             f"sample {i + 1} ({name} = {t[i + 1]:.10g} s), longer than the {max_gap:g}*dt that "
-            "resampling interpolates across; keep a part without it (start=/stop=)"
+            f"resampling interpolates across; {_WINDOW_HINT}"
         )
     if dt is None:
         k = np.concatenate([[0.0], np.cumsum(np.rint(steps / h))])

@@ -24,6 +24,7 @@ from __future__ import annotations
 import argparse
 import codecs
 import csv
+import os
 from pathlib import Path
 
 import numpy as np
@@ -267,6 +268,7 @@ def _describe(columns: dict) -> str:
 def _pick(columns: dict, wanted, defaults, role: str, path) -> str | None:
     """The column for ``role``: ``wanted`` (exactly, else without case/units), else a default name."""
     if wanted is not None:
+        wanted = str(wanted)
         if wanted in columns:
             return wanted
         matches = [c for c in columns if _base(c) == _base(wanted)]
@@ -400,6 +402,8 @@ def read_record(
         undecodable, truncated or empty file, text, object, complex or
         matrix-shaped data, or any problem :class:`IOData` detects.
     """
+    if not isinstance(path, (str, os.PathLike)):
+        raise DataError(f"path must be a file name or path, got {path!r}")
     path = Path(path).expanduser()
     columns = _columns(path)
     if dt is not None:

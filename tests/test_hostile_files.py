@@ -201,7 +201,7 @@ case("csv-constant-time", "r.csv", rows(t=np.zeros(8)), Err("a duplicated time s
 case("csv-dropped-sample", "r.csv", rows(T[_DROP], U[_DROP], Y[_DROP]),
      Err(r"1 sample\(s\) missing between sample 3 \(t = 0.03 s\) and sample 4 \(t = 0.05 s\)"))
 case("csv-jitter", "r.csv", rows(t=T + 0.1 * 0.01 * np.array([1, -1, 0, 1, 0, -1, 1, 0])),
-     Err(r"beyond tolerance=0.001 .* pass tolerance=0\.1\d* to accept"))
+     Err(r"beyond tolerance=0.001 .* pass tolerance=0\.1\d* \(--tolerance\) to accept"))
 case("csv-misplaced-stamp", "r.csv", rows(t=np.r_[T[:5], 0.041, T[6:]]), Err(r"extra or misplaced time stamp.* sample 4"))
 case("csv-gap-too-long-to-resample", "r.csv", rows(np.r_[T, 1.0], np.r_[U, 0], np.r_[Y, 0]),
      Err(r"gap of 93\*dt .* between sample 7 \(t = 0.07 s\) and sample 8 \(t = 1 s\)"), resample="linear")
@@ -369,6 +369,8 @@ for suffix in (".xlsx", ".json", ".h5", ".npy", ".dat", ".csv.gz", ".parquet"):
          Err(rf"unsupported file type '{re.escape('.' + suffix.rsplit('.', 1)[-1])}'; use .csv, .txt, .mat, .npz"))
 case("type-no-suffix", "record", GOOD_CSV, Err(r"unsupported file type '\(no suffix\)'"))
 case("path-missing", None, None, Err("data file not found"))
+case("path-wrong-type", "", None, Err("path must be a file name or path, got 3"))
+case("column-name-not-text", "r.csv", GOOD_CSV, Err("no input column '7'"), input=7)
 
 
 def _folder(path):
@@ -381,6 +383,8 @@ case("path-folder", "folder.csv", _folder, Err("is a folder; give the data file 
 def _build(c, tmp_path):
     if c.name is None:
         return tmp_path / "does-not-exist.csv"
+    if c.name == "":
+        return 3
     path = tmp_path / c.name
     if callable(c.build):
         c.build(path)
