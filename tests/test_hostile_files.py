@@ -428,3 +428,26 @@ def test_constant_output_loads_but_is_not_identifiable(tmp_path):
     assert np.all(d.y == 0.25)
     with pytest.raises(DataError, match=r"output y is constant \(every sample is 0.25\); nothing to identify"):
         d.check_identifiable()
+
+
+_CLI_FLAGS = {"input": "--input", "output": "--output", "time": "--time", "dt": "--dt"}
+CLI_CASES = [c for c in CASES if isinstance(c.expect, Err) and c.name != "" and set(c.kwargs) <= set(_CLI_FLAGS)
+             and all(isinstance(v, str) if k != "dt" else isinstance(v, float) and np.isfinite(v)
+                     for k, v in c.kwargs.items())]
+
+
+@pytest.mark.parametrize("c", CLI_CASES, ids=[c.id for c in CLI_CASES])
+def test_hostile_file_through_the_cli(c, tmp_path, capsys):
+    """The command line turns each refused file into exit 2 and one line naming the problem."""
+    from hammerstein_ctrl.cli import main
+
+    path = _build(c, tmp_path)
+    argv = ["identify", "--data", str(path), "--structure", "trs"]
+    for key, value in c.kwargs.items():
+        argv += [_CLI_FLAGS[key], str(value)]
+    code = main(argv)
+    err = capsys.readouterr().err
+    assert code == 2, err
+    first, *rest = err.splitlines()
+    assert first.startswith("hammerstein-ctrl: error: ") and re.search(c.expect.pattern, first), err
+    assert not rest and "Traceback" not in err
