@@ -233,6 +233,11 @@ case("csv-wide-header-no-match", "r.csv", (",".join(f"c{i}" for i in range(500))
                                            + "\n").encode(),
      Err(r"cannot tell which column is the input; available: c0, c1, .*, c11, \.\.\. \(500 in all\)"))
 case("txt-mixed-tabs-blanks", "r.txt", b"t u y\n0\t1 2\n1  2\t3\n", Ok([1.0, 2], [2.0, 3], [0.0, 1]))
+case("txt-tabs-header-comment", "r.txt", b"# logged by rig 3\n" + rows(sep="\t"), Ok())
+case("txt-latin1", "r.txt", "t u y\n0 1 2 # 5 \xb5s\n".encode("latin-1"), Err(r"not UTF-8 text \(byte 0xb5 on line 2\)"))
+case("txt-empty", "r.txt", b"", Err("the file is empty"))
+case("txt-header-only", "r.txt", b"t u y\n", Err("but no data rows"))
+case("txt-words", "r.txt", b"hello world\nthis is text\n", Err(r"line 2 has 3 fields, expected 2 \(hello, world\)"))
 case("txt-only-numbers-one-line", "r.txt", b"1 2 3\n", Err("t needs at least two samples"))
 
 # ---------------------------------------------------------------------------
