@@ -213,6 +213,7 @@ def identify(
     structure, x0 = _resolve_structure(data, structure, method, x0)
     if offset is not None or initial_state is not None:
         structure = structure.with_options(offset=offset, initial_state=initial_state)
+    data.check_identifiable(structure.n_params)
     key = AUTO if str(method).strip().lower() == AUTO else canonical_method(method)
     cost = HammersteinCost(data, structure, reject_unstable=reject_unstable)
     with single_threaded_blas():

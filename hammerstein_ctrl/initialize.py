@@ -42,6 +42,7 @@ Examples
 from __future__ import annotations
 
 import numpy as np
+import scipy.linalg
 import scipy.optimize
 
 from .exceptions import ParameterError
@@ -223,8 +224,7 @@ class _Regression:
         if not (np.all(np.isfinite(Phi)) and np.all(np.isfinite(scale))):
             return None, None
         scale[scale == 0] = 1.0
-        w, *_ = np.linalg.lstsq(Phi / scale, self.y, rcond=None)
-        w = w / scale
+        w = scipy.linalg.lstsq(Phi / scale, self.y, lapack_driver="gelsy", check_finite=False)[0] / scale
         return w, self.y - Phi @ w
 
 
