@@ -18,6 +18,7 @@ Examples
 """
 
 from . import datasets, metrics, nonlinearities, optimize, plots, presets, simulate, study
+from . import control_design, exact_export, persistence
 from .datasets import IOData, load_emps, load_trs, make_trs_reconstruction, read_record
 from .exceptions import DataError, HammersteinError, ParameterError, UnknownNameError
 from .identify import IdentificationResult, identify
@@ -36,12 +37,15 @@ from .nonlinearities import (
 )
 from .objective import HammersteinCost
 from .optimize import PerturbationGain, StepGain, minimize
+from .persistence import load_model, load_result, save_model, save_result
 from .structure import HammersteinStructure, LinearStructure
 from .study import StudyResult, run_study
 
 __version__ = "0.1.0"
 
 __all__ = [
+    "control_design", "exact_export", "persistence", "load_model", "save_model", "load_result",
+    "save_result",
     "datasets", "metrics", "nonlinearities", "optimize", "plots", "presets", "simulate", "study",
     "IOData", "load_emps", "load_trs", "make_trs_reconstruction", "read_record",
     "DataError", "HammersteinError", "ParameterError", "UnknownNameError",

@@ -121,8 +121,13 @@ class HammersteinModel:
         return simulate(self.linear, self.nonlinearity, self.params, t, u)
 
     # -- python-control interop -------------------------------------------------
-    def to_iosys(self, name: str | None = None, *, inputs: str = "u", outputs: str = "y"):
+    def to_iosys(self, name: str | None = None, *, dt: float | None = None, inputs: str = "u",
+                 outputs: str = "y"):
         """The model as a :class:`control.NonlinearIOSystem` interconnection.
+
+        With ``dt`` given, the exact discrete-time system of
+        :func:`hammerstein_ctrl.exact_export.sampled_iosys` instead (its
+        ``control.input_output_response`` equals :meth:`simulate`).
 
         The static block ``g`` (``control.nlsys`` without states, output
         ``"v"``) feeds ``H`` (``control.ss``); the result has input ``inputs``
@@ -142,6 +147,10 @@ class HammersteinModel:
         """
         import control
 
+        if dt is not None:
+            from .exact_export import sampled_iosys
+
+            return sampled_iosys(self, dt, name=name, inputs=inputs, outputs=outputs)
         params = self.params
         nonlinearity = self.nonlinearity
 
@@ -194,3 +203,20 @@ class HammersteinModel:
             return " + ".join(terms).replace("+ -", "- ") or "0"
 
         return f"({poly(self.linear.num[0][0])})/({poly(self.linear.den[0][0])})"
+
+    # -- persistence and exact exports (issue 9) -----------------------------
+    def save(self, path) -> None:
+        """Write the model to ``path`` as versioned JSON (:func:`hammerstein_ctrl.load_model` reads it)."""
+        from .persistence import save_model
+
+        save_model(self, path)
+
+    def to_ss(self, **kwargs):
+        """The linear block as a :class:`control.StateSpace` in the simulator's realisation.
+
+        See :func:`hammerstein_ctrl.exact_export.linear_ss`; ``initial_state``
+        is a state of this system.
+        """
+        from .exact_export import linear_ss
+
+        return linear_ss(self, **kwargs)
