@@ -53,7 +53,7 @@ from .loop_sim import (
 )
 
 __all__ = ["PIDResult", "tune_pid", "closed_loop", "analyze_loop", "approximate", "pid_controller",
-           "LoopCost", "RULES", "CRITERIA"]
+           "LoopCost", "loop_figure", "RULES", "CRITERIA"]
 
 #: Tuning rules accepted by :func:`tune_pid`.
 RULES = ("simc", "imc", "nspsa", "auto")
@@ -675,3 +675,32 @@ def analyze_loop(model, pid: PIDResult, *, u_limit=None, reference="step", step:
     out.update(t=t, r=r, y=Y[0], u=U[0])
     return out
 
+
+
+def loop_figure(reports: dict, *, u_limit=None, title: str | None = None):
+    """Output and actuator signals of one or more :func:`analyze_loop` reports, by label.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+    """
+    import matplotlib.pyplot as plt
+
+    fig, (ax_y, ax_u) = plt.subplots(2, 1, sharex=True, figsize=(7, 5), constrained_layout=True)
+    first = next(iter(reports.values()))
+    ax_y.plot(first["t"], first["r"], "k--", lw=1, label="reference")
+    for label, rep in reports.items():
+        info = rep.get("step_info", {})
+        extra = f", overshoot {info['Overshoot']:.1f} %" if "Overshoot" in info else ""
+        ax_y.plot(rep["t"], rep["y"], label=f"{label} (ITAE {rep['itae']:.3g}{extra})")
+        ax_u.plot(rep["t"], rep["u"], label=label)
+    lo, hi = check_limits(u_limit)
+    for lim in (lo, hi):
+        if math.isfinite(lim):
+            ax_u.axhline(lim, color="grey", lw=0.8, ls=":")
+    ax_y.set_ylabel("y")
+    ax_u.set_ylabel("u (actuator)")
+    ax_u.set_xlabel("t [s]")
+    ax_y.legend(fontsize=8)
+    ax_y.set_title(title or "closed loop on the nonlinear model")
+    return fig

@@ -164,7 +164,7 @@ def _gain_table(gains) -> np.ndarray:
     if G.ndim != 2 or G.shape[1] not in (4, 5):
         raise ParameterError(f"gains must be rows (kp, ki, kd, tf[, kt]), got shape {G.shape}")
     if G.shape[1] == 4:
-        kt = [back_calculation_gain(*row[:3]) for row in G]
+        kt = [back_calculation_gain(*np.abs(row[:3])) for row in G]
         G = np.column_stack([G, kt])
     if np.any(G[:, 3] < 0) or not np.all(np.isfinite(G)):
         raise ParameterError("gains must be finite and the filter time constant tf >= 0")
