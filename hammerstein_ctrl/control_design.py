@@ -48,6 +48,7 @@ from .loop_sim import (
     back_calculation_gain,
     check_limits,
     sampled_loop_iosys,
+    sampled_plant,
     saturation_iosys,
     simulate_loops,
 )
@@ -390,6 +391,7 @@ class LoopCost:
         self._num = num * _slope(model, u0)
         self._den = den
         self.J0 = float(_criterion(self.r[None, :], self.dt, criterion)[0])
+        self._plant = sampled_plant(model, self.dt)
 
     def gains(self, thetas) -> np.ndarray:
         """Rows ``kp, ki, kd, tf`` for log-gains."""
@@ -408,7 +410,7 @@ class LoopCost:
 
     def evaluate(self, G: np.ndarray) -> dict:
         """Criterion, overshoot and flags of gain rows ``G`` (no penalties)."""
-        Y, U = simulate_loops(self.model, G, self.r, self.dt, u_limit=self.u_limit)
+        Y, U = simulate_loops(self._plant, G, self.r, self.dt, u_limit=self.u_limit)
         diverged = ~np.all(np.isfinite(Y), axis=1)
         with np.errstate(all="ignore"):
             value = _criterion(self.r - Y, self.dt, self.criterion)
@@ -529,9 +531,9 @@ def tune_pid(model, rule: str = "simc", *, u0: float = 0.0, dt: float | None = N
                              maxfev=maxfev, seed=seed, options=options)
 
 
-#: N-SPSA defaults in log-gain space: perturbations of ~10 %, first steps of ~0.1.
-NSPSA_A = 0.05
-NSPSA_C = 0.1
+#: N-SPSA defaults in log-gain space: perturbations of 5 %, a(k) = 1/(k + A)^0.602 (measured on EMPS).
+NSPSA_A = 1.0
+NSPSA_C = 0.05
 
 
 def _tune_model_based(model, key, start, approx, *, u0, dt, u_limit, reference, step, t_final, criterion,

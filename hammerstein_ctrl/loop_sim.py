@@ -38,6 +38,7 @@ True
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numba
 import numpy as np
@@ -46,7 +47,7 @@ from .exact_export import model_settings, sampled_iosys, sampled_matrices
 from .exceptions import DataError, ParameterError
 from .nonlinearities import Coulomb, DeadZone, PiecewiseLinear, Polynomial, Saturation, Tanh
 
-__all__ = ["simulate_loops", "sampled_loop_iosys", "discrete_pid_iosys", "saturation_iosys",
+__all__ = ["simulate_loops", "sampled_plant", "SampledPlant", "sampled_loop_iosys", "discrete_pid_iosys", "saturation_iosys",
            "back_calculation_gain", "check_limits", "NONLINEARITY_CODES"]
 
 #: Compiled evaluations of the named nonlinearity families (code per class).
@@ -171,12 +172,31 @@ def _gain_table(gains) -> np.ndarray:
     return np.ascontiguousarray(G)
 
 
-def _plant_arrays(model, dt: float):
+@dataclass(frozen=True)
+class SampledPlant:
+    """The arrays of a plant's exact ZOH step, computed once for many loop simulations."""
+
+    Ad: np.ndarray
+    Bd: np.ndarray
+    C: np.ndarray
+    x0: np.ndarray
+    offset: float
+    code: int
+    params: np.ndarray
+    breakpoints: np.ndarray
+    dt: float
+
+
+def sampled_plant(model, dt: float) -> SampledPlant:
+    """Precompute the sampled plant of :func:`simulate_loops` (strictly proper linear block required)."""
     Ad, B0, _, C, D = sampled_matrices(model, dt, "zoh")
     if D != 0.0:
         raise ParameterError("a sampled loop needs a strictly proper linear block (no direct feedthrough)")
     settings = model_settings(model)
-    return Ad, B0, C, settings["initial_state"], settings["offset"]
+    code, p, bp = _nonlinearity_arrays(model)
+    return SampledPlant(np.ascontiguousarray(Ad), np.ascontiguousarray(B0), np.ascontiguousarray(C),
+                        np.ascontiguousarray(settings["initial_state"]), settings["offset"], code, p, bp,
+                        float(dt))
 
 
 def simulate_loops(model, gains, r, dt: float, *, u_limit=None):
@@ -184,8 +204,9 @@ def simulate_loops(model, gains, r, dt: float, *, u_limit=None):
 
     Parameters
     ----------
-    model : HammersteinModel
-        The plant (strictly proper linear block, a named nonlinearity family).
+    model : HammersteinModel or SampledPlant
+        The plant (strictly proper linear block, a named nonlinearity family),
+        or its precomputed :func:`sampled_plant` at ``dt``.
     gains : array_like, shape (B, 4) or (B, 5)
         Rows ``kp, ki, kd, tf`` and optionally the back-calculation gain ``kt``.
     r : array_like, shape (N,)
@@ -207,13 +228,15 @@ def simulate_loops(model, gains, r, dt: float, *, u_limit=None):
         raise DataError(f"the reference needs at least two finite samples, got {r.size}")
     lo, hi = check_limits(u_limit)
     G = _gain_table(gains)
-    Ad, Bd, C, x0, offset = _plant_arrays(model, dt)
-    code, p, bp = _nonlinearity_arrays(model)
+    plant = model if isinstance(model, SampledPlant) else sampled_plant(model, dt)
+    if plant.dt != float(dt):
+        raise ParameterError(f"the sampled plant has dt = {plant.dt}, not {dt}")
     bound = DIVERGENCE_RATIO * max(1.0, float(np.max(np.abs(r))))
     Y = np.empty((G.shape[0], r.size))
     U = np.empty_like(Y)
     with np.errstate(all="ignore"):
-        _loops(Ad, Bd, C, x0, offset, code, p, bp, G, r, float(dt), lo, hi, bound, Y, U)
+        _loops(plant.Ad, plant.Bd, plant.C, plant.x0, plant.offset, plant.code, plant.params,
+               plant.breakpoints, G, r, float(dt), lo, hi, bound, Y, U)
     return Y, U
 
 
@@ -262,7 +285,7 @@ def sampled_loop_iosys(model, gains, dt: float, *, u_limit=None, name: str = "lo
     """
     import control
 
-    _plant_arrays(model, dt)  # same checks as the compiled path
+    sampled_plant(model, dt)  # same checks as the compiled path
     plant = sampled_iosys(model, dt, intersample="zoh", name="plant", inputs="u", outputs="y")
     err = control.summing_junction(inputs=["r", "-y"], output="e", dt=dt, name="error")
     return control.interconnect(
