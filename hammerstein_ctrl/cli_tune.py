@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .exceptions import DataError, HammersteinError
+from .exceptions import DataError
 
 __all__ = ["add_tune_parser"]
 
@@ -103,7 +103,3 @@ def _cmd_tune(args) -> int:
     fig.savefig(plot, dpi=120)
     print(f"figure written to {plot}")
     return 0 if rep["stable"] else 1
-
-
-if __name__ == "__main__":  # pragma: no cover
-    raise HammersteinError("run through hammerstein-ctrl (hammerstein_ctrl.cli)")

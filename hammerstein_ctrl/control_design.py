@@ -30,7 +30,7 @@ Examples
 >>> emps = HammersteinModel(ct.tf([1], [1, 3.138764, 0]), Coulomb(), [0.544501, -0.398365, 0.045066])
 >>> pid = tune_pid(emps, "simc", tau_c=0.2)
 >>> pid.approximation["kind"], round(pid.kp, 3), round(pid.kd, 3)
-('integrating', 34.074, 5.664)
+('integrating', 40.301, 9.183)
 >>> type(pid.controller).__name__
 'TransferFunction'
 """

@@ -208,6 +208,13 @@ def test_emps_nspsa_beats_simc_on_itae(emps_model, emps_limits, emps_designs):
     assert nspsa.approximation["start"]["cost"] == pytest.approx(itae[0], rel=1e-12)
 
 
+def test_auto_rule_improves_on_simc(emps_model, emps_limits, emps_designs):
+    auto = cd.tune_pid(emps_model, "auto", dt=1e-3, u_limit=emps_limits, step=STEP)
+    rep = cd.analyze_loop(emps_model, auto, u_limit=emps_limits, step=STEP)
+    assert auto.optimize_result.method == "nelder-mead" and rep["stable"]
+    assert rep["itae"] < 0.8 * auto.approximation["start"]["cost"]
+
+
 def test_nspsa_tuning_is_deterministic(emps_model, emps_limits, emps_designs):
     again = cd.tune_pid(emps_model, "nspsa", seed=0, dt=1e-3, u_limit=emps_limits, step=STEP)
     assert (again.kp, again.ki, again.kd, again.tf) == tuple(emps_designs[1].gains[:4])
