@@ -201,7 +201,7 @@ def approximate(model, u0: float = 0.0, dt: float | None = None) -> dict:
     if rest:
         kept[-1] += rest[0] / 2
         theta += rest[0] / 2 + sum(rest[1:])
-        notes.append(f"half rule: half of the lag {rest[0]:.4g} to tau{keep + (0 if n_int else 0)}, "
+        notes.append(f"half rule: half of the lag {rest[0]:.4g} to tau2, "
                      f"the rest ({rest[0] / 2 + sum(rest[1:]):.4g}) to the delay")
     kept += [0.0] * (keep - len(kept))
     if dt is not None:
@@ -231,12 +231,14 @@ def _simc(a: dict, tau_c: float):
 
 
 def _imc(a: dict, lam: float):
+    """IMC/lambda PID; for a self-regulating plant on its first-order-plus-delay form (noted in ``a``)."""
     th = a["theta"]
     if a["kind"] == "integrating":
         kc = (2 * lam + th) / (a["gain"] * (lam + th) ** 2)
         return _series_to_parallel(kc, 2 * lam + th, a["tau2"])
-    tau = a["tau1"] + a["tau2"] / 2  # first-order-plus-delay form (half rule)
+    tau = a["tau1"] + a["tau2"] / 2  # half rule once more: tau2 split between tau1 and the delay
     th = th + a["tau2"] / 2
+    a["notes"].append(f"IMC on the first-order-plus-delay form: tau = {tau:.4g}, delay = {th:.4g}")
     kc = (2 * tau + th) / (a["gain"] * (2 * lam + th))
     return kc, kc / (tau + th / 2), kc * tau * th / (2 * tau + th)
 
@@ -616,7 +618,7 @@ def closed_loop(model, pid: PIDResult, u_limit=None, *, dt: float | None = None,
         return sampled_loop_iosys(model, pid.gains, dt, u_limit=u_limit, name=name)
     check_limits(u_limit)
     err = control.summing_junction(inputs=["r", "-y"], output="e", name="error")
-    plant = model.to_iosys("plant", inputs="u", outputs="y")
+    plant = model.to_iosys(name="plant", inputs="u", outputs="y")
     return control.interconnect([err, _continuous_pid_iosys(pid), saturation_iosys(u_limit), plant],
                                 inputs=["r"], outputs=["y", "u"], name=name)
 
