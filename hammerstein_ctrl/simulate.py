@@ -42,7 +42,7 @@ import numba
 import numpy as np
 import scipy.linalg
 
-from ._checks import as_signal, uniform_grid
+from ._checks import as_signal, check_transfer_function, uniform_grid
 from .exceptions import DataError, ParameterError
 
 __all__ = [
@@ -322,7 +322,7 @@ def _lti_system(linear, dt: float):
     import control
 
     if isinstance(linear, tuple) and len(linear) == 2:
-        E, C, D, _ = _tf_system(*linear, dt)
+        E, C, D, _ = _tf_system(*check_transfer_function(*linear, name="linear block"), dt)
         return E, C, D
     if not isinstance(linear, (control.TransferFunction, control.StateSpace)):
         raise ParameterError(
@@ -334,7 +334,8 @@ def _lti_system(linear, dt: float):
     if linear.isdtime(strict=True):
         raise ParameterError("the linear block must be a continuous-time system (dt=0)")
     if isinstance(linear, control.TransferFunction):
-        E, C, D, _ = _tf_system(linear.num[0][0], linear.den[0][0], dt)
+        E, C, D, _ = _tf_system(*check_transfer_function(linear.num[0][0], linear.den[0][0],
+                                                         name="linear block"), dt)
         return E, C, D
     n = linear.nstates
     A = np.asarray(linear.A, dtype=float).reshape(1, n, n)

@@ -26,6 +26,7 @@ from ._common import (
     CountedObjective,
     History,
     as_x0,
+    check_budget,
     check_options,
     make_result,
 )
@@ -129,6 +130,7 @@ def minimize(fun, x0, method: str = "nspsa", *, args=(), maxfev: int | None = No
         For unknown options or invalid settings.
     """
     key = canonical_method(method)
+    maxfev, maxiter = check_budget(maxfev, maxiter)
     options = dict(options or {})
     if key in METHODS:
         check_options(key, options, _OPTIONS[key])
@@ -152,6 +154,10 @@ def _scipy_minimize(method, fun, x0, *, args, maxfev, maxiter, options, callback
     def step(intermediate_result):
         nonlocal nit
         nit += 1
+        if not isinstance(intermediate_result, scipy.optimize.OptimizeResult):
+            # tnc (and scipy's legacy callbacks) pass only the current point
+            intermediate_result = scipy.optimize.OptimizeResult(x=np.array(intermediate_result, dtype=float),
+                                                                fun=obj.best_fun)
         history.append(nit, obj.nfev, float(intermediate_result.fun), obj.best_fun, obj.best_fun)
         if callback is not None and callback(intermediate_result):
             raise StopIteration

@@ -68,11 +68,12 @@ from ._common import (
     as_rng,
     as_x0,
     call_back,
+    check_budget,
     make_result,
 )
 from .gains import PerturbationGain, StepGain, as_gain
 
-__all__ = ["spsa", "nlspsa", "nspsa", "normalized_difference", "DEFAULT_MAXITER"]
+__all__ = ["spsa", "nlspsa", "nspsa", "normalized_difference", "iterations_for_budget", "DEFAULT_MAXITER"]
 
 DEFAULT_MAXITER = 1000
 
@@ -124,6 +125,34 @@ def _nanmin2(a: float, b: float) -> float:
     return min(a, b)
 
 
+def iterations_for_budget(maxfev, maxiter, monitor: int = 0) -> int:
+    """``k_max`` of a run: ``maxiter``, else what ``maxfev`` pays for, else :data:`DEFAULT_MAXITER`.
+
+    A run costs ``2 k_max + 1`` evaluations plus the monitor's evaluations of
+    the iterate; ``k_max`` is the largest count whose total fits in ``maxfev``
+    (``(maxfev - 1) // 2`` without a monitor), so ``maxfev`` is never exceeded.
+
+    Examples
+    --------
+    >>> iterations_for_budget(1_000_000, None), iterations_for_budget(None, None)
+    (499999, 1000)
+    >>> k = iterations_for_budget(201, None, monitor=50); 2 * k + 1 + _monitor_count(k, 50) <= 201
+    True
+    """
+    maxfev, maxiter = check_budget(maxfev, maxiter)
+    if maxfev is None:
+        return DEFAULT_MAXITER if maxiter is None else maxiter
+    kmax = (maxfev - 1) // 2 if maxiter is None else min(maxiter, (maxfev - 1) // 2)
+    while kmax > 0 and 2 * kmax + 1 + _monitor_count(kmax, monitor) > maxfev:
+        kmax -= 1
+    return kmax
+
+
+def _monitor_count(kmax: int, monitor: int) -> int:
+    """Monitor evaluations of a ``kmax``-iteration run (at multiples of ``every`` below ``kmax``)."""
+    return (kmax - 1) // max(1, kmax // monitor) if monitor and kmax > 0 else 0
+
+
 def _run(
     variant: str,
     fun,
@@ -148,13 +177,9 @@ def _run(
     box = as_bounds(bounds, n)
     if box is not None and (np.any(theta < box[0]) or np.any(theta > box[1])):
         raise ParameterError(f"x0 {theta.tolist()} lies outside the bounds")
-    kmax = DEFAULT_MAXITER if maxiter is None else int(maxiter)
-    if maxfev is not None:
-        if maxfev < 1:
-            raise ParameterError(f"maxfev must be >= 1, got {maxfev}")
-        kmax = min(kmax, (int(maxfev) - 1) // 2)
-    if kmax < 0:
-        raise ParameterError(f"maxiter must be >= 0, got {maxiter}")
+    if int(monitor) != monitor or monitor < 0:
+        raise ParameterError(f"monitor must be a non-negative integer, got {monitor!r}")
+    kmax = iterations_for_budget(maxfev, maxiter, int(monitor))
     a = as_gain(StepGain.spall(0.1, max(kmax, 1)) if a is None else a, StepGain, "a")
     c = as_gain(PerturbationGain(0.1) if c is None else c, PerturbationGain, "c")
     if variant == "nlspsa":
@@ -162,8 +187,6 @@ def _run(
             raise ParameterError(f"NL-SPSA needs a positive finite norm_limit (delta), got {norm_limit!r}")
     if not divergence_factor > 1:
         raise ParameterError(f"divergence_factor must exceed 1, got {divergence_factor!r}")
-    if int(monitor) != monitor or monitor < 0:
-        raise ParameterError(f"monitor must be a non-negative integer, got {monitor!r}")
     every = max(1, kmax // int(monitor)) if monitor else 0
 
     radius = divergence_factor * max(1.0, math.sqrt(float(theta @ theta)))
@@ -244,9 +267,10 @@ def spsa(fun, x0, *, a=None, c=None, maxiter=None, maxfev=None, seed=None, args=
     c : PerturbationGain or float, optional
         Perturbation gains ``c(k)``; default ``PerturbationGain(0.1)``.
     maxiter : int, optional
-        Iterations ``k_max`` (default 1000).
+        Iterations ``k_max`` (default: what ``maxfev`` pays for, else 1000).
     maxfev : int, optional
-        Evaluation budget; caps ``k_max`` at ``(maxfev - 1) // 2``.
+        Evaluation budget, never exceeded (monitor evaluations included):
+        ``k_max = (maxfev - 1) // 2`` without a monitor (see :func:`iterations_for_budget`).
     seed : int or numpy.random.Generator, optional
         Source of the perturbations; the same seed gives the same run.
     args : tuple
@@ -262,7 +286,7 @@ def spsa(fun, x0, *, a=None, c=None, maxiter=None, maxfev=None, seed=None, args=
         Evaluate f at the iterate theta(k) at about this many evenly spaced
         iterations, for convergence curves (``history["estimate"]``).  These
         evaluations never influence the search and are counted in
-        ``nfev_monitor``, not in ``nfev``.
+        ``nfev_monitor``, not in ``nfev``; with ``maxfev`` they are paid from it.
 
     Returns
     -------
