@@ -19,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .exceptions import HammersteinError
+from .exceptions import DataError, HammersteinError
 
 __all__ = ["main", "build_parser", "EXIT_ERROR", "PROG"]
 
@@ -60,7 +60,7 @@ def _number(*, positive: bool = False, allow_inf: bool = False):
         try:
             value = float(text)
         except ValueError:
-            raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
+            raise argparse.ArgumentTypeError(f"invalid float value: {text!r}") from None
         if math.isnan(value) or (math.isinf(value) and not allow_inf) or (positive and not value > 0):
             raise argparse.ArgumentTypeError(
                 f"must be a {'positive ' if positive else ''}{'' if allow_inf else 'finite '}number, got {text!r}")
@@ -254,6 +254,8 @@ def _cmd_identify(args) -> int:
     plot = _check_plot_path(args.plot) if args.plot else None
     out = _writable_file("--out", args.out) if args.out else None
     data = read_record(args.data, input=args.input, output=args.output, time=args.time, dt=args.dt)
+    if np.ptp(data.y) == 0:
+        raise DataError(f"{args.data}: the output never changes (constant {data.y[0]:g}): nothing to identify")
     structure, default_x0 = _structure_from_args(args)
     x0 = args.x0 if args.x0 is not None else default_x0
     if x0 is not None and len(x0) != structure.n_params:
