@@ -192,7 +192,7 @@ def _print_cost_comparison(case, study, out):
 
     nfev = sum(r["nfev"] for r in study.records)
     ours = sum(r["elapsed"] for r in study.records) / max(nfev, 1)
-    reused = (f" ({study.resumed} of them reused from {out / 'results.jsonl'})" if study.resumed else "")
+    reused = (f" ({study.resumed} trials reused from {out / 'results.jsonl'})" if study.resumed else "")
     print(f"\n{len(study.records)} trials, {nfev} evaluations: {study.elapsed:.1f} s wall here{reused}")
     # time python-control on a representative model: the best one found (at the TRS initial point
     # g(u) = 0 and forced_response would take its zero-input shortcut)
@@ -258,9 +258,6 @@ def _cmd_identify(args) -> int:
         raise DataError(f"{args.data}: the output never changes (constant {data.y[0]:g}): nothing to identify")
     structure, default_x0 = _structure_from_args(args)
     x0 = args.x0 if args.x0 is not None else default_x0
-    if x0 is not None and len(x0) != structure.n_params:
-        raise HammersteinError(f"--x0 needs {structure.n_params} numbers ({' '.join(structure.param_names)}), "
-                               f"got {len(x0)}")
     bounds = None
     if args.bounds is not None:
         if len(args.bounds) != 2 * structure.n_params:

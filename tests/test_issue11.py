@@ -369,4 +369,4 @@ def test_item10_reuse_count_is_what_is_used(capsys, tmp_path):
     argv = ["reproduce", "trs", "--methods", "nspsa", "--out", tmp_path, "--no-figures", "--jobs", 1]
     assert run(capsys, *argv, "--trials", 4)[0] == 0
     code, out, err = run(capsys, *argv, "--trials", 2)
-    assert code == 0 and "2 trials" in out and "(2 of them reused from" in out
+    assert code == 0 and "2 trials, " in out and "(2 trials reused from" in out
