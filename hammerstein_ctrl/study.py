@@ -216,9 +216,8 @@ def validate_record(record) -> str | None:
     --------
     >>> validate_record(42)
     'not a JSON object'
-    >>> validate_record({"trial": None})
-    "missing field(s) ['best_fun', 'case', 'config', 'curve', 'diverged', 'digest', 'elapsed', 'fun', \
-'message', 'method', 'nfev', 'nfev_monitor', 'nit', 'seed', 'status', 'success', 'x']"
+    >>> validate_record({"trial": None}).split(" [")[0]
+    'missing field(s)'
     """
     if not isinstance(record, dict):
         return "not a JSON object"
