@@ -6,7 +6,11 @@ uses a seed derived only from the study seed and ``i``
 executor, the order of completion or the other methods.  Each finished trial
 is appended to a JSON-lines file at once; rerunning with the same
 ``results_path`` skips the trials already recorded, so an interrupted study
-loses at most the trials that were running.
+loses at most the trials that were running.  The file is checked, never
+trusted: every line carries a digest of its content and settings and must
+match :data:`RECORD_SCHEMA`, or it is moved aside, reported and its trial run
+again.  One run at a time writes a results file (a lock refuses the second),
+and the worker processes end with the run, even when it is killed.
 
 Trials run on any :class:`concurrent.futures.Executor`: by default a local
 process pool over the machine's cores; ``executor="serial"`` runs them in
@@ -25,7 +29,6 @@ Examples
 from __future__ import annotations
 
 import concurrent.futures as cf
-import concurrent.futures.process
 import contextlib
 import ctypes
 import hashlib
@@ -38,6 +41,7 @@ import sys
 import threading
 import time
 import warnings
+from concurrent.futures.process import BrokenProcessPool
 from pathlib import Path
 
 import numpy as np
@@ -47,7 +51,7 @@ from .exceptions import HammersteinError, ParameterError
 from .optimize import canonical_method, minimize
 from .report import json_float, json_safe
 
-__all__ = ["run_study", "StudyResult", "trial_seed", "ranksum", "validate_record", "record_digest",
+__all__ = ["run_study", "StudyResult", "trial_seed", "ranksum", "validate_record", "record_digest", "RECORD_SCHEMA",
            "StudyLockedError", "StudyInterrupted", "ResultsFileWarning"]
 
 #: Points kept from each trial's convergence curve (for plots).
@@ -487,7 +491,7 @@ def _run_pool(case, plan, seed, todo, pool, owned, finish, path):
     try:
         for fut in cf.as_completed(futures):
             finish(fut.result())
-    except cf.process.BrokenProcessPool:
+    except BrokenProcessPool:
         for fut in futures:
             fut.cancel()
         where = f"; the finished trials are saved in {path}, rerun to resume" if path is not None else ""
