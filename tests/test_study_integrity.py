@@ -135,3 +135,40 @@ def test_two_concurrent_runs_one_proceeds_the_other_reports_the_lock(capsys, tmp
     assert first.returncode == 0, errs
     keys = [(r["method"], r["trial"]) for r in map(json.loads, lines(tmp_path / "results.jsonl"))]
     assert sorted(keys) == [("nspsa", i) for i in range(trials)]  # every trial once, no duplicates
+
+
+_POOL_WITHOUT_PDEATHSIG = """
+import sys, time, concurrent.futures as cf, multiprocessing, os
+import hammerstein_ctrl.study as study
+sys.platform = "not-linux"  # the workers rely on the parent watch alone
+pool = cf.ProcessPoolExecutor(2, mp_context=multiprocessing.get_context("fork"),
+                              initializer=study._worker_init, initargs=(os.getpid(),))
+list(pool.map(abs, range(4)))
+print("ready", flush=True)
+time.sleep(600)
+"""
+
+
+@linux
+def test_without_pdeathsig_the_parent_watch_ends_the_workers(tmp_path):
+    import os
+    import signal
+    import subprocess
+
+    from _processes import REPO, alive, children
+    from hammerstein_ctrl.study import PARENT_WATCH_INTERVAL
+
+    proc = subprocess.Popen([sys.executable, "-c", _POOL_WITHOUT_PDEATHSIG], stdout=subprocess.PIPE, text=True,
+                            env={**os.environ, "PYTHONPATH": str(REPO)})
+    try:
+        assert proc.stdout.readline().strip() == "ready"
+        workers = children(proc.pid)
+        assert len(workers) == 2
+        os.kill(proc.pid, signal.SIGKILL)
+        proc.wait(timeout=30)
+        assert wait_for(lambda: not any(map(alive, workers)), timeout=5.0)
+        assert PARENT_WATCH_INTERVAL < 5.0
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+        proc.communicate()
