@@ -103,7 +103,8 @@ def test_item2_unusable_transfer_functions_raise(num, den, message):
 
 # 3 -------------------------------------------------------------------------------------------
 @linux
-@pytest.mark.parametrize("sig", [signal.SIGKILL, signal.SIGTERM])
+@pytest.mark.parametrize("sig", [signal.SIGKILL, pytest.param(signal.SIGTERM, marks=pytest.mark.slow)],
+                         ids=["SIGKILL", "SIGTERM"])
 def test_item3_workers_end_with_a_killed_run_and_the_rerun_matches(capsys, tmp_path, trs, sig):
     trials = 10
     proc = cli("reproduce", "trs", "--methods", "nspsa", "--trials", trials, "--jobs", 2, "--out", tmp_path,
