@@ -351,7 +351,8 @@ def build_parser() -> argparse.ArgumentParser:
     ide.add_argument("--free-gain", action="store_true", help="do not fix the leading numerator coefficient to 1")
     ide.add_argument("--method", default="nspsa", help="nspsa (default), nlspsa, spsa, amvo-sca, lm, nelder-mead, ...")
     ide.add_argument("--x0", type=_number(), nargs="+", help="initial parameter vector beta")
-    ide.add_argument("--bounds", type=_number(allow_inf=True), nargs="+", metavar="LO HI", help="low high for each parameter")
+    ide.add_argument("--bounds", type=_number(allow_inf=True), nargs="+", metavar="LO HI",
+                     help="low high for each parameter")
     ide.add_argument("--maxfev", type=_count(1), help="evaluation budget (default 2501 unless --maxiter)")
     ide.add_argument("--maxiter", type=_count(1), help="iteration limit")
     ide.add_argument("--seed", type=_count(0), default=0, help="seed of the stochastic methods (>= 0)")

@@ -72,7 +72,7 @@ class LinearStructure:
         if den_order < 1:
             raise ParameterError("den_order must be >= 1 (a dynamic linear block)")
         if den_order > MAX_ORDER:
-            raise ParameterError(f"den_order {den_order} exceeds MAX_ORDER = {MAX_ORDER} (supported orders: 1..{MAX_ORDER})")
+            raise ParameterError(f"den_order {den_order} exceeds MAX_ORDER = {MAX_ORDER} (orders 1..{MAX_ORDER})")
         if num_order > den_order:
             raise ParameterError(
                 f"improper structure: num_order {num_order} exceeds den_order {den_order}"
