@@ -342,12 +342,13 @@ def study_figure_set(study, *, validation=None) -> dict:
                                        title=f"{data.name}: measured and best identified outputs{note}"),
         "error": error_response(data, shown, zoom=zoom, title=f"{data.name}: output error{note}"),
         "psd": psd(data, shown, title=f"{data.name}: output PSD{note}"),
-        "bode": bode(shown, title=f"{case.name.upper()}: identified linear blocks{note}"),
         "nonlinearity": nonlinearity(shown, (float(data.u.min()), float(data.u.max())), unit_in=data.input_unit,
                                      title=f"{case.name.upper()}: identified static nonlinearities{note}"),
         "convergence": convergence(study, title=f"{case.name.upper()}: convergence over trials"),
         "final_cost": final_cost(study),
     }
+    if shown:  # with every method diverged there is no linear block to draw (control.bode_plot needs one)
+        figures["bode"] = bode(shown, title=f"{case.name.upper()}: identified linear blocks{note}")
     if validation is not None:
         figures["validation"] = time_response(validation, shown, zoom=_zoom_window(validation),
                                               title=f"{validation.name}: best models on the validation record{note}")

@@ -45,7 +45,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from ._checks import as_signal, check_intersample, uniform_grid
+from ._checks import as_signal, check_intersample, check_transfer_function, uniform_grid
 from ._linalg import expm_batch, single_threaded_blas
 from .exceptions import DataError, ParameterError
 from .kernels import MAX_UNROLLED_STATES, get_kernel
@@ -214,7 +214,7 @@ def _lti_system(linear, dt: float):
     import control
 
     if isinstance(linear, tuple) and len(linear) == 2:
-        E, C, D, _ = _tf_system(*linear, dt)
+        E, C, D, _ = _tf_system(*check_transfer_function(*linear, name="linear block"), dt)
         return E, C, D
     if not isinstance(linear, (control.TransferFunction, control.StateSpace)):
         raise ParameterError(
@@ -226,7 +226,8 @@ def _lti_system(linear, dt: float):
     if linear.isdtime(strict=True):
         raise ParameterError("the linear block must be a continuous-time system (dt=0)")
     if isinstance(linear, control.TransferFunction):
-        E, C, D, _ = _tf_system(linear.num[0][0], linear.den[0][0], dt)
+        E, C, D, _ = _tf_system(*check_transfer_function(linear.num[0][0], linear.den[0][0],
+                                                         name="linear block"), dt)
         return E, C, D
     n = linear.nstates
     A = np.asarray(linear.A, dtype=float).reshape(1, n, n)

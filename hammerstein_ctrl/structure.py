@@ -26,6 +26,7 @@ from typing import Mapping
 
 import numpy as np
 
+from ._checks import MAX_ORDER
 from .exceptions import ParameterError
 from .nonlinearities import Nonlinearity
 
@@ -70,6 +71,8 @@ class LinearStructure:
         num_order, den_order = int(num_order), int(den_order)
         if den_order < 1:
             raise ParameterError("den_order must be >= 1 (a dynamic linear block)")
+        if den_order > MAX_ORDER:
+            raise ParameterError(f"den_order {den_order} exceeds MAX_ORDER = {MAX_ORDER} (orders 1..{MAX_ORDER})")
         if num_order > den_order:
             raise ParameterError(
                 f"improper structure: num_order {num_order} exceeds den_order {den_order}"

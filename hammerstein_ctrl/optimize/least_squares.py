@@ -30,6 +30,7 @@ from ._common import (
     History,
     as_bounds,
     as_x0,
+    check_budget,
     make_result,
 )
 
@@ -51,6 +52,25 @@ class _CountedResiduals(CountedObjective):
         self._track([x], np.array([f]))
         self.history.append(self.nfev, self.nfev, f, self.best_fun, self.best_fun)
         return r
+
+
+def _trf_box(bounds, x0):
+    """``as_bounds`` plus what scipy's trust-region-reflective solver needs: lo < hi, x0 inside."""
+    box = as_bounds(bounds, x0.size)
+    if box is None:
+        return None
+    lo, hi = box
+    same = np.flatnonzero(lo >= hi)
+    if same.size:
+        raise ParameterError(
+            f"method 'lm' needs low < high for every bound; parameter {int(same[0])} has low = high = "
+            f"{lo[same[0]]:g} (fix that parameter in the structure instead of bounding it)"
+        )
+    out = np.flatnonzero((x0 < lo) | (x0 > hi))
+    if out.size:
+        i = int(out[0])
+        raise ParameterError(f"x0[{i}] = {x0[i]:g} lies outside its bounds [{lo[i]:g}, {hi[i]:g}]")
+    return box
 
 
 def levenberg_marquardt(fun, x0, *, maxfev: int | None = None, maxiter=None, seed=None, args=(),
@@ -93,8 +113,9 @@ def levenberg_marquardt(fun, x0, *, maxfev: int | None = None, maxiter=None, see
         raise ParameterError("method 'lm' does not take args")
     if maxiter is not None or callback is not None:
         raise ParameterError("method 'lm' supports neither maxiter nor callback; use maxfev")
+    maxfev, _ = check_budget(maxfev)
     x0 = as_x0(x0)
-    box = as_bounds(bounds, x0.size)
+    box = _trf_box(bounds, x0)
     counted = _CountedResiduals(residuals, maxfev)
     kwargs = dict(ftol=ftol, xtol=xtol, gtol=gtol)
     if box is None:

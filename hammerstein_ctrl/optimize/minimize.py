@@ -26,6 +26,7 @@ from ._common import (
     CountedObjective,
     History,
     as_x0,
+    check_budget,
     check_options,
     make_result,
 )
@@ -131,6 +132,7 @@ def minimize(fun, x0, method: str = "nspsa", *, args=(), maxfev: int | None = No
         For unknown options or invalid settings.
     """
     key = canonical_method(method)
+    maxfev, maxiter = check_budget(maxfev, maxiter)
     if isinstance(options, str):
         if options != "auto" or key not in ("spsa", "nlspsa", "nspsa"):
             raise ParameterError(f"options={options!r}: only 'auto' (gains calibrated from the problem) "
@@ -159,6 +161,10 @@ def _scipy_minimize(method, fun, x0, *, args, maxfev, maxiter, options, callback
     def step(intermediate_result):
         nonlocal nit
         nit += 1
+        if not isinstance(intermediate_result, scipy.optimize.OptimizeResult):
+            # tnc (and scipy's legacy callbacks) pass only the current point
+            intermediate_result = scipy.optimize.OptimizeResult(x=np.array(intermediate_result, dtype=float),
+                                                                fun=obj.best_fun)
         history.append(nit, obj.nfev, float(intermediate_result.fun), obj.best_fun, obj.best_fun)
         if callback is not None and callback(intermediate_result):
             raise StopIteration
