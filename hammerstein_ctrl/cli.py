@@ -242,35 +242,35 @@ def _structure_from_args(args):
 
 
 def _cmd_identify(args) -> int:
-    import json
-
-    from .datasets import read_record
-    from .identify import identify
+    from .identify import AUTO, identify
     from .optimize import canonical_method
-    from .report import json_safe
+    from .persistence import save_result
+    from .records import record_from_args
 
-    canonical_method(args.method)
+    auto = args.method.strip().lower() == AUTO
+    if not auto:
+        canonical_method(args.method)
     options = _gain_options(args)
     plot = _check_plot_path(args.plot) if args.plot else None
     out = _writable_file("--out", args.out) if args.out else None
-    data = read_record(args.data, input=args.input, output=args.output, time=args.time, dt=args.dt)
-    if np.ptp(data.y) == 0:
-        raise DataError(f"{args.data}: the output never changes (constant {data.y[0]:g}): nothing to identify")
+    data = record_from_args(args)
     structure, default_x0 = _structure_from_args(args)
-    x0 = args.x0 if args.x0 is not None else default_x0
+    data.check_identifiable(structure.n_params)
+    x0 = args.x0 if args.x0 is not None else (None if auto else default_x0)
     bounds = None
     if args.bounds is not None:
         if len(args.bounds) != 2 * structure.n_params:
             raise HammersteinError(f"--bounds needs {2 * structure.n_params} numbers (low high per parameter "
                                    f"{list(structure.param_names)}), got {len(args.bounds)}")
         bounds = list(zip(args.bounds[0::2], args.bounds[1::2]))
-    maxfev = args.maxfev if args.maxfev is not None else (None if args.maxiter else 2501)
+    maxfev = args.maxfev if args.maxfev is not None else (None if args.maxiter or auto else 2501)
     result = identify(data, structure, method=args.method, x0=x0, maxfev=maxfev, maxiter=args.maxiter,
-                      seed=args.seed, options=options or None, bounds=bounds)
+                      seed=args.seed, options=options or None, bounds=bounds, offset=args.offset or None,
+                      initial_state=args.initial_state, allow_unstable=args.allow_unstable)
     print(result.summary())
     if out is not None:
-        out.write_text(json.dumps(json_safe(result.to_dict()), indent=2, default=str, allow_nan=False))
-        print(f"model written to {out}")
+        save_result(result, out)
+        print(f"result written to {out}")
     if plot is not None:
         _use_agg()
         from .plots import time_response
@@ -300,6 +300,9 @@ def _gain_options(args) -> dict:
 
 
 def build_parser() -> argparse.ArgumentParser:
+    from .cli_tune import add_tune_parser
+    from .records import add_record_arguments
+
     parser = _Parser(
         prog="hammerstein-ctrl",
         description="Continuous-time Hammerstein identification (N-SPSA and rivals) on python-control.",
@@ -336,11 +339,7 @@ def build_parser() -> argparse.ArgumentParser:
                     "the columns (time t/time, input u/input/vir, output y/output/qm by default; # lines "
                     "are comments), CSV without a header (t,u,y or u,y with --dt), MAT or NPZ files with "
                     "one vector per variable.")
-    ide.add_argument("--data", required=True, help="CSV, MAT or NPZ file")
-    ide.add_argument("--input", help="input column/variable name")
-    ide.add_argument("--output", help="output column/variable name")
-    ide.add_argument("--time", help="time column/variable name")
-    ide.add_argument("--dt", type=_number(positive=True), help="sampling interval when the file has no time column")
+    add_record_arguments(ide)
     ide.add_argument("--structure", choices=["trs", "emps"], help="a case study's structure (and x0)")
     ide.add_argument("--orders", type=_count(0), nargs=2, metavar=("L", "M"),
                      help="numerator and denominator degrees of H(p)")
@@ -349,20 +348,28 @@ def build_parser() -> argparse.ArgumentParser:
     ide.add_argument("--breakpoints", type=_number(), nargs="+", help="piecewise-linear breakpoints")
     ide.add_argument("--fix", nargs="+", metavar="NAME=VALUE", help="fixed coefficients, e.g. a0=0")
     ide.add_argument("--free-gain", action="store_true", help="do not fix the leading numerator coefficient to 1")
-    ide.add_argument("--method", default="nspsa", help="nspsa (default), nlspsa, spsa, amvo-sca, lm, nelder-mead, ...")
-    ide.add_argument("--x0", type=_number(), nargs="+", help="initial parameter vector beta")
+    ide.add_argument("--method", default="auto",
+                     help="auto (default: needs no x0 or tuning), nspsa, nlspsa, spsa, amvo-sca, lm, nelder-mead, ...")
+    ide.add_argument("--x0", type=_number(), nargs="+",
+                     help="initial parameter vector beta (optional with --method auto)")
+    ide.add_argument("--offset", action="store_true", help="estimate a constant output offset y0")
+    ide.add_argument("--initial-state", choices=["zero", "estimate"], default=None,
+                     help="start H from rest (default) or estimate its initial state")
+    ide.add_argument("--allow-unstable", action="store_true", help="accept an unstable model as a success")
     ide.add_argument("--bounds", type=_number(allow_inf=True), nargs="+", metavar="LO HI",
                      help="low high for each parameter")
-    ide.add_argument("--maxfev", type=_count(1), help="evaluation budget (default 2501 unless --maxiter)")
+    ide.add_argument("--maxfev", type=_count(1),
+                     help="evaluation budget (default: 2000 for auto, 2501 for the others unless --maxiter)")
     ide.add_argument("--maxiter", type=_count(1), help="iteration limit")
     ide.add_argument("--seed", type=_count(0), default=0, help="seed of the stochastic methods (>= 0)")
     ide.add_argument("--gain-a", type=_number(), nargs="+", metavar="A", help="a [A [alpha]] of a(k) = a/(k+A)^alpha")
     ide.add_argument("--gain-c", type=_number(), nargs="+", metavar="C", help="c [gamma] of c(k) = c/(k+1)^gamma")
     ide.add_argument("--norm-limit", type=_number(positive=True), help="NL-SPSA's delta")
     ide.add_argument("--pop-size", type=_count(2), help="AMVO-SCA population")
-    ide.add_argument("--out", help="write the fitted model as JSON")
+    ide.add_argument("--out", help="write the result as versioned JSON (hammerstein_ctrl.load_result reads it)")
     ide.add_argument("--plot", help="write a time-response figure (PNG/SVG/PDF)")
     ide.set_defaults(func=_cmd_identify)
+    add_tune_parser(sub)
     return parser
 
 

@@ -50,10 +50,10 @@ BEFORE_ANY_WORK = [
     (["reproduce"], "the following arguments are required: case"),
     # identify: numbers
     (["identify", "--data", "{csv}", *TRS, "--seed", "-1"], "argument --seed: must be a non-negative integer"),
-    (["identify", "--data", "{csv}", *TRS, "--dt", "0"], "argument --dt: must be a positive finite number"),
-    (["identify", "--data", "{csv}", *TRS, "--dt", "-0.1"], "argument --dt"),
-    (["identify", "--data", "{csv}", *TRS, "--dt", "nan"], "argument --dt"),
-    (["identify", "--data", "{csv}", *TRS, "--dt", "inf"], "argument --dt"),
+    (["identify", "--data", "{csv}", *TRS, "--dt", "0"], "dt must be a positive finite number, got 0.0"),
+    (["identify", "--data", "{csv}", *TRS, "--dt", "-0.1"], "dt must be a positive finite number, got -0.1"),
+    (["identify", "--data", "{csv}", *TRS, "--dt", "nan"], "dt must be a positive finite number, got nan"),
+    (["identify", "--data", "{csv}", *TRS, "--dt", "inf"], "dt must be a positive finite number, got inf"),
     (["identify", "--data", "{csv}", *TRS, "--maxfev", "0"], "argument --maxfev: must be a positive integer"),
     (["identify", "--data", "{csv}", *TRS, "--maxfev", "-1"], "argument --maxfev"),
     (["identify", "--data", "{csv}", *TRS, "--maxfev", "nan"], "argument --maxfev"),
@@ -99,7 +99,7 @@ BEFORE_ANY_WORK = [
     # identify: files
     (["identify", "--data", "{tmp}/nope.csv", *TRS], "data file not found"),
     (["identify", "--data", "{csv}", *TRS, "--input", "volts"], "no input column 'volts'"),
-    (["identify", "--data", "{flat}", *TRS], "the output never changes"),
+    (["identify", "--data", "{flat}", *TRS], "output y is constant"),
     (["identify", "--data", "{csv}", *TRS, "--plot", "{tmp}/x.xyz"], "unknown figure format '.xyz'"),
     (["identify", "--data", "{csv}", *TRS, "--plot", "{tmp}/figure"], "unknown figure format '(none)'"),
     (["identify", "--data", "{csv}", *TRS, "--plot", "{tmp}/no/dir/x.png"], "does not exist"),

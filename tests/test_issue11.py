@@ -350,7 +350,7 @@ def test_item10_a_constant_output_is_refused_before_the_fit(capsys, tmp_path, no
                header="t,u,y", comments="")
     code, out, err = run(capsys, "identify", "--data", path, "--structure", "trs")
     assert code == 2 and no_fit == []
-    assert "the output never changes" in one_error_line(err)
+    assert "output y is constant" in one_error_line(err)
 
 
 def test_item10_identify_out_is_standard_json(capsys, tmp_path, trs_csv):
