@@ -56,6 +56,25 @@ class Nonlinearity:
     #: (``g(u; p) = p[i] g(u; p with p[i] = 1)``), or ``None``.  With it, the
     #: automatic initial point fits that parameter by linear least squares.
     scale_index: int | None = None
+    #: Name of the compiled scalar form in :mod:`hammerstein_ctrl.compiled_maps`
+    #: (used when the family is an output nonlinearity), or ``None``.
+    compiled_map: str | None = None
+
+    def map_extra(self) -> np.ndarray:
+        """Fixed data passed to the compiled map (e.g. breakpoints); empty by default."""
+        return np.empty(0)
+
+    @property
+    def gain_index(self) -> int | None:
+        """The parameter that scales ``g`` as a whole: :attr:`scale_index`, or the first
+        parameter of a family linear in its parameters (``None`` if neither).
+
+        A Hammerstein-Wiener structure fixes this parameter of its input
+        nonlinearity to 1, which removes the gain ambiguity between the blocks.
+        """
+        if self.scale_index is not None:
+            return self.scale_index
+        return 0 if self.n_params and self.basis(np.zeros(1)) is not None else None
 
     @property
     def n_params(self) -> int:
@@ -199,6 +218,7 @@ class Tanh(Nonlinearity):
     """
 
     name = "tanh"
+    compiled_map = "tanh_map"
     param_names = ("d0", "d1")
     scale_index = 0
     #: Range of ``d1 * max|u|`` scanned by :meth:`shape_grid` (almost linear to hard switching).
@@ -239,6 +259,7 @@ class Coulomb(Nonlinearity):
     """
 
     name = "coulomb"
+    compiled_map = "coulomb_map"
     param_names = ("d0", "d1", "d2")
 
     def _evaluate(self, u, p):
@@ -270,6 +291,7 @@ class Polynomial(Nonlinearity):
     """
 
     name = "polynomial"
+    compiled_map = "polynomial_map"
 
     def __init__(self, degree: int = 3):
         if int(degree) != degree or degree < 1:
@@ -311,6 +333,7 @@ class Saturation(Nonlinearity):
     """
 
     name = "saturation"
+    compiled_map = "saturation_map"
     param_names = ("gain", "limit")
     scale_index = 0
 
@@ -346,6 +369,7 @@ class DeadZone(Nonlinearity):
     """
 
     name = "deadzone"
+    compiled_map = "deadzone_map"
     param_names = ("gain", "width")
     scale_index = 0
 
@@ -391,6 +415,7 @@ class PiecewiseLinear(Nonlinearity):
     """
 
     name = "piecewise_linear"
+    compiled_map = "piecewise_linear_map"
 
     def __init__(self, breakpoints: Sequence[float]):
         bp = np.asarray(breakpoints, dtype=float)
@@ -424,6 +449,9 @@ class PiecewiseLinear(Nonlinearity):
         phi[idx, cols] = 1.0 - w
         phi[idx + 1, cols] = w
         return phi
+
+    def map_extra(self) -> np.ndarray:
+        return self.breakpoints
 
     def __repr__(self):
         return f"PiecewiseLinear(breakpoints={self.breakpoints.tolist()})"

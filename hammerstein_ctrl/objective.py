@@ -28,7 +28,7 @@ import numpy as np
 
 from .exceptions import ParameterError
 from .simulate import simulate_batch, sse_batch
-from .structure import HammersteinStructure
+from .structure import BlockStructure
 
 __all__ = ["HammersteinCost"]
 
@@ -52,7 +52,7 @@ class HammersteinCost:
     ----------
     data : IOData
         The estimation record (uniform time grid).
-    structure : HammersteinStructure
+    structure : HammersteinStructure, WienerStructure or HammersteinWienerStructure
         Maps beta to a model.
     reject_unstable : bool, default False
         Score candidates with a pole in the open right half-plane as ``inf``.
@@ -63,14 +63,15 @@ class HammersteinCost:
     param_names : tuple of str
     """
 
-    def __init__(self, data, structure: HammersteinStructure, *, reject_unstable: bool = False):
+    def __init__(self, data, structure: BlockStructure, *, reject_unstable: bool = False):
         from .datasets import IOData
 
         if not isinstance(data, IOData):
             raise ParameterError(f"data must be an IOData record, got {type(data).__name__}")
-        if not isinstance(structure, HammersteinStructure):
+        if not isinstance(structure, BlockStructure):
             raise ParameterError(
-                f"structure must be a HammersteinStructure, got {type(structure).__name__}"
+                "structure must be a HammersteinStructure, WienerStructure or HammersteinWienerStructure, "
+                f"got {type(structure).__name__}"
             )
         self.data = data
         self.structure = structure
@@ -80,7 +81,8 @@ class HammersteinCost:
         self._n_linear = structure.linear.n_params
         # g(u; d) = d @ basis for nonlinearities linear in their parameters: a
         # batch of signals is then one matrix product (7x cheaper than the formula).
-        basis = structure.nonlinearity.basis(self._u)
+        g = structure.input_nonlinearity
+        basis = None if g is None else g.basis(self._u)
         self._basis = None if basis is None else np.ascontiguousarray(basis, dtype=float)
 
     @property
@@ -93,15 +95,20 @@ class HammersteinCost:
 
     def _pieces(self, b: np.ndarray):
         """Coefficients, signals and simulation options for a validated ``(B, n_params)`` array."""
-        k, m = self._n_linear, self.structure.n_core
-        num, den = self.structure.linear._coefficients(b[:, :k])
+        s = self.structure
+        num, den = s.linear._coefficients(b[:, :self._n_linear])
+        g_params = s.input_params(b)
         with np.errstate(all="ignore"):
-            if self._basis is not None:
-                V = _combine(np.ascontiguousarray(b[:, k:m]), self._basis)
+            if g_params is None:
+                V = self._u
+            elif self._basis is not None:
+                V = _combine(np.ascontiguousarray(g_params), self._basis)
             else:
-                V = self.structure.nonlinearity._evaluate(self._u, b[:, k:m])
-        offset, x0 = self.structure.nuisance(b)
-        opts = {"offset": offset, "x0": x0, "intersample": self.data.intersample}
+                V = s.input_nonlinearity._evaluate(self._u, g_params)
+        offset, x0 = s.nuisance(b)
+        h_params = s.output_params(b)
+        opts = {"offset": offset, "x0": x0, "intersample": self.data.intersample,
+                "output_map": None if h_params is None else (s.output_nonlinearity, h_params)}
         return num, den, V, opts
 
     def __call__(self, beta) -> float:
