@@ -200,9 +200,12 @@ SCAN_POINTS = 16
 
 
 def _input_quantiles(u, low: float, high: float) -> np.ndarray:
-    """Distinct positive quantiles of ``|u|`` between the fractions ``low`` and ``high``."""
+    """Distinct positive levels of ``|u|``: its quantiles between the fractions ``low`` and
+    ``high``, and as many evenly spaced levels up to the same fraction of its range (a signal
+    that dwells near zero has its quantiles bunched there)."""
     a = np.abs(np.asarray(u, dtype=float))
-    q = np.unique(np.quantile(a, np.linspace(low, high, SCAN_POINTS)))
+    even = np.linspace(0.0, high * float(a.max(initial=0.0)), SCAN_POINTS + 1)[1:]
+    q = np.unique(np.concatenate([np.quantile(a, np.linspace(low, high, SCAN_POINTS)), even]))
     return q[q > 0] if np.any(q > 0) else np.array([1.0])
 
 

@@ -85,11 +85,11 @@ CALIBRATION_PAIRS = 4
 #: Automatic ``c``: perturbations of this fraction of each parameter's scale.
 AUTO_PERTURBATION = 0.1
 #: Automatic ``a``: the first step moves a parameter by about this fraction of its scale.
-AUTO_FIRST_STEP = 0.01
+AUTO_FIRST_STEP = 0.05
 #: Automatic ``a``: decay exponent.  N-SPSA's normalised difference does not
 #: shrink with the gradient far from the optimum, so the step must decay by
 #: itself: ``1/k``, Spall's asymptotically optimal rate, not the robust 0.602
-#: (measured on six known-truth systems: the final J/J(truth) fell by 2-600x).
+#: (measured: EMPS mean J 0.24 over 6 seeds against 0.29 with 0.602, TRS 178.9 for both).
 AUTO_ALPHA = 1.0
 #: Automatic ``scale``: a parameter's scale is ``|x0_i|``, but at least this
 #: fraction of the largest ``|x0_j|`` (and at least :data:`AUTO_SCALE_MIN`).
