@@ -25,7 +25,7 @@ from .records import read_record
 from .exceptions import DataError, HammersteinError, ParameterError, UnknownNameError
 from .identify import IdentificationResult, identify
 from .metrics import fit_percent, fit_report, nrmse, rmse, sse
-from .model import HammersteinModel
+from .model import BlockModel, HammersteinModel, HammersteinWienerModel, WienerModel
 from .nonlinearities import (
     Coulomb,
     CustomNonlinearity,
@@ -40,7 +40,9 @@ from .nonlinearities import (
 from .objective import HammersteinCost
 from .optimize import PerturbationGain, StepGain, minimize
 from .persistence import load_model, load_result, save_model, save_result
-from .structure import HammersteinStructure, LinearStructure
+from .structure import (
+    BlockStructure, HammersteinStructure, HammersteinWienerStructure, LinearStructure, WienerStructure,
+)
 from .study import StudyResult, run_study
 
 __version__ = "0.1.0"
@@ -52,10 +54,11 @@ __all__ = [
     "IOData", "load_emps", "load_trs", "make_trs_reconstruction", "read_record",
     "DataError", "HammersteinError", "ParameterError", "UnknownNameError",
     "fit_percent", "fit_report", "nrmse", "rmse", "sse",
-    "HammersteinModel", "identify", "IdentificationResult",
+    "BlockModel", "HammersteinModel", "WienerModel", "HammersteinWienerModel", "identify", "IdentificationResult",
     "Nonlinearity", "Tanh", "Coulomb", "Polynomial", "Saturation", "DeadZone", "PiecewiseLinear",
     "CustomNonlinearity", "nonlinearity_from_name",
-    "HammersteinCost", "HammersteinStructure", "LinearStructure",
+    "HammersteinCost", "BlockStructure", "HammersteinStructure", "WienerStructure", "HammersteinWienerStructure",
+    "LinearStructure",
     "minimize", "StepGain", "PerturbationGain", "run_study", "StudyResult",
     "__version__",
 ]
