@@ -10,8 +10,6 @@ from __future__ import annotations
 import argparse
 import sys
 
-import numpy as np
-
 from .exceptions import HammersteinError
 
 __all__ = ["main"]
@@ -46,6 +44,8 @@ def _use_agg():
 def _cmd_reproduce(args) -> int:
     import json
     from pathlib import Path
+
+    import numpy as np
 
     from . import presets
     from .bench import forced_response_cost, time_call
