@@ -12,6 +12,7 @@ import time
 import numpy as np
 
 __all__ = ["time_call", "forced_response_cost", "evaluation_speed", "optimizer_speed", "format_report",
+           "synthetic_record", "memory_child", "peak_memory", "run_child", "MEMORY_BUDGETS", "SYNTHETIC_BETA",
            "identification_comparison", "format_identification_table", "IDENTIFICATION_VARIANTS"]
 
 
@@ -154,3 +155,135 @@ def format_identification_table(rows, *, header: bool = True) -> str:
         lines.append(f"| {r['case']} | {r['variant']} | {r['mean']:.6g} | {r['best']:.6g} | {r['worst']:.6g} | "
                      f"{r['std']:.3g} | {r['success']}/{r['runs']} | {r['nfev']:.0f} | {r['seconds']:.3f} |")
     return "\n".join(lines)
+
+
+# ---------------------------------------------------------------------------
+# Peak memory on long records
+# ---------------------------------------------------------------------------
+
+#: Methods whose peak memory :func:`peak_memory` measures, with the evaluation budget of the run
+#: (small: the peak is reached in the first iterations, and a 1e7-sample evaluation takes 0.1 s).
+MEMORY_BUDGETS = {"nspsa": 21, "lm": 25, "auto": 40, "amvo-sca": 100}
+#: Hold time, in samples, of each random level of the synthetic input.
+_HOLD_SAMPLES = 500
+#: Sampling interval of the synthetic records (the EMPS rate).
+_SYNTHETIC_DT = 1e-3
+#: Parameters generating the synthetic records: the paper's best N-SPSA EMPS model (Table 8).
+SYNTHETIC_BETA = (3.2870, 0.59130, -0.4448, 0.0486)
+
+
+def synthetic_record(n_samples: int, *, seed: int = 0):
+    """An EMPS-like record of any length: the EMPS structure at the paper's N-SPSA optimum.
+
+    The input holds uniform random levels in [-1, 1] for 500 samples each; the
+    output is simulated from that input (no noise).  Used to measure memory
+    and time on records longer than the real one.
+
+    Examples
+    --------
+    >>> rec = synthetic_record(1000)
+    >>> len(rec), rec.dt
+    (1000, 0.001)
+    """
+    from .iodata import IOData
+    from .objective import HammersteinCost
+    from .presets import emps_structure
+
+    rng = np.random.default_rng(seed)
+    levels = rng.uniform(-1.0, 1.0, n_samples // _HOLD_SAMPLES + 1)
+    u = np.repeat(levels, _HOLD_SAMPLES)[:n_samples]
+    structure = emps_structure()
+    y = HammersteinCost(IOData(u, np.zeros(n_samples), dt=_SYNTHETIC_DT), structure).simulate(SYNTHETIC_BETA)
+    return IOData(u, y, dt=_SYNTHETIC_DT, name=f"synthetic-emps-{n_samples}")
+
+
+def _identify_long(data, method: str):
+    """One small-budget identification of a synthetic record, as a user would call it."""
+    from .identify import identify
+    from .optimize.presets import EMPS_BOUNDS
+    from .presets import X0, emps_structure
+
+    kwargs = {"maxfev": MEMORY_BUDGETS[method], "seed": 0}
+    if method != "auto":
+        kwargs["x0"] = X0["emps"]
+    if method == "amvo-sca":
+        kwargs.update(bounds=EMPS_BOUNDS, options={"pop_size": MEMORY_BUDGETS[method] // 2})
+    return identify(data, emps_structure(), method=method, **kwargs)
+
+
+def _proc_status_kb(field: str) -> int:
+    with open("/proc/self/status") as fh:
+        for line in fh:
+            if line.startswith(field + ":"):
+                return int(line.split()[1])
+    raise OSError(f"no {field} in /proc/self/status")
+
+
+def _reset_peak_rss():
+    """Reset the process's high-water mark of resident memory (Linux >= 4.0)."""
+    with open("/proc/self/clear_refs", "w") as fh:
+        fh.write("5")
+
+
+def memory_child(method: str, n_samples: int) -> dict:
+    """Measure one identification's peak memory in this process (run it in a fresh one).
+
+    The record is built and the kernels compiled first (on a short record);
+    then the peak resident memory is reset and the identification run.
+    ``peak_bytes`` is the rise of resident memory above what the process held
+    with the record loaded, so it counts every allocation of the run
+    (numpy's, numba's, scipy's and MINPACK's); ``tracemalloc_bytes`` counts
+    the allocations Python's allocator sees (numpy arrays, not numba's).
+    """
+    import gc
+    import tracemalloc
+
+    _identify_long(synthetic_record(4 * _HOLD_SAMPLES), method)  # compile, load everything
+    data = synthetic_record(n_samples)
+    gc.collect()
+    base = _proc_status_kb("VmRSS")
+    _reset_peak_rss()
+    tracemalloc.start()
+    t0 = time.perf_counter()
+    result = _identify_long(data, method)
+    seconds = time.perf_counter() - t0
+    traced = tracemalloc.get_traced_memory()[1]
+    tracemalloc.stop()
+    peak = (_proc_status_kb("VmHWM") - base) * 1024
+    return {"method": method, "samples": n_samples, "peak_bytes": peak, "per_sample": peak / n_samples,
+            "tracemalloc_bytes": traced, "tracemalloc_per_sample": traced / n_samples,
+            "record_bytes": data.u.nbytes + data.y.nbytes + data.t.nbytes, "seconds": seconds,
+            "nfev": int(result.nfev)}
+
+
+def _child_env() -> dict:
+    """Environment for a child Python that imports this copy of the package."""
+    import os
+    from pathlib import Path
+
+    env = dict(os.environ)
+    root = str(Path(__file__).resolve().parent.parent)
+    env["PYTHONPATH"] = os.pathsep.join([root] + [p for p in env.get("PYTHONPATH", "").split(os.pathsep) if p])
+    return env
+
+
+def run_child(code: str, *, timeout: float = 1800) -> dict:
+    """Run ``code`` in a fresh Python process; it must print one JSON object as its last line."""
+    import json
+    import subprocess
+    import sys
+
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=_child_env(),
+                          timeout=timeout)
+    if proc.returncode != 0:
+        raise RuntimeError(f"child process failed ({proc.returncode}): {proc.stderr.strip()[-2000:]}")
+    return json.loads(proc.stdout.strip().splitlines()[-1])
+
+
+def peak_memory(method: str, n_samples: int) -> dict:
+    """Peak memory of a small-budget identification of an ``n_samples`` record, in a fresh process.
+
+    See :func:`memory_child` for what is counted.
+    """
+    return run_child("import json; from hammerstein_ctrl.bench import memory_child; "
+                     f"print(json.dumps(memory_child({method!r}, {int(n_samples)})))")

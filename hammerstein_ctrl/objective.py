@@ -30,19 +30,29 @@ from .exceptions import ParameterError
 from .simulate import simulate_batch, sse_batch
 from .structure import HammersteinStructure
 
-__all__ = ["HammersteinCost"]
+__all__ = ["HammersteinCost", "CHUNK_BYTES", "NONFINITE_RESIDUAL"]
+
+
+#: Largest block of per-candidate signals ``g(u)`` (and simulated outputs) formed
+#: at once, in bytes.  A batch whose ``B x N`` signals would exceed it is
+#: evaluated a chunk of candidates at a time, so that memory per sample stays
+#: bounded on long records (one candidate at a time from 2 million samples up);
+#: records of ordinary length take the whole batch in one chunk.
+CHUNK_BYTES = 1 << 24
+
+#: Value given to non-finite residuals, so that trust-region solvers back off instead of failing.
+NONFINITE_RESIDUAL = 1e150
 
 
 @numba.njit(cache=True, nogil=True)
-def _combine(P, basis):  # pragma: no cover - compiled
-    """``P @ basis`` single-threaded (BLAS threads would compete with the simulation)."""
+def _combine(P, basis, out):  # pragma: no cover - compiled
+    """``out[:B] = P @ basis`` single-threaded (BLAS threads would compete with the simulation)."""
     batch, p = P.shape
-    V = np.empty((batch, basis.shape[1]))
     for b in range(batch):
-        V[b, :] = P[b, 0] * basis[0]
+        out[b, :] = P[b, 0] * basis[0]
         for j in range(1, p):
-            V[b, :] += P[b, j] * basis[j]
-    return V
+            out[b, :] += P[b, j] * basis[j]
+    return out[:batch]
 
 
 class HammersteinCost:
@@ -91,18 +101,34 @@ class HammersteinCost:
     def param_names(self) -> tuple[str, ...]:
         return self.structure.param_names
 
-    def _pieces(self, b: np.ndarray):
-        """Coefficients, signals and simulation options for a validated ``(B, n_params)`` array."""
+    def _chunks(self, batch: int):
+        """Slices of at most ``CHUNK_BYTES`` worth of signals covering ``range(batch)``."""
+        rows = max(1, CHUNK_BYTES // (self._y.itemsize * max(1, self._y.size)))
+        return [slice(i, min(i + rows, batch)) for i in range(0, batch, rows)]
+
+    def _pieces(self, b: np.ndarray, buffer=None):
+        """Coefficients, signals and simulation options for a validated ``(B, n_params)`` array.
+
+        ``buffer`` (at least ``B`` rows of ``N``) receives the signals when the
+        nonlinearity has a basis, so chunks reuse one block of memory.
+        """
         k, m = self._n_linear, self.structure.n_core
         num, den = self.structure.linear._coefficients(b[:, :k])
         with np.errstate(all="ignore"):
             if self._basis is not None:
-                V = _combine(np.ascontiguousarray(b[:, k:m]), self._basis)
+                if buffer is None:
+                    buffer = np.empty((b.shape[0], self._u.size))
+                V = _combine(np.ascontiguousarray(b[:, k:m]), self._basis, buffer)
             else:
                 V = self.structure.nonlinearity._evaluate(self._u, b[:, k:m])
         offset, x0 = self.structure.nuisance(b)
         opts = {"offset": offset, "x0": x0, "intersample": self.data.intersample}
         return num, den, V, opts
+
+    def _signal_buffer(self, chunks):
+        """One block of signals reused by every chunk (``None`` without a basis)."""
+        rows = chunks[0].stop - chunks[0].start if chunks else 0
+        return None if self._basis is None else np.empty((rows, self._u.size))
 
     def __call__(self, beta) -> float:
         """J at one beta (``inf`` if the candidate cannot be simulated)."""
@@ -117,8 +143,14 @@ class HammersteinCost:
         return self._sse(b.reshape(-1, b.shape[-1]))
 
     def _sse(self, b: np.ndarray) -> np.ndarray:
-        num, den, V, opts = self._pieces(b)
-        return sse_batch(num, den, V, self.data.dt, self._y, reject_unstable=self.reject_unstable, **opts)
+        J = np.empty(b.shape[0])
+        chunks = self._chunks(b.shape[0])
+        buffer = self._signal_buffer(chunks)
+        for rows in chunks:
+            num, den, V, opts = self._pieces(b[rows], buffer)
+            J[rows] = sse_batch(num, den, V, self.data.dt, self._y, reject_unstable=self.reject_unstable,
+                                **opts)
+        return J
 
     def simulate(self, beta) -> np.ndarray:
         """Simulated output ŷ for one beta (NaN where the simulation fails)."""
@@ -127,22 +159,52 @@ class HammersteinCost:
     def simulate_batch(self, betas) -> np.ndarray:
         """Simulated outputs for each row of ``betas``, shape ``(B, N)`` (NaN rows where it fails)."""
         b = self.structure.check_beta(betas)
-        num, den, V, opts = self._pieces(b.reshape(-1, b.shape[-1]))
+        b = b.reshape(-1, b.shape[-1])
+        chunks = self._chunks(b.shape[0])
+        if len(chunks) == 1:
+            return self._simulate_chunk(b, None)
+        Y = np.empty((b.shape[0], self._y.size))
+        buffer = self._signal_buffer(chunks)
+        for rows in chunks:
+            Y[rows] = self._simulate_chunk(b[rows], buffer)
+        return Y
+
+    def _simulate_chunk(self, b, buffer):
+        num, den, V, opts = self._pieces(b, buffer)
         with np.errstate(all="ignore"):
             return simulate_batch(num, den, V, self.data.dt, **opts)
 
     def residuals(self, beta) -> np.ndarray:
         """``y - ŷ`` for one beta, for least-squares solvers (``J = sum(residuals**2)``).
 
-        Non-finite residuals are replaced by a large finite value so that
-        trust-region solvers back off instead of failing.
+        Non-finite residuals are replaced by a large finite value
+        (:data:`NONFINITE_RESIDUAL`) so that trust-region solvers back off
+        instead of failing.
         """
+        b = self.structure.check_beta(beta)
+        if b.ndim != 1:
+            raise ParameterError("residuals(beta) takes one vector; use residuals_batch for a batch")
+        return self.residuals_batch(b)[0]
+
+    def residuals_batch(self, betas) -> np.ndarray:
+        """:meth:`residuals` for each row of ``betas``, shape ``(B, N)``, in one compiled pass.
+
+        Finite-difference Jacobians evaluate all their columns with it.
+
+        Examples
+        --------
+        >>> from hammerstein_ctrl import presets
+        >>> p = presets.trs()
+        >>> R = p.cost.residuals_batch([p.true_beta, p.x0])
+        >>> R.shape == (2, len(p.data)), round(float(R[0] @ R[0]), 6)
+        (True, 178.5)
+        """
+        R = self.simulate_batch(betas)
         with np.errstate(all="ignore"):
-            r = self._y - self.simulate(beta)
-        bad = ~np.isfinite(r)
-        if bad.any():
-            r[bad] = 1e150
-        return r
+            np.subtract(self._y, R, out=R)
+        if not np.isfinite(R).all():
+            R[~np.isfinite(R)] = NONFINITE_RESIDUAL
+        return R
 
     def __repr__(self):
         return f"HammersteinCost({self.data.name!r}, {self.structure.describe()})"

@@ -36,21 +36,82 @@ from ._common import (
 __all__ = ["levenberg_marquardt"]
 
 
+#: Relative step of the forward-difference Jacobian (scipy's "2-point" default, sqrt(eps)).
+FD_REL_STEP = float(np.sqrt(np.finfo(float).eps))
+
+
 class _CountedResiduals(CountedObjective):
-    """:class:`CountedObjective` for a residual vector: counts, budgets and tracks J = r @ r."""
+    """:class:`CountedObjective` for a residual vector: counts, budgets and tracks J = r @ r.
+
+    Remembers the last residual vector so that the Jacobian at the same point
+    does not evaluate it again (scipy's finite differences reuse it too).
+    """
 
     def __init__(self, residuals, maxfev):
         super().__init__(residuals, (), maxfev)
         self.history = History()
+        self._last = (None, None)
+
+    def record(self, x, r):
+        """Book one charged evaluation: best point and history row."""
+        f = float(r @ r)
+        self._track([x], np.array([f]))
+        self.history.append(self.nfev, self.nfev, f, self.best_fun, self.best_fun)
 
     def __call__(self, x):
         self._charge(1)
         with np.errstate(all="ignore"):
             r = np.asarray(self.fun(x), dtype=float)
-        f = float(r @ r)
-        self._track([x], np.array([f]))
-        self.history.append(self.nfev, self.nfev, f, self.best_fun, self.best_fun)
+        self.record(x, r)
+        self._last = (np.array(x, dtype=float), r)
         return r
+
+    def residual_at(self, x):
+        """The residual vector at ``x``: the remembered one if ``x`` was the last point evaluated."""
+        last_x, last_r = self._last
+        if last_x is not None and np.array_equal(last_x, x):
+            return last_r
+        return self(x)
+
+    charge = CountedObjective._charge
+
+
+class _BatchedJacobian:
+    """Forward-difference Jacobian of the residuals, all columns in one batched call.
+
+    The same steps as scipy's ``"2-point"`` scheme (``h = sqrt(eps) max(1, |x|)``,
+    sign of ``x``, flipped to stay inside ``bounds``), and every column counts
+    as one evaluation against the budget, as with scipy's own differences.  If
+    fewer evaluations than columns remain, the columns that fit are evaluated
+    (and count, and can become the best point) before the budget stops the run.
+    """
+
+    def __init__(self, counted: _CountedResiduals, residuals_batch, box):
+        self.counted, self.residuals_batch = counted, residuals_batch
+        self.upper = None if box is None else box[1]
+
+    def steps(self, x):
+        h = FD_REL_STEP * np.where(x >= 0, 1.0, -1.0) * np.maximum(1.0, np.abs(x))
+        if self.upper is not None:
+            h = np.where(x + h > self.upper, -h, h)
+        return (x + h) - x
+
+    def __call__(self, x):
+        x = np.asarray(x, dtype=float)
+        r0 = self.counted.residual_at(x)
+        h = self.steps(x)
+        X = x + np.diag(h)
+        fit = int(min(x.size, self.counted.remaining))
+        self.counted.charge(fit)
+        with np.errstate(all="ignore"):
+            R = np.asarray(self.residuals_batch(X[:fit]), dtype=float)
+        for xk, rk in zip(X[:fit], R):
+            self.counted.record(xk, rk)
+        if fit < x.size:
+            self.counted.charge(x.size - fit)  # raises BudgetExhausted
+        R -= r0
+        R /= h[:, None]
+        return R.T
 
 
 def levenberg_marquardt(fun, x0, *, maxfev: int | None = None, maxiter=None, seed=None, args=(),
@@ -60,7 +121,9 @@ def levenberg_marquardt(fun, x0, *, maxfev: int | None = None, maxiter=None, see
     Parameters
     ----------
     fun : object with a ``residuals(x)`` method
-        Such as :class:`~hammerstein_ctrl.objective.HammersteinCost`.
+        Such as :class:`~hammerstein_ctrl.objective.HammersteinCost`.  If it
+        also has ``residuals_batch(X)`` (rows of ``X`` to residual vectors),
+        the forward-difference Jacobian is evaluated in one batched call.
     x0 : array_like
 
     Notes
@@ -97,6 +160,9 @@ def levenberg_marquardt(fun, x0, *, maxfev: int | None = None, maxiter=None, see
     box = as_bounds(bounds, x0.size)
     counted = _CountedResiduals(residuals, maxfev)
     kwargs = dict(ftol=ftol, xtol=xtol, gtol=gtol)
+    batch = getattr(fun, "residuals_batch", None)
+    if batch is not None:
+        kwargs.update(jac=_BatchedJacobian(counted, batch, box))
     if box is None:
         kwargs.update(method="lm")
     else:
