@@ -6,13 +6,19 @@ measurements taken in the same run, each the median of several repeats.
 
 from __future__ import annotations
 
+import contextlib
+import signal
 import statistics
+import subprocess
+import sys
 import time
 
 import numpy as np
 
 __all__ = ["time_call", "forced_response_cost", "evaluation_speed", "optimizer_speed", "format_report",
            "synthetic_record", "memory_child", "peak_memory", "run_child", "MEMORY_BUDGETS", "SYNTHETIC_BETA",
+           "SYNTHETIC_X0", "busy_sibling", "contention_ratio", "contention_speed", "first_call_latency", "lm_speed",
+           "hand_route", "identification_routes", "full_report", "MEMORY_SAMPLES",
            "identification_comparison", "format_identification_table", "IDENTIFICATION_VARIANTS"]
 
 
@@ -170,6 +176,9 @@ _HOLD_SAMPLES = 500
 _SYNTHETIC_DT = 1e-3
 #: Parameters generating the synthetic records: the paper's best N-SPSA EMPS model (Table 8).
 SYNTHETIC_BETA = (3.2870, 0.59130, -0.4448, 0.0486)
+#: Initial point of the runs on synthetic records: stable, unlike the paper's EMPS start
+#: (``a1 = -1``), whose response overflows on records of 1e6 samples.
+SYNTHETIC_X0 = (2.0, 0.5, -0.4, 0.0)
 
 
 def synthetic_record(n_samples: int, *, seed: int = 0):
@@ -201,11 +210,11 @@ def _identify_long(data, method: str):
     """One small-budget identification of a synthetic record, as a user would call it."""
     from .identify import identify
     from .optimize.presets import EMPS_BOUNDS
-    from .presets import X0, emps_structure
+    from .presets import emps_structure
 
     kwargs = {"maxfev": MEMORY_BUDGETS[method], "seed": 0}
     if method != "auto":
-        kwargs["x0"] = X0["emps"]
+        kwargs["x0"] = SYNTHETIC_X0
     if method == "amvo-sca":
         kwargs.update(bounds=EMPS_BOUNDS, options={"pop_size": MEMORY_BUDGETS[method] // 2})
     return identify(data, emps_structure(), method=method, **kwargs)
@@ -270,8 +279,6 @@ def _child_env() -> dict:
 def run_child(code: str, *, timeout: float = 1800) -> dict:
     """Run ``code`` in a fresh Python process; it must print one JSON object as its last line."""
     import json
-    import subprocess
-    import sys
 
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=_child_env(),
                           timeout=timeout)
@@ -287,3 +294,304 @@ def peak_memory(method: str, n_samples: int) -> dict:
     """
     return run_child("import json; from hammerstein_ctrl.bench import memory_child; "
                      f"print(json.dumps(memory_child({method!r}, {int(n_samples)})))")
+
+
+# ---------------------------------------------------------------------------
+# Contention: a busy sibling process on the other core
+# ---------------------------------------------------------------------------
+
+#: The sibling's work: a BLAS matrix product in a loop, on one thread.
+_SPIN = ("import sys, numpy as np\n"
+         "a = np.random.default_rng(0).random((200, 200))\n"
+         "print('ready', flush=True)\n"
+         "while True:\n"
+         "    a = a @ a; a /= np.abs(a).max()\n")
+#: Measurement blocks of each kind (quiet, busy) in :func:`contention_ratio`.
+CONTENTION_PAIRS = 7
+
+
+@contextlib.contextmanager
+def busy_sibling():
+    """Run a process spinning a single-threaded BLAS loop for the duration of the block.
+
+    Yields the :class:`subprocess.Popen`; pause and resume it with
+    ``SIGSTOP``/``SIGCONT`` to interleave quiet and busy measurements.
+    """
+    env = _child_env()
+    env.update(OPENBLAS_NUM_THREADS="1", OMP_NUM_THREADS="1", MKL_NUM_THREADS="1")
+    proc = subprocess.Popen([sys.executable, "-c", _SPIN], stdout=subprocess.PIPE, text=True, env=env)
+    try:
+        proc.stdout.readline()
+        yield proc
+    finally:
+        proc.kill()
+        proc.wait()
+        proc.stdout.close()
+
+
+def _per_call(fn, number: int) -> tuple[float, float]:
+    """Wall and CPU (all threads of this process) seconds per call."""
+    t0, c0 = time.perf_counter(), time.process_time()
+    for _ in range(number):
+        fn()
+    return (time.perf_counter() - t0) / number, (time.process_time() - c0) / number
+
+
+def contention_ratio(fn, *, number: int = 100, pairs: int = CONTENTION_PAIRS) -> dict:
+    """Wall time per call of ``fn`` with the sibling paused and running, interleaved.
+
+    ``pairs`` blocks of each kind alternate (so drifts in the machine's load
+    hit both alike); each figure is the median over its blocks.
+
+    Returns
+    -------
+    dict
+        ``quiet_s``, ``busy_s`` (wall seconds per call), ``ratio`` (busy /
+        quiet) and ``cpu_ratio``, the same ratio of the process's CPU time (all its threads):
+        threads spinning against each other raise both, while merely sharing
+        the cores with more processes raises the wall time only.
+    """
+    fn()  # warm-up
+    quiet, busy = [], []
+    with busy_sibling() as proc:
+        for _ in range(pairs):
+            proc.send_signal(signal.SIGSTOP)
+            quiet.append(_per_call(fn, number))
+            proc.send_signal(signal.SIGCONT)
+            busy.append(_per_call(fn, number))
+    (q, qc), (b, bc) = ([statistics.median(col) for col in zip(*runs)] for runs in (quiet, busy))
+    return {"quiet_s": q, "busy_s": b, "ratio": b / q, "cpu_ratio": bc / qc}
+
+
+def contention_speed(case, beta=None, *, batch: int = 50) -> list[dict]:
+    """:func:`contention_ratio` of control.forced_response, our single and our batched evaluation."""
+    beta = np.asarray(case.x0 if beta is None else beta, dtype=float)
+    model = case.structure.model(beta)
+    betas = beta + 1e-3 * np.random.default_rng(0).standard_normal((batch, beta.size))
+    rows = [("forced_response", contention_ratio(lambda: forced_response_cost(case, model), number=2, pairs=5), 1),
+            ("ours, single", contention_ratio(lambda: case.cost(beta)), 1),
+            ("ours, batched", contention_ratio(lambda: case.cost.batch(betas), number=5), batch)]
+    return [{"path": name, "quiet_s": r["quiet_s"] / per, "busy_s": r["busy_s"] / per, "ratio": r["ratio"],
+             "cpu_ratio": r["cpu_ratio"]} for name, r, per in rows]
+
+
+# ---------------------------------------------------------------------------
+# First-call latency in a fresh process
+# ---------------------------------------------------------------------------
+
+_FIRST_CALL = """
+import json, time
+t0 = time.perf_counter()
+import hammerstein_ctrl as hc
+t1 = time.perf_counter()
+import numpy, scipy.optimize, scipy.linalg, numba, control
+t2 = time.perf_counter()
+case = hc.presets.emps()
+t3 = time.perf_counter()
+r = hc.identify(case.data, case.structure, method="lm", x0=case.x0)
+t4 = time.perf_counter()
+r = hc.identify(case.data, case.structure, method="lm", x0=case.x0)
+t5 = time.perf_counter()
+print(json.dumps({"import_s": t1 - t0, "dependencies_s": t2 - t1, "load_s": t3 - t2,
+                  "first_identify_s": t4 - t3, "second_identify_s": t5 - t4, "fun": r.fun}))
+"""
+
+
+def _wall(argv) -> float:
+    t0 = time.perf_counter()
+    subprocess.run(argv, check=True, capture_output=True, env=_child_env())
+    return time.perf_counter() - t0
+
+
+def first_call_latency(*, repeat: int = 3) -> dict:
+    """Import time, first ``identify(method="lm")`` on EMPS and ``--help`` time, each in a fresh process.
+
+    The kernel cache is warmed by one untimed run first.  The package imports
+    its dependencies on first use; ``dependencies_s`` is the import of those
+    an identification needs (numpy, scipy, numba, python-control, which the
+    returned ``TransferFunction`` needs), ``load_s`` reading the EMPS preset,
+    ``first_identify_s`` the first call (loading the compiled kernels) and
+    ``second_identify_s`` the same call again, so their difference is the
+    package's own first-call overhead.  ``python_s`` is a bare interpreter's start-up, to
+    read ``help_s`` against.  Medians over ``repeat`` processes.
+    """
+    run_child(_FIRST_CALL)
+    runs = [run_child(_FIRST_CALL) for _ in range(repeat)]
+    out = {k: statistics.median(r[k] for r in runs) for k in runs[0]}
+    out["python_s"] = statistics.median(_wall([sys.executable, "-c", "pass"]) for _ in range(repeat))
+    out["help_s"] = statistics.median(_wall([sys.executable, "-m", "hammerstein_ctrl.cli", "--help"])
+                                      for _ in range(repeat))
+    return out
+
+
+# ---------------------------------------------------------------------------
+# Levenberg-Marquardt: wall time per iteration, Jacobian cost
+# ---------------------------------------------------------------------------
+
+class _JacobianCounter:
+    """A cost's residual methods, counting the batched (Jacobian) calls."""
+
+    def __init__(self, cost):
+        self.cost, self.jacobians = cost, 0
+
+    def residuals(self, beta):
+        return self.cost.residuals(beta)
+
+    def residuals_batch(self, betas):
+        self.jacobians += 1
+        return self.cost.residuals_batch(betas)
+
+
+def lm_speed(case, *, repeat: int = 5) -> dict:
+    """Levenberg-Marquardt on a preset: wall time per iteration and Jacobian cost, in single evaluations.
+
+    ``single_s`` is one residual vector; ``jacobian_s`` the batched
+    forward-difference Jacobian (all columns in one call) and
+    ``jacobian_2point_s`` scipy's own 2-point scheme (one call per column),
+    both at the optimum.  ``iteration_s`` is the LM run's wall time over its
+    number of Jacobians (one per iteration, plus the final one scipy forms).
+    """
+    import scipy.optimize
+
+    from .optimize import minimize
+
+    x = np.asarray(case.paper["nspsa"]["beta"], dtype=float)
+    steps = np.sqrt(np.finfo(float).eps) * np.maximum(1.0, np.abs(x))
+    X = x + np.diag(steps)
+    single = time_call(lambda: case.cost.residuals(x), repeat=7, number=20)
+    jac = time_call(lambda: case.cost.residuals_batch(X), repeat=7, number=10)
+    two_point = time_call(lambda: scipy.optimize.approx_fprime(x, case.cost.residuals, steps), repeat=7)
+    counter = _JacobianCounter(case.cost)
+    kwargs = case.minimize_kwargs("lm")
+    result = minimize(counter, case.x0, **kwargs)
+    iterations = counter.jacobians
+    run = time_call(lambda: minimize(case.cost, case.x0, **kwargs), repeat=repeat)
+    return {"case": case.name, "n_params": x.size, "single_s": single, "jacobian_s": jac,
+            "jacobian_2point_s": two_point, "run_s": run, "nfev": int(result.nfev), "iterations": iterations,
+            "iteration_s": run / iterations, "fun": float(result.fun)}
+
+
+# ---------------------------------------------------------------------------
+# A whole identification against the route a user would write by hand
+# ---------------------------------------------------------------------------
+
+def hand_route(case) -> dict:
+    """``scipy.optimize.least_squares`` on ``control.forced_response`` residuals, from the case's x0."""
+    import control
+    import scipy.optimize
+
+    t, u, y = case.data.t, case.data.u, case.data.y
+
+    def residuals(beta):
+        model = case.structure.model(beta)
+        return y - control.forced_response(model.linear, t, model.g(u)).outputs
+
+    t0 = time.perf_counter()
+    res = scipy.optimize.least_squares(residuals, case.x0)
+    return {"route": "least_squares on forced_response", "seconds": time.perf_counter() - t0,
+            "fun": float(2 * res.cost), "nfev": int(res.nfev + res.njev * case.x0.size)}
+
+
+def identification_routes(case, *, repeat: int = 3) -> list[dict]:
+    """A whole identification of ``case``: by hand through python-control, and by :func:`identify`."""
+    from .identify import identify
+
+    rows = [hand_route(case)]
+    for method, x0 in (("lm", case.x0), ("auto", None)):
+        r = identify(case.data, case.structure, method=method, x0=x0)
+        secs = time_call(lambda: identify(case.data, case.structure, method=method, x0=x0), repeat=repeat)
+        rows.append({"route": f"identify(method={method!r})", "seconds": secs, "fun": float(r.fun),
+                     "nfev": int(r.nfev)})
+    return rows
+
+
+# ---------------------------------------------------------------------------
+# The whole report
+# ---------------------------------------------------------------------------
+
+#: Record lengths of the peak-memory table.
+MEMORY_SAMPLES = (10**6, 10**7)
+
+
+def full_report(cases, methods=("nspsa",), *, memory_samples=MEMORY_SAMPLES, echo=None) -> str:
+    """Everything ``hammerstein-ctrl bench`` prints, measured in this one run.
+
+    The cost-evaluation table and the preset runs for every case; for the
+    EMPS case also contention, first-call latency, Levenberg-Marquardt
+    iteration cost, peak memory on long records and a whole identification
+    against the hand-written python-control route.  ``echo`` (e.g. ``print``)
+    receives each section as soon as it is measured.
+    """
+    sections = []
+
+    def emit(text):
+        sections.append(text)
+        if echo is not None:
+            echo(text + "\n")
+
+    evals = [evaluation_speed(case, case.paper["nspsa"]["beta"]) for case in cases]
+    runs = [optimizer_speed(case, m) for case in cases for m in methods]
+    emit(format_report(evals, runs))
+    for case in cases:
+        if case.name != "emps":
+            continue
+        beta = case.paper["nspsa"]["beta"]
+        emit(format_contention(contention_speed(case, beta)))
+        emit(format_first_call(first_call_latency()))
+        emit(format_lm_speed(lm_speed(case)))
+        if memory_samples:
+            emit(format_memory([peak_memory(m, n) for n in memory_samples for m in MEMORY_BUDGETS]))
+        emit(format_routes(identification_routes(case)))
+    return "\n\n".join(sections)
+
+
+def format_contention(rows) -> str:
+    lines = ["With a busy sibling process (a one-thread BLAS loop; paused/running blocks interleaved, medians)",
+             "", f"{'path':<18}{'quiet':>12}{'busy':>12}{'busy/quiet':>12}{'CPU time ratio':>16}"]
+    lines += [f"{r['path']:<18}{r['quiet_s'] * 1e6:>9.1f} us{r['busy_s'] * 1e6:>9.1f} us{r['ratio']:>11.2f}x"
+              f"{r['cpu_ratio']:>15.2f}x" for r in rows]
+    return "\n".join(lines)
+
+
+def format_first_call(r) -> str:
+    return "\n".join([
+        "Fresh process, kernel cache warm (medians of 3 processes)", "",
+        f"import hammerstein_ctrl            {r['import_s']:.3f} s",
+        f"then numpy, scipy, numba, control  {r['dependencies_s']:.3f} s (imported on first use; "
+        "identify returns a control.TransferFunction)",
+        f"then presets.emps() (read record)  {r['load_s']:.3f} s",
+        f"first identify(method='lm'), EMPS  {r['first_identify_s']:.3f} s "
+        f"(the same call again: {r['second_identify_s']:.3f} s; first-call overhead "
+        f"{r['first_identify_s'] - r['second_identify_s']:.3f} s)",
+        f"hammerstein-ctrl --help            {r['help_s']:.3f} s (bare python start-up: {r['python_s']:.3f} s)",
+    ])
+
+
+def format_lm_speed(r) -> str:
+    s = r["single_s"]
+    return "\n".join([
+        f"Levenberg-Marquardt on {r['case']} ({r['n_params']} parameters; times in single residual "
+        f"evaluations of {s * 1e6:.0f} us)", "",
+        f"Jacobian, batched forward differences   {r['jacobian_s'] / s:5.2f} evaluations",
+        f"Jacobian, scipy 2-point (one per column) {r['jacobian_2point_s'] / s:5.2f} evaluations",
+        f"one iteration ({r['iterations']} Jacobians, {r['nfev']} evaluations, {r['run_s'] * 1e3:.1f} ms, "
+        f"J = {r['fun']:.6g})   {r['iteration_s'] / s:5.2f} evaluations",
+    ])
+
+
+def format_memory(rows) -> str:
+    lines = ["Peak memory of identify() on long synthetic EMPS records (fresh process; rise of resident memory",
+             "above the loaded record, whose own 24 B/sample are not counted)", "",
+             f"{'method':<10}{'samples':>10}{'nfev':>6}{'peak':>11}{'per sample':>13}{'time':>9}"]
+    lines += [f"{r['method']:<10}{r['samples']:>10.0e}{r['nfev']:>6}{r['peak_bytes'] / 2**20:>8.0f} MB"
+              f"{r['per_sample']:>11.1f} B{r['seconds']:>8.2f}s" for r in rows]
+    return "\n".join(lines)
+
+
+def format_routes(rows) -> str:
+    ref = rows[0]["seconds"]
+    lines = ["A whole EMPS identification from the paper's x0: by hand through python-control vs identify()", "",
+             f"{'route':<36}{'wall':>10}{'ratio':>9}{'J':>12}{'nfev':>7}"]
+    lines += [f"{r['route']:<36}{r['seconds']:>8.3f} s{ref / r['seconds']:>8.0f}x{r['fun']:>12.6g}{r['nfev']:>7}"
+              for r in rows]
+    return "\n".join(lines)

@@ -19,8 +19,8 @@ import time
 
 import numpy as np
 import scipy.optimize
-from threadpoolctl import threadpool_limits
 
+from .._linalg import single_threaded_blas
 from ..exceptions import ParameterError
 from ._common import (
     COMPLETED,
@@ -171,7 +171,7 @@ def levenberg_marquardt(fun, x0, *, maxfev: int | None = None, maxiter=None, see
         # The residual vectors are long enough for OpenBLAS to thread its dot
         # products; handing off to those threads between compiled simulations
         # made each evaluation ~50x slower on a 2-core machine.
-        with threadpool_limits(limits=1, user_api="blas"):
+        with single_threaded_blas():
             res = scipy.optimize.least_squares(counted, x0, **kwargs)
         x, status, message = res.x, (COMPLETED if res.success else SOLVER_FAILED), str(res.message)
         fun_x = float(2.0 * res.cost)

@@ -18,6 +18,7 @@ import time
 import numpy as np
 import scipy.optimize
 
+from .._linalg import single_threaded_blas
 from ..exceptions import ParameterError, UnknownNameError
 from ._common import (
     COMPLETED,
@@ -139,10 +140,13 @@ def minimize(fun, x0, method: str = "nspsa", *, args=(), maxfev: int | None = No
     options = dict(options or {})
     if key in METHODS:
         check_options(key, options, _OPTIONS[key])
-        return METHODS[key](fun, x0, args=args, maxfev=maxfev, maxiter=maxiter, seed=seed,
-                            bounds=bounds, callback=callback, **options)
-    return _scipy_minimize(key, fun, x0, args=args, maxfev=maxfev, maxiter=maxiter,
-                           options=options, callback=callback, bounds=bounds)
+    # the objectives here do tiny dense linear algebra: BLAS threads only spin against other work
+    with single_threaded_blas():
+        if key in METHODS:
+            return METHODS[key](fun, x0, args=args, maxfev=maxfev, maxiter=maxiter, seed=seed,
+                                bounds=bounds, callback=callback, **options)
+        return _scipy_minimize(key, fun, x0, args=args, maxfev=maxfev, maxiter=maxiter,
+                               options=options, callback=callback, bounds=bounds)
 
 
 def _scipy_minimize(method, fun, x0, *, args, maxfev, maxiter, options, callback, bounds):
