@@ -18,7 +18,7 @@ import numpy as np
 __all__ = ["time_call", "forced_response_cost", "evaluation_speed", "optimizer_speed", "format_report",
            "synthetic_record", "memory_child", "peak_memory", "run_child", "MEMORY_BUDGETS", "SYNTHETIC_BETA",
            "SYNTHETIC_X0", "busy_sibling", "contention_ratio", "contention_speed", "first_call_latency", "lm_speed",
-           "hand_route", "identification_routes", "full_report", "MEMORY_SAMPLES",
+           "hand_route", "identification_routes", "full_report", "MEMORY_SAMPLES", "identify_long_record",
            "identification_comparison", "format_identification_table", "IDENTIFICATION_VARIANTS"]
 
 
@@ -206,8 +206,12 @@ def synthetic_record(n_samples: int, *, seed: int = 0):
     return IOData(u, y, dt=_SYNTHETIC_DT, name=f"synthetic-emps-{n_samples}")
 
 
-def _identify_long(data, method: str):
-    """One small-budget identification of a synthetic record, as a user would call it."""
+def identify_long_record(data, method: str):
+    """One small-budget identification (:data:`MEMORY_BUDGETS`) of a synthetic record, as a user would call it.
+
+    From :data:`SYNTHETIC_X0` (``auto`` finds its own starts); AMVO-SCA in the
+    paper's EMPS box with a population of half the budget (two iterations).
+    """
     from .identify import identify
     from .optimize.presets import EMPS_BOUNDS
     from .presets import emps_structure
@@ -247,14 +251,14 @@ def memory_child(method: str, n_samples: int) -> dict:
     import gc
     import tracemalloc
 
-    _identify_long(synthetic_record(4 * _HOLD_SAMPLES), method)  # compile, load everything
+    identify_long_record(synthetic_record(4 * _HOLD_SAMPLES), method)  # compile, load everything
     data = synthetic_record(n_samples)
     gc.collect()
     base = _proc_status_kb("VmRSS")
     _reset_peak_rss()
     tracemalloc.start()
     t0 = time.perf_counter()
-    result = _identify_long(data, method)
+    result = identify_long_record(data, method)
     seconds = time.perf_counter() - t0
     traced = tracemalloc.get_traced_memory()[1]
     tracemalloc.stop()
@@ -350,17 +354,34 @@ def contention_ratio(fn, *, number: int = 100, pairs: int = CONTENTION_PAIRS) ->
         quiet) and ``cpu_ratio``, the same ratio of the process's CPU time (all its threads):
         threads spinning against each other raise both, while merely sharing
         the cores with more processes raises the wall time only.
+        ``sibling_share`` is the sibling's CPU time over the wall time of the
+        busy blocks (how busy it really kept a core).
     """
     fn()  # warm-up
     quiet, busy = [], []
     with busy_sibling() as proc:
+        sibling0, busy_wall = _cpu_seconds(proc.pid), 0.0
         for _ in range(pairs):
             proc.send_signal(signal.SIGSTOP)
             quiet.append(_per_call(fn, number))
             proc.send_signal(signal.SIGCONT)
             busy.append(_per_call(fn, number))
+            busy_wall += busy[-1][0] * number
+        sibling_share = (_cpu_seconds(proc.pid) - sibling0) / busy_wall
     (q, qc), (b, bc) = ([statistics.median(col) for col in zip(*runs)] for runs in (quiet, busy))
-    return {"quiet_s": q, "busy_s": b, "ratio": b / q, "cpu_ratio": bc / qc}
+    return {"quiet_s": q, "busy_s": b, "ratio": b / q, "cpu_ratio": bc / qc, "sibling_share": sibling_share}
+
+
+def _cpu_seconds(pid: int) -> float:
+    """User + system CPU seconds of a process (Linux ``/proc``; NaN elsewhere)."""
+    import os
+
+    try:
+        with open(f"/proc/{pid}/stat") as fh:
+            fields = fh.read().rsplit(")", 1)[1].split()
+    except OSError:
+        return float("nan")
+    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
 
 
 def contention_speed(case, beta=None, *, batch: int = 50) -> list[dict]:

@@ -48,10 +48,16 @@ NONFINITE_RESIDUAL = 1e150
 def _combine(P, basis, out):  # pragma: no cover - compiled
     """``out[:B] = P @ basis`` single-threaded (BLAS threads would compete with the simulation)."""
     batch, p = P.shape
+    n = basis.shape[1]
     for b in range(batch):
-        out[b, :] = P[b, 0] * basis[0]
+        row = out[b]
+        c = P[b, 0]
+        for i in range(n):  # plain loops: no temporaries, vectorised by LLVM
+            row[i] = c * basis[0, i]
         for j in range(1, p):
-            out[b, :] += P[b, j] * basis[j]
+            c = P[b, j]
+            for i in range(n):
+                row[i] += c * basis[j, i]
     return out[:batch]
 
 
