@@ -551,8 +551,7 @@ def full_report(cases, methods=("nspsa",), *, memory_samples=MEMORY_SAMPLES, ech
             echo(text + "\n")
 
     evals = [evaluation_speed(case, case.paper["nspsa"]["beta"]) for case in cases]
-    runs = [optimizer_speed(case, m) for case in cases for m in methods]
-    emit(format_report(evals, runs))
+    emit(format_report(evals, [optimizer_speed(case, m) for case in cases for m in methods]))
     for case in cases:
         if case.name != "emps":
             continue

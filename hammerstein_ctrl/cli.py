@@ -17,7 +17,7 @@ __all__ = ["main"]
 
 def _cmd_bench(args) -> int:
     from . import presets
-    from .bench import evaluation_speed, format_report, optimizer_speed
+    from .bench import full_report
 
     cases = []
     for name in args.cases:
@@ -25,9 +25,7 @@ def _cmd_bench(args) -> int:
             cases.append(presets.get(name))
         except FileNotFoundError as exc:
             print(f"skipping {name}: {str(exc).splitlines()[0]}", file=sys.stderr)
-    evals = [evaluation_speed(case, case.paper["nspsa"]["beta"]) for case in cases]
-    runs = [optimizer_speed(case, m) for case in cases for m in args.methods]
-    print(format_report(evals, runs))
+    full_report(cases, args.methods, memory_samples=[int(n) for n in args.memory_samples], echo=print)
     return 0
 
 
@@ -186,6 +184,8 @@ def build_parser() -> argparse.ArgumentParser:
     bench.add_argument("--cases", nargs="+", default=["emps", "trs"], choices=["emps", "trs"])
     bench.add_argument("--methods", nargs="+", default=["nspsa"],
                        help="methods whose preset run is timed (default: nspsa)")
+    bench.add_argument("--memory-samples", nargs="*", type=float, default=[1e6, 1e7], metavar="N",
+                       help="record lengths of the EMPS peak-memory table (default: 1e6 1e7; none: skip)")
     bench.set_defaults(func=_cmd_bench)
 
     rep = sub.add_parser("reproduce", help="run the paper's comparison (Table 3 / Table 7) and write figures")

@@ -30,7 +30,7 @@ from .exceptions import ParameterError
 from .simulate import simulate_batch, sse_batch
 from .structure import HammersteinStructure
 
-__all__ = ["HammersteinCost", "CHUNK_BYTES", "NONFINITE_RESIDUAL"]
+__all__ = ["HammersteinCost", "CHUNK_BYTES", "BASIS_MAX_BYTES", "BASIS_BLOCK", "NONFINITE_RESIDUAL"]
 
 
 #: Largest block of per-candidate signals ``g(u)`` (and simulated outputs) formed
@@ -44,21 +44,29 @@ CHUNK_BYTES = 1 << 24
 NONFINITE_RESIDUAL = 1e150
 
 
+#: Largest basis of ``g`` (``p x N`` regressors) kept in memory.  Longer records
+#: recompute it in blocks of :data:`BASIS_BLOCK` samples whenever signals are
+#: formed, trading a little time for ``8 p`` bytes per sample.
+BASIS_MAX_BYTES = 1 << 26
+
+#: Samples per block of a recomputed basis.
+BASIS_BLOCK = 1 << 16
+
+
 @numba.njit(cache=True, nogil=True)
-def _combine(P, basis, out):  # pragma: no cover - compiled
-    """``out[:B] = P @ basis`` single-threaded (BLAS threads would compete with the simulation)."""
+def _combine(P, basis, out, start):  # pragma: no cover - compiled
+    """``out[:B, start:start + n] = P @ basis`` single-threaded (BLAS threads would compete with the simulation)."""
     batch, p = P.shape
     n = basis.shape[1]
     for b in range(batch):
         row = out[b]
         c = P[b, 0]
         for i in range(n):  # plain loops: no temporaries, vectorised by LLVM
-            row[i] = c * basis[0, i]
+            row[start + i] = c * basis[0, i]
         for j in range(1, p):
             c = P[b, j]
             for i in range(n):
-                row[i] += c * basis[j, i]
-    return out[:batch]
+                row[start + i] += c * basis[j, i]
 
 
 class HammersteinCost:
@@ -96,8 +104,11 @@ class HammersteinCost:
         self._n_linear = structure.linear.n_params
         # g(u; d) = d @ basis for nonlinearities linear in their parameters: a
         # batch of signals is then one matrix product (7x cheaper than the formula).
-        basis = structure.nonlinearity.basis(self._u)
-        self._basis = None if basis is None else np.ascontiguousarray(basis, dtype=float)
+        probe = structure.nonlinearity.basis(self._u[:1])
+        self._linear_in_params = probe is not None
+        self._basis = None
+        if self._linear_in_params and probe.size * self._u.size * self._u.itemsize <= BASIS_MAX_BYTES:
+            self._basis = np.ascontiguousarray(structure.nonlinearity.basis(self._u), dtype=float)
 
     @property
     def n_params(self) -> int:
@@ -121,20 +132,30 @@ class HammersteinCost:
         k, m = self._n_linear, self.structure.n_core
         num, den = self.structure.linear._coefficients(b[:, :k])
         with np.errstate(all="ignore"):
-            if self._basis is not None:
-                if buffer is None:
-                    buffer = np.empty((b.shape[0], self._u.size))
-                V = _combine(np.ascontiguousarray(b[:, k:m]), self._basis, buffer)
+            if self._linear_in_params:
+                V = self._combined(np.ascontiguousarray(b[:, k:m]), buffer)
             else:
                 V = self.structure.nonlinearity._evaluate(self._u, b[:, k:m])
         offset, x0 = self.structure.nuisance(b)
         opts = {"offset": offset, "x0": x0, "intersample": self.data.intersample}
         return num, den, V, opts
 
+    def _combined(self, P, buffer):
+        """Signals ``P @ basis`` in (the first rows of) ``buffer``, from the stored or a recomputed basis."""
+        if buffer is None:
+            buffer = np.empty((P.shape[0], self._u.size))
+        if self._basis is not None:
+            _combine(P, self._basis, buffer, 0)
+        else:
+            for start in range(0, self._u.size, BASIS_BLOCK):
+                block = self.structure.nonlinearity.basis(self._u[start:start + BASIS_BLOCK])
+                _combine(P, np.ascontiguousarray(block, dtype=float), buffer, start)
+        return buffer[:P.shape[0]]
+
     def _signal_buffer(self, chunks):
         """One block of signals reused by every chunk (``None`` without a basis)."""
         rows = chunks[0].stop - chunks[0].start if chunks else 0
-        return None if self._basis is None else np.empty((rows, self._u.size))
+        return np.empty((rows, self._u.size)) if self._linear_in_params else None
 
     def __call__(self, beta) -> float:
         """J at one beta (``inf`` if the candidate cannot be simulated)."""
@@ -208,8 +229,9 @@ class HammersteinCost:
         R = self.simulate_batch(betas)
         with np.errstate(all="ignore"):
             np.subtract(self._y, R, out=R)
-        if not np.isfinite(R).all():
-            R[~np.isfinite(R)] = NONFINITE_RESIDUAL
+            for r in R:  # a finite sum proves a finite row without an N-long mask
+                if not np.isfinite(r.sum()):
+                    r[~np.isfinite(r)] = NONFINITE_RESIDUAL
         return R
 
     def __repr__(self):

@@ -77,3 +77,18 @@ def test_identify_in_bounded_memory(record, method, bound):
     per_sample, r = peak_bytes_per_sample(lambda: bench.identify_long_record(record, method))
     assert r.nfev == bench.MEMORY_BUDGETS[method]
     assert per_sample < bound
+
+
+def test_recomputed_basis_gives_the_same_numbers(record, cost, monkeypatch):
+    """Past BASIS_MAX_BYTES the basis is rebuilt block by block: same signals, same J, no stored basis."""
+    from hammerstein_ctrl import objective
+
+    monkeypatch.setattr(objective, "BASIS_MAX_BYTES", 0)
+    monkeypatch.setattr(objective, "BASIS_BLOCK", 7919)  # a prime: blocks end mid-level
+    streamed = HammersteinCost(record, emps_structure())
+    assert streamed._basis is None and cost._basis is not None
+    betas = candidates(3)
+    np.testing.assert_array_equal(streamed.batch(betas), cost.batch(betas))
+    np.testing.assert_array_equal(streamed.residuals(betas[0]), cost.residuals(betas[0]))
+    per_sample, _ = peak_bytes_per_sample(lambda: streamed.batch(betas))
+    assert per_sample < 8 * 3 + 4  # the 3 signals, the basis blocks are small
