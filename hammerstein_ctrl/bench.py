@@ -385,13 +385,21 @@ def _cpu_seconds(pid: int) -> float:
 
 
 def contention_speed(case, beta=None, *, batch: int = 50) -> list[dict]:
-    """:func:`contention_ratio` of control.forced_response, our single and our batched evaluation."""
+    """:func:`contention_ratio` of control.forced_response, our single and batched evaluations,
+    and a whole ``identify(method="lm")`` from the case's x0 (per evaluation)."""
+    from .identify import identify
+
     beta = np.asarray(case.x0 if beta is None else beta, dtype=float)
     model = case.structure.model(beta)
     betas = beta + 1e-3 * np.random.default_rng(0).standard_normal((batch, beta.size))
+
+    def run_identify():
+        return identify(case.data, case.structure, method="lm", x0=case.x0)
+
     rows = [("forced_response", contention_ratio(lambda: forced_response_cost(case, model), number=2, pairs=5), 1),
             ("ours, single", contention_ratio(lambda: case.cost(beta)), 1),
-            ("ours, batched", contention_ratio(lambda: case.cost.batch(betas), number=5), batch)]
+            ("ours, batched", contention_ratio(lambda: case.cost.batch(betas), number=5), batch),
+            ("identify lm /eval", contention_ratio(run_identify, number=2, pairs=5), run_identify().nfev)]
     return [{"path": name, "quiet_s": r["quiet_s"] / per, "busy_s": r["busy_s"] / per, "ratio": r["ratio"],
              "cpu_ratio": r["cpu_ratio"]} for name, r, per in rows]
 
