@@ -70,9 +70,10 @@ class _CountedResiduals(CountedObjective):
         self._last = (None, None)
 
     def record(self, x, r):
-        """Book one charged evaluation: best point and history row."""
+        """Book one charged evaluation: best point (NaN never wins) and history row."""
         f = float(r @ r)
-        self._track([x], np.array([f]))
+        if f < self.best_fun:
+            self.best_fun, self.best_x = f, np.array(x, dtype=float)
         self.history.append(self.nfev, self.nfev, f, self.best_fun, self.best_fun)
 
     def __call__(self, x):
