@@ -574,7 +574,12 @@ def full_report(cases, methods=("nspsa",), *, memory_samples=MEMORY_SAMPLES, ech
 
 
 def format_contention(rows) -> str:
-    lines = ["With a busy sibling process (a one-thread BLAS loop; paused/running blocks interleaved, medians)",
+    import os
+
+    load = ", ".join(f"{v:.1f}" for v in os.getloadavg()) if hasattr(os, "getloadavg") else "n/a"
+    lines = ["With a busy sibling process (a one-thread BLAS loop; paused/running blocks interleaved, medians;",
+             f"{os.cpu_count()} cores, load average {load}: when the other core is taken by other work, sharing",
+             "a core with the sibling alone doubles the wall time, while spinning threads raise the CPU time)",
              "", f"{'path':<18}{'quiet':>12}{'busy':>12}{'busy/quiet':>12}{'CPU time ratio':>16}"]
     lines += [f"{r['path']:<18}{r['quiet_s'] * 1e6:>9.1f} us{r['busy_s'] * 1e6:>9.1f} us{r['ratio']:>11.2f}x"
               f"{r['cpu_ratio']:>15.2f}x" for r in rows]
