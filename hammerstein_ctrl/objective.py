@@ -191,9 +191,10 @@ class HammersteinCost:
         if len(chunks) == 1:
             return self._simulate_chunk(b, None)
         Y = np.empty((b.shape[0], self._y.size))
-        buffer = self._signal_buffer(chunks)
         for rows in chunks:
-            Y[rows] = self._simulate_chunk(b[rows], buffer)
+            # a chunk's signals go to its own rows of the output: the simulation reads them whole
+            # before its outputs are copied over them
+            Y[rows] = self._simulate_chunk(b[rows], Y[rows] if self._linear_in_params else None)
         return Y
 
     def _simulate_chunk(self, b, buffer):

@@ -106,6 +106,7 @@ class _BatchedJacobian:
         self.residuals_batch = residuals_batch or (lambda X: np.array([counted.fun(x) for x in X]))
         self.upper = None if box is None else box[1]
         self._cache = (None, None)
+        self._formed = 0
 
     def steps(self, x):
         h = FD_REL_STEP * np.where(x >= 0, 1.0, -1.0) * np.maximum(1.0, np.abs(x))
@@ -114,9 +115,14 @@ class _BatchedJacobian:
         return (x + h) - x
 
     def columns(self, x):
-        """The Jacobian's columns as the rows of an ``(n, N)`` array (the last one again if ``x`` repeats)."""
+        """The Jacobian's columns as the rows of an ``(n, N)`` array.
+
+        The first one is kept for one repeated request at the same point
+        (leastsq checks the shape at ``x0`` before MINPACK asks for it); later
+        ones are not kept, since MINPACK holds its own copy.
+        """
         x = np.asarray(x, dtype=float)
-        (cached_x, cached), self._cache = self._cache, (None, None)  # release it before forming the next
+        (cached_x, cached), self._cache = self._cache, (None, None)
         if cached_x is not None and np.array_equal(cached_x, x):
             return cached
         del cached
@@ -133,7 +139,9 @@ class _BatchedJacobian:
             self.counted.charge(x.size - fit)  # raises BudgetExhausted
         R -= r0
         R /= h[:, None]
-        self._cache = (x.copy(), R)
+        if not self._formed:
+            self._cache = (x.copy(), R)
+        self._formed += 1
         return R
 
     def __call__(self, x):
