@@ -67,14 +67,14 @@ def _combine(P, basis, out, start):  # pragma: no cover - compiled
     batch, p = P.shape
     n = basis.shape[1]
     for b in range(batch):
-        row = out[b]
-        c = P[b, 0]
-        for i in range(n):  # plain loops: no temporaries, vectorised by LLVM
-            row[start + i] = c * basis[0, i]
+        row = out[b, start:start + n]  # slices, not offset indices: LLVM vectorises these loops
+        c, first = P[b, 0], basis[0]
+        for i in range(n):
+            row[i] = c * first[i]
         for j in range(1, p):
-            c = P[b, j]
+            c, bj = P[b, j], basis[j]
             for i in range(n):
-                row[start + i] += c * basis[j, i]
+                row[i] += c * bj[i]
 
 
 class HammersteinCost:
