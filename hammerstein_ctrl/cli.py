@@ -17,12 +17,18 @@ import traceback
 import warnings
 from pathlib import Path
 
-import numpy as np
-
-from .exceptions import DataError, HammersteinError
+from .exceptions import HammersteinError
 
 __all__ = ["main", "build_parser", "EXIT_ERROR", "PROG"]
 
+#: Description of ``identify``.
+IDENTIFY_DESCRIPTION = ("Fit a Hammerstein (--nonlinearity), Wiener (--output-nonlinearity) or "
+                        "Hammerstein-Wiener model (both) to a record. Accepted files: CSV with a header row naming "
+                    "the columns (time t/time, input u/input/vir, output y/output/qm by default; # lines "
+                    "are comments), CSV without a header (t,u,y or u,y with --dt), MAT or NPZ files with "
+                    "one vector per variable.")
+#: One-line help of ``tune`` (its options come from :mod:`hammerstein_ctrl.cli_tune`).
+TUNE_HELP = "tune a PID for a saved model (SIMC, IMC or N-SPSA on the nonlinear loop)"
 #: Program name used in messages.
 PROG = "hammerstein-ctrl"
 #: Exit status of every failure (argparse's convention).
@@ -104,7 +110,7 @@ def _output_dir(path: str) -> Path:
 
 def _cmd_bench(args) -> int:
     from . import presets
-    from .bench import evaluation_speed, format_report, optimizer_speed
+    from .bench import full_report
 
     cases = []
     for name in args.cases:
@@ -112,9 +118,7 @@ def _cmd_bench(args) -> int:
             cases.append(presets.get(name))
         except FileNotFoundError as exc:
             print(f"skipping {name}: {str(exc).splitlines()[0]}", file=sys.stderr)
-    evals = [evaluation_speed(case, case.paper["nspsa"]["beta"]) for case in cases]
-    runs = [optimizer_speed(case, m) for case in cases for m in args.methods]
-    print(format_report(evals, runs))
+    full_report(cases, args.methods, memory_samples=[int(n) for n in args.memory_samples], echo=print)
     return 0
 
 
@@ -188,6 +192,8 @@ def _unique_methods(names) -> list[str]:
 
 def _print_cost_comparison(case, study, out):
     """Evaluations and time per evaluation, against control.forced_response on the best model."""
+    import numpy as np
+
     from .bench import forced_response_cost, time_call
 
     nfev = sum(r["nfev"] for r in study.records)
@@ -210,10 +216,11 @@ def _print_cost_comparison(case, study, out):
 def _structure_from_args(args):
     from . import presets
     from .nonlinearities import nonlinearity_from_name
-    from .structure import HammersteinStructure, LinearStructure
+    from .structure import HammersteinStructure, HammersteinWienerStructure, LinearStructure, WienerStructure
 
     if args.structure:
         extra = [flag for flag, given in (("--orders", args.orders), ("--nonlinearity", args.nonlinearity),
+                                          ("--output-nonlinearity", args.output_nonlinearity),
                                           ("--fix", args.fix), ("--degree", args.degree is not None),
                                           ("--breakpoints", args.breakpoints), ("--free-gain", args.free_gain))
                  if given]
@@ -221,8 +228,9 @@ def _structure_from_args(args):
             raise HammersteinError(f"{', '.join(extra)} cannot be combined with --structure {args.structure} "
                                    "(use --orders/--nonlinearity to build your own structure)")
         return presets.STRUCTURES[args.structure](), presets.X0[args.structure]
-    if not (args.orders and args.nonlinearity):
-        raise HammersteinError("give --structure trs|emps, or --orders L M and --nonlinearity NAME")
+    if not (args.orders and (args.nonlinearity or args.output_nonlinearity)):
+        raise HammersteinError("give --structure trs|emps, or --orders L M and --nonlinearity NAME "
+                               "and/or --output-nonlinearity NAME")
     fixed = {}
     for item in args.fix or []:
         name, sep, value = item.partition("=")
@@ -232,13 +240,26 @@ def _structure_from_args(args):
             fixed[name.strip()] = float(value)
         except ValueError:
             raise HammersteinError(f"--fix {item!r}: {value!r} is not a number") from None
-    nl_kwargs = {}
-    if args.degree is not None:
-        nl_kwargs["degree"] = args.degree
-    if args.breakpoints is not None:
-        nl_kwargs["breakpoints"] = args.breakpoints
     linear = LinearStructure(args.orders[0], args.orders[1], monic_numerator=not args.free_gain, fixed=fixed)
-    return HammersteinStructure(linear, nonlinearity_from_name(args.nonlinearity, **nl_kwargs)), None
+    g = h = None
+    if args.nonlinearity:
+        g = nonlinearity_from_name(args.nonlinearity, **_family_options(args.degree, args.breakpoints))
+    if args.output_nonlinearity:
+        h = nonlinearity_from_name(args.output_nonlinearity,
+                                   **_family_options(args.output_degree, args.output_breakpoints))
+    if g is not None and h is not None:
+        return HammersteinWienerStructure(linear, g, h), None
+    return (HammersteinStructure(linear, g) if h is None else WienerStructure(linear, h)), None
+
+
+def _family_options(degree, breakpoints) -> dict:
+    """Keyword arguments of a nonlinearity family from --degree/--breakpoints style options."""
+    options = {}
+    if degree is not None:
+        options["degree"] = degree
+    if breakpoints is not None:
+        options["breakpoints"] = breakpoints
+    return options
 
 
 def _cmd_identify(args) -> int:
@@ -299,46 +320,9 @@ def _gain_options(args) -> dict:
     return options
 
 
-def build_parser() -> argparse.ArgumentParser:
-    from .cli_tune import add_tune_parser
+def _add_identify_arguments(ide):
     from .records import add_record_arguments
 
-    parser = _Parser(
-        prog="hammerstein-ctrl",
-        description="Continuous-time Hammerstein identification (N-SPSA and rivals) on python-control.",
-    )
-    parser.add_argument("--debug", action="store_true",
-                        help="show the traceback of a failure (for bug reports); accepted anywhere")
-    sub = parser.add_subparsers(dest="command", required=True)
-
-    bench = sub.add_parser("bench", help="time cost evaluations and runs against control.forced_response")
-    bench.add_argument("--cases", nargs="+", default=["emps", "trs"], choices=["emps", "trs"])
-    bench.add_argument("--methods", nargs="+", default=["nspsa"],
-                       help="methods whose preset run is timed (default: nspsa)")
-    bench.set_defaults(func=_cmd_bench)
-
-    rep = sub.add_parser("reproduce", help="run the paper's comparison (Table 3 / Table 7) and write figures")
-    rep.add_argument("case", choices=["trs", "emps"])
-    rep.add_argument("--trials", type=_count(1), default=25, help="independent trials per method (default 25)")
-    rep.add_argument("--methods", nargs="+", default=DEFAULT_METHODS,
-                     help=f"methods to compare (default: {' '.join(DEFAULT_METHODS)})")
-    rep.add_argument("--seed", type=_count(0), default=0, help="study seed (trial i uses a seed derived from it)")
-    rep.add_argument("--out", help="output directory (default results/CASE); rerunning resumes")
-    rep.add_argument("--jobs", type=_count(1), default=None, help="worker processes (default: all cores)")
-    rep.add_argument("--data", help="folder or file of the EMPS data (default: $HAMMERSTEIN_CTRL_DATA)")
-    rep.add_argument("--svg", action="store_true", help="also write SVG figures")
-    rep.add_argument("--no-figures", action="store_true", help="skip the figures")
-    rep.add_argument("--progress", dest="progress", action="store_true", default=None,
-                     help="show a progress bar (default: when stderr is a terminal)")
-    rep.add_argument("--no-progress", dest="progress", action="store_false")
-    rep.set_defaults(func=_cmd_reproduce)
-
-    ide = sub.add_parser(
-        "identify", help="fit a Hammerstein model to your own record",
-        description="Fit a Hammerstein model to a record. Accepted files: CSV with a header row naming "
-                    "the columns (time t/time, input u/input/vir, output y/output/qm by default; # lines "
-                    "are comments), CSV without a header (t,u,y or u,y with --dt), MAT or NPZ files with "
-                    "one vector per variable.")
     add_record_arguments(ide)
     ide.add_argument("--structure", choices=["trs", "emps"], help="a case study's structure (and x0)")
     ide.add_argument("--orders", type=_count(0), nargs=2, metavar=("L", "M"),
@@ -346,6 +330,12 @@ def build_parser() -> argparse.ArgumentParser:
     ide.add_argument("--nonlinearity", help="tanh, coulomb, polynomial, saturation, deadzone, piecewise_linear")
     ide.add_argument("--degree", type=_count(0), help="polynomial degree")
     ide.add_argument("--breakpoints", type=_number(), nargs="+", help="piecewise-linear breakpoints")
+    ide.add_argument("--output-nonlinearity", metavar="NAME",
+                     help="a static output nonlinearity after H: a Wiener model, or Hammerstein-Wiener "
+                          "with --nonlinearity")
+    ide.add_argument("--output-degree", type=_count(0), help="polynomial degree of the output nonlinearity")
+    ide.add_argument("--output-breakpoints", type=_number(), nargs="+",
+                     help="piecewise-linear breakpoints of the output nonlinearity")
     ide.add_argument("--fix", nargs="+", metavar="NAME=VALUE", help="fixed coefficients, e.g. a0=0")
     ide.add_argument("--free-gain", action="store_true", help="do not fix the leading numerator coefficient to 1")
     ide.add_argument("--method", default="auto",
@@ -368,8 +358,59 @@ def build_parser() -> argparse.ArgumentParser:
     ide.add_argument("--pop-size", type=_count(2), help="AMVO-SCA population")
     ide.add_argument("--out", help="write the result as versioned JSON (hammerstein_ctrl.load_result reads it)")
     ide.add_argument("--plot", help="write a time-response figure (PNG/SVG/PDF)")
+
+
+def build_parser(command: str | None = None) -> argparse.ArgumentParser:
+    """The command-line parser.
+
+    With ``command`` given, only that sub-command gets its full options (the
+    ``identify`` and ``tune`` options need the numeric libraries): the others
+    are listed by name, which keeps ``hammerstein-ctrl --help`` instant.
+    """
+    parser = _Parser(
+        prog="hammerstein-ctrl",
+        description="Continuous-time Hammerstein identification (N-SPSA and rivals) on python-control.",
+    )
+    parser.add_argument("--debug", action="store_true",
+                        help="show the traceback of a failure (for bug reports); accepted anywhere")
+    sub = parser.add_subparsers(dest="command", required=True)
+
+    bench = sub.add_parser("bench", help="time cost evaluations and runs against control.forced_response")
+    bench.add_argument("--cases", nargs="+", default=["emps", "trs"], choices=["emps", "trs"])
+    bench.add_argument("--methods", nargs="+", default=["nspsa"],
+                       help="methods whose preset run is timed (default: nspsa)")
+    bench.add_argument("--memory-samples", nargs="*", type=float, default=[1e6, 1e7], metavar="N",
+                       help="record lengths of the EMPS peak-memory table (default: 1e6 1e7; none: skip)")
+    bench.set_defaults(func=_cmd_bench)
+
+    rep = sub.add_parser("reproduce", help="run the paper's comparison (Table 3 / Table 7) and write figures")
+    rep.add_argument("case", choices=["trs", "emps"])
+    rep.add_argument("--trials", type=_count(1), default=25, help="independent trials per method (default 25)")
+    rep.add_argument("--methods", nargs="+", default=DEFAULT_METHODS,
+                     help=f"methods to compare (default: {' '.join(DEFAULT_METHODS)})")
+    rep.add_argument("--seed", type=_count(0), default=0, help="study seed (trial i uses a seed derived from it)")
+    rep.add_argument("--out", help="output directory (default results/CASE); rerunning resumes")
+    rep.add_argument("--jobs", type=_count(1), default=None, help="worker processes (default: all cores)")
+    rep.add_argument("--data", help="folder or file of the EMPS data (default: $HAMMERSTEIN_CTRL_DATA)")
+    rep.add_argument("--svg", action="store_true", help="also write SVG figures")
+    rep.add_argument("--no-figures", action="store_true", help="skip the figures")
+    rep.add_argument("--progress", dest="progress", action="store_true", default=None,
+                     help="show a progress bar (default: when stderr is a terminal)")
+    rep.add_argument("--no-progress", dest="progress", action="store_false")
+    rep.set_defaults(func=_cmd_reproduce)
+
+    ide = sub.add_parser(
+        "identify", help="fit a Hammerstein, Wiener or Hammerstein-Wiener model to your own record",
+        description=IDENTIFY_DESCRIPTION)
+    if command in (None, "identify"):
+        _add_identify_arguments(ide)
     ide.set_defaults(func=_cmd_identify)
-    add_tune_parser(sub)
+    if command in (None, "tune"):
+        from .cli_tune import add_tune_parser
+
+        add_tune_parser(sub)
+    else:
+        sub.add_parser("tune", help=TUNE_HELP)
     return parser
 
 
@@ -390,7 +431,7 @@ def main(argv=None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     debug = "--debug" in argv
     argv = [a for a in argv if a != "--debug"]
-    parser = build_parser()
+    parser = build_parser(next((a for a in argv if not a.startswith("-")), ""))
     try:
         args = parser.parse_args(argv)
     except SystemExit as stop:  # --help, --version, or an argument error already printed as one line

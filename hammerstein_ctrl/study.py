@@ -47,6 +47,7 @@ from pathlib import Path
 import numpy as np
 import scipy.stats
 
+from ._linalg import single_threaded_blas
 from .exceptions import HammersteinError, ParameterError
 from .optimize import canonical_method, minimize
 from .report import json_float, json_safe
@@ -144,12 +145,10 @@ def _run_trial(case, method: str, kwargs: dict, trial: int, seed: int, fingerpri
     spinning worker threads in several processes on the same cores slow a
     trial down about 50-fold.
     """
-    from threadpoolctl import threadpool_limits
-
     t0 = time.perf_counter()
     if kwargs.get("method") in ("spsa", "nlspsa", "nspsa"):  # curves at the iterate; never changes the run
         kwargs = {**kwargs, "options": {**(kwargs.get("options") or {}), "monitor": CURVE_POINTS // 2}}
-    with threadpool_limits(limits=1):
+    with single_threaded_blas():
         res = minimize(case.cost, case.x0, seed=seed, **kwargs)
     record = {
         "case": case.name, "method": method, "trial": trial, "seed": seed, "config": fingerprint,
