@@ -324,7 +324,29 @@ class Polynomial(Nonlinearity):
         return f"Polynomial(degree={self.degree})"
 
 
-class Saturation(Nonlinearity):
+class _GainAndThreshold(Nonlinearity):
+    """A gain times a symmetric clipping of ``u`` at ``|a|`` (saturation, dead zone)."""
+
+    scale_index = 0
+    #: Range of the scanned thresholds, as fractions of the input's quantiles/range.
+    SCAN_FRACTIONS = (0.05, 1.0)
+    #: Whether the scan includes a zero threshold.
+    SCAN_ZERO = False
+
+    def normalize(self, params):
+        """Make the threshold non-negative (it enters as ``|a|``)."""
+        p = super().normalize(params)
+        p[..., 1] = np.abs(p[..., 1])
+        return p
+
+    def shape_grid(self, u):
+        a = _input_quantiles(u, *self.SCAN_FRACTIONS)
+        if self.SCAN_ZERO:
+            a = np.concatenate([[0.0], a])
+        return np.column_stack([np.ones_like(a), a])
+
+
+class Saturation(_GainAndThreshold):
     r"""Symmetric saturation with a gain.
 
     .. math:: g(u) = k \, \min(\max(u, -|a|), |a|)
@@ -338,17 +360,6 @@ class Saturation(Nonlinearity):
     name = "saturation"
     compiled_map = "saturation_map"
     param_names = ("gain", "limit")
-    scale_index = 0
-
-    def normalize(self, params):
-        """Make the limit non-negative (it enters as ``|a|``)."""
-        p = super().normalize(params)
-        p[..., 1] = np.abs(p[..., 1])
-        return p
-
-    def shape_grid(self, u):
-        a = _input_quantiles(u, 0.05, 1.0)
-        return np.column_stack([np.ones_like(a), a])
 
     def _evaluate(self, u, p):
         k, a = self._columns(p)
@@ -360,7 +371,7 @@ class Saturation(Nonlinearity):
         return np.where(np.abs(u) < abs(a), k, 0.0)
 
 
-class DeadZone(Nonlinearity):
+class DeadZone(_GainAndThreshold):
     r"""Symmetric dead zone with a gain.
 
     .. math:: g(u) = k\,(u - \min(\max(u, -|a|), |a|))
@@ -374,17 +385,8 @@ class DeadZone(Nonlinearity):
     name = "deadzone"
     compiled_map = "deadzone_map"
     param_names = ("gain", "width")
-    scale_index = 0
-
-    def normalize(self, params):
-        """Make the width non-negative (it enters as ``|a|``)."""
-        p = super().normalize(params)
-        p[..., 1] = np.abs(p[..., 1])
-        return p
-
-    def shape_grid(self, u):
-        a = np.concatenate([[0.0], _input_quantiles(u, 0.02, 0.8)])
-        return np.column_stack([np.ones_like(a), a])
+    SCAN_FRACTIONS = (0.02, 0.8)
+    SCAN_ZERO = True
 
     def _evaluate(self, u, p):
         k, a = self._columns(p)
