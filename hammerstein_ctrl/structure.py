@@ -297,8 +297,8 @@ class BlockStructure:
     (:attr:`~hammerstein_ctrl.nonlinearities.Nonlinearity.gain_index`) is
     fixed to 1 as well and is not part of beta.
 
-    A parameter name that both nonlinearities use is prefixed ``g_`` and
-    ``h_`` (e.g. ``g_d1``, ``h_d1``).
+    When the two nonlinearities share a parameter name, all their names
+    are prefixed ``g_`` and ``h_`` (e.g. ``g_d1``, ``h_d1``).
 
     Subclasses: :class:`HammersteinStructure`, :class:`WienerStructure`,
     :class:`HammersteinWienerStructure`; a new structure is a new subclass.
@@ -328,10 +328,9 @@ class BlockStructure:
         g_names = () if input_nonlinearity is None else tuple(
             n for i, n in enumerate(input_nonlinearity.param_names) if i != self._fixed_gain)
         h_names = () if output_nonlinearity is None else output_nonlinearity.param_names
-        clash = set(g_names) & set(h_names)
-        if clash:  # e.g. polynomial in and out: g_d1 ... and h_d1 ...
-            g_names = tuple(f"g_{n}" if n in clash else n for n in g_names)
-            h_names = tuple(f"h_{n}" if n in clash else n for n in h_names)
+        if set(g_names) & set(h_names):  # e.g. Coulomb in, polynomial out: g_d1, ... and h_d1, ...
+            g_names = tuple(f"g_{n}" for n in g_names)
+            h_names = tuple(f"h_{n}" for n in h_names)
         self._n_g, self._n_h = len(g_names), len(h_names)
         self.core_names: tuple[str, ...] = linear.param_names + g_names + h_names
         extra = ((OFFSET_NAME,) if self.offset else ()) + (
