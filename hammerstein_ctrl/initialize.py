@@ -23,8 +23,8 @@ once the linear block ``H`` is fixed:
    and fit the scale by least squares.
 3. Offset and initial state come out of the same least-squares solve.
 
-Every simulated candidate counts as one evaluation against the caller's
-budget (:class:`Budget`).
+Every simulated signal (each column of a regression, each free response)
+counts as one evaluation against the caller's budget (:class:`Budget`).
 
 Examples
 --------
@@ -209,8 +209,8 @@ class _Regression:
         self.constant = structure.offset or affine_output
 
     def simulate(self, theta, drives) -> np.ndarray:
-        """Responses ``(N, k)`` of ``H(theta)`` to each drive (one counted evaluation)."""
-        self.budget.charge(1)
+        """Responses ``(N, k)`` of ``H(theta)`` to each drive (``k`` counted evaluations)."""
+        self.budget.charge(drives.shape[0])
         num, den = self.structure.linear.coefficients(theta)
         k = drives.shape[0]
         return simulate_batch(np.repeat(num, k, 0), np.repeat(den, k, 0), drives, self.data.dt,
@@ -223,6 +223,7 @@ class _Regression:
             parts.append(np.ones((self.y.size, 1)))
         if self.structure.initial_state == "estimate" and self.structure.output_nonlinearity is None:
             num, den = self.structure.linear.coefficients(theta)
+            self.budget.charge(self.structure.linear.den_order)
             parts.append(free_response(num[0], den[0], self.data.dt, self.y.size))
         return np.column_stack(parts)
 
