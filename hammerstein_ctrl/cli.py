@@ -289,6 +289,8 @@ def _cmd_identify(args) -> int:
                       seed=args.seed, options=options or None, bounds=bounds, offset=args.offset or None,
                       initial_state=args.initial_state, allow_unstable=args.allow_unstable)
     print(result.summary())
+    if result.model is None:  # nothing finite to save or draw; the summary says why
+        return 1
     if out is not None:
         save_result(result, out)
         print(f"result written to {out}")

@@ -34,7 +34,7 @@ Examples
 >>> g = 0.8 * u + 0.2 * np.sign(u) + 0.05
 >>> y = ct.forced_response(ct.tf([1], [1, 2.0, 5.0]), t, g).outputs
 >>> s = HammersteinStructure(LinearStructure(0, 2), Coulomb())
->>> x = initial_points(IOData(u, y, t), s, Budget(500))[0]
+>>> x = initial_points(IOData(u, y, t), s, Budget(1000))[0]
 >>> np.round(x, 3).tolist()     # a0, a1, d0, d1, d2
 [5.0, 2.0, 0.8, 0.2, 0.05]
 """
@@ -66,8 +66,14 @@ SPREAD_RATIO = 10.0
 ZERO_SIDES = (-1.0, 1.0)
 #: Scan candidates refined by Levenberg-Marquardt on the reduced residual.
 REFINED_CANDIDATES = 3
-#: Evaluations allowed to each reduced refinement.
+#: Residual evaluations allowed to each reduced refinement (each simulates every drive).
 REFINE_EVALUATIONS = 60
+#: Largest share of the remaining budget the starts may use.
+INITIAL_SHARE = 0.5
+#: Largest share of the starts' budget the scan may use, and of what is left
+#: the share of the linear refinements (the rest fits the static blocks).
+SCAN_SHARE = 0.4
+REFINE_SHARE = 0.6
 #: Relative tolerance of the reduced refinement.
 REFINE_TOL = 1e-8
 
@@ -250,23 +256,36 @@ def _reduced_sse(reg: _Regression, theta, drives) -> float:
     return np.inf if r is None else float(r @ r)
 
 
-def _refine_linear(reg: _Regression, theta, drives) -> tuple[np.ndarray, float]:
-    """Levenberg-Marquardt on the variable-projection residual over the linear coefficients."""
+def _refine_linear(reg: _Regression, theta, drives, limit: int = REFINE_EVALUATIONS) -> tuple[np.ndarray, float]:
+    """Levenberg-Marquardt on the variable-projection residual over the linear coefficients.
+
+    At most :data:`REFINE_EVALUATIONS` residuals (finite-difference Jacobian
+    columns included) are computed; the best point seen is returned.
+    """
     big = np.sqrt(np.finfo(float).max) / max(reg.y.size, 1)
+    best = [np.asarray(theta, dtype=float), np.inf]
+    calls = [int(min(REFINE_EVALUATIONS, limit, reg.budget.remaining // drives.shape[0]))]
 
     def residual(th):
+        if calls[0] <= 0:
+            raise BudgetSpent("refinement budget spent")
+        calls[0] -= 1
         _, r = reg.solve(reg.columns(th, drives))
-        return np.full(reg.y.size, big) if r is None else r
+        if r is None:
+            return np.full(reg.y.size, big)
+        sse = float(r @ r)
+        if sse < best[1]:
+            best[0], best[1] = np.array(th, dtype=float), sse
+        return r
 
-    evaluations = int(min(REFINE_EVALUATIONS, reg.budget.remaining))
-    if theta.size == 0 or evaluations <= theta.size + 1:
+    if theta.size == 0 or calls[0] <= theta.size + 1:
         return theta, _reduced_sse(reg, theta, drives)
     try:
-        res = scipy.optimize.least_squares(residual, theta, method="lm", max_nfev=evaluations,
-                                           xtol=REFINE_TOL, ftol=REFINE_TOL, gtol=REFINE_TOL, x_scale="jac")
+        res = scipy.optimize.least_squares(residual, theta, method="lm", xtol=REFINE_TOL, ftol=REFINE_TOL,
+                                           gtol=REFINE_TOL, x_scale="jac")
+        return res.x, float(res.fun @ res.fun)
     except BudgetSpent:
-        return theta, np.inf
-    return res.x, float(res.fun @ res.fun)
+        return best[0], best[1]
 
 
 def _fit_static(reg: _Regression, nl, signal, columns) -> tuple[np.ndarray, np.ndarray] | None:
@@ -384,23 +403,31 @@ def initial_points(data, structure, budget: Budget, *, count: int = REFINED_CAND
     """
     u = np.asarray(data.u, dtype=float)
     _check_automatic(structure, u)
-    affine = structure.output_nonlinearity is not None
-    reg = _Regression(structure, data, budget, affine_output=affine)
+    # the starts may use a share of what is left; the refinements need the rest
+    own = Budget(int(INITIAL_SHARE * budget.remaining) if np.isfinite(budget.remaining) else None)
+    reg = _Regression(structure, data, own, affine_output=structure.output_nonlinearity is not None)
     drives = _drives(structure.input_nonlinearity, u)
+    points = []
     try:
         starts = []
-        for rows in _candidate_linear(structure.linear, data, drives).values():
+        groups = _candidate_linear(structure.linear, data, drives)
+        total = sum(len(rows) for rows in groups.values()) * drives.shape[0]
+        stride = max(1, int(np.ceil(total / max(own.remaining * SCAN_SHARE, 1.0))))
+        for rows in groups.values():
+            rows = rows[::stride]  # a small budget thins the scan rather than losing it
             scored = sorted(((_reduced_sse(reg, theta, drives), i) for i, theta in enumerate(rows)))
             starts += [rows[i] for _, i in scored[:count]]
-        refined = sorted((_refine_linear(reg, theta, drives) for theta in starts), key=lambda item: item[1])
-        points = []
+        share = REFINE_SHARE * own.remaining / (max(len(starts), 1) * drives.shape[0])
+        per_start = int(min(share, REFINE_EVALUATIONS))
+        refined = sorted((_refine_linear(reg, theta, drives, per_start) for theta in starts), key=lambda item: item[1])
         reg.constant = structure.offset
         for theta, _ in refined[:count]:
             fitted = _static_blocks(reg, theta, u)
             if fitted is not None:
                 points.append(_assemble(structure, theta, *fitted))
     except BudgetSpent:
-        return []
+        pass  # the points completed so far
+    budget.charge(own.nfev)
     return points
 
 
