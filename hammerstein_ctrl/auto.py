@@ -30,6 +30,7 @@ import time
 
 import numpy as np
 
+from .exceptions import ParameterError
 from .initialize import Budget, initial_points, nuisance_estimate, stabilize
 from .optimize import COMPLETED, SOLVER_FAILED, History, as_rng, levenberg_marquardt
 from .simulate import unstable
@@ -132,7 +133,12 @@ def auto_minimize(cost, x0=None, *, maxfev: int | None = None, seed=None, allow_
     started = time.perf_counter()
     budget = Budget(AUTO_MAXFEV if maxfev is None else int(maxfev))
     rng = as_rng(seed)
-    starts = initial_points(cost.data, cost.structure, budget)
+    try:
+        starts = initial_points(cost.data, cost.structure, budget)
+    except ParameterError:  # a family with no automatic start: the user's x0 is the start
+        if x0 is None:
+            raise
+        starts = []
     if x0 is not None:
         starts.append(_user_start(cost, x0, budget))
     merged = _Merged()
