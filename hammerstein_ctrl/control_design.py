@@ -84,6 +84,10 @@ INTEGRATOR_TOL = 1e-9
 # the small-signal model and the half rule
 # ---------------------------------------------------------------------------
 def _slope(model, u0: float) -> float:
+    if getattr(model, "output_nonlinearity", None) is not None or getattr(model, "input_nonlinearity", 1) is None:
+        raise ParameterError(
+            f"PID tuning supports Hammerstein models (y = H g(u)); this {getattr(model, 'kind', 'block')} model "
+            "has an output nonlinearity, which the compiled loop does not simulate")
     try:
         u0 = float(u0)
     except (TypeError, ValueError):

@@ -56,3 +56,16 @@ def trs_case():
 @pytest.fixture
 def rng():
     return np.random.default_rng(12345)
+
+
+@pytest.fixture
+def no_work(monkeypatch):
+    """Record (instead of running) any fit or study: arguments must be refused before any work."""
+    import importlib
+
+    started = []
+    monkeypatch.setattr(importlib.import_module("hammerstein_ctrl.identify"), "identify",
+                        lambda *a, **k: started.append("fit"))
+    monkeypatch.setattr(importlib.import_module("hammerstein_ctrl.study"), "run_study",
+                        lambda *a, **k: started.append("study"))
+    return started

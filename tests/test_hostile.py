@@ -10,7 +10,6 @@ The hostile *data files* (NPZ/MAT/CSV garbage, encodings) have their own
 corpus with ``read_record``; here the file is a valid record.
 """
 
-import importlib
 import re
 import subprocess
 import sys
@@ -162,16 +161,6 @@ def _fill(argv, files):
     for key, value in files.items():
         argv = [a.replace(key, value) for a in argv]
     return argv
-
-
-@pytest.fixture
-def no_work(monkeypatch):
-    started = []
-    monkeypatch.setattr(importlib.import_module("hammerstein_ctrl.identify"), "identify",
-                        lambda *a, **k: started.append("fit"))
-    monkeypatch.setattr(importlib.import_module("hammerstein_ctrl.study"), "run_study",
-                        lambda *a, **k: started.append("study"))
-    return started
 
 
 @pytest.mark.parametrize("argv, pattern", BEFORE_ANY_WORK, ids=[" ".join(a)[-60:] for a, _ in BEFORE_ANY_WORK])

@@ -240,17 +240,6 @@ def test_item8_untrustworthy_lines_are_reported_and_their_trial_rerun(trs, tmp_p
 
 
 # 9 -------------------------------------------------------------------------------------------
-@pytest.fixture
-def no_fit(monkeypatch):
-    """Fail loudly if a fit or a study starts (arguments must be refused before any work)."""
-    started = []
-    monkeypatch.setattr(importlib.import_module("hammerstein_ctrl.identify"), "identify",
-                        lambda *a, **k: started.append("fit"))
-    monkeypatch.setattr(importlib.import_module("hammerstein_ctrl.study"), "run_study",
-                        lambda *a, **k: started.append("study"))
-    return started
-
-
 @pytest.mark.parametrize("argv, message", [
     (["reproduce", "trs", "--seed", "-1"], "argument --seed: must be a non-negative integer"),
     (["reproduce", "trs", "--jobs", "-1"], "argument --jobs: must be a positive integer"),
@@ -262,10 +251,10 @@ def no_fit(monkeypatch):
     (["identify", "--data", "{csv}", "--structure", "trs", "--plot", "{tmp}/no/such/dir/x.png"], "does not exist"),
     (["identify", "--data", "{csv}", "--structure", "trs", "--out", "{tmp}"], "is a directory"),
 ])
-def test_item9_bad_arguments_are_one_line_before_any_work(capsys, tmp_path, trs_csv, no_fit, argv, message):
+def test_item9_bad_arguments_are_one_line_before_any_work(capsys, tmp_path, trs_csv, no_work, argv, message):
     argv = [a.replace("{csv}", str(trs_csv)).replace("{tmp}", str(tmp_path)) for a in argv]
     code, out, err = run(capsys, *argv)
-    assert code == 2 and no_fit == []
+    assert code == 2 and no_work == []
     assert message in one_error_line(err)
 
 
@@ -327,9 +316,9 @@ def test_item10_orders_up_to_max_are_accurate_and_beyond_are_refused():
                                rtol=1e-8, atol=1e-10)
 
 
-def test_item10_orders_0_50_are_refused(capsys, trs_csv, no_fit):
+def test_item10_orders_0_50_are_refused(capsys, trs_csv, no_work):
     code, out, err = run(capsys, "identify", "--data", trs_csv, "--orders", 0, 50, "--nonlinearity", "tanh")
-    assert code == 2 and no_fit == []
+    assert code == 2 and no_work == []
     assert "den_order 50 exceeds MAX_ORDER = 10" in one_error_line(err)
 
 
@@ -343,13 +332,13 @@ def test_item10_complex_and_object_input_are_refused():
         lsim(([1.0], [1.0, 1.0]), t, np.ones_like(t) * (1 + 1e-3j))
 
 
-def test_item10_a_constant_output_is_refused_before_the_fit(capsys, tmp_path, no_fit):
+def test_item10_a_constant_output_is_refused_before_the_fit(capsys, tmp_path, no_work):
     t = np.arange(0.0, 2.0, 0.01)
     path = tmp_path / "flat.csv"
     np.savetxt(path, np.column_stack([t, np.sin(t), np.full_like(t, 3.0)]), delimiter=",",
                header="t,u,y", comments="")
     code, out, err = run(capsys, "identify", "--data", path, "--structure", "trs")
-    assert code == 2 and no_fit == []
+    assert code == 2 and no_work == []
     assert "output y is constant" in one_error_line(err)
 
 
