@@ -194,3 +194,9 @@ class HammersteinModel:
             return " + ".join(terms).replace("+ -", "- ") or "0"
 
         return f"({poly(self.linear.num[0][0])})/({poly(self.linear.den[0][0])})"
+
+    # -- python-control time responses (logic in display.py) ----------------------
+    def response(self, data_or_t, u=None):
+        """:meth:`simulate` as a ``control.TimeResponseData`` (:func:`hammerstein_ctrl.display.response`)."""
+        from .display import response
+        return response(self, data_or_t, u)
