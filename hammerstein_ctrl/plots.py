@@ -122,7 +122,7 @@ def _time_rows(data, zoom, nrows, ax):
         return ax.figure, [[(np.ones(len(data), bool), ax, "")]]
     ncols = 1 if zoom is None else 2
     fig, axes = _new_figure(nrows, ncols, figsize=(_WIDTH if ncols == 1 else 12, 1.0 + _ROW_HEIGHT * max(nrows, 1.6)),
-                            sharey="row" if ncols == 2 else False, sharex="col")
+                            sharey=True, sharex="col")
     rows = []
     for r in range(nrows):
         row = [(np.ones(len(data), bool), axes[r, 0], "")]
@@ -376,7 +376,8 @@ def bode(models, *, omega=None, u0: float | None = None, title=None):
     default = ("Bode plot of the identified linear blocks H(p)" if u0 is None else
                f"Small-signal plant g'(u0)·H(p) at u0 = {float(u0):.3g}")
     fig, axes = _new_figure(2, 1, figsize=(_WIDTH, 6), sharex=True)
-    control.bode_plot(systems, omega, ax=axes, label=labels, dB=True, title=title or default)
+    control.bode_plot(systems, omega, ax=axes, label=labels, dB=True, title=False)
+    fig.suptitle(title or default)
     mag, phase = axes[0, 0], axes[1, 0]
     mag.set_ylabel("magnitude (dB)")
     phase.set_ylabel("phase (deg)")
@@ -525,7 +526,7 @@ def convergence(source, *, quantity: str = "estimate", title=None, ax=None, band
             a.plot([], [], " ", label=text)
         if lower:
             _draw_diverged(axes[1, 0], diverged[label], color, label)
-    a.set_yscale("log")
+    _log_or_note(a, "every run diverged: see the lower panel" if lower else "no finite value to show")
     _finish(a, xlabel=None if lower else "function evaluations (NFE)",
             ylabel=ylabel or _QUANTITIES[quantity], grid="both",
             title=title or "Convergence: median (line) and inter-quartile range (band) over trials")
@@ -535,6 +536,14 @@ def convergence(source, *, quantity: str = "estimate", title=None, ax=None, band
         _finish(b, xlabel="function evaluations (NFE)", ylabel="J (diverged runs)", grid="both",
                 title="diverged runs, each on its own (x: last finite value); not in the medians or scale")
     return fig
+
+
+def _log_or_note(a, note):
+    """Log y scale when the axes holds data, else the note in its middle (a log axis needs data)."""
+    if any(len(line.get_xdata()) for line in a.lines if line.get_transform() == a.transData) or a.collections:
+        a.set_yscale("log")
+    else:
+        a.text(0.5, 0.5, note, ha="center", va="center", transform=a.transAxes)
 
 
 def _convergence_label(label, n_ok, n_div, n, lower):
@@ -583,7 +592,7 @@ def final_cost(study, *, title=None, ax=None):
         ticks.append(f"{method_label(m)}\n{int(div.sum())}/{len(recs)} diverged" if div.any() else method_label(m))
     a.set_xticks(range(1, len(ticks) + 1), ticks)
     a.set_xlim(0.4, len(ticks) + 0.6)
-    a.set_yscale("log")
+    _log_or_note(a, "every trial diverged: no final J to show")
     _finish(a, ylabel="final J (sum of squared output errors)", xlabel="method", grid="both",
             title=title or f"{study.case.name.upper()}: final J over {n_trials} trials per method")
     return fig
