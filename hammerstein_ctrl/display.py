@@ -36,7 +36,7 @@ import numpy as np
 from .exceptions import DataError, ParameterError
 
 __all__ = [
-    "as_models", "as_iodata", "progress", "progress_enabled", "response", "standard_errors",
+    "as_models", "as_iodata", "progress", "progress_enabled", "register_figure_formatter", "response", "standard_errors",
     "result_html", "study_html", "result_frame", "study_frame", "require_pandas", "method_label",
     "PROGRESS_ENV",
 ]
@@ -181,12 +181,35 @@ def as_iodata(obj):
 
 
 # -- progress bars -------------------------------------------------------------
-def _in_jupyter() -> bool:
+def _ipython():
+    """The running IPython shell, or None (IPython is never imported here if it is not loaded)."""
     shell = sys.modules.get("IPython")
-    if shell is None:
+    return shell.get_ipython() if shell is not None else None
+
+
+def _in_jupyter() -> bool:
+    return type(_ipython()).__name__ == "ZMQInteractiveShell"
+
+
+def register_figure_formatter() -> bool:
+    """In IPython, show a matplotlib ``Figure`` that ends a cell as one PNG image.
+
+    The plot helpers build their figures without pyplot (so the inline
+    backend does not show them a second time); this registers IPython's own
+    PNG printer for :class:`matplotlib.figure.Figure` unless a figure format
+    is already configured (``%config InlineBackend.figure_formats``).  Returns
+    whether an IPython shell is running.
+    """
+    ip = _ipython()
+    if ip is None:
         return False
-    ip = shell.get_ipython()
-    return ip is not None and type(ip).__name__ == "ZMQInteractiveShell"
+    from IPython.core.pylabtools import print_figure
+    from matplotlib.figure import Figure
+
+    formatters = ip.display_formatter.formatters
+    if not any(Figure in f.type_printers for f in formatters.values()):
+        formatters["image/png"].for_type(Figure, lambda fig: print_figure(fig, "png", bbox_inches="tight"))
+    return True
 
 
 def progress_enabled() -> bool:

@@ -2,8 +2,10 @@
 
 Every helper returns a :class:`matplotlib.figure.Figure` built *without* pyplot,
 so a notebook cell ending in a plot call shows the figure once (Jupyter renders
-the returned Figure; nothing is left registered with pyplot to be shown again),
-and none calls ``plt.show()``.  Helpers that draw one axes also accept ``ax``.
+the returned Figure, see :func:`~hammerstein_ctrl.display.register_figure_formatter`;
+nothing is left registered with pyplot to be shown again), and none calls
+``plt.show()``.  In a script, write them with ``fig.savefig(path)``.  Helpers
+that draw one axes also accept ``ax`` (then they draw into your figure).
 
 Wherever a model is expected you may pass one model, a list, a dict
 ``{label: model}`` or an :class:`~hammerstein_ctrl.identify.IdentificationResult`
@@ -28,7 +30,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .display import as_iodata, as_models, method_label
+from .display import as_iodata, as_models, method_label, register_figure_formatter
 from .exceptions import ParameterError
 
 __all__ = [
@@ -60,6 +62,7 @@ def _new_figure(nrows=1, ncols=1, figsize=(_WIDTH, 4), **kwargs):
     """A Figure not registered with pyplot (so Jupyter shows it once) and its 2-D axes array."""
     from matplotlib.figure import Figure
 
+    register_figure_formatter()
     fig = Figure(figsize=figsize, layout="constrained")
     return fig, fig.subplots(nrows, ncols, squeeze=False, **kwargs)
 
@@ -116,20 +119,28 @@ def _window(data, zoom):
     return (data.t >= lo) & (data.t <= hi)
 
 
-def _time_rows(data, zoom, nrows, ax):
-    """Rows of ``(mask, axes, title suffix)`` panels: the full record and, with ``zoom``, a zoom to its right."""
+def _time_rows(data, zoom, nrows, ax, head):
+    """Rows of ``(mask, axes)`` panels: the full record and, with ``zoom``, a zoom to its right.
+
+    With a zoom the figure title is ``head`` and the columns are titled; the
+    zoom panels share the rows' y axes, so they carry no label or legend.
+    """
     if ax is not None:
-        return ax.figure, [[(np.ones(len(data), bool), ax, "")]]
+        ax.set_title(head, fontsize="medium")
+        return ax.figure, [[(np.ones(len(data), bool), ax)]]
     ncols = 1 if zoom is None else 2
     fig, axes = _new_figure(nrows, ncols, figsize=(_WIDTH if ncols == 1 else 12, 1.0 + _ROW_HEIGHT * max(nrows, 1.6)),
                             sharey=True, sharex="col")
-    rows = []
+    rows = [[(np.ones(len(data), bool), axes[r, 0])] for r in range(nrows)]
+    if zoom is None:
+        axes[0, 0].set_title(head, fontsize="medium")
+        return fig, rows
+    fig.suptitle(head)
+    axes[0, 0].set_title("full record", fontsize="medium")
+    axes[0, 1].set_title(f"zoom {zoom[0]:g}-{zoom[1]:g} s", fontsize="medium")
     for r in range(nrows):
-        row = [(np.ones(len(data), bool), axes[r, 0], "")]
-        if zoom is not None:
-            row.append((_window(data, zoom), axes[r, 1], f" (zoom {zoom[0]:g}-{zoom[1]:g} s)"))
-            axes[r, 0].axvspan(*zoom, color="0.88", zorder=0)
-        rows.append(row)
+        rows[r].append((_window(data, zoom), axes[r, 1]))
+        axes[r, 0].axvspan(*zoom, color="0.88", zorder=0)
     return fig, rows
 
 
@@ -152,14 +163,15 @@ def time_response(data, models=None, *, zoom=None, title=None, ax=None):
     if zoom is not None:
         _window(data, zoom)
     ys, bad = _outputs(data, models)
-    fig, rows = _time_rows(data, zoom, 1, ax)
-    head = title or f"{data.name}: measured and simulated output"
-    for sel, a, suffix in rows[0]:
+    fig, rows = _time_rows(data, zoom, 1, ax, title or f"{data.name}: measured and simulated output")
+    for j, (sel, a) in enumerate(rows[0]):
         a.plot(data.t[sel], data.y[sel], label="measured", **_MEASURED)
         for label, y in ys.items():
             a.plot(data.t[sel], y[sel], lw=1.0, label=label)
-        _mark_unusable(a, bad)
-        _finish(a, xlabel="time (s)", ylabel=_label(data.output_name, data.output_unit), title=head + suffix)
+        if j == 0:
+            _mark_unusable(a, bad)
+        _finish(a, xlabel="time (s)", ylabel=_label(data.output_name, data.output_unit) if j == 0 else None,
+                legend=j == 0)
     return fig
 
 
@@ -190,21 +202,21 @@ def error_response(data, models, *, zoom=None, title=None, ax=None):
         ax.axhline(0.0, color="k", lw=0.6)
         _finish(ax, xlabel="time (s)", ylabel=ylabel, title=head)
         return ax.figure
-    fig, rows = _time_rows(data, zoom, max(len(errors), 1), None)
+    fig, rows = _time_rows(data, zoom, max(len(errors), 1), None, head)
     colors = _colors()
     for i, (row, (label, e)) in enumerate(zip(rows, errors.items())):
-        for sel, a, suffix in row:
+        for j, (sel, a) in enumerate(row):
             a.plot(data.t[sel], e[sel], lw=0.8, color=colors[i % len(colors)],
                    label=f"{label} (RMS {_rms(e):.3g}{unit})")
             a.axhline(0.0, color="k", lw=0.6)
-            _finish(a, ylabel=ylabel, title=(head + suffix) if i == 0 else None)
+            _finish(a, ylabel=ylabel if j == 0 else None, legend=j == 0)
+    first = rows[0][0][1]
     if not errors:
-        rows[0][0][1].text(0.5, 0.5, "no model with a finite output", transform=rows[0][0][1].transAxes,
-                           ha="center")
-    _mark_unusable(rows[0][0][1], bad)
-    for _, a, _ in rows[-1]:
+        first.text(0.5, 0.5, "no model with a finite output", transform=first.transAxes, ha="center")
+    _mark_unusable(first, bad)
+    for _, a in rows[-1]:
         a.set_xlabel("time (s)")
-    _finish(rows[0][0][1], ylabel=ylabel)
+    _finish(first, ylabel=ylabel)
     return fig
 
 
@@ -524,8 +536,10 @@ def convergence(source, *, quantity: str = "estimate", title=None, ax=None, band
             _median_band(a, text, ok, band, color)
         else:
             a.plot([], [], " ", label=text)
-        if lower:
-            _draw_diverged(axes[1, 0], diverged[label], color, label)
+        if lower and diverged[label]:
+            _draw_diverged(axes[1, 0], diverged[label], color, f"{label}: {n_div[label]} diverged runs"
+                           + (f" ({len(diverged[label])} with a finite J to draw)"
+                              if len(diverged[label]) < n_div[label] else ""))
     _log_or_note(a, "every run diverged: see the lower panel" if lower else "no finite value to show")
     _finish(a, xlabel=None if lower else "function evaluations (NFE)",
             ylabel=ylabel or _QUANTITIES[quantity], grid="both",
@@ -555,11 +569,10 @@ def _convergence_label(label, n_ok, n_div, n, lower):
     return text + (f"; {n_div} of {n} diverged" if n_div else "")
 
 
-def _draw_diverged(b, runs, color, label):
+def _draw_diverged(b, runs, color, text):
     for j, (n, v) in enumerate(runs):
         fin = np.isfinite(v) & (v > 0)
-        b.plot(n[fin], v[fin], lw=0.7, alpha=0.6, color=color,
-               label=f"{label}: {len(runs)} diverged runs" if j == 0 else None)
+        b.plot(n[fin], v[fin], lw=0.7, alpha=0.6, color=color, label=text if j == 0 else None)
         if fin.any():
             b.plot(n[fin][-1], v[fin][-1], "x", color=color, ms=6)
 
