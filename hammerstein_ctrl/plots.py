@@ -36,7 +36,7 @@ from .exceptions import ParameterError
 __all__ = [
     "time_response", "error_response", "psd", "dominant_frequency", "spectral_peak", "input_signal",
     "bode", "convergence", "nonlinearity", "final_cost", "compare", "compare_fits", "result_figure",
-    "study_figure_set", "study_figures", "MIN_PEAK_BINS", "PEAK_PROMINENCE", "SMOOTH_BINS",
+    "study_figure_set", "study_figures", "MIN_PEAK_BINS", "PEAK_PROMINENCE", "SMOOTH_BINS", "LOG_SPAN",
 ]
 
 #: Default lower edge of the PSD peak search, in Welch resolution widths (keeps the DC end out).
@@ -47,11 +47,15 @@ PEAK_PROMINENCE = 0.5
 SMOOTH_BINS = 5
 #: Welch segment length (samples) used by default.
 NPERSEG = 1024
+#: Ratio of largest to smallest final J above which final_cost uses a log scale.
+LOG_SPAN = 10.0
+#: Samples shown in the zoom panel of the study's input figure.
+INPUT_ZOOM_SAMPLES = 200
 #: Resolution of the saved study figures (dots per inch).
 FIGURE_DPI = 110
 _ROW_HEIGHT = 2.2
 _WIDTH = 9.5
-_MEASURED = dict(color="k", lw=1.6)
+_MEASURED = dict(color="k", lw=1.0)
 
 
 def _label(name: str, unit: str) -> str:
@@ -308,11 +312,13 @@ def _peak_text(f_peak, fmin):
     return f"peak {f_peak:.3g} Hz" if np.isfinite(f_peak) else f"no peak above {fmin:.2g} Hz"
 
 
-def psd(data, models=None, *, nperseg: int = NPERSEG, fmin: float | None = None, title=None, ax=None):
+def psd(data, models=None, *, nperseg: int = NPERSEG, fmin: float | None = None, logx: bool = False,
+        title=None, ax=None):
     """Welch power spectral density of the measured and simulated outputs (Fig. 12).
 
     Each curve's peak (:func:`dominant_frequency`, searched above ``fmin``) is
     marked and given in the legend; the title states the frequency resolution.
+    ``logx`` puts frequency on a log axis (for spectra spanning decades).
     """
     data = as_iodata(data)
     ys, bad = _outputs(data, as_models(models, arrays=True, allow_empty=True))
@@ -325,7 +331,10 @@ def psd(data, models=None, *, nperseg: int = NPERSEG, fmin: float | None = None,
         if np.isfinite(peaks[label]):
             a.plot(peaks[label], p[np.argmin(abs(f - peaks[label]))], "v", color=line.get_color(), ms=7)
     _mark_unusable(a, bad)
-    a.axvspan(0, peaks["fmin"], color="0.9", zorder=0, label=f"below {peaks['fmin']:.2g} Hz: not searched")
+    a.axvspan(peaks["resolution"] if logx else 0.0, peaks["fmin"], color="0.9", zorder=0,
+              label=f"below {peaks['fmin']:.2g} Hz: not searched")
+    if logx:
+        a.set_xscale("log")
     unit = f"{data.output_unit}²/Hz" if data.output_unit else "1/Hz"
     n = min(nperseg, len(data))
     _finish(a, xlabel="frequency (Hz)", ylabel=f"PSD of {data.output_name} ({unit})", grid="both",
@@ -335,20 +344,25 @@ def psd(data, models=None, *, nperseg: int = NPERSEG, fmin: float | None = None,
 
 
 def input_signal(data, *, zoom=None, nperseg: int = NPERSEG, bins: int = 40, title=None):
-    """The excitation (like the paper's Figs. 6 and 14): ``u(t)``, its histogram and its Welch PSD."""
+    """The excitation (like the paper's Figs. 6 and 14): ``u(t)`` (and a zoom), its histogram and Welch PSD."""
     data = as_iodata(data)
     if int(bins) != bins or bins < 2:
         raise ParameterError(f"bins must be an integer >= 2, got {bins!r}")
-    fig, axes = _new_figure(2, 2, figsize=(_WIDTH + 1, 6.5))
-    top = axes[0, 0].get_gridspec()
-    for a in axes[0]:
-        a.remove()
-    at = fig.add_subplot(top[0, :])
+    fig, axes = _new_figure(2, 2, figsize=(_WIDTH + 2, 6.5))
     ulabel = _label(data.input_name, data.input_unit)
-    sel = np.ones(len(data), bool) if zoom is None else _window(data, zoom)
-    at.plot(data.t[sel], data.u[sel], lw=0.7, color="C0", label=f"{data.input_name}, {sel.sum()} samples")
-    _finish(at, xlabel="time (s)", ylabel=ulabel,
-            title=title or f"{data.name}: input signal (dt = {data.dt:g} s, {len(data)} samples)")
+    if zoom is None:
+        grid = axes[0, 0].get_gridspec()
+        for a in axes[0]:
+            a.remove()
+        panels = [(fig.add_subplot(grid[0, :]), np.ones(len(data), bool), "full record")]
+    else:
+        panels = [(axes[0, 0], np.ones(len(data), bool), "full record"),
+                  (axes[0, 1], _window(data, zoom), f"zoom {zoom[0]:g}-{zoom[1]:g} s")]
+        axes[0, 0].axvspan(*zoom, color="0.88", zorder=0)
+    for a, sel, what in panels:
+        a.plot(data.t[sel], data.u[sel], lw=0.7, color="C0", label=f"{data.input_name}: {sel.sum()} samples")
+        _finish(a, xlabel="time (s)", ylabel=ulabel, title=what)
+    fig.suptitle(title or f"{data.name}: input signal (dt = {data.dt:g} s, {len(data)} samples)")
     ah, ap = axes[1]
     ah.hist(data.u, bins=int(bins), color="C0", alpha=0.8, label=f"{int(bins)} bins")
     _finish(ah, xlabel=ulabel, ylabel="samples (count)", title="amplitude distribution")
@@ -581,19 +595,21 @@ def final_cost(study, *, title=None, ax=None):
     """Box plot with the individual trials of the final J per method.
 
     Diverged trials are not in the boxes or the axis scaling: each method's
-    tick label counts them, and ``^`` marks at the top edge show them.
+    tick label counts them, and ``^`` marks at the top edge show them.  The
+    y axis is logarithmic when the values span more than :data:`LOG_SPAN`.
     """
     if not hasattr(study, "records"):
         raise ParameterError(f"final_cost needs a StudyResult, got {type(study).__name__}")
     fig, a = _single_axes(ax)
     rng = np.random.default_rng(0)
-    ticks, n_trials = [], 0
+    ticks, n_trials, finite = [], 0, []
     for i, m in enumerate(study.methods, start=1):
         recs = [r for r in study.records if r["method"] == m]
         n_trials = max(n_trials, len(recs))
         J = np.array([float(r["fun"]) for r in recs])
         div = np.array([bool(r["diverged"]) for r in recs]) | ~np.isfinite(J)
         ok = J[~div]
+        finite.extend(ok.tolist())
         if ok.size:
             a.boxplot([ok], positions=[i], showfliers=False, widths=0.5)
             a.plot(i + rng.uniform(-0.12, 0.12, ok.size), ok, "o", ms=3, alpha=0.6, color="C0",
@@ -605,7 +621,10 @@ def final_cost(study, *, title=None, ax=None):
         ticks.append(f"{method_label(m)}\n{int(div.sum())}/{len(recs)} diverged" if div.any() else method_label(m))
     a.set_xticks(range(1, len(ticks) + 1), ticks)
     a.set_xlim(0.4, len(ticks) + 0.6)
-    _log_or_note(a, "every trial diverged: no final J to show")
+    if finite and max(finite) > LOG_SPAN * min(finite):
+        a.set_yscale("log")
+    elif not finite:
+        a.text(0.5, 0.5, "every trial diverged: no final J to show", ha="center", va="center", transform=a.transAxes)
     _finish(a, ylabel="final J (sum of squared output errors)", xlabel="method", grid="both",
             title=title or f"{study.case.name.upper()}: final J over {n_trials} trials per method")
     return fig
@@ -732,7 +751,7 @@ def _model_figures(study, shown, note, validation, u0):
         "time_response": time_response(data, shown, zoom=zoom,
                                        title=f"{data.name}: measured and best identified outputs{note}"),
         "error": error_response(data, shown, zoom=zoom, title=f"{data.name}: output error of each best model{note}"),
-        "psd": psd(data, shown, title=f"{data.name}: output PSD{note}"),
+        "psd": psd(data, shown, logx=True, title=f"{data.name}: output PSD{note}"),
         "bode": bode(shown, u0=u0, title=f"{case.name.upper()}: small-signal plant g'(u0)·H(p) "
                                          f"at u0 = {u0:.3g} {data.input_unit}{note}"),
         "nonlinearity": nonlinearity(shown, (float(data.u.min()), float(data.u.max())), unit_in=data.input_unit,
@@ -761,7 +780,8 @@ def study_figure_set(study, *, validation=None, u0: float | None = None) -> dict
         msg = f"every trial of every method diverged{note}: no model to show"
         figures = {name: _placeholder(f"{study.case.name.upper()}: {name}", msg)
                    for name in ("time_response", "error", "psd", "bode", "nonlinearity")}
-    figures["input"] = input_signal(data, title=f"{data.name}: input signal")
+    start = _zoom_window(data)[0]
+    figures["input"] = input_signal(data, zoom=(start, float(f"{start + INPUT_ZOOM_SAMPLES * data.dt:.3g}")))
     figures["convergence"] = convergence(study, title=f"{study.case.name.upper()}: convergence over trials")
     figures["final_cost"] = final_cost(study)
     return figures
