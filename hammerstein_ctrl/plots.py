@@ -19,8 +19,9 @@ Examples
 >>> from hammerstein_ctrl import plots
 >>> case = hc.presets.trs()
 >>> fig = plots.time_response(case.data, case.structure.model(case.true_beta), zoom=(100, 150))
->>> [ax.get_ylabel() for ax in fig.axes]
-['pitch y (rad)', 'pitch y (rad)']
+>>> [(ax.get_title(), ax.get_ylabel()) for ax in fig.axes]   # the zoom shares the y axis
+[('full record', 'pitch y (rad)'), ('zoom 100-150 s', '')]
+>>> fig.savefig("response.png")                              # doctest: +SKIP
 """
 
 from __future__ import annotations
