@@ -533,38 +533,45 @@ def convergence(source, *, quantity: str = "estimate", title=None, ax=None, band
     if quantity not in _QUANTITIES:
         raise ParameterError(f"quantity must be one of {sorted(_QUANTITIES)}, got {quantity!r}")
     curves = _run_curves(source, quantity)
-    diverged = {k: [(n, v) for n, v, d in runs if d and n.size and np.isfinite(v).any()]
-                for k, runs in curves.items()}
+    ok = {k: [(n, v) for n, v, d in runs if not d and _usable(v)] for k, runs in curves.items()}
+    diverged = {k: [(n, v) for n, v, d in runs if d and _usable(v)] for k, runs in curves.items()}
     n_div = {k: sum(d for _, _, d in runs) for k, runs in curves.items()}
-    lower = ax is None and any(diverged.values())
+    # diverged runs get their own panel when there is a scale to protect; if nothing else is drawn, the main one
+    where = "none" if not any(diverged.values()) else "main" if not any(ok.values()) else \
+        "lower" if ax is None else "none"
     if ax is None:
-        fig, axes = _new_figure(2 if lower else 1, 1, figsize=(_WIDTH, 6.5 if lower else 4.5),
-                                sharex=True, **({"height_ratios": [3, 1.4]} if lower else {}))
+        fig, axes = _new_figure(2 if where == "lower" else 1, 1, figsize=(_WIDTH, 6.5 if where == "lower" else 4.5),
+                                sharex=True, **({"height_ratios": [3, 1.4]} if where == "lower" else {}))
         a = axes[0, 0]
     else:
         fig, a = ax.figure, ax
+    target = {"main": a, "lower": axes[-1, 0] if ax is None else None}.get(where)
     for i, (label, runs) in enumerate(curves.items()):
         color = _colors()[i % len(_colors())]
-        ok = [(n, v) for n, v, d in runs if not d and n.size and np.isfinite(v).any()]
-        text = _convergence_label(label, len(ok), n_div[label], len(runs), lower)
-        if ok:
-            _median_band(a, text, ok, band, color)
-        else:
+        text = _convergence_label(label, len(ok[label]), n_div[label], len(runs), where == "lower")
+        if ok[label]:
+            _median_band(a, text, ok[label], band, color)
+        elif where != "main":
             a.plot([], [], " ", label=text)
-        if lower and diverged[label]:
-            _draw_diverged(axes[1, 0], diverged[label], color, f"{label}: {n_div[label]} diverged runs"
+        if target is not None and diverged[label]:
+            _draw_diverged(target, diverged[label], color, f"{label}: {n_div[label]} diverged runs"
                            + (f" ({len(diverged[label])} with a finite J to draw)"
                               if len(diverged[label]) < n_div[label] else ""))
-    _log_or_note(a, "every run diverged: see the lower panel" if lower else "no finite value to show")
-    _finish(a, xlabel=None if lower else "function evaluations (NFE)",
+    _log_or_note(a, "no finite value to show")
+    _finish(a, xlabel=None if where == "lower" else "function evaluations (NFE)",
             ylabel=ylabel or _QUANTITIES[quantity], grid="both",
-            title=title or "Convergence: median (line) and inter-quartile range (band) over trials")
-    if lower:
+            title=title or ("Convergence: median (line) and inter-quartile range (band) over trials"
+                            if where != "main" else "Diverged runs, each drawn (x: last finite value)"))
+    if where == "lower":
         b = axes[1, 0]
         b.set_yscale("log")
         _finish(b, xlabel="function evaluations (NFE)", ylabel="J (diverged runs)", grid="both",
                 title="diverged runs, each on its own (x: last finite value); not in the medians or scale")
     return fig
+
+
+def _usable(values) -> bool:
+    return bool(values.size and np.isfinite(values).any())
 
 
 def _log_or_note(a, note):

@@ -160,6 +160,11 @@ def test_convergence_of_eq8_example_shows_divergence_and_convergence():
     assert "N-SPSA: median of 3 runs" in labels
     assert any(lab.startswith("SPSA: all 3 runs diverged") for lab in labels)
     assert fig.axes[-1].get_xlabel() == "function evaluations (NFE)"
+    # with nothing but diverged runs there is no scale to protect: they are drawn in the one panel
+    only = plots.convergence({"SPSA": runs["SPSA"]}, quantity="fun")
+    assert len(only.axes) == 1 and only.axes[0].get_yscale() == "log"
+    assert legend_texts(only.axes[0]) == ["SPSA: 3 diverged runs"]
+    assert max(line.get_ydata().max() for line in only.axes[0].lines) > 1e10
     with pytest.raises(ParameterError, match="quantity"):
         plots.convergence(runs, quantity="typo")
     with pytest.raises(ParameterError, match="history"):
