@@ -707,7 +707,8 @@ def result_figure(result, *, zoom=None):
     a.plot(data.t[sel], data.y[sel], label="measured", **_MEASURED)
     if np.all(np.isfinite(yhat)):
         a.plot(data.t[sel], yhat[sel], lw=1.0, label=f"{label}: fit {result.fit_percent:.1f} %")
-        b.plot(data.t[sel], (data.y - yhat)[sel], lw=0.8, color="C1", label=f"RMS {_rms(data.y - yhat):.3g}")
+        unit = f" {data.output_unit}" if data.output_unit else ""
+        b.plot(data.t[sel], (data.y - yhat)[sel], lw=0.8, color="C1", label=f"RMS {_rms(data.y - yhat):.3g}{unit}")
     else:
         _mark_unusable(a, [label])
     b.axhline(0.0, color="k", lw=0.6)
