@@ -396,17 +396,27 @@ def study_html(study, alpha: float = 0.05) -> str:
                      f"{st['time_mean']:.3f}"])
         if m in paper:
             p = paper[m]
-            rows.append(["", "<i>paper</i>", *(f"<i>{_fmt(p.get(c))}</i>" for c in ("mean",)), "",
-                         *(f"<i>{_fmt(p.get(c))}</i>" for c in ("best", "worst", "std")),
-                         f"<i>{_fmt(p.get('nfev'))}</i>", "", ""])
+            rows.append(["", "<i>paper</i>", _paper_cell(p, "mean"), "",
+                         *(_paper_cell(p, c) for c in ("best", "worst", "std", "nfev")), "", ""])
     n = max((st["n"] for k, st in s.items() if k != "ranksum"), default=0)
     caption = (f"<b>{html.escape(study.case.name.upper())}</b>: final J = Σ(y − ŷ)² over {n} "
                f"independent trials, seed {study.seed}")
-    notes = [f"Wilcoxon rank-sum {html.escape(method_label(a))} vs {html.escape(method_label(b))}: "
-             f"p = {r['p']:.3g}, h = {r['h']} (α = {alpha:g})"
-             for a, b, r in ((*pair.split(" vs "), r) for pair, r in s["ranksum"].items())]
+    notes = [_ranksum_note(pair, r, paper.get("ranksum"), alpha) for pair, r in s["ranksum"].items()]
     return (_table(header, rows, caption)
             + ("<ul>" + "".join(f"<li>{x}</li>" for x in notes) + "</ul>" if notes else ""))
+
+
+def _paper_cell(row: dict, column: str) -> str:
+    return f"<i>{_fmt(row.get(column)) or 'N/A'}</i>"
+
+
+def _ranksum_note(pair: str, r: dict, ref, alpha: float) -> str:
+    a, b = pair.split(" vs ")
+    text = (f"Wilcoxon rank-sum {html.escape(method_label(a))} vs {html.escape(method_label(b))}: "
+            f"p = {r['p']:.3g}, h = {r['h']} (α = {alpha:g})")
+    if ref and set(ref.get("pair", ())) == {a, b}:
+        text += f"; paper: p = {ref['p']:.3g}, h = {ref['h']}"
+    return text
 
 
 # -- DataFrames ----------------------------------------------------------------

@@ -32,7 +32,7 @@ def result():
 
 @pytest.fixture(scope="module")
 def study():
-    return run_study(hc.presets.trs(), ["spsa", "nspsa"], trials=3, seed=0, executor="serial")
+    return run_study(hc.presets.trs(), ["spsa", "nlspsa", "nspsa"], trials=3, seed=0, executor="serial")
 
 
 # -- as_models / as_iodata -------------------------------------------------------
@@ -191,14 +191,17 @@ def test_study_html_and_frames(study):
     assert "<table>" in html and "SPSA" in html and "N-SPSA" in html
     assert "3/3" in html  # SPSA's diverged count
     assert "Wilcoxon rank-sum SPSA vs N-SPSA" in html
+    assert "Wilcoxon rank-sum NL-SPSA vs N-SPSA" in html and "paper: p = 5.08e-08, h = 1" in html
+    assert "<td><i>N/A</i></td>" in html  # the paper gives no SPSA mean
+    assert "<td><i>179.008</i></td>" in html  # Table 3's N-SPSA mean
     s = study.summary()
     assert f"{s['nspsa']['mean']:.6g}" in html
     frame = study.to_frame()
-    assert list(frame.index) == ["spsa", "nspsa"]
+    assert list(frame.index) == ["spsa", "nlspsa", "nspsa"]
     assert frame.loc["nspsa", "mean"] == pytest.approx(s["nspsa"]["mean"])
     assert frame.loc["spsa", "diverged"] == 3
     trials = study.to_frame(trials=True)
-    assert len(trials) == 6 and trials.loc[("nspsa", 1), "J"] == pytest.approx(study.values("nspsa")[1])
+    assert len(trials) == 9 and trials.loc[("nspsa", 1), "J"] == pytest.approx(study.values("nspsa")[1])
     assert set(study.case.structure.param_names) <= set(trials.columns)
 
 
