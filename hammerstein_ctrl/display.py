@@ -36,9 +36,9 @@ import numpy as np
 from .exceptions import DataError, ParameterError
 
 __all__ = [
-    "as_models", "as_iodata", "progress", "progress_enabled", "register_figure_formatter", "response", "standard_errors",
-    "result_html", "study_html", "result_frame", "study_frame", "require_pandas", "method_label",
-    "PROGRESS_ENV",
+    "as_models", "as_iodata", "progress", "progress_enabled", "register_figure_formatter", "response",
+    "standard_errors", "result_html", "study_html", "result_frame", "study_frame", "require_pandas",
+    "method_label", "PROGRESS_ENV",
 ]
 
 #: Environment variable forcing progress bars on ("1") or off ("0").

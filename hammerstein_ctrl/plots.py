@@ -621,7 +621,7 @@ def final_cost(study, *, title=None, ax=None):
         if ok.size:
             a.boxplot([ok], positions=[i], showfliers=False, widths=0.5)
             a.plot(i + rng.uniform(-0.12, 0.12, ok.size), ok, "o", ms=3, alpha=0.6, color="C0",
-                   label="trials" if not any(t.startswith("trials") for t in a.get_legend_handles_labels()[1]) else None)
+                   label=None if "trials" in a.get_legend_handles_labels()[1] else "trials")
         if div.any():
             a.plot(i + rng.uniform(-0.12, 0.12, div.sum()), np.full(div.sum(), 0.97), "^", color="firebrick",
                    ms=5, transform=a.get_xaxis_transform(), clip_on=False,

@@ -74,7 +74,8 @@ def test_study_figures_are_titled_labelled_with_units_and_legended(which, reques
         assert isinstance(fig, Figure)
         assert_labelled(fig, units=name not in ("convergence", "final_cost", "nonlinearity"))
         if name not in ("convergence", "final_cost", "input"):  # the diverged method is named, not drawn
-            assert "SPSA diverged: not shown" in (fig.axes[0].get_title() + str(fig._suptitle and fig._suptitle.get_text()))
+            titles = fig.axes[0].get_title() + str(fig._suptitle and fig._suptitle.get_text())
+            assert "SPSA diverged: not shown" in titles
     tr = figs["time_response"]
     assert tr.axes[0].get_ylabel() == f"{study.case.data.output_name} ({study.case.data.output_unit})"
     assert tr.axes[0].get_xlabel() == "time (s)"
