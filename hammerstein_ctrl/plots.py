@@ -476,7 +476,13 @@ def _run_curves(source, quantity: str) -> dict:
             out.setdefault(method_label(r["method"]), []).append(pick(c["nfev"], c[quantity], r["diverged"]))
         return out
     if not isinstance(source, dict):
-        source = {"runs": source}
+        runs = list(source) if isinstance(source, (list, tuple)) else [source]
+        if all(hasattr(r, "optimize_result") for r in runs):  # IdentificationResults: grouped by method
+            source = {}
+            for r in runs:
+                source.setdefault(method_label(r.method), []).append(r)
+        else:
+            source = {"runs": runs}
     out = {}
     for label, runs in source.items():
         runs = list(runs) if isinstance(runs, (list, tuple)) else [runs]

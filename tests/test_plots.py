@@ -288,3 +288,15 @@ def test_result_plot_shows_fit_residual_and_nonlinearity(trs_result):
     resid = fig.axes[1].lines[0].get_ydata()
     assert np.sqrt(np.sum(resid**2)) == pytest.approx(np.sqrt(trs_result.fun), rel=1e-6)
     assert fig.axes[2].get_ylabel() == "g(u) (input of H)"
+
+
+def test_convergence_and_nonlinearity_take_identification_results(trs_case, trs_result):
+    fig = plots.convergence(trs_result)
+    assert legend_texts(fig.axes[0]) == ["LM*"]
+    line = fig.axes[0].lines[0]
+    assert line.get_ydata()[-1] == pytest.approx(trs_result.optimize_result.best_fun)
+    fig = plots.convergence([trs_result, trs_result])
+    assert legend_texts(fig.axes[0]) == ["LM*: median of 2 runs"]
+    fig = plots.nonlinearity(trs_result)  # the input range defaults to the result's record
+    u = fig.axes[0].lines[0].get_xdata()
+    assert (u[0], u[-1]) == (trs_case.data.u.min(), trs_case.data.u.max())
