@@ -17,8 +17,10 @@ Examples
 (True, 'TransferFunction')
 """
 
-from . import datasets, metrics, nonlinearities, optimize, plots, presets, simulate, study
-from .datasets import IOData, load_emps, load_trs, make_trs_reconstruction, read_record
+from . import datasets, iodata, metrics, nonlinearities, optimize, plots, presets, records, simulate, study
+from .datasets import load_emps, load_trs, make_trs_reconstruction
+from .iodata import IOData
+from .records import read_record
 from .exceptions import DataError, HammersteinError, ParameterError, UnknownNameError
 from .identify import IdentificationResult, identify
 from .metrics import fit_percent, fit_report, nrmse, rmse, sse
@@ -42,7 +44,8 @@ from .study import StudyResult, run_study
 __version__ = "0.1.0"
 
 __all__ = [
-    "datasets", "metrics", "nonlinearities", "optimize", "plots", "presets", "simulate", "study",
+    "datasets", "iodata", "metrics", "nonlinearities", "optimize", "plots", "presets", "records", "simulate",
+    "study",
     "IOData", "load_emps", "load_trs", "make_trs_reconstruction", "read_record",
     "DataError", "HammersteinError", "ParameterError", "UnknownNameError",
     "fit_percent", "fit_report", "nrmse", "rmse", "sse",

@@ -62,6 +62,139 @@ def _simplest_decimal(x: float, radius: float) -> float:
     return x
 
 
+#: Largest accepted grid ``tolerance`` (a fraction of dt): beyond half a step,
+#: sample k could be taken for sample k +- 1.
+MAX_GRID_TOLERANCE = 0.5
+#: A step longer than this many typical steps is a gap (missing samples); one
+#: shorter than ``2 - GAP_STEPS`` steps is an extra sample.
+GAP_STEPS = 1.5
+#: Longest gap (in sampling intervals) that resampling interpolates across.
+MAX_RESAMPLE_GAP = 10
+#: Largest ratio of resampled to original samples (guards against dt typos).
+MAX_UPSAMPLING = 100
+#: Significant digits of a suggested tolerance.
+_SUGGESTION_DIGITS = 2
+
+
+def finite_float(value, what: str, expected: str = "a finite number") -> float:
+    """``value`` as a finite float, else a :class:`DataError` "``what`` must be ``expected``"."""
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        v = np.nan
+    if not np.isfinite(v):
+        raise DataError(f"{what} must be {expected}, got {value!r}")
+    return v
+
+
+def check_tolerance(tolerance) -> float:
+    """Return ``tolerance`` as a float in ``[0, 0.5)`` or raise a :class:`DataError`."""
+    expected = f"in [0, {MAX_GRID_TOLERANCE:g}) (a fraction of dt)"
+    tol = finite_float(tolerance, "tolerance", expected)
+    if not 0.0 <= tol < MAX_GRID_TOLERANCE:
+        raise DataError(f"tolerance must be {expected}, got {tolerance!r}; "
+                        "for larger irregularities resample the record instead")
+    return tol
+
+
+def check_dt(dt) -> float:
+    """Return ``dt`` as a positive finite float or raise a :class:`DataError`."""
+    step = finite_float(dt, "dt", "a positive finite number")
+    if step <= 0:
+        raise DataError(f"dt must be a positive finite number, got {dt!r}")
+    return step
+
+
+def optional_time(value, what: str) -> float | None:
+    """``None`` or ``value`` as a finite float (a time in seconds), else a :class:`DataError`."""
+    return None if value is None else finite_float(value, what, "a finite time in seconds")
+
+
+def increasing_times(t, name: str = "t") -> np.ndarray:
+    """Return ``t`` as a finite, strictly increasing 1-D array of >= 2 samples or raise."""
+    t = as_signal(t, name)
+    if t.size < 2:
+        raise DataError(f"{name} needs at least two samples to define a sampling interval")
+    steps = np.diff(t)
+    if np.any(steps <= 0):
+        k = int(np.flatnonzero(steps <= 0)[0])
+        what = "a duplicated time stamp" if steps[k] == 0 else "time runs backwards"
+        raise DataError(
+            f"{name} is not strictly increasing: {name}[{k + 1}] = {float(t[k + 1])!r} follows "
+            f"{name}[{k}] = {float(t[k])!r} ({what}); sort the samples or remove the repeated ones"
+        )
+    return t
+
+
+def _fit_grid(t: np.ndarray, k: np.ndarray) -> tuple[float, float, np.ndarray]:
+    """Least-squares ``t ~ t0 + dt*k`` rounded to the simplest decimals; returns (t0, dt, deviation)."""
+    n = k[-1] - k[0] + 1
+    origin = t[0]
+    if k.size > 2:
+        dt, t0 = np.polyfit(k, t - origin, 1)
+    else:
+        dt, t0 = (t[-1] - t[0]) / (k[-1] - k[0]), 0.0
+    t0 += origin
+    jitter = float(np.max(np.abs(t - (t0 + dt * k))))
+    dt = _simplest_decimal(float(dt), 2.0 * jitter / max(n - 1, 1))
+    t0 = _simplest_decimal(float(t0), jitter)
+    return t0, dt, t - (t0 + dt * k)
+
+
+def _round_up(x: float) -> float:
+    """``x`` rounded up to two significant digits (a tolerance to suggest)."""
+    e = int(np.floor(np.log10(x))) - (_SUGGESTION_DIGITS - 1)
+    return float(f"{np.ceil(x / 10.0**e) * 10.0**e:.{_SUGGESTION_DIGITS}g}")
+
+
+_RESAMPLE_HINT = ("resample='linear' or 'zoh' (--resample) to interpolate the record onto a uniform grid")
+_WINDOW_HINT = "keep a part without it (start=/stop=, --start/--stop)"
+
+
+def _step_anomaly(t: np.ndarray, name: str) -> str | None:
+    """Describe the first gap (missing samples) or extra sample in ``t``, if any."""
+    steps = np.diff(t)
+    h = float(np.median(steps))
+    with np.errstate(over="ignore"):
+        ratio = steps / h
+    odd = np.flatnonzero((ratio > GAP_STEPS) | (ratio < 2.0 - GAP_STEPS))
+    if odd.size == 0:
+        return None
+    i = int(odd[0])
+    where = (f"between sample {i} ({name} = {t[i]:.10g} s) and sample {i + 1} "
+             f"({name} = {t[i + 1]:.10g} s)")
+    if ratio[i] > GAP_STEPS:
+        missing = f"{ratio[i] - 1:.0f}" if ratio[i] < 1e6 else "many"
+        what = f"a gap: about {missing} sample(s) missing {where}, a step of {ratio[i]:.3g}*dt"
+    else:
+        what = f"an extra or misplaced time stamp: only {ratio[i]:.3g}*dt {where}"
+    more = f" ({odd.size} irregular steps in all)" if odd.size > 1 else ""
+    return (
+        f"{name} is an irregular time grid (typical step dt = {h:.6g} s): {what}{more}; "
+        f"pass {_RESAMPLE_HINT}, or {_WINDOW_HINT}"
+    )
+
+
+def _jitter_message(t, dev, dt, tolerance, name) -> str:
+    j = int(np.argmax(np.abs(dev)))
+    worst = abs(dev[j]) / dt
+    steps = np.diff(t) / dt
+    bad_steps = np.flatnonzero(np.abs(steps - 1.0) > 2.0 * tolerance)
+    first = ""
+    if bad_steps.size and int(bad_steps[0]) + 1 != j:
+        i = int(bad_steps[0])
+        first = f"; the first irregular step is from sample {i} to {i + 1} ({steps[i]:.3g}*dt)"
+    hint = f"pass {_RESAMPLE_HINT}"
+    if worst < MAX_GRID_TOLERANCE:
+        hint = (f"pass tolerance={_round_up(worst)} (--tolerance) to accept the time stamps as a uniform grid "
+                f"(a noisy clock), or {_RESAMPLE_HINT}")
+    return (
+        f"{name} is an irregular time grid beyond tolerance={tolerance:g} (a fraction of "
+        f"dt = {dt:.6g} s): sample {j} ({name} = {t[j]:.10g} s) is {worst:.3g}*dt away from the "
+        f"grid t0 + k*dt{first}; {hint}"
+    )
+
+
 def uniform_grid(t, name: str = "t", *, tolerance: float = GRID_TOLERANCE) -> tuple[np.ndarray, float]:
     """Check that ``t`` is a uniform time grid and return ``(t0 + k*dt, dt)``.
 
@@ -74,32 +207,78 @@ def uniform_grid(t, name: str = "t", *, tolerance: float = GRID_TOLERANCE) -> tu
     Raises
     ------
     DataError
-        If ``t`` has fewer than two samples, is not strictly increasing, or is
-        irregular beyond the tolerance.
+        If ``t`` has fewer than two samples, is not strictly increasing, has a
+        gap (missing samples) or an extra sample, or is irregular beyond the
+        tolerance.  The message names the offending sample and suggests the
+        tolerance that would accept the grid or resampling.
+
+    Examples
+    --------
+    >>> uniform_grid([0.0, 0.1, 0.2, 0.3])[1]
+    0.1
+    >>> uniform_grid([0.0, 0.1, 0.3, 0.4])
+    Traceback (most recent call last):
+    ...
+    hammerstein_ctrl.exceptions.DataError: t is an irregular time grid (typical step dt = 0.1 s): a gap: about 1 sample(s) missing between sample 1 (t = 0.1 s) and sample 2 (t = 0.3 s), a step of 2*dt; pass resample='linear' or 'zoh' (--resample) to interpolate the record onto a uniform grid, or keep a part without it (start=/stop=, --start/--stop)
     """
-    t = as_signal(t, name)
-    if t.size < 2:
-        raise DataError(f"{name} needs at least two samples to define a sampling interval")
+    t = increasing_times(t, name)
+    tolerance = check_tolerance(tolerance)
+    anomaly = _step_anomaly(t, name)
+    if anomaly is not None:
+        raise DataError(anomaly)
+    k = np.arange(t.size)
+    t0, dt, dev = _fit_grid(t, k)
+    if np.max(np.abs(dev)) > tolerance * dt:
+        raise DataError(_jitter_message(t, dev, dt, tolerance, name))
+    return t0 + dt * k, dt
+
+
+def resampling_grid(t, dt=None, *, name: str = "t", max_gap: float = MAX_RESAMPLE_GAP) -> tuple[np.ndarray, float]:
+    """A uniform grid ``t0 + k*dt`` covering the span of the increasing times ``t``.
+
+    Without ``dt``, the sampling interval and phase are fitted to ``t`` (each
+    step counted as the nearest whole number of typical steps, so dropped
+    samples do not bias it), then rounded like :func:`uniform_grid`; with
+    ``dt``, the grid starts at ``t[0]``.  The grid keeps the points inside
+    ``[t[0], t[-1]]``.
+
+    Raises
+    ------
+    DataError
+        If ``t`` is not strictly increasing, a step exceeds ``max_gap`` typical
+        (median) steps (interpolating across it would invent data), or the grid would have
+        fewer than two or more than ``MAX_UPSAMPLING`` times as many points.
+
+    Examples
+    --------
+    >>> grid, dt = resampling_grid([0.0, 0.101, 0.199, 0.4, 0.502])
+    >>> dt, grid.round(12).tolist()
+    (0.1, [0.0, 0.1, 0.2, 0.3, 0.4, 0.5])
+    """
+    t = increasing_times(t, name)
     steps = np.diff(t)
-    if np.any(steps <= 0):
-        k = int(np.flatnonzero(steps <= 0)[0])
+    h = float(np.median(steps))
+    i = int(np.argmax(steps))
+    if steps[i] > max_gap * h:
         raise DataError(
-            f"{name} is not strictly increasing: {name}[{k + 1}] = {t[k + 1]!r} "
-            f"follows {name}[{k}] = {t[k]!r}"
+            f"{name} has a gap of {steps[i] / h:.3g}*dt (typical step dt = {h:.6g} s) between sample {i} ({name} = {t[i]:.10g} s) and "
+            f"sample {i + 1} ({name} = {t[i + 1]:.10g} s), longer than the {max_gap:g}*dt that "
+            f"resampling interpolates across; {_WINDOW_HINT}"
         )
-    n = t.size
-    k = np.arange(n)
-    dt, t0 = np.polyfit(k, t, 1) if n > 2 else (t[1] - t[0], t[0])
-    jitter = float(np.max(np.abs(t - (t0 + dt * k))))
-    dt = _simplest_decimal(float(dt), 2.0 * jitter / (n - 1))
-    t0 = _simplest_decimal(float(t0), jitter)
-    grid = t0 + dt * k
-    dev = np.abs(t - grid)
-    i = int(np.argmax(dev))
-    if dev[i] > tolerance * dt:
+    if dt is None:
+        k = np.concatenate([[0.0], np.cumsum(np.rint(steps / h))])
+        t0, dt, _ = _fit_grid(t, k)
+    else:
+        t0, dt = float(t[0]), check_dt(dt)
+    span = (t[-1] - t0) / dt
+    if span > MAX_UPSAMPLING * t.size:
         raise DataError(
-            f"{name} is an irregular time grid: sample {i} is {dev[i]:.3g} s away from the uniform "
-            f"grid t0 + k*dt with dt = {dt:.6g} s (allowed: {tolerance:g}*dt); resample the record "
-            "onto a uniform grid first"
+            f"dt = {dt:g} s would resample {t.size} samples spanning {t[-1] - t[0]:g} s into "
+            f"{span:.3g} points (more than {MAX_UPSAMPLING}x); check dt"
         )
-    return grid, dt
+    eps = 1e-9
+    first = int(np.ceil((t[0] - t0) / dt - eps))
+    last = int(np.floor(span + eps))
+    if last - first < 1:
+        raise DataError(f"dt = {dt:g} s leaves fewer than two samples in the record's {t[-1] - t[0]:g} s")
+    return t0 + dt * np.arange(first, last + 1), dt

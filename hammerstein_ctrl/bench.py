@@ -11,7 +11,8 @@ import time
 
 import numpy as np
 
-__all__ = ["time_call", "forced_response_cost", "evaluation_speed", "optimizer_speed", "format_report"]
+__all__ = ["time_call", "forced_response_cost", "evaluation_speed", "optimizer_speed", "format_report",
+           "identification_comparison", "format_identification_table", "IDENTIFICATION_VARIANTS"]
 
 
 def time_call(fn, *, repeat: int = 5, number: int = 1) -> float:
@@ -96,4 +97,60 @@ def format_report(evals: list[dict], runs: list[dict]) -> str:
                 f"(J = {r['fun']:.4g}); through forced_response ~{est:.0f} s, "
                 f"{est / r['seconds']:.0f}x"
             )
+    return "\n".join(lines)
+
+
+#: Variants compared by :func:`identification_comparison`: label -> how to run one seed.
+IDENTIFICATION_VARIANTS = ("nspsa-paper", "nspsa-auto", "auto", "lm-paper-start")
+
+
+def _identification_run(case, variant: str, seed: int):
+    from .identify import identify
+    from .optimize import minimize
+
+    paper = case.minimize_kwargs("nspsa")
+    budget = 2 * paper["maxiter"] + 1
+    if variant == "nspsa-paper":
+        return minimize(case.cost, case.x0, seed=seed, **paper)
+    if variant == "nspsa-auto":
+        return minimize(case.cost, case.x0, method="nspsa", maxfev=budget, options="auto", seed=seed)
+    if variant == "auto":
+        return identify(case.data, case.structure, maxfev=budget, seed=seed)
+    return minimize(case.cost, case.x0, method="lm", maxfev=budget)
+
+
+def identification_comparison(case, seeds=range(25), variants=IDENTIFICATION_VARIANTS, *, echo=None) -> list:
+    """J, evaluations and wall time of each variant over seeds on a preset case.
+
+    Returns one dict per variant: ``mean, best, worst, std`` of the final J,
+    ``success`` count, mean ``nfev`` and mean wall time ``seconds``.  ``echo``
+    (e.g. ``print``) receives each finished row at once.
+    """
+    rows = []
+    for variant in variants:
+        fun, nfev, secs, ok = [], [], [], 0
+        for seed in seeds:
+            t0 = time.perf_counter()
+            r = _identification_run(case, variant, seed)
+            secs.append(time.perf_counter() - t0)
+            fun.append(float(r.fun))
+            nfev.append(int(r.nfev))
+            ok += bool(r.success)
+        f = np.array(fun)
+        row = {"case": case.name, "variant": variant, "runs": len(fun), "mean": float(f.mean()),
+               "best": float(f.min()), "worst": float(f.max()), "std": float(f.std(ddof=1)) if f.size > 1 else 0.0,
+               "success": ok, "nfev": float(np.mean(nfev)), "seconds": float(np.mean(secs))}
+        rows.append(row)
+        if echo is not None:
+            echo(format_identification_table([row], header=not rows[:-1]))
+    return rows
+
+
+def format_identification_table(rows, *, header: bool = True) -> str:
+    """Markdown table of :func:`identification_comparison` rows."""
+    lines = ["| case | variant | mean J | best | worst | std | success | NFE | wall s |",
+             "|---|---|---|---|---|---|---|---|---|"] if header else []
+    for r in rows:
+        lines.append(f"| {r['case']} | {r['variant']} | {r['mean']:.6g} | {r['best']:.6g} | {r['worst']:.6g} | "
+                     f"{r['std']:.3g} | {r['success']}/{r['runs']} | {r['nfev']:.0f} | {r['seconds']:.3f} |")
     return "\n".join(lines)

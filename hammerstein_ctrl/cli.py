@@ -246,7 +246,7 @@ def main(argv=None) -> int:
         return args.func(args)
     except (HammersteinError, FileNotFoundError, OSError) as exc:
         message = str(exc).strip().splitlines()
-        print(f"hammerstein-ctrl: error: {message[0] if message else exc!r}", file=sys.stderr)
+        print(f"hammerstein-ctrl: error: {message[0] if message else repr(exc)}", file=sys.stderr)
         for line in message[1:]:
             print(f"  {line}", file=sys.stderr)
         return 2

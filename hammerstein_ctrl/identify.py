@@ -1,9 +1,23 @@
 """Fit a Hammerstein model to a record in one call.
 
+``identify(data, structure)`` needs nothing else: the default method
+``"auto"`` (:mod:`hammerstein_ctrl.auto`) starts from points computed from the
+data and refines them by least squares.  The paper's methods remain available
+by name with their own settings.
+
+Every result says honestly whether it can be trusted: ``success`` is False,
+with a specific ``message``, when the budget ran out before a least-squares
+method converged, when the model is unstable (unless ``allow_unstable``), when
+it fits no better than the best static affine gain ``y = k u + c`` (fit %
+<= 0 included), or when a search stalled at its starting value.
+
 Examples
 --------
 >>> import hammerstein_ctrl as hc
 >>> case = hc.presets.trs()
+>>> res = hc.identify(case.data, case.structure)
+>>> bool(res.fun < 178.5), res.success, res.method
+(True, True, 'auto')
 >>> res = hc.identify(case.data, case.structure, method="nspsa", x0=case.x0, seed=0,
 ...                   **{k: v for k, v in case.minimize_kwargs("nspsa").items() if k != "method"})
 >>> round(res.fun, 1), res.nfev, type(res.model.linear).__name__
@@ -19,15 +33,23 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ._linalg import single_threaded_blas
 from .datasets import IOData
 from .exceptions import ParameterError
+from .initialize import static_affine_sse
 from .metrics import fit_report
 from .model import HammersteinModel
 from .objective import HammersteinCost
-from .optimize import canonical_method, minimize
+from .optimize import DIVERGED, canonical_method, minimize
+from .simulate import unstable
 from .structure import HammersteinStructure
 
-__all__ = ["identify", "IdentificationResult"]
+__all__ = ["identify", "IdentificationResult", "AUTO"]
+
+#: Name of the default method (see :mod:`hammerstein_ctrl.auto`).
+AUTO = "auto"
+#: Methods that stop on a convergence test (running out of budget is then a failure).
+_CONVERGING = ("lm", "nelder-mead", "powell", "l-bfgs-b", "bfgs", "tnc", "slsqp", "cobyla", "trust-constr")
 
 
 @dataclass
@@ -80,12 +102,27 @@ class IdentificationResult:
         """The fitted parameters by name."""
         return dict(zip(self.structure.param_names, self.x.tolist()))
 
-    def validate(self, data: IOData) -> dict:
-        """Goodness of fit (``sse``, ``rmse``, ``nrmse``, ``fit_percent``) on another record."""
+    def validate(self, data: IOData, *, initial_state: str | None = None) -> dict:
+        """Goodness of fit (``sse``, ``rmse``, ``nrmse``, ``fit_percent``) on another record.
+
+        Parameters
+        ----------
+        data : IOData
+        initial_state : {"zero", "estimate"}, optional
+            Start the model from rest, or estimate its initial state on
+            ``data`` by least squares (as MATLAB's ``compare`` does).  Default:
+            ``"estimate"`` if the identification estimated it, else ``"zero"``.
+        """
+        from .initialize import estimate_initial_state
+
         if not isinstance(data, IOData):
             raise ParameterError(f"validate() needs an IOData record, got {type(data).__name__}")
+        mode = initial_state or self.structure.initial_state
+        if mode not in ("zero", "estimate"):
+            raise ParameterError(f"initial_state must be 'zero' or 'estimate', got {initial_state!r}")
         with np.errstate(all="ignore"):
-            yhat = self.model.simulate(data)
+            x0 = estimate_initial_state(self.model, data) if mode == "estimate" else np.zeros(self.model.order)
+            yhat = self.model.simulate(data, initial_state=x0)
         if not np.all(np.isfinite(yhat)):
             return {"sse": np.inf, "rmse": np.inf, "nrmse": np.inf, "fit_percent": -np.inf}
         return fit_report(data.y, yhat)
@@ -139,7 +176,7 @@ class IdentificationResult:
 def identify(
     data: IOData,
     structure,
-    method: str = "nspsa",
+    method: str = AUTO,
     x0=None,
     maxfev: int | None = None,
     seed=None,
@@ -149,26 +186,39 @@ def identify(
     maxiter: int | None = None,
     callback=None,
     reject_unstable: bool = False,
+    offset: bool | None = None,
+    initial_state: str | None = None,
+    allow_unstable: bool = False,
 ) -> IdentificationResult:
     """Identify a Hammerstein model from an input/output record.
 
     Parameters
     ----------
     data : IOData
-        Estimation record.
+        Estimation record; its ``intersample`` ("foh"/"zoh") is honoured.
     structure : HammersteinStructure or {"trs", "emps"}
         The model structure (a preset name uses that case's structure and,
-        when ``x0`` is omitted, its initial point).
-    method : str, default "nspsa"
-        Any method of :func:`hammerstein_ctrl.minimize` (``"nspsa"``,
-        ``"nlspsa"``, ``"spsa"``, ``"amvo-sca"``, ``"lm"``, or a scipy method).
+        for the paper's methods when ``x0`` is omitted, its initial point).
+    method : str, default "auto"
+        ``"auto"`` (data-driven starts, least-squares refinement, restarts;
+        needs no ``x0`` or tuning), or any method of
+        :func:`hammerstein_ctrl.minimize` (``"nspsa"``, ``"nlspsa"``,
+        ``"spsa"``, ``"amvo-sca"``, ``"lm"``, or a scipy method).
     x0 : array_like, optional
-        Initial beta.  Required unless ``structure`` is a preset name or
-        ``bounds`` are given (then the centre of the box is used).
+        Initial beta.  Optional for ``"auto"`` (then one more start; the
+        offset and initial state may be left out) and with finite ``bounds``
+        (the centre of the box); required otherwise.
     maxfev, maxiter, seed, options, bounds, callback
-        Passed to :func:`hammerstein_ctrl.minimize`.
+        Passed to :func:`hammerstein_ctrl.minimize` (``auto`` uses ``maxfev``,
+        ``seed`` and ``callback``).
     reject_unstable : bool, default False
         Score unstable candidates as ``inf`` (see :class:`HammersteinCost`).
+    offset : bool, optional
+        Estimate a constant output offset ``y0`` (overrides the structure's setting).
+    initial_state : {"zero", "estimate"}, optional
+        Start ``H`` from rest or estimate ``x(0)`` (overrides the structure's setting).
+    allow_unstable : bool, default False
+        Accept a final model with a right-half-plane pole as a success.
 
     Returns
     -------
@@ -180,6 +230,23 @@ def identify(
         On a bad structure, method, initial point or record.
     """
     started = time.perf_counter()
+    structure, x0 = _resolve_structure(data, structure, method, x0)
+    if offset is not None or initial_state is not None:
+        structure = structure.with_options(offset=offset, initial_state=initial_state)
+    data.check_identifiable(structure.n_params)
+    key = AUTO if str(method).strip().lower() == AUTO else canonical_method(method)
+    cost = HammersteinCost(data, structure, reject_unstable=reject_unstable)
+    with single_threaded_blas():
+        if key == AUTO:
+            res = _run_auto(cost, x0, maxfev, seed, options, bounds, maxiter, callback, allow_unstable)
+        else:
+            x0 = _starting_point(structure, x0, bounds)
+            res = minimize(cost, x0, method=key, maxfev=maxfev, maxiter=maxiter, seed=seed,
+                           options=options, callback=callback, bounds=bounds)
+        return _result(cost, res, key, x0, allow_unstable, started)
+
+
+def _resolve_structure(data, structure, method, x0):
     if not isinstance(data, IOData):
         raise ParameterError(f"data must be an IOData record, got {type(data).__name__}")
     if isinstance(structure, str):
@@ -189,16 +256,20 @@ def identify(
             raise ParameterError(
                 f"unknown structure {structure!r}: give a HammersteinStructure or one of {sorted(presets.PRESETS)}"
             )
-        if x0 is None:
+        if x0 is None and str(method).strip().lower() != AUTO:
             x0 = presets.X0[structure.lower()]
         structure = presets.STRUCTURES[structure.lower()]()
     if not isinstance(structure, HammersteinStructure):
         raise ParameterError(f"structure must be a HammersteinStructure, got {type(structure).__name__}")
-    key = canonical_method(method)
+    return structure, x0
+
+
+def _starting_point(structure, x0, bounds):
     if x0 is None:
         if bounds is None:
             raise ParameterError(
-                f"give an initial point x0 = [{', '.join(structure.param_names)}] (or bounds)"
+                f"give an initial point x0 = [{', '.join(structure.param_names)}] (or bounds), "
+                "or use method='auto', which needs none"
             )
         from .optimize._common import as_bounds
 
@@ -209,20 +280,64 @@ def identify(
     x0 = structure.check_beta(x0)
     if x0.ndim != 1:
         raise ParameterError("x0 must be one beta vector")
-    cost = HammersteinCost(data, structure, reject_unstable=reject_unstable)
-    res = minimize(cost, x0, method=key, maxfev=maxfev, maxiter=maxiter, seed=seed,
-                   options=options, callback=callback, bounds=bounds)
+    return x0
+
+
+def _run_auto(cost, x0, maxfev, seed, options, bounds, maxiter, callback, allow_unstable):
+    from .auto import auto_minimize
+
+    unused = [name for name, value in (("options", options), ("bounds", bounds), ("maxiter", maxiter))
+              if value is not None]
+    if unused:
+        raise ParameterError(f"method 'auto' does not take {', '.join(unused)}; use maxfev (and x0, seed)")
+    if x0 is not None:
+        x = np.asarray(x0, dtype=float).reshape(-1)
+        if x.size not in (cost.structure.n_core, cost.structure.n_params):
+            cost.structure.check_beta(x)
+    return auto_minimize(cost, x0, maxfev=maxfev, seed=seed, allow_unstable=allow_unstable, callback=callback)
+
+
+def _assess(cost, res, key: str, x0, report: dict, allow_unstable: bool) -> tuple[bool, str]:
+    """``(success, message)`` after the checks that make a result trustworthy."""
+    problems = []
+    message = str(res.message)
+    if key in _CONVERGING and "budget" in message and "exhausted" in message:
+        problems.append(f"evaluation budget of {res.nfev} exhausted before convergence")
     x = np.asarray(res.x, dtype=float)
-    model = structure.model(x)
+    _, den = cost.structure.linear.coefficients(x[:cost.structure.linear.n_params])
+    if not allow_unstable and np.all(np.isfinite(x)) and unstable(den)[0]:
+        problems.append("the model is unstable (a pole in the right half-plane); pass allow_unstable=True "
+                        "to accept it")
+    if not np.isfinite(res.fun):
+        problems.append("the final model cannot be simulated (non-finite output)")
+    elif report["fit_percent"] <= 0:
+        problems.append(f"fit {report['fit_percent']:.1f} % is no better than a constant")
+    elif res.fun >= static_affine_sse(cost.data):
+        problems.append(f"J = {res.fun:.6g} is no better than the best static affine gain y = k u + c")
+    if key not in _CONVERGING and key != AUTO and x0 is not None and res.status != DIVERGED:
+        f0 = cost(x0)
+        if np.isfinite(f0) and res.fun >= f0:
+            problems.append(f"stalled: no improvement on the initial point (J = {f0:.6g})")
+    success = bool(res.success) and not problems
+    if problems:
+        message = "; ".join(problems) + f" [{message}]"
+    return success, message
+
+
+def _result(cost, res, key, x0, allow_unstable, started) -> IdentificationResult:
+    structure, data = cost.structure, cost.data
+    x = np.asarray(res.x, dtype=float)
     with np.errstate(all="ignore"):
-        yhat = cost.simulate(x)
+        yhat = cost.simulate(x) if np.all(np.isfinite(x)) else np.full(len(data), np.nan)
     if np.all(np.isfinite(yhat)):
         report = fit_report(data.y, yhat)
     else:
         report = {"fit_percent": -np.inf, "rmse": np.inf, "nrmse": np.inf}
+    success, message = _assess(cost, res, key, x0, report, allow_unstable)
+    model = structure.model(x, intersample=data.intersample) if np.all(np.isfinite(x)) else None
     return IdentificationResult(
         model=model, x=x, fun=float(res.fun), nfev=int(res.nfev), fit_percent=report["fit_percent"],
-        rmse=report["rmse"], nrmse=report["nrmse"], method=key, success=bool(res.success),
-        message=str(res.message), history=res.history, elapsed=time.perf_counter() - started,
+        rmse=report["rmse"], nrmse=report["nrmse"], method=key, success=success,
+        message=message, history=res.history, elapsed=time.perf_counter() - started,
         structure=structure, data=data, optimize_result=res,
     )

@@ -29,11 +29,32 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._checks import as_signal
+from ._checks import as_signal, check_intersample
 from .exceptions import ParameterError
 from .nonlinearities import Nonlinearity
 
 __all__ = ["HammersteinModel"]
+
+
+def _finite_scalar(value, label: str) -> float:
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise ParameterError(f"{label} must be a number, got {value!r}") from None
+    if not np.isfinite(v):
+        raise ParameterError(f"{label} must be finite, got {v!r}")
+    return v
+
+
+def _state_vector(value, n: int):
+    """A finite initial state of length ``n`` as a read-only array (``None`` stays ``None``)."""
+    if value is None:
+        return None
+    x = np.array(value, dtype=float).reshape(-1)
+    if x.size != n or not np.all(np.isfinite(x)):
+        raise ParameterError(f"initial_state must be {n} finite numbers (the order of H), got {np.shape(value)}")
+    x.setflags(write=False)
+    return x
 
 
 class HammersteinModel:
@@ -48,6 +69,15 @@ class HammersteinModel:
         The static nonlinearity family.
     params : array_like
         Parameters of the nonlinearity.
+    offset : float, default 0
+        Constant added to the output: ``y = H(p) g(u) + offset``.
+    initial_state : array_like, optional
+        State ``x(0)`` of ``H``'s controllable canonical realisation
+        (:func:`~hammerstein_ctrl.simulate.companion_realization`, the one
+        :meth:`to_ss` returns); default: at rest.
+    intersample : {"foh", "zoh"}, default "foh"
+        Default intersample behaviour of the input in :meth:`simulate` when it
+        is given ``(t, u)`` arrays; a record's own ``intersample`` wins.
     name : str, optional
         Name used for the interconnected system.
 
@@ -56,9 +86,13 @@ class HammersteinModel:
     linear : control.TransferFunction
     nonlinearity : Nonlinearity
     params : ndarray
+    offset : float
+    initial_state : ndarray or None
+    intersample : str
     """
 
-    def __init__(self, linear, nonlinearity: Nonlinearity, params, *, name: str | None = None):
+    def __init__(self, linear, nonlinearity: Nonlinearity, params, *, offset: float = 0.0,
+                 initial_state=None, intersample: str = "foh", name: str | None = None):
         import control
 
         if isinstance(linear, control.StateSpace):
@@ -87,38 +121,59 @@ class HammersteinModel:
         self.nonlinearity = nonlinearity
         self.params = p.copy()
         self.params.setflags(write=False)
+        self.offset = _finite_scalar(offset, "offset")
+        self.initial_state = _state_vector(initial_state, den.size - 1)
+        self.intersample = check_intersample(intersample)
         self.name = name or "hammerstein"
+
+    @property
+    def order(self) -> int:
+        """Number of states of the linear block."""
+        return np.trim_zeros(np.asarray(self.linear.den[0][0], dtype=float), "f").size - 1
+
+    def state0(self) -> np.ndarray:
+        """The initial state ``x(0)`` (zeros when the model starts at rest)."""
+        return np.zeros(self.order) if self.initial_state is None else self.initial_state.copy()
 
     # -- evaluation -------------------------------------------------------------
     def g(self, u) -> np.ndarray:
         """Evaluate the static nonlinearity ``g(u)``."""
         return self.nonlinearity(u, self.params)
 
-    def simulate(self, t, u=None) -> np.ndarray:
+    def simulate(self, t, u=None, *, initial_state=None, intersample: str | None = None) -> np.ndarray:
         """Simulate the model with the sampled (identification) semantics.
 
         Parameters
         ----------
         t : array_like or IOData
-            Uniform time grid, or a record whose ``t`` and ``u`` are used.
+            Uniform time grid, or a record whose ``t``, ``u`` and
+            ``intersample`` are used.
         u : array_like, optional
             Input samples (required unless ``t`` is a record).
+        initial_state : array_like, optional
+            Overrides the model's own ``x(0)`` (e.g. zeros to start from rest).
+        intersample : {"foh", "zoh"}, optional
+            Overrides the record's (or the model's) intersample behaviour.
 
         Returns
         -------
         ndarray
-            The output, equal to ``control.forced_response(H, t, g(u)).outputs``.
+            The output; at rest, with first-order hold and no offset it equals
+            ``control.forced_response(H, t, g(u)).outputs``.
         """
         from .datasets import IOData
         from .simulate import simulate
 
+        hold = self.intersample
         if isinstance(t, IOData):
             if u is not None:
                 raise ParameterError("pass either a record or (t, u), not both")
-            t, u = t.t, t.u
+            t, u, hold = t.t, t.u, t.intersample
         elif u is None:
             raise ParameterError("simulate needs the input u (or an IOData record)")
-        return simulate(self.linear, self.nonlinearity, self.params, t, u)
+        x0 = self.initial_state if initial_state is None else _state_vector(initial_state, self.order)
+        return simulate(self.linear, self.nonlinearity, self.params, t, u, x0=x0, offset=self.offset,
+                        intersample=hold if intersample is None else intersample)
 
     # -- python-control interop -------------------------------------------------
     def to_iosys(self, name: str | None = None, *, inputs: str = "u", outputs: str = "y"):
@@ -149,10 +204,31 @@ class HammersteinModel:
             return nonlinearity(np.atleast_1d(u)[:1], params)
 
         g = control.nlsys(None, output, inputs=[inputs], outputs=["v"], name="g")
-        lin = control.ss(self.linear, inputs="v", outputs=[outputs], name="H")
-        return control.interconnect(
-            [g, lin], inputs=[inputs], outputs=[outputs], name=name or self.name
-        )
+        blocks = [g]
+        if self.offset:
+            offset = self.offset
+            lin = self.to_ss(inputs="v", outputs="z", name="H")
+            blocks += [lin, control.nlsys(None, lambda t, x, u, p: np.atleast_1d(u)[:1] + offset,
+                                          inputs=["z"], outputs=[outputs], name="offset")]
+        else:
+            blocks.append(self.to_ss(inputs="v", outputs=[outputs], name="H"))
+        return control.interconnect(blocks, inputs=[inputs], outputs=[outputs], name=name or self.name)
+
+    def to_ss(self, **kwargs):
+        """The linear block as :class:`control.StateSpace` in the realisation the simulator uses.
+
+        The controllable canonical form of
+        :func:`~hammerstein_ctrl.simulate.companion_realization`, so that
+        :attr:`initial_state` means the same state here, in :meth:`simulate`
+        and in :meth:`to_iosys` (pass ``X0=model.state0()`` to
+        :func:`control.input_output_response`).  ``kwargs`` go to :func:`control.ss`.
+        """
+        import control
+
+        from .simulate import companion_realization
+
+        A, B, C, D = companion_realization(self.linear.num[0][0], self.linear.den[0][0])
+        return control.ss(A[0], B[0][:, None], C[0][None, :], D[:, None], **kwargs)
 
     def linearize(self, u0: float = 0.0):
         """Small-signal transfer function ``g'(u0) H(p)`` around the input ``u0``.
@@ -175,9 +251,12 @@ class HammersteinModel:
         return bool(np.all(self.poles().real < 0))
 
     def __repr__(self):
+        extra = (f", offset={self.offset:.6g}" if self.offset else "") + (
+            ", x(0) set" if self.initial_state is not None and np.any(self.initial_state) else "") + (
+            ", zoh" if self.intersample == "zoh" else "")
         return (
             f"HammersteinModel(linear={self._tf_string()}, "
-            f"g={self.nonlinearity.describe(self.params)})"
+            f"g={self.nonlinearity.describe(self.params)}{extra})"
         )
 
     def _tf_string(self) -> str:

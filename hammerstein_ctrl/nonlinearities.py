@@ -52,6 +52,10 @@ class Nonlinearity:
     name: str = "nonlinearity"
     #: Names of the parameters, in the order of the parameter vector.
     param_names: tuple[str, ...] = ()
+    #: Index of a parameter that scales ``g`` as a whole
+    #: (``g(u; p) = p[i] g(u; p with p[i] = 1)``), or ``None``.  With it, the
+    #: automatic initial point fits that parameter by linear least squares.
+    scale_index: int | None = None
 
     @property
     def n_params(self) -> int:
@@ -136,6 +140,25 @@ class Nonlinearity:
         """
         return None
 
+    def normalize(self, params) -> np.ndarray:
+        """The canonical form of ``params`` among those giving the same ``g``.
+
+        Families with a symmetry (``d0 tanh(d1 u) = (-d0) tanh(-d1 u)``, limits
+        entering as ``|a|``) map every parameter vector to one representative,
+        so reported parameters are unique.  The default is the identity.
+        """
+        return np.array(self.check_params(params), dtype=float)
+
+    def shape_grid(self, u) -> np.ndarray | None:
+        """Candidate parameter vectors for a scan of the parameters ``g`` is not linear in.
+
+        Used by the automatic initial point for families that have a
+        :attr:`scale_index` but no :meth:`basis`: each row has the scale
+        parameter set to 1 and the others spread over the range of the
+        input ``u``.  ``None`` where no scan is defined.
+        """
+        return None
+
     def _evaluate(self, u: np.ndarray, p: np.ndarray) -> np.ndarray:  # pragma: no cover
         raise NotImplementedError
 
@@ -153,6 +176,17 @@ class Nonlinearity:
         return f"{self.name}({vals})"
 
 
+#: Points of the scans of :meth:`Nonlinearity.shape_grid`.
+SCAN_POINTS = 16
+
+
+def _input_quantiles(u, low: float, high: float) -> np.ndarray:
+    """Distinct positive quantiles of ``|u|`` between the fractions ``low`` and ``high``."""
+    a = np.abs(np.asarray(u, dtype=float))
+    q = np.unique(np.quantile(a, np.linspace(low, high, SCAN_POINTS)))
+    return q[q > 0] if np.any(q > 0) else np.array([1.0])
+
+
 class Tanh(Nonlinearity):
     r"""Hyperbolic tangent, the TRS nonlinearity (paper Eq. 17).
 
@@ -166,6 +200,21 @@ class Tanh(Nonlinearity):
 
     name = "tanh"
     param_names = ("d0", "d1")
+    scale_index = 0
+    #: Range of ``d1 * max|u|`` scanned by :meth:`shape_grid` (almost linear to hard switching).
+    SCAN_RANGE = (0.05, 5.0)
+
+    def normalize(self, params):
+        """Make ``d1 >= 0`` (``d0 tanh(d1 u) = (-d0) tanh(-d1 u)``)."""
+        p = super().normalize(params)
+        flip = p[..., 1] < 0
+        p[..., :2] = np.where(flip[..., None], -p[..., :2], p[..., :2])
+        return p
+
+    def shape_grid(self, u):
+        top = float(np.max(np.abs(u))) or 1.0
+        d1 = np.geomspace(*self.SCAN_RANGE, SCAN_POINTS) / top
+        return np.column_stack([np.ones_like(d1), d1])
 
     def _evaluate(self, u, p):
         d0, d1 = self._columns(p)
@@ -263,6 +312,17 @@ class Saturation(Nonlinearity):
 
     name = "saturation"
     param_names = ("gain", "limit")
+    scale_index = 0
+
+    def normalize(self, params):
+        """Make the limit non-negative (it enters as ``|a|``)."""
+        p = super().normalize(params)
+        p[..., 1] = np.abs(p[..., 1])
+        return p
+
+    def shape_grid(self, u):
+        a = _input_quantiles(u, 0.05, 1.0)
+        return np.column_stack([np.ones_like(a), a])
 
     def _evaluate(self, u, p):
         k, a = self._columns(p)
@@ -287,6 +347,17 @@ class DeadZone(Nonlinearity):
 
     name = "deadzone"
     param_names = ("gain", "width")
+    scale_index = 0
+
+    def normalize(self, params):
+        """Make the width non-negative (it enters as ``|a|``)."""
+        p = super().normalize(params)
+        p[..., 1] = np.abs(p[..., 1])
+        return p
+
+    def shape_grid(self, u):
+        a = np.concatenate([[0.0], _input_quantiles(u, 0.02, 0.8)])
+        return np.column_stack([np.ones_like(a), a])
 
     def _evaluate(self, u, p):
         k, a = self._columns(p)

@@ -92,15 +92,17 @@ class HammersteinCost:
         return self.structure.param_names
 
     def _pieces(self, b: np.ndarray):
-        """Coefficients and signals for a validated ``(B, n_params)`` array."""
-        k = self._n_linear
+        """Coefficients, signals and simulation options for a validated ``(B, n_params)`` array."""
+        k, m = self._n_linear, self.structure.n_core
         num, den = self.structure.linear._coefficients(b[:, :k])
         with np.errstate(all="ignore"):
             if self._basis is not None:
-                V = _combine(np.ascontiguousarray(b[:, k:]), self._basis)
+                V = _combine(np.ascontiguousarray(b[:, k:m]), self._basis)
             else:
-                V = self.structure.nonlinearity._evaluate(self._u, b[:, k:])
-        return num, den, V
+                V = self.structure.nonlinearity._evaluate(self._u, b[:, k:m])
+        offset, x0 = self.structure.nuisance(b)
+        opts = {"offset": offset, "x0": x0, "intersample": self.data.intersample}
+        return num, den, V, opts
 
     def __call__(self, beta) -> float:
         """J at one beta (``inf`` if the candidate cannot be simulated)."""
@@ -115,17 +117,19 @@ class HammersteinCost:
         return self._sse(b.reshape(-1, b.shape[-1]))
 
     def _sse(self, b: np.ndarray) -> np.ndarray:
-        num, den, V = self._pieces(b)
-        return sse_batch(num, den, V, self.data.dt, self._y, reject_unstable=self.reject_unstable)
+        num, den, V, opts = self._pieces(b)
+        return sse_batch(num, den, V, self.data.dt, self._y, reject_unstable=self.reject_unstable, **opts)
 
     def simulate(self, beta) -> np.ndarray:
         """Simulated output ŷ for one beta (NaN where the simulation fails)."""
-        b = self.structure.check_beta(beta)
-        if b.ndim != 1:
-            raise ParameterError("simulate(beta) takes one vector")
-        num, den, V = self._pieces(b[None, :])
+        return self.simulate_batch(beta)[0]
+
+    def simulate_batch(self, betas) -> np.ndarray:
+        """Simulated outputs for each row of ``betas``, shape ``(B, N)`` (NaN rows where it fails)."""
+        b = self.structure.check_beta(betas)
+        num, den, V, opts = self._pieces(b.reshape(-1, b.shape[-1]))
         with np.errstate(all="ignore"):
-            return simulate_batch(num, den, V, self.data.dt)[0]
+            return simulate_batch(num, den, V, self.data.dt, **opts)
 
     def residuals(self, beta) -> np.ndarray:
         """``y - ŷ`` for one beta, for least-squares solvers (``J = sum(residuals**2)``).

@@ -4,7 +4,10 @@ The semantics (DESIGN.md section 1) are those of
 ``control.forced_response(H, t, g(u)).outputs``: the nonlinearity is applied to
 the sampled input, the intermediate signal ``v = g(u)`` is interpolated
 linearly between samples (first-order hold), and ``H`` is simulated exactly
-from a zero initial state.  With the augmented matrix exponential
+from a zero initial state.  Two real-data extensions keep the simulation
+exact: an input held constant between samples (``intersample="zoh"``, as
+MATLAB's ``iddata`` ``InterSample``) and a non-zero initial state ``x0`` of
+the realisation below, plus a constant output ``offset``.  With the augmented matrix exponential
 
 .. math::
 
@@ -13,10 +16,13 @@ from a zero initial state.  With the augmented matrix exponential
     \\begin{bmatrix} A_d & B_{d0} + B_{d1} & B_{d1} \\\\ \\cdot & \\cdot & \\cdot
     \\end{bmatrix}
 
-the state obeys ``x[k] = Ad x[k-1] + Bd0 v[k-1] + Bd1 v[k]`` and
-``y[k] = C x[k] + D v[k]``.  Here the matrix exponential is computed once per
-candidate (stacked over a batch) and the recursion, including the sum of
-squared residuals, runs in compiled code (numba).  It agrees with
+the state obeys ``x[k] = Ad x[k-1] + Bd0 v[k-1] + Bd1 v[k]`` (first-order
+hold; with zero-order hold ``x[k] = Ad x[k-1] + (Bd0 + Bd1) v[k-1]``) and
+``y[k] = C x[k] + D v[k] + offset``.  Here the matrix exponential is computed
+once per candidate in compiled code without BLAS
+(:func:`hammerstein_ctrl._linalg.expm_batch`) and the recursion, including the
+sum of squared residuals, runs in generated compiled code
+(:mod:`hammerstein_ctrl.kernels`).  It agrees with
 python-control to about 1e-13 relative on the EMPS and TRS cases while costing
 tens of microseconds instead of tens of milliseconds.
 
@@ -36,22 +42,23 @@ True
 
 from __future__ import annotations
 
-import functools
-
 import numba
 import numpy as np
-import scipy.linalg
 
-from ._checks import as_signal, uniform_grid
+from ._checks import as_signal, check_intersample, uniform_grid
+from ._linalg import expm_batch, single_threaded_blas
 from .exceptions import DataError, ParameterError
+from .kernels import MAX_UNROLLED_STATES, get_kernel
 
 __all__ = [
     "companion_realization",
-    "foh_discretize",
+    "discretize",
     "lsim",
     "simulate",
     "simulate_batch",
     "sse_batch",
+    "free_response",
+    "MAX_UNROLLED_STATES",
 ]
 
 
@@ -115,22 +122,37 @@ def _augmented(A: np.ndarray, B: np.ndarray, dt: float) -> np.ndarray:
     return M
 
 
+#: Above this 1-norm the compiled Pade exponential would square too often to stay
+#: accurate (ill-conditioned high-order or very fast blocks); scipy's expm,
+#: with its sharper scaling, takes those rows (under a one-thread BLAS limit).
+COMPILED_EXPM_MAX_NORM = 64.0
+
+
 def _expm(M: np.ndarray) -> np.ndarray:
-    with np.errstate(all="ignore"):
-        return scipy.linalg.expm(M)
+    E = expm_batch(M)
+    with np.errstate(invalid="ignore"):
+        big = np.abs(M).sum(axis=1).max(axis=1) > COMPILED_EXPM_MAX_NORM
+    if big.any():
+        import scipy.linalg
+
+        with single_threaded_blas():
+            E[big] = scipy.linalg.expm(M[big])
+    return E
 
 
-def foh_discretize(A, B, dt: float):
-    """First-order-hold discretisation ``(Ad, Bd0, Bd1)`` of ``x' = A x + B v``.
+def discretize(A, B, dt: float, intersample: str = "foh"):
+    """Exact sampled recursion ``x[k] = Ad x[k-1] + Bd0 v[k-1] + Bd1 v[k]`` of ``x' = A x + B v``.
 
-    Identical to the construction inside ``control.forced_response``:
-    ``x[k] = Ad x[k-1] + Bd0 v[k-1] + Bd1 v[k]``.
+    With ``intersample="foh"`` (``v`` linear between samples) this is the
+    construction inside ``control.forced_response``; with ``"zoh"`` (``v``
+    held) ``Bd0 = integral of exp(A s) B ds`` over one interval and ``Bd1 = 0``.
 
     Parameters
     ----------
     A : ndarray, shape (n, n) or (batch, n, n)
     B : ndarray, shape (n,) or (batch, n)
     dt : float
+    intersample : {"foh", "zoh"}
 
     Returns
     -------
@@ -139,16 +161,21 @@ def foh_discretize(A, B, dt: float):
 
     Examples
     --------
-    >>> Ad, Bd0, Bd1 = foh_discretize([[0.0]], [1.0], 0.5)   # an integrator
+    >>> Ad, Bd0, Bd1 = discretize([[0.0]], [1.0], 0.5)   # an integrator, first-order hold
     >>> float(Ad[0, 0, 0]), float(Bd0[0, 0]), float(Bd1[0, 0])
     (1.0, 0.25, 0.25)
+    >>> discretize([[0.0]], [1.0], 0.5, "zoh")[1:]
+    (array([[0.5]]), array([[0.]]))
     """
+    hold = check_intersample(intersample)
     A = np.asarray(A, dtype=float)
     B = np.asarray(B, dtype=float)
     if A.ndim == 2:
         A, B = A[None], B.reshape(1, -1)
     n = A.shape[1]
     E = _expm(_augmented(A, B, dt))
+    if hold == "zoh":
+        return E[:, :n, :n].copy(), E[:, :n, n].copy(), np.zeros((E.shape[0], n))
     Bd1 = E[:, :n, n + 1]
     return E[:, :n, :n].copy(), E[:, :n, n] - Bd1, Bd1.copy()
 
@@ -177,141 +204,6 @@ def _tf_augmented(num, den, dt):  # pragma: no cover - compiled
             M[b, 0, n] = dt
         M[b, n, n + 1] = 1.0
     return M, C, D
-
-
-# ---------------------------------------------------------------------------
-# compiled recursions
-# ---------------------------------------------------------------------------
-#: State dimensions up to this get a generated kernel that keeps the state in
-#: registers (about 3x faster than the generic loop); larger ones use the loop.
-MAX_UNROLLED_STATES = 8
-
-#: Candidates simulated side by side in one loop of a generated kernel.  The
-#: recursion is latency-bound (each step waits for the previous one); two
-#: independent chains keep the CPU busy (~24 instead of ~38 us per EMPS candidate).
-INTERLEAVE = 2
-
-_KERNEL_TEMPLATE = """
-def kernel(E, C, D, V, {args}):
-    batch, N = V.shape
-    b0 = 0
-    while b0 + {group} <= batch:
-{block_group}
-        b0 += {group}
-    while b0 < batch:
-{block_single}
-        b0 += 1
-"""
-
-
-def _block(n: int, group: int, mode: str, ind: str) -> str:
-    """Source simulating rows ``b0 .. b0+group-1`` with ``n`` states held in scalars.
-
-    Every kernel reads ``E = expm([[A dt, B dt, 0], [0, 0, 1], [0, 0, 0]])``
-    directly: ``Ad = E[:n, :n]``, ``Bd1 = E[:n, n+1]``, ``Bd0 = E[:n, n] - Bd1``,
-    exactly as ``control.forced_response`` forms them.
-    """
-    lines = []
-    for g in range(group):
-        row = f"b0 + {g}"
-        lines += [f"{ind}a{g}_{r}_{c} = E[{row}, {r}, {c}]" for r in range(n) for c in range(n)]
-        for r in range(n):
-            lines += [f"{ind}q{g}_{r} = E[{row}, {r}, {n + 1}]",
-                      f"{ind}p{g}_{r} = E[{row}, {r}, {n}] - q{g}_{r}",
-                      f"{ind}c{g}_{r} = C[{row}, {r}]", f"{ind}x{g}_{r} = 0.0"]
-        lines += [f"{ind}d{g} = D[{row}]", f"{ind}vp{g} = V[{row}, 0]", f"{ind}yh{g} = d{g} * vp{g}"]
-        if mode == "sse":
-            lines += [f"{ind}e{g} = y[0] - yh{g}", f"{ind}J{g} = e{g} * e{g}"]
-        else:
-            lines.append(f"{ind}out[{row}, 0] = yh{g}")
-    lines.append(f"{ind}for i in range(1, N):")
-    body = ind + "    "
-    if mode == "sse":
-        lines.append(f"{body}yi = y[i]")
-    for g in range(group):
-        lines.append(f"{body}vi{g} = V[b0 + {g}, i]")
-        for r in range(n):
-            dyn = " + ".join(f"a{g}_{r}_{c} * x{g}_{c}" for c in range(n))
-            lines.append(f"{body}n{g}_{r} = ({dyn}) + (p{g}_{r} * vp{g} + q{g}_{r} * vi{g})")
-        lines += [f"{body}x{g}_{r} = n{g}_{r}" for r in range(n)]
-        output = " + ".join(f"c{g}_{r} * x{g}_{r}" for r in range(n)) or "0.0"
-        lines.append(f"{body}yh{g} = ({output}) + d{g} * vi{g}")
-        if mode == "sse":
-            lines += [f"{body}e{g} = yi - yh{g}", f"{body}J{g} += e{g} * e{g}"]
-        else:
-            lines.append(f"{body}out[b0 + {g}, i] = yh{g}")
-        lines.append(f"{body}vp{g} = vi{g}")
-    if mode == "sse":
-        # stop early only when every interleaved sum has overflowed (or is NaN)
-        alive = " or ".join(f"J{g} <= 1.7e308" for g in range(group))
-        lines += [f"{body}if (i & 1023) == 0 and not ({alive}):", f"{body}    break"]
-        lines += [f"{ind}out[b0 + {g}] = J{g} if J{g} <= 1.7e308 else np.inf" for g in range(group)]
-    return "\n".join(lines)
-
-
-def _generate_kernel(n: int, mode: str):
-    """Compile a recursion for exactly ``n`` states (``mode`` 'sse' or 'outputs')."""
-    ind = " " * 8
-    src = _KERNEL_TEMPLATE.format(
-        args="y, out" if mode == "sse" else "out", group=INTERLEAVE,
-        block_group=_block(n, INTERLEAVE, mode, ind), block_single=_block(n, 1, mode, ind),
-    )
-    namespace = {"np": np}
-    exec(compile(src, f"<hammerstein_ctrl kernel n={n} {mode}>", "exec"), namespace)
-    return numba.njit(nogil=True)(namespace["kernel"])
-
-
-@functools.lru_cache(maxsize=None)
-def _kernel(n: int, mode: str):
-    """The compiled recursion for ``n`` states: generated (small n) or generic."""
-    if n <= MAX_UNROLLED_STATES:
-        return _generate_kernel(n, mode)
-    return _foh_sse_generic if mode == "sse" else _foh_outputs_generic
-
-
-@numba.njit(cache=True, nogil=True)
-def _foh_step(E, b, n, x, xn, vp, vi):  # pragma: no cover - compiled
-    for r in range(n):
-        s = 0.0
-        for c in range(n):
-            s += E[b, r, c] * x[c]
-        bd1 = E[b, r, n + 1]
-        xn[r] = s + ((E[b, r, n] - bd1) * vp + bd1 * vi)
-    for r in range(n):
-        x[r] = xn[r]
-
-
-@numba.njit(cache=True, nogil=True)
-def _foh_outputs_generic(E, C, D, V, Y):  # pragma: no cover - compiled
-    batch, N = V.shape
-    n = E.shape[1] - 2
-    x = np.zeros(n)
-    xn = np.zeros(n)
-    for b in range(batch):
-        x[:] = 0.0
-        for i in range(N):
-            if i > 0:
-                _foh_step(E, b, n, x, xn, V[b, i - 1], V[b, i])
-            Y[b, i] = np.dot(C[b], x) + D[b] * V[b, i]
-
-
-@numba.njit(cache=True, nogil=True)
-def _foh_sse_generic(E, C, D, V, y, out):  # pragma: no cover - compiled
-    batch, N = V.shape
-    n = E.shape[1] - 2
-    x = np.zeros(n)
-    xn = np.zeros(n)
-    for b in range(batch):
-        x[:] = 0.0
-        J = 0.0
-        for i in range(N):
-            if i > 0:
-                _foh_step(E, b, n, x, xn, V[b, i - 1], V[b, i])
-            e = y[i] - (np.dot(C[b], x) + D[b] * V[b, i])
-            J += e * e
-            if (i & 1023) == 0 and not J <= 1.7e308:
-                break
-        out[b] = J if J <= 1.7e308 else np.inf
 
 
 # ---------------------------------------------------------------------------
@@ -352,10 +244,32 @@ def _check_pair(t, v, vname="v"):
     return dt, v
 
 
-def lsim(linear, t, v) -> np.ndarray:
-    """Response of a SISO LTI block to ``v`` with first-order hold, ``x(0) = 0``.
+def _state_rows(x0, batch: int, n: int) -> np.ndarray:
+    """Initial states as a ``(batch, n)`` array (zeros for ``None``)."""
+    if x0 is None:
+        return np.zeros((batch, n))
+    X = np.atleast_2d(np.asarray(x0, dtype=float))
+    if X.shape[-1] != n or X.shape[0] not in (1, batch):
+        raise ParameterError(f"initial state must have {n} entries per candidate, got shape {np.shape(x0)}")
+    return np.ascontiguousarray(np.broadcast_to(X, (batch, n)))
 
-    Equal (to rounding) to ``control.forced_response(linear, t, v).outputs``.
+
+def _offset_rows(offset, batch: int) -> np.ndarray:
+    """Output offsets as a ``(batch,)`` array (zeros for ``None``)."""
+    if offset is None:
+        return np.zeros(batch)
+    o = np.atleast_1d(np.asarray(offset, dtype=float)).reshape(-1)
+    if o.size not in (1, batch):
+        raise ParameterError(f"offset must be a scalar or one value per candidate, got shape {np.shape(offset)}")
+    return np.ascontiguousarray(np.broadcast_to(o, (batch,)))
+
+
+def lsim(linear, t, v, *, x0=None, intersample: str = "foh") -> np.ndarray:
+    """Response of a SISO LTI block to ``v`` (exact for the given intersample behaviour).
+
+    With the defaults equal (to rounding) to
+    ``control.forced_response(linear, t, v).outputs``; with
+    ``intersample="zoh"`` to ``scipy.signal.lsim(..., interp=False)``.
 
     Parameters
     ----------
@@ -364,25 +278,32 @@ def lsim(linear, t, v) -> np.ndarray:
         Uniform time grid.
     v : array_like, shape (N,)
         Input samples.
+    x0 : array_like, shape (n,), optional
+        Initial state (of the controllable canonical realisation for transfer
+        functions, of the given realisation for state-space blocks); default 0.
+    intersample : {"foh", "zoh"}, default "foh"
+        Input linear between samples, or held.
 
     Returns
     -------
     ndarray, shape (N,)
     """
     dt, v = _check_pair(t, v)
-    return _response(linear, dt, v)
+    return _response(linear, dt, v, x0=x0, intersample=intersample)
 
 
-def _response(linear, dt: float, v: np.ndarray) -> np.ndarray:
+def _response(linear, dt: float, v: np.ndarray, *, x0=None, offset=None, intersample="foh") -> np.ndarray:
     """:func:`lsim` for an already validated sampling interval and signal."""
+    hold = check_intersample(intersample)
     E, C, D = _lti_system(linear, dt)
+    X0 = _state_rows(x0, 1, E.shape[1] - 2)
     Y = np.empty((1, v.size))
-    _kernel(E.shape[1] - 2, "outputs")(E, C, D, v[None, :], Y)
+    get_kernel(E.shape[1] - 2, "outputs", hold)(E, C, D, X0, _offset_rows(offset, 1), v[None, :], Y)
     return Y[0]
 
 
-def simulate(linear, nonlinearity, params, t, u) -> np.ndarray:
-    """Simulate the Hammerstein model ``y = H(p) g(u)`` with the sampled semantics.
+def simulate(linear, nonlinearity, params, t, u, *, x0=None, offset=0.0, intersample: str = "foh") -> np.ndarray:
+    """Simulate the Hammerstein model ``y = H(p) g(u) + offset`` with the sampled semantics.
 
     Parameters
     ----------
@@ -392,6 +313,11 @@ def simulate(linear, nonlinearity, params, t, u) -> np.ndarray:
         Parameters of the nonlinearity.
     t, u : array_like, shape (N,)
         Uniform time grid and input samples.
+    x0 : array_like, optional
+        Initial state of the linear block (see :func:`lsim`); default 0.
+    offset : float, default 0
+        Constant added to the output.
+    intersample : {"foh", "zoh"}, default "foh"
 
     Returns
     -------
@@ -407,7 +333,8 @@ def simulate(linear, nonlinearity, params, t, u) -> np.ndarray:
     1.5118
     """
     dt, u = _check_pair(t, u, "u")
-    return _response(linear, dt, as_signal(nonlinearity(u, params), "g(u)"))
+    v = as_signal(nonlinearity(u, params), "g(u)")
+    return _response(linear, dt, v, x0=x0, offset=offset, intersample=intersample)
 
 
 def _tf_system(num, den, dt: float):
@@ -427,15 +354,23 @@ def _tf_system(num, den, dt: float):
     return _expm(M), C, D, ok
 
 
-def _unstable(den: np.ndarray) -> np.ndarray:
-    """Flag denominators with a root strictly in the right half-plane."""
-    den = np.atleast_2d(den)
+def unstable(den) -> np.ndarray:
+    """Flag denominators (rows, descending powers) with a root strictly in the right half-plane.
+
+    Examples
+    --------
+    >>> unstable([[1.0, 3.0, 0.0], [1.0, -1.0, 0.0]]).tolist()
+    [False, True]
+    """
+    den = np.atleast_2d(np.asarray(den, dtype=float))
     if den.shape[1] < 2:
         return np.zeros(den.shape[0], dtype=bool)
-    A = companion_realization(np.ones((den.shape[0], 1)), den)[0]
+    bad = ~np.isfinite(den).all(axis=1) | (den[:, 0] == 0)
+    safe = np.where(bad[:, None], np.eye(1, den.shape[1]), den)
+    A = companion_realization(np.ones((den.shape[0], 1)), safe)[0]
     with np.errstate(all="ignore"):
         poles = np.linalg.eigvals(A)
-    return np.any(poles.real > 1e-12 * np.maximum(1.0, np.abs(poles)), axis=1)
+    return bad | np.any(poles.real > 1e-12 * np.maximum(1.0, np.abs(poles)), axis=1)
 
 
 def _signals(V, batch: int) -> np.ndarray:
@@ -445,7 +380,7 @@ def _signals(V, batch: int) -> np.ndarray:
     return np.ascontiguousarray(V)
 
 
-def simulate_batch(num, den, V, dt: float) -> np.ndarray:
+def simulate_batch(num, den, V, dt: float, *, x0=None, offset=None, intersample: str = "foh") -> np.ndarray:
     """Simulate a batch of linear blocks driven by a batch of intermediate signals.
 
     Parameters
@@ -456,6 +391,11 @@ def simulate_batch(num, den, V, dt: float) -> np.ndarray:
         The signals ``g(u)`` for each candidate (or one shared signal).
     dt : float
         Sampling interval.
+    x0 : array_like, shape (B, n) or (n,), optional
+        Initial states of the companion realisations; default 0.
+    offset : array_like, shape (B,) or scalar, optional
+        Output offsets; default 0.
+    intersample : {"foh", "zoh"}, default "foh"
 
     Returns
     -------
@@ -463,15 +403,18 @@ def simulate_batch(num, den, V, dt: float) -> np.ndarray:
         Outputs; rows of candidates that cannot be simulated (non-finite
         coefficients, signals or overflow) contain NaN or inf.
     """
+    hold = check_intersample(intersample)
     E, C, D, ok = _tf_system(num, den, dt)
-    V = _signals(V, E.shape[0])
+    batch, n = E.shape[0], E.shape[1] - 2
+    V = _signals(V, batch)
     Y = np.empty(V.shape)
-    _kernel(E.shape[1] - 2, "outputs")(E, C, D, V, Y)
+    get_kernel(n, "outputs", hold)(E, C, D, _state_rows(x0, batch, n), _offset_rows(offset, batch), V, Y)
     Y[~ok] = np.nan
     return Y
 
 
-def sse_batch(num, den, V, dt: float, y, *, reject_unstable: bool = False) -> np.ndarray:
+def sse_batch(num, den, V, dt: float, y, *, x0=None, offset=None, intersample: str = "foh",
+              reject_unstable: bool = False) -> np.ndarray:
     """Sum of squared output errors ``J`` (paper Eq. 13) for a batch of candidates.
 
     Never raises or warns for hostile candidates: a candidate whose
@@ -481,7 +424,7 @@ def sse_batch(num, den, V, dt: float, y, *, reject_unstable: bool = False) -> np
 
     Parameters
     ----------
-    num, den, V, dt
+    num, den, V, dt, x0, offset, intersample
         As for :func:`simulate_batch`.
     y : ndarray, shape (N,)
         Measured output.
@@ -492,11 +435,45 @@ def sse_batch(num, den, V, dt: float, y, *, reject_unstable: bool = False) -> np
     -------
     ndarray, shape (B,)
     """
+    hold = check_intersample(intersample)
     E, C, D, ok = _tf_system(num, den, dt)
     if reject_unstable:
-        ok &= ~_unstable(den)
-    V = _signals(V, E.shape[0])
-    J = np.empty(V.shape[0])
-    _kernel(E.shape[1] - 2, "sse")(E, C, D, V, np.ascontiguousarray(y, dtype=float), J)
+        ok &= ~unstable(den)
+    batch, n = E.shape[0], E.shape[1] - 2
+    V = _signals(V, batch)
+    J = np.empty(batch)
+    get_kernel(n, "sse", hold)(E, C, D, _state_rows(x0, batch, n), _offset_rows(offset, batch), V,
+                               np.ascontiguousarray(y, dtype=float), J)
     J[~ok] = np.inf
     return J
+
+
+def free_response(num, den, dt: float, n_samples: int) -> np.ndarray:
+    """Output of each transfer function from each unit initial state, with zero input.
+
+    The columns span every output an initial state can add (``y = Phi @ x0``),
+    which makes the initial state a linear least-squares problem once the
+    transfer function is fixed.
+
+    Parameters
+    ----------
+    num, den : array_like, shape (l+1,) and (n+1,)
+        One transfer function (descending powers).
+    dt : float
+    n_samples : int
+
+    Returns
+    -------
+    ndarray, shape (n_samples, n)
+
+    Examples
+    --------
+    >>> free_response([1.0], [1.0, 1.0], 1.0, 3).ravel().round(4)   # exp(-k)
+    array([1.    , 0.3679, 0.1353])
+    """
+    num = np.atleast_2d(np.asarray(num, dtype=float))
+    den = np.atleast_2d(np.asarray(den, dtype=float))
+    n = den.shape[1] - 1
+    eye = np.eye(n)
+    Y = simulate_batch(np.repeat(num, n, 0), np.repeat(den, n, 0), np.zeros(n_samples), dt, x0=eye)
+    return Y.T

@@ -152,6 +152,28 @@ class LinearStructure:
         den[:, self._den_pos] = theta[:, k:]
         return num, den
 
+    def free_parameters(self, num, den) -> np.ndarray:
+        """The free coefficients of ``num/den`` (descending powers), fixed ones ignored.
+
+        The denominator is made monic first; the numerator is padded to
+        ``num_order + 1`` coefficients.  Unlike :meth:`parameters` this does not
+        check the fixed coefficients: it projects any block onto the structure.
+
+        Examples
+        --------
+        >>> LinearStructure(0, 2, fixed={"a0": 0.0}).free_parameters([1.0], [1.0, 3.0, 2.0])
+        array([3.])
+        """
+        num = np.atleast_1d(np.asarray(num, dtype=float))
+        den = np.atleast_1d(np.asarray(den, dtype=float))
+        if den.size != self.den_order + 1 or num.size > self.num_order + 1:
+            raise ParameterError(
+                f"coefficients of degree {num.size - 1}/{den.size - 1} do not fit "
+                f"{self.num_order}/{self.den_order}")
+        num, den = num / den[0], den / den[0]
+        num = np.concatenate([np.zeros(self.num_order + 1 - num.size), num])
+        return np.concatenate([num[self._num_pos], den[self._den_pos]])
+
     def transfer_function(self, theta, **kwargs):
         """The :class:`control.TransferFunction` for one parameter vector.
 
@@ -239,13 +261,31 @@ class LinearStructure:
         return f"LinearStructure({self.num_order}, {self.den_order}{mon}{extra})"
 
 
+#: Choices for the initial state of the linear block.
+INITIAL_STATES = ("zero", "estimate")
+#: Name of the output-offset parameter.
+OFFSET_NAME = "y0"
+#: Prefix of the initial-state parameters ``xi0, xi1, ...`` (the state ``x(0)``
+#: of the controllable canonical realisation of ``H``).
+STATE_PREFIX = "xi"
+
+
 class HammersteinStructure:
     """A linear structure and a nonlinearity family: the full beta <-> model map.
+
+    beta is ``[linear coefficients, nonlinearity parameters]`` (paper Eq. 14),
+    followed by the optional real-data parameters: the output offset ``y0``
+    (``offset=True``) and the initial state ``xi0 .. xi{n-1}`` of ``H``'s
+    controllable canonical realisation (``initial_state="estimate"``).
 
     Parameters
     ----------
     linear : LinearStructure
     nonlinearity : Nonlinearity
+    offset : bool, default False
+        Estimate a constant ``y0`` added to the output.
+    initial_state : {"zero", "estimate"}, default "zero"
+        Start ``H`` from rest (the paper's semantics) or estimate ``x(0)``.
 
     Examples
     --------
@@ -256,23 +296,44 @@ class HammersteinStructure:
     >>> m = s.model([-1.816, 0.118, 4.7681, -4.7132, 0.1229])
     >>> s.beta(m).round(4).tolist()
     [-1.816, 0.118, 4.7681, -4.7132, 0.1229]
+    >>> s.with_options(offset=True, initial_state="estimate").param_names[-3:]
+    ('y0', 'xi0', 'xi1')
     """
 
-    def __init__(self, linear: LinearStructure, nonlinearity: Nonlinearity):
+    def __init__(self, linear: LinearStructure, nonlinearity: Nonlinearity, *, offset: bool = False,
+                 initial_state: str = "zero"):
         if not isinstance(linear, LinearStructure):
             raise ParameterError(f"linear must be a LinearStructure, got {type(linear).__name__}")
         if not isinstance(nonlinearity, Nonlinearity):
             raise ParameterError(
                 f"nonlinearity must be a Nonlinearity, got {type(nonlinearity).__name__}"
             )
+        if initial_state not in INITIAL_STATES:
+            raise ParameterError(f"initial_state must be one of {INITIAL_STATES}, got {initial_state!r}")
         self.linear = linear
         self.nonlinearity = nonlinearity
-        self.param_names: tuple[str, ...] = linear.param_names + nonlinearity.param_names
+        self.offset = bool(offset)
+        self.initial_state = initial_state
+        self.core_names: tuple[str, ...] = linear.param_names + nonlinearity.param_names
+        extra = ((OFFSET_NAME,) if self.offset else ()) + (
+            tuple(f"{STATE_PREFIX}{i}" for i in range(linear.den_order)) if initial_state == "estimate" else ())
+        self.param_names: tuple[str, ...] = self.core_names + extra
 
     @property
     def n_params(self) -> int:
         """Length of beta."""
         return len(self.param_names)
+
+    @property
+    def n_core(self) -> int:
+        """Number of parameters of the blocks themselves (without offset and initial state)."""
+        return len(self.core_names)
+
+    def with_options(self, *, offset: bool | None = None, initial_state: str | None = None):
+        """The same blocks with other real-data options (``None`` keeps the current one)."""
+        return type(self)(self.linear, self.nonlinearity,
+                          offset=self.offset if offset is None else offset,
+                          initial_state=self.initial_state if initial_state is None else initial_state)
 
     def check_beta(self, beta) -> np.ndarray:
         """Return beta as a float array of shape ``(n,)`` or ``(B, n)``.
@@ -295,17 +356,33 @@ class HammersteinStructure:
         """Split beta into (linear parameters, nonlinearity parameters)."""
         b = self.check_beta(beta)
         k = self.linear.n_params
-        return b[..., :k], b[..., k:]
+        return b[..., :k], b[..., k:self.n_core]
+
+    def nuisance(self, beta):
+        """``(offset, initial_state)`` of a beta or batch (``None`` where not estimated)."""
+        b = self.check_beta(beta)
+        i = self.n_core
+        offset = None
+        if self.offset:
+            offset, i = b[..., i], i + 1
+        state = b[..., i:] if self.initial_state == "estimate" else None
+        return offset, state
 
     def model(self, beta, **kwargs):
-        """The :class:`~hammerstein_ctrl.model.HammersteinModel` for one beta."""
+        """The :class:`~hammerstein_ctrl.model.HammersteinModel` for one beta.
+
+        ``kwargs`` (``intersample``, ``name``) go to the model.
+        """
         from .model import HammersteinModel
 
         b = self.check_beta(beta)
         if b.ndim != 1:
             raise ParameterError("model() takes a single beta vector, not a batch")
         lin, nl = self.split(b)
-        return HammersteinModel(self.linear.transfer_function(lin), self.nonlinearity, nl, **kwargs)
+        offset, state = self.nuisance(b)
+        return HammersteinModel(self.linear.transfer_function(lin), self.nonlinearity, nl,
+                                offset=0.0 if offset is None else float(offset), initial_state=state,
+                                **kwargs)
 
     def beta(self, model) -> np.ndarray:
         """The beta vector of a model that has this structure."""
@@ -315,12 +392,28 @@ class HammersteinStructure:
             raise ParameterError(
                 f"model's nonlinearity {model.nonlinearity!r} does not match {self.nonlinearity!r}"
             )
-        return np.concatenate([self.linear.parameters(model.linear), model.params])
+        parts = [self.linear.parameters(model.linear), model.params]
+        if self.offset:
+            parts.append([model.offset])
+        if self.initial_state == "estimate":
+            parts.append(model.state0())
+        return np.concatenate(parts)
+
+    def normalize(self, beta) -> np.ndarray:
+        """beta with the nonlinearity's parameters in their canonical form (see
+        :meth:`~hammerstein_ctrl.nonlinearities.Nonlinearity.normalize`); the model is unchanged."""
+        b = np.array(self.check_beta(beta), dtype=float)
+        k = self.linear.n_params
+        b[..., k:self.n_core] = self.nonlinearity.normalize(b[..., k:self.n_core])
+        return b
 
     def describe(self) -> str:
         """One-line description, e.g. ``H(p) = (p + b0)/(p^2 + a1 p + a0); g = tanh(d0, d1)``."""
         names = ", ".join(self.nonlinearity.param_names)
-        return f"H(p) = {self.linear.describe()}; g = {self.nonlinearity.name}({names})"
+        extra = (" + y0" if self.offset else "") + ("; x(0) estimated" if self.initial_state == "estimate" else "")
+        return f"H(p) = {self.linear.describe()}; g = {self.nonlinearity.name}({names}){extra}"
 
     def __repr__(self):
-        return f"HammersteinStructure({self.linear!r}, {self.nonlinearity!r})"
+        opts = (", offset=True" if self.offset else "") + (
+            f", initial_state={self.initial_state!r}" if self.initial_state != "zero" else "")
+        return f"HammersteinStructure({self.linear!r}, {self.nonlinearity!r}{opts})"

@@ -40,7 +40,7 @@ def test_identify_with_explicit_structure(capsys, trs_csv):
     (["identify", "--data", "nope.csv", "--structure", "trs"], "data file not found: nope.csv"),
     (["identify", "--data", "{csv}", "--structure", "trs", "--method", "pso"], "unknown method 'pso'"),
     (["identify", "--data", "{csv}", "--structure", "trs", "--input", "volts"], "no input column 'volts'"),
-    (["identify", "--data", "{bad}", "--structure", "trs"], "data row 2 has a non-numeric field"),
+    (["identify", "--data", "{bad}", "--structure", "trs"], "line 3: column 'u' holds 'oops', not a number"),
     (["identify", "--data", "{csv}", "--orders", "1", "2", "--nonlinearity", "cubic", "--x0", "1"],
      "unknown nonlinearity 'cubic'"),
     (["identify", "--data", "{csv}", "--orders", "1", "2", "--nonlinearity", "tanh", "--x0", "1", "2"],

@@ -48,8 +48,10 @@ def test_identify_emps_by_preset_name_and_validation(emps_case):
 
 def test_identify_input_errors(trs_case):
     s = HammersteinStructure(LinearStructure(0, 2, fixed={"a0": 0.0}), Coulomb())
-    with pytest.raises(ParameterError, match=r"give an initial point x0 = \[a1, d0, d1, d2\]"):
-        identify(trs_case.data, s)
+    with pytest.raises(ParameterError, match=r"give an initial point x0 = \[a1, d0, d1, d2\].*method='auto'"):
+        identify(trs_case.data, s, method="nspsa")
+    with pytest.raises(ParameterError, match="method 'auto' does not take options, maxiter"):
+        identify(trs_case.data, s, options={"a": 1.0}, maxiter=3)
     with pytest.raises(ParameterError, match="beta must have 4 entries"):
         identify(trs_case.data, s, x0=[1, 2, 3])
     with pytest.raises(ParameterError, match="unknown structure 'cstr'"):

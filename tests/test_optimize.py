@@ -77,9 +77,17 @@ def test_nfev_is_exact_and_maxfev_never_exceeded(maxfev):
         calls.append(1)
         return float(np.sum(x**2))
 
-    r = nspsa(f, np.ones(3), maxfev=maxfev, seed=0)
+    r = nspsa(f, np.ones(3), maxfev=maxfev, seed=0, a=StepGain(0.1, 10), c=PerturbationGain(0.1))
     assert r.nfev == len(calls) <= maxfev
     assert r.nfev == 2 * ((maxfev - 1) // 2) + 1
+    calls.clear()
+    # automatic gains spend 8 counted evaluations on calibration, inside the budget
+    if maxfev >= 9:
+        r = nspsa(f, np.ones(3), maxfev=maxfev, seed=0)
+        assert r.nfev == len(calls) == 8 + 2 * ((maxfev - 9) // 2) + 1 <= maxfev
+    else:
+        with pytest.raises(ParameterError, match="automatic gains need maxfev >= 9"):
+            nspsa(f, np.ones(3), maxfev=maxfev, seed=0)
     calls.clear()
     r = amvo_sca(f, np.ones(3), bounds=[(-2, 2)] * 3, maxfev=maxfev + 10, pop_size=10, seed=0)
     assert r.nfev == len(calls) == 10 * ((maxfev + 10) // 10) <= maxfev + 10
@@ -110,7 +118,7 @@ def test_overflowing_objective_makes_spsa_report_divergence():
 def test_all_nan_objective_does_not_crash(method):
     r = minimize(lambda x: float("nan"), np.zeros(3), method=method, seed=0, maxiter=50,
                  options={"norm_limit": 0.1} if method == "nlspsa" else None)
-    assert not r.success and r.nfev <= 101 and np.all(np.isfinite(r.x))
+    assert not r.success and r.nfev <= 101 + 8 and np.all(np.isfinite(r.x))  # 8: gain calibration
 
 
 def test_all_inf_objective_in_amvo_sca():

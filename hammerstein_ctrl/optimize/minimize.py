@@ -18,7 +18,7 @@ import time
 import numpy as np
 import scipy.optimize
 
-from ..exceptions import UnknownNameError
+from ..exceptions import ParameterError, UnknownNameError
 from ._common import (
     COMPLETED,
     SOLVER_FAILED,
@@ -50,9 +50,9 @@ _ALIASES = {
 }
 
 _OPTIONS = {
-    "spsa": {"a", "c", "divergence_factor", "monitor"},
-    "nlspsa": {"a", "c", "norm_limit", "divergence_factor", "monitor"},
-    "nspsa": {"a", "c", "divergence_factor", "monitor"},
+    "spsa": {"a", "c", "scale", "divergence_factor", "monitor"},
+    "nlspsa": {"a", "c", "scale", "norm_limit", "divergence_factor", "monitor"},
+    "nspsa": {"a", "c", "scale", "divergence_factor", "monitor"},
     "amvo-sca": {"pop_size", "wep_min", "wep_max", "include_x0"},
     "lm": {"ftol", "xtol", "gtol"},
 }
@@ -103,8 +103,10 @@ def minimize(fun, x0, method: str = "nspsa", *, args=(), maxfev: int | None = No
     seed : int or numpy.random.Generator, optional
         Every random choice comes from it; the same seed gives the same result
         bit for bit.
-    options : dict, optional
-        Method options: ``a``, ``c`` (gain sequences), ``norm_limit``
+    options : dict or "auto", optional
+        Method options: ``a``, ``c`` (gain sequences, or ``"auto"``: calibrated
+        from the problem by Spall's guidelines, also the default when neither is
+        given), ``scale`` (per-parameter scales, or ``"auto"``), ``norm_limit``
         (NL-SPSA's delta), ``divergence_factor`` and ``monitor`` for the SPSA family;
         ``pop_size``, ``wep_min``, ``wep_max``, ``include_x0`` for AMVO-SCA;
         scipy's own options for scipy methods.
@@ -129,6 +131,11 @@ def minimize(fun, x0, method: str = "nspsa", *, args=(), maxfev: int | None = No
         For unknown options or invalid settings.
     """
     key = canonical_method(method)
+    if isinstance(options, str):
+        if options != "auto" or key not in ("spsa", "nlspsa", "nspsa"):
+            raise ParameterError(f"options={options!r}: only 'auto' (gains calibrated from the problem) "
+                                 "is understood, and only by the SPSA family")
+        options = {"a": "auto", "c": "auto", "scale": "auto"}
     options = dict(options or {})
     if key in METHODS:
         check_options(key, options, _OPTIONS[key])

@@ -70,11 +70,26 @@ from ._common import (
     call_back,
     make_result,
 )
-from .gains import PerturbationGain, StepGain, as_gain
+from .gains import SPALL_ALPHA, PerturbationGain, StepGain, as_gain
 
-__all__ = ["spsa", "nlspsa", "nspsa", "normalized_difference", "DEFAULT_MAXITER"]
+__all__ = ["spsa", "nlspsa", "nspsa", "normalized_difference", "DEFAULT_MAXITER", "AUTO",
+           "CALIBRATION_PAIRS", "AUTO_PERTURBATION", "AUTO_FIRST_STEP", "AUTO_SCALE_FLOOR"]
 
 DEFAULT_MAXITER = 1000
+#: Value of ``a``/``c``/``scale`` asking for calibration from the problem itself.
+AUTO = "auto"
+#: Gradient estimates at x0 used to calibrate ``a`` (two evaluations each, counted).
+CALIBRATION_PAIRS = 4
+#: Automatic ``c``: perturbations of this fraction of each parameter's scale.
+AUTO_PERTURBATION = 0.1
+#: Automatic ``a``: the first step moves a parameter by about this fraction of its scale.
+AUTO_FIRST_STEP = 0.1
+#: Automatic ``scale``: a parameter's scale is ``|x0_i|``, but at least this
+#: fraction of the largest ``|x0_j|`` (and at least :data:`AUTO_SCALE_MIN`).
+AUTO_SCALE_FLOOR = 0.1
+AUTO_SCALE_MIN = 1e-3
+#: Spall's stability constant ``A`` as a fraction of the iterations.
+AUTO_A_FRACTION = 0.1
 
 
 def normalized_difference(f_plus: float, f_minus: float) -> float:
@@ -124,6 +139,93 @@ def _nanmin2(a: float, b: float) -> float:
     return min(a, b)
 
 
+def auto_scale(x0) -> np.ndarray:
+    """Per-parameter scales from the initial point (see :data:`AUTO_SCALE_FLOOR`).
+
+    Examples
+    --------
+    >>> auto_scale([-2.0, 0.0, 5.0, -5.0, 0.0]).tolist()
+    [2.0, 0.5, 5.0, 5.0, 0.5]
+    """
+    x = np.abs(np.asarray(x0, dtype=float))
+    return np.maximum(x, max(AUTO_SCALE_FLOOR * float(x.max(initial=0.0)), AUTO_SCALE_MIN))
+
+
+def _raw_step(variant: str, f_plus: float, f_minus: float) -> float:
+    """The scalar the SPSA family multiplies by ``a(k) / (2 c(k) Delta)``."""
+    return normalized_difference(f_plus, f_minus) if variant == "nspsa" else f_plus - f_minus
+
+
+def _calibrate(variant: str, obj, theta, scale, kmax: int, rng, c=None):
+    """Spall's practical gains from the problem: ``(StepGain, PerturbationGain)`` in scaled units.
+
+    ``c`` perturbs each parameter by :data:`AUTO_PERTURBATION` of its scale;
+    ``a`` is set from the median magnitude of :data:`CALIBRATION_PAIRS`
+    gradient estimates at ``theta`` so that the first step moves each
+    parameter by about :data:`AUTO_FIRST_STEP` of its scale, with
+    ``alpha = 0.602``, ``gamma = 0.101`` and ``A = 10 %`` of the iterations.
+    """
+    c = PerturbationGain(AUTO_PERTURBATION) if c is None else c
+    A = AUTO_A_FRACTION * max(kmax, 1)
+    mags = []
+    for _ in range(CALIBRATION_PAIRS):
+        delta = rng.integers(0, 2, theta.size) * 2.0 - 1.0
+        f_plus, f_minus = obj.many(np.stack([theta + c(1) * scale * delta, theta - c(1) * scale * delta]))
+        h = abs(_raw_step(variant, float(f_plus), float(f_minus))) / (2.0 * c(1))
+        if math.isfinite(h) and h > 0:
+            mags.append(h)
+    g = float(np.median(mags)) if mags else 1.0
+    a = StepGain(AUTO_FIRST_STEP * (1.0 + A) ** SPALL_ALPHA / g, A, SPALL_ALPHA)
+    return a, c
+
+
+def _iterations(maxiter, maxfev, calibration: int) -> int:
+    """``k_max``: ``maxiter``, else as many as ``maxfev`` allows, else :data:`DEFAULT_MAXITER`."""
+    if maxiter is not None and not (int(maxiter) == maxiter and maxiter >= 0):
+        raise ParameterError(f"maxiter must be a non-negative integer, got {maxiter!r}")
+    if maxfev is None:
+        return DEFAULT_MAXITER if maxiter is None else int(maxiter)
+    if not (np.isfinite(maxfev) and int(maxfev) == maxfev and maxfev >= 1):
+        raise ParameterError(f"maxfev must be a positive integer, got {maxfev!r}")
+    if maxfev < calibration + 1:
+        raise ParameterError(f"automatic gains need maxfev >= {calibration + 1} ({CALIBRATION_PAIRS} "
+                             f"calibration pairs and the final evaluation), got {maxfev}")
+    by_budget = (int(maxfev) - 1 - calibration) // 2
+    return by_budget if maxiter is None else min(int(maxiter), by_budget)
+
+
+def _tag(value):
+    return value if isinstance(value, str) else None
+
+
+def _scale_vector(scale, theta, auto: bool) -> np.ndarray:
+    """Parameter scales: given, automatic, or ones (the paper's unscaled iteration)."""
+    if scale is None:
+        return auto_scale(theta) if auto else np.ones(theta.size)
+    if isinstance(scale, str):
+        if scale != AUTO:
+            raise ParameterError(f"scale must be 'auto' or one positive number per parameter, got {scale!r}")
+        return auto_scale(theta)
+    s = np.asarray(scale, dtype=float).reshape(-1)
+    if s.size != theta.size or not np.all(np.isfinite(s) & (s > 0)):
+        raise ParameterError(f"scale must be {theta.size} positive finite numbers, got {np.shape(scale)}")
+    return s
+
+
+def _gains(variant, obj, theta, scale, kmax, rng, a, c, auto):
+    """The gain sequences: given, or calibrated at ``theta`` (counted evaluations)."""
+    if c is not None and _tag(c) is None:
+        c = as_gain(c, PerturbationGain, "c")
+    if auto:
+        cal_a, cal_c = _calibrate(variant, obj, theta, scale, kmax, rng, None if _tag(c) or c is None else c)
+        a = cal_a if a is None or _tag(a) else a
+        c = cal_c if c is None or _tag(c) else c
+    for value, label, kind in ((a, "a", StepGain), (c, "c", PerturbationGain)):
+        if _tag(value) is not None:
+            raise ParameterError(f"option {label!r} must be a {kind.__name__}, a number or 'auto', got {value!r}")
+    return as_gain(a, StepGain, "a"), as_gain(c, PerturbationGain, "c")
+
+
 def _run(
     variant: str,
     fun,
@@ -140,6 +242,7 @@ def _run(
     seed=None,
     callback=None,
     monitor: int = 0,
+    scale=None,
 ):
     started = time.perf_counter()
     theta = as_x0(x0)
@@ -148,15 +251,10 @@ def _run(
     box = as_bounds(bounds, n)
     if box is not None and (np.any(theta < box[0]) or np.any(theta > box[1])):
         raise ParameterError(f"x0 {theta.tolist()} lies outside the bounds")
-    kmax = DEFAULT_MAXITER if maxiter is None else int(maxiter)
-    if maxfev is not None:
-        if maxfev < 1:
-            raise ParameterError(f"maxfev must be >= 1, got {maxfev}")
-        kmax = min(kmax, (int(maxfev) - 1) // 2)
-    if kmax < 0:
-        raise ParameterError(f"maxiter must be >= 0, got {maxiter}")
-    a = as_gain(StepGain.spall(0.1, max(kmax, 1)) if a is None else a, StepGain, "a")
-    c = as_gain(PerturbationGain(0.1) if c is None else c, PerturbationGain, "c")
+    auto = (a is None and c is None) or AUTO in (_tag(a), _tag(c))
+    calibration = 2 * CALIBRATION_PAIRS if auto else 0
+    kmax = _iterations(maxiter, maxfev, calibration)
+    scale = _scale_vector(scale, theta, auto)
     if variant == "nlspsa":
         if norm_limit is None or not (np.isfinite(norm_limit) and norm_limit > 0):
             raise ParameterError(f"NL-SPSA needs a positive finite norm_limit (delta), got {norm_limit!r}")
@@ -167,7 +265,9 @@ def _run(
     every = max(1, kmax // int(monitor)) if monitor else 0
 
     radius = divergence_factor * max(1.0, math.sqrt(float(theta @ theta)))
-    obj = CountedObjective(fun, args, maxfev=2 * kmax + 1)
+    obj = CountedObjective(fun, args, maxfev=2 * kmax + 1 + calibration)
+    with np.errstate(all="ignore"):
+        a, c = _gains(variant, obj, theta, scale, kmax, rng, a, c, auto)
     history = History()
     status, message = COMPLETED, f"completed {kmax} iterations"
     f_ref = None
@@ -177,19 +277,16 @@ def _run(
         for k in range(1, kmax + 1):
             delta = rng.integers(0, 2, n) * 2.0 - 1.0
             ak, ck = a(k), c(k)
-            np.add(theta, ck * delta, out=pair[0])
-            np.subtract(theta, ck * delta, out=pair[1])
+            np.add(theta, ck * scale * delta, out=pair[0])
+            np.subtract(theta, ck * scale * delta, out=pair[1])
             if box is not None:
                 np.clip(pair, box[0], box[1], out=pair)
             f_plus, f_minus = obj.many(pair)
             f_plus, f_minus = float(f_plus), float(f_minus)
-            if variant == "nspsa":
-                step = (ak * normalized_difference(f_plus, f_minus) / (2.0 * ck)) / delta
-            else:
-                diff = f_plus - f_minus
-                step = (ak * diff / (2.0 * ck)) / delta
-                if variant == "nlspsa":
-                    step = _norm_limited(step, diff, delta, norm_limit)
+            diff = _raw_step(variant, f_plus, f_minus)
+            step = scale * ((ak * diff / (2.0 * ck)) / delta)
+            if variant == "nlspsa":
+                step = _norm_limited(step, diff, delta, norm_limit)
             new = theta - step
             if box is not None:
                 np.clip(new, box[0], box[1], out=new)
@@ -230,7 +327,7 @@ def _run(
 
 
 def spsa(fun, x0, *, a=None, c=None, maxiter=None, maxfev=None, seed=None, args=(),
-         bounds=None, callback=None, divergence_factor=1e6, monitor=0):
+         bounds=None, callback=None, divergence_factor=1e6, monitor=0, scale=None):
     """Spall's SPSA (paper Eq. 6-7).
 
     Parameters
@@ -239,14 +336,20 @@ def spsa(fun, x0, *, a=None, c=None, maxiter=None, maxfev=None, seed=None, args=
         ``fun(x, *args) -> float``.
     x0 : array_like
         Initial point theta(0).
-    a : StepGain or float, optional
-        Step gains ``a(k)``; default ``StepGain.spall(0.1, maxiter)``.
-    c : PerturbationGain or float, optional
-        Perturbation gains ``c(k)``; default ``PerturbationGain(0.1)``.
+    a : StepGain, float or "auto", optional
+        Step gains ``a(k)``.  ``"auto"`` (the default when neither ``a`` nor
+        ``c`` is given) calibrates them from the problem by Spall's practical
+        guidelines: ``alpha = 0.602``, ``A`` = 10 % of the iterations, and ``a``
+        such that the first steps move each parameter by about
+        :data:`AUTO_FIRST_STEP` of its scale, judged from
+        :data:`CALIBRATION_PAIRS` gradient estimates at ``x0`` (counted in ``nfev``).
+    c : PerturbationGain, float or "auto", optional
+        Perturbation gains ``c(k)``; ``"auto"``: :data:`AUTO_PERTURBATION` of
+        each parameter's scale, ``gamma = 0.101``.
     maxiter : int, optional
-        Iterations ``k_max`` (default 1000).
+        Iterations ``k_max`` (default: as many as ``maxfev`` allows, else 1000).
     maxfev : int, optional
-        Evaluation budget; caps ``k_max`` at ``(maxfev - 1) // 2``.
+        Evaluation budget, never exceeded: ``k_max <= (maxfev - 1 - calibration) // 2``.
     seed : int or numpy.random.Generator, optional
         Source of the perturbations; the same seed gives the same run.
     args : tuple
@@ -263,6 +366,10 @@ def spsa(fun, x0, *, a=None, c=None, maxiter=None, maxfev=None, seed=None, args=
         iterations, for convergence curves (``history["estimate"]``).  These
         evaluations never influence the search and are counted in
         ``nfev_monitor``, not in ``nfev``.
+    scale : array_like or "auto", optional
+        Per-parameter scales: the iteration runs on ``theta / scale``.  Default:
+        ``"auto"`` (:func:`auto_scale`) with automatic gains, else ones (the
+        paper's unscaled iteration).
 
     Returns
     -------
@@ -270,11 +377,12 @@ def spsa(fun, x0, *, a=None, c=None, maxiter=None, maxfev=None, seed=None, args=
         ``x, fun, nfev, nit, success, status, message, history, best_x, best_fun``.
     """
     return _run("spsa", fun, x0, a=a, c=c, maxiter=maxiter, maxfev=maxfev, seed=seed, args=args,
-                bounds=bounds, callback=callback, divergence_factor=divergence_factor, monitor=monitor)
+                bounds=bounds, callback=callback, divergence_factor=divergence_factor, monitor=monitor,
+                scale=scale)
 
 
 def nlspsa(fun, x0, *, a=None, c=None, norm_limit=0.01, maxiter=None, maxfev=None, seed=None,
-           args=(), bounds=None, callback=None, divergence_factor=1e6, monitor=0):
+           args=(), bounds=None, callback=None, divergence_factor=1e6, monitor=0, scale=None):
     """Norm-limited SPSA: SPSA whose update vector's norm is capped at ``norm_limit``.
 
     Parameters are those of :func:`spsa` plus ``norm_limit`` (the paper's
@@ -282,14 +390,15 @@ def nlspsa(fun, x0, *, a=None, c=None, norm_limit=0.01, maxiter=None, maxfev=Non
     """
     return _run("nlspsa", fun, x0, a=a, c=c, norm_limit=norm_limit, maxiter=maxiter, maxfev=maxfev,
                 seed=seed, args=args, bounds=bounds, callback=callback,
-                divergence_factor=divergence_factor, monitor=monitor)
+                divergence_factor=divergence_factor, monitor=monitor, scale=scale)
 
 
 def nspsa(fun, x0, *, a=None, c=None, maxiter=None, maxfev=None, seed=None, args=(), bounds=None,
-          callback=None, divergence_factor=1e6, monitor=0):
+          callback=None, divergence_factor=1e6, monitor=0, scale=None):
     """Normalized SPSA (the paper's Algorithm 4.2).
 
     Parameters are those of :func:`spsa`.
     """
     return _run("nspsa", fun, x0, a=a, c=c, maxiter=maxiter, maxfev=maxfev, seed=seed, args=args,
-                bounds=bounds, callback=callback, divergence_factor=divergence_factor, monitor=monitor)
+                bounds=bounds, callback=callback, divergence_factor=divergence_factor, monitor=monitor,
+                scale=scale)

@@ -1,0 +1,188 @@
+"""The ``auto`` identification method: data-driven starts, least-squares refinement, restarts.
+
+1. **Starts** from the data alone (:func:`~hammerstein_ctrl.initialize.initial_points`:
+   a scan of stable linear blocks over the record's bandwidth with the output
+   fitted by linear least squares, refined on the reduced residual), plus the
+   user's ``x0`` if given, with its right-half-plane poles reflected
+   (:func:`~hammerstein_ctrl.initialize.stabilize`) and its offset/initial
+   state filled in by least squares when it leaves them out.
+2. **Refinement** of every start by Levenberg-Marquardt on the residual
+   vector (:func:`~hammerstein_ctrl.optimize.levenberg_marquardt`), the budget
+   shared out over the starts still to run.
+3. **Restarts** from seeded random perturbations of the best start while the
+   best model is unstable (unless allowed) or fits worse than a constant.
+
+Every simulated candidate, including those of the starts and of the
+finite-difference Jacobians, counts against ``maxfev``.
+
+Examples
+--------
+>>> import hammerstein_ctrl as hc
+>>> case = hc.presets.trs()
+>>> r = auto_minimize(case.cost, maxfev=2000, seed=0)
+>>> bool(r.fun < 178.5), r.success
+(True, True)
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from .initialize import Budget, initial_points, nuisance_estimate, stabilize
+from .optimize import COMPLETED, SOLVER_FAILED, History, as_rng, levenberg_marquardt
+from .simulate import unstable
+
+__all__ = ["auto_minimize", "AUTO_MAXFEV", "RESTART_SPREAD", "MAX_RESTARTS"]
+
+#: Default evaluation budget of the auto method.
+AUTO_MAXFEV = 2000
+#: Relative size of the random perturbations of a restart.
+RESTART_SPREAD = 0.3
+#: Smallest parameter scale of a perturbation (for parameters at zero).
+RESTART_FLOOR = 1e-3
+#: Most restarts tried when no start gives an acceptable model.
+MAX_RESTARTS = 8
+#: Relative tolerances of the refinements (MINPACK's ftol/xtol/gtol).  Tighter
+#: values only crawl along flat valleys such as tanh's ``d0 d1 = const``, where
+#: J changes in the ninth digit.
+REFINE_TOL = 1e-8
+#: Fewest evaluations worth giving one refinement.
+MIN_REFINE_BUDGET = 10
+
+
+class _Merged:
+    """Histories of several refinements laid end to end on one evaluation axis."""
+
+    def __init__(self):
+        self.history = History()
+        self.best = np.inf
+        self.rows = 0
+
+    def add(self, hist: dict, offset: int):
+        for nfev, fun in zip(hist["nfev"], hist["fun"]):
+            self.best = min(self.best, fun)
+            self.rows += 1
+            self.history.append(self.rows, offset + int(nfev), fun, self.best, self.best)
+
+
+def _user_start(cost, x0, budget: Budget):
+    """The user's x0, completed with offset/initial state and stabilised."""
+    s = cost.structure
+    x = np.asarray(x0, dtype=float).reshape(-1)
+    if x.size == s.n_core and s.n_params > s.n_core:
+        x = nuisance_estimate(cost.data, s, x, budget)
+    x = s.check_beta(x).copy()
+    k = s.linear.n_params
+    x[:k] = stabilize(s.linear, x[:k])
+    return x
+
+
+def _acceptable(cost, x, fun, allow_unstable: bool) -> bool:
+    num, den = cost.structure.linear.coefficients(x[:cost.structure.linear.n_params])
+    y = np.asarray(cost.data.y, dtype=float)
+    trivial = float(np.sum((y - y.mean()) ** 2))
+    return np.isfinite(fun) and fun < trivial and (allow_unstable or not unstable(den)[0])
+
+
+def _refine(cost, start, budget: Budget, share: int, merged: _Merged):
+    res = levenberg_marquardt(cost, start, maxfev=share, ftol=REFINE_TOL, xtol=REFINE_TOL, gtol=REFINE_TOL)
+    merged.add(res.history, budget.nfev)
+    budget.charge(res.nfev)
+    return res
+
+
+def _restart_points(anchor, rng, linear):
+    """Seeded random relative perturbations of ``anchor``, with the linear block stabilised."""
+    k = linear.n_params
+    for _ in range(MAX_RESTARTS):
+        x = np.array(anchor, dtype=float)
+        x += RESTART_SPREAD * np.maximum(np.abs(x), RESTART_FLOOR) * rng.standard_normal(x.size)
+        x[:k] = stabilize(linear, x[:k])
+        yield x
+
+
+def auto_minimize(cost, x0=None, *, maxfev: int | None = None, seed=None, allow_unstable: bool = False,
+                  callback=None):
+    """Minimise a :class:`~hammerstein_ctrl.objective.HammersteinCost` without tuning.
+
+    Parameters
+    ----------
+    cost : HammersteinCost
+    x0 : array_like, optional
+        Used as one more start (stabilised; offset and initial state may be left out).
+    maxfev : int, optional
+        Budget of simulated candidates (default :data:`AUTO_MAXFEV`); never exceeded.
+    seed : int or numpy.random.Generator, optional
+        Source of the restart perturbations.
+    allow_unstable : bool, default False
+        Accept a model with a right-half-plane pole without restarting.
+    callback : callable, optional
+        Called with each refinement's :class:`scipy.optimize.OptimizeResult`;
+        returning True stops after that refinement.
+
+    Returns
+    -------
+    scipy.optimize.OptimizeResult
+        ``x, fun, nfev, nit`` (refinements run), ``status``, ``message``,
+        ``success`` (the last refinement converged and the model is acceptable),
+        ``history`` and ``starts`` (how many starts were refined).
+    """
+    started = time.perf_counter()
+    budget = Budget(AUTO_MAXFEV if maxfev is None else int(maxfev))
+    rng = as_rng(seed)
+    starts = initial_points(cost.data, cost.structure, budget)
+    if x0 is not None:
+        starts.append(_user_start(cost, x0, budget))
+    merged = _Merged()
+    best, best_key, runs = None, None, 0
+    queue, restarts = list(starts), None
+    while budget.remaining >= MIN_REFINE_BUDGET:
+        if not queue:
+            if best is not None and best_key[0]:
+                break
+            if restarts is None:
+                anchor = best.x if best is not None else None
+                if anchor is None:
+                    break
+                restarts = _restart_points(anchor, rng, cost.structure.linear)
+            nxt = next(restarts, None)
+            if nxt is None:
+                break
+            queue.append(nxt)
+        share = int(budget.remaining // len(queue))
+        res = _refine(cost, queue.pop(0), budget, max(share, MIN_REFINE_BUDGET), merged)
+        runs += 1
+        key = (_acceptable(cost, res.x, res.fun, allow_unstable), -res.fun)
+        if best is None or key > best_key:
+            best, best_key = res, key
+        if callback is not None and callback(res):
+            break
+    return _result(cost, best, budget, runs, len(starts), merged, allow_unstable, started)
+
+
+def _result(cost, best, budget, runs, n_starts, merged, allow_unstable, started):
+    from scipy.optimize import OptimizeResult
+
+    if best is None:
+        x = np.full(cost.n_params, np.nan)
+        return OptimizeResult(x=x, fun=np.inf, nfev=budget.nfev, nit=0, success=False, status=SOLVER_FAILED,
+                              message=f"evaluation budget of {budget.maxfev} exhausted before any refinement",
+                              history=merged.history.as_dict(), method="auto", starts=n_starts,
+                              best_x=None, best_fun=np.inf, nfev_monitor=0,
+                              elapsed=time.perf_counter() - started)
+    converged = best.status == COMPLETED and "budget" not in str(best.message)
+    x = cost.structure.normalize(best.x)
+    ok = _acceptable(cost, x, best.fun, allow_unstable)
+    if converged and ok:
+        message = f"converged ({best.message.rstrip('.')}) after {runs} refinement(s) from {n_starts} start(s)"
+    elif not converged:
+        message = f"best of {runs} refinement(s) did not converge: {best.message}"
+    else:
+        message = f"no acceptable model (unstable or no better than a constant) after {runs} refinement(s)"
+    return OptimizeResult(x=x, fun=float(best.fun), nfev=budget.nfev, nit=runs, success=bool(converged and ok),
+                          status=COMPLETED if converged else SOLVER_FAILED, message=message,
+                          history=merged.history.as_dict(), method="auto", starts=n_starts,
+                          best_x=x.copy(), best_fun=float(best.fun), nfev_monitor=0,
+                          elapsed=time.perf_counter() - started)

@@ -1,0 +1,381 @@
+"""Automatic initial points for identification, from the data alone.
+
+:func:`initial_points` returns candidate parameter vectors for a structure and
+a record, best first, so that ``identify(data, structure)`` needs no ``x0``.
+The construction uses that the output error is *linear* in many parameters
+once the linear block ``H`` is fixed:
+
+1. **Linear block.**  ``H`` is scanned over stable pole patterns spread over
+   the record's bandwidth (from a few periods per record to a fraction of the
+   Nyquist frequency): repeated real poles, a lightly damped pair, and poles
+   spread by a decade.  For each candidate the output is fitted by linear least
+   squares in the columns ``H phi_i(u)``, where ``phi_i`` is the
+   nonlinearity's basis when ``g`` is linear in its parameters (Coulomb,
+   polynomial, piecewise-linear: the fit is then exact) and ``[u, 1]``
+   otherwise (an affine stand-in for ``g``), plus a constant column for an
+   output offset and the free responses for an estimated initial state.  The
+   best few candidates are refined by Levenberg-Marquardt on this reduced
+   (variable-projection) residual.
+2. **Nonlinearity.**  With ``H`` fixed, families linear in their parameters
+   take the least-squares coefficients directly; families with a scale
+   parameter (tanh, saturation, dead zone) scan their other parameters over
+   the input's range (:meth:`~hammerstein_ctrl.nonlinearities.Nonlinearity.shape_grid`)
+   and fit the scale by least squares.
+3. Offset and initial state come out of the same least-squares solve.
+
+Every simulated candidate counts as one evaluation against the caller's
+budget (:class:`Budget`).
+
+Examples
+--------
+>>> import numpy as np, control as ct
+>>> from hammerstein_ctrl import IOData, HammersteinStructure, LinearStructure, Coulomb
+>>> t = np.arange(0, 20, 0.01); u = np.sin(0.7 * t) + 0.5 * np.sin(3.1 * t)
+>>> g = 0.8 * u + 0.2 * np.sign(u) + 0.05
+>>> y = ct.forced_response(ct.tf([1], [1, 2.0, 5.0]), t, g).outputs
+>>> s = HammersteinStructure(LinearStructure(0, 2), Coulomb())
+>>> x = initial_points(IOData(u, y, t), s, Budget(500))[0]
+>>> np.round(x, 3).tolist()     # a0, a1, d0, d1, d2
+[5.0, 2.0, 0.8, 0.2, 0.05]
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.linalg
+import scipy.optimize
+
+from .exceptions import ParameterError
+from .simulate import free_response, simulate_batch, unstable
+
+__all__ = ["initial_points", "stabilize", "nuisance_estimate", "estimate_initial_state", "static_affine_sse",
+           "Budget", "BudgetSpent", "POLE_PATTERNS"]
+
+#: Frequencies scanned per pole pattern.
+SCAN_FREQUENCIES = 12
+#: Lowest scanned frequency: this many periods fit in the record.
+MIN_PERIODS = 2.0
+#: Highest scanned frequency as a fraction of the Nyquist frequency.
+MAX_NYQUIST_FRACTION = 0.5
+#: Pole patterns of the scan: repeated real poles, a damped pair (zeta) with
+#: real poles, real poles spread geometrically by this ratio.
+POLE_PATTERNS = ("real", "pair", "spread")
+PAIR_DAMPING = 0.1
+SPREAD_RATIO = 10.0
+#: Half-planes of the scanned zeros (-1 left, +1 right).
+ZERO_SIDES = (-1.0, 1.0)
+#: Scan candidates refined by Levenberg-Marquardt on the reduced residual.
+REFINED_CANDIDATES = 3
+#: Evaluations allowed to each reduced refinement.
+REFINE_EVALUATIONS = 60
+#: Relative tolerance of the reduced refinement.
+REFINE_TOL = 1e-8
+
+
+class BudgetSpent(RuntimeError):
+    """Raised by :class:`Budget` when the evaluation budget would be exceeded."""
+
+
+class Budget:
+    """Counts simulated candidates against a limit shared by all stages of a fit.
+
+    Examples
+    --------
+    >>> b = Budget(3); b.charge(2); b.remaining
+    1
+    """
+
+    def __init__(self, maxfev: int | None):
+        self.maxfev = maxfev
+        self.nfev = 0
+
+    @property
+    def remaining(self) -> float:
+        return np.inf if self.maxfev is None else self.maxfev - self.nfev
+
+    def charge(self, count: int = 1):
+        if count > self.remaining:
+            raise BudgetSpent(f"evaluation budget of {self.maxfev} exhausted")
+        self.nfev += int(count)
+
+
+# ---------------------------------------------------------------------------
+# candidate linear blocks
+# ---------------------------------------------------------------------------
+def _frequencies(data) -> np.ndarray:
+    lo = 2 * np.pi * MIN_PERIODS / max(data.duration, data.dt)
+    hi = MAX_NYQUIST_FRACTION * np.pi / data.dt
+    return np.geomspace(lo, max(hi, 1.01 * lo), SCAN_FREQUENCIES)
+
+
+def _poles(pattern: str, w: float, m: int) -> np.ndarray:
+    if pattern == "pair" and m >= 2:
+        wd = w * np.sqrt(1 - PAIR_DAMPING**2)
+        pair = [-PAIR_DAMPING * w + 1j * wd, -PAIR_DAMPING * w - 1j * wd]
+        return np.concatenate([pair, -w * np.ones(m - 2)])
+    if pattern == "spread" and m >= 2:
+        return -w * SPREAD_RATIO ** np.linspace(-0.5, 0.5, m)
+    return -w * np.ones(m)
+
+
+def _arx_poles(data, drives, m: int) -> np.ndarray | None:
+    """Continuous-time poles of a discrete ARX fit of order ``m`` (stabilised), or ``None``.
+
+    Equation error is biased by noise, but places the poles' time scales far
+    better than a scan when they are a decade or more apart.
+    """
+    y = np.asarray(data.y, dtype=float)
+    N = y.size
+    if N <= 4 * m + 2:
+        return None
+    lagged = [-y[m - i:N - i] for i in range(1, m + 1)]
+    lagged += [d[m - i:N - i] for d in drives for i in range(1, m + 1)]
+    X = np.column_stack(lagged + [np.ones(N - m)])
+    coef, *_ = np.linalg.lstsq(X, y[m:], rcond=None)
+    with np.errstate(all="ignore"):
+        s = np.log(np.roots(np.concatenate([[1.0], coef[:m]])).astype(complex)) / data.dt
+    if not np.all(np.isfinite(s)):
+        return None
+    return np.where(s.real > 0, -s.real + 1j * s.imag, s)
+
+
+def _candidate_linear(linear, data, drives) -> dict:
+    """Free coefficients of stable candidate blocks, grouped by the half-plane of their zeros.
+
+    Pole sets: the scan patterns over the record's bandwidth and the ARX fit.
+    Zeros (if any) sit at a scanned frequency, in the left half-plane or, for
+    a non-minimum-phase plant, in the right half-plane.  A local search cannot
+    move a zero across the origin (the gain vanishes there), so both groups
+    are refined.
+    """
+    freqs = _frequencies(data)
+    pole_sets = [_poles(pattern, w, linear.den_order)
+                 for pattern in (POLE_PATTERNS if linear.den_order >= 2 else ("real",)) for w in freqs]
+    arx = _arx_poles(data, drives, linear.den_order)
+    if arx is not None:
+        pole_sets.append(arx)
+    groups: dict = {}
+    for i, poles in enumerate(pole_sets):
+        den = np.real(np.poly(poles))
+        zero_freqs = freqs if i == len(pole_sets) - 1 and arx is not None else [freqs[i % freqs.size]]
+        for w in zero_freqs:
+            for side in ZERO_SIDES if linear.num_order else (-1.0,):
+                num = np.real(np.poly(side * w * np.ones(linear.num_order)))
+                groups.setdefault(side, []).append(linear.free_parameters(num, den))
+    return {side: np.unique(np.array(rows), axis=0) for side, rows in groups.items()}
+
+
+def stabilize(linear, theta) -> np.ndarray:
+    """Reflect right-half-plane poles of a linear block into the left half-plane.
+
+    Fixed coefficients keep their values (so a fixed pole at the origin stays).
+
+    Examples
+    --------
+    >>> from hammerstein_ctrl.structure import LinearStructure
+    >>> stabilize(LinearStructure(0, 2, fixed={"a0": 0.0}), [-1.0]).tolist()   # p^2 - p -> p^2 + p
+    [1.0]
+    """
+    theta = np.asarray(theta, dtype=float)
+    num, den = linear.coefficients(theta)
+    if not unstable(den)[0]:
+        return theta.copy()
+    roots = np.roots(den[0])
+    roots = np.where(roots.real > 0, -roots.real + 1j * roots.imag, roots)
+    return linear.free_parameters(num[0], np.real(np.poly(roots)))
+
+
+# ---------------------------------------------------------------------------
+# least squares with H fixed
+# ---------------------------------------------------------------------------
+def _drives(nonlinearity, u) -> np.ndarray:
+    """Signals whose responses span the output with ``H`` fixed: the basis, else ``[u, 1]``."""
+    basis = nonlinearity.basis(u)
+    if basis is not None:
+        return np.asarray(basis, dtype=float)
+    return np.stack([u, np.ones_like(u)])
+
+
+class _Regression:
+    """Least-squares fit of ``y`` by responses of one linear block (and nuisance columns)."""
+
+    def __init__(self, structure, data, budget: Budget):
+        self.structure, self.data, self.budget = structure, data, budget
+        self.y = np.asarray(data.y, dtype=float)
+
+    def columns(self, theta, drives) -> np.ndarray:
+        """Responses of ``H(theta)`` to each drive, then offset and free-response columns."""
+        self.budget.charge(1)
+        num, den = self.structure.linear.coefficients(theta)
+        k = drives.shape[0]
+        cols = simulate_batch(np.repeat(num, k, 0), np.repeat(den, k, 0), drives, self.data.dt,
+                              intersample=self.data.intersample)
+        parts = [cols.T]
+        if self.structure.offset:
+            parts.append(np.ones((self.y.size, 1)))
+        if self.structure.initial_state == "estimate":
+            parts.append(free_response(num[0], den[0], self.data.dt, self.y.size))
+        return np.column_stack(parts)
+
+    def solve(self, Phi):
+        """Coefficients and residual of the least-squares fit (``None`` if not finite)."""
+        with np.errstate(all="ignore"):
+            scale = np.sqrt(np.sum(Phi * Phi, axis=0))
+        if not (np.all(np.isfinite(Phi)) and np.all(np.isfinite(scale))):
+            return None, None
+        scale[scale == 0] = 1.0
+        w = scipy.linalg.lstsq(Phi / scale, self.y, lapack_driver="gelsy", check_finite=False)[0] / scale
+        return w, self.y - Phi @ w
+
+
+def _reduced_sse(reg: _Regression, theta, drives) -> float:
+    w, r = reg.solve(reg.columns(theta, drives))
+    return np.inf if r is None else float(r @ r)
+
+
+def _refine_linear(reg: _Regression, theta, drives) -> tuple[np.ndarray, float]:
+    """Levenberg-Marquardt on the variable-projection residual over the linear coefficients."""
+    big = np.sqrt(np.finfo(float).max) / max(reg.y.size, 1)
+
+    def residual(th):
+        _, r = reg.solve(reg.columns(th, drives))
+        return np.full(reg.y.size, big) if r is None else r
+
+    evaluations = int(min(REFINE_EVALUATIONS, reg.budget.remaining))
+    if theta.size == 0 or evaluations <= theta.size + 1:
+        return theta, _reduced_sse(reg, theta, drives)
+    try:
+        res = scipy.optimize.least_squares(residual, theta, method="lm", max_nfev=evaluations,
+                                           xtol=REFINE_TOL, ftol=REFINE_TOL, gtol=REFINE_TOL, x_scale="jac")
+    except BudgetSpent:
+        return theta, np.inf
+    return res.x, float(res.fun @ res.fun)
+
+
+def _nonlinearity_params(reg: _Regression, theta, u) -> tuple[np.ndarray, np.ndarray] | None:
+    """``(g parameters, nuisance coefficients)`` with ``H(theta)`` fixed, or ``None``."""
+    nl = reg.structure.nonlinearity
+    basis = nl.basis(u)
+    if basis is not None:
+        w, r = reg.solve(reg.columns(theta, np.asarray(basis, dtype=float)))
+        return None if w is None else (w[:nl.n_params], w[nl.n_params:])
+    grid = nl.shape_grid(u)
+    if grid is None or nl.scale_index is None:
+        return None
+    best = None
+    for p in grid:
+        w, r = reg.solve(reg.columns(theta, nl(u, p)[None, :]))
+        if w is not None and (best is None or r @ r < best[0]):
+            q = p.copy()
+            q[nl.scale_index] = w[0]
+            best = (float(r @ r), q, w[1:])
+    return None if best is None else (best[1], best[2])
+
+
+def _assemble(structure, theta, g_params, nuisance) -> np.ndarray:
+    return structure.normalize(np.concatenate([theta, g_params, nuisance]))
+
+
+def initial_points(data, structure, budget: Budget, *, count: int = REFINED_CANDIDATES) -> list[np.ndarray]:
+    """Candidate starting betas for ``structure`` on ``data``, best first.
+
+    Parameters
+    ----------
+    data : IOData
+    structure : HammersteinStructure
+    budget : Budget
+        Shared evaluation counter; every simulated candidate costs one.
+    count : int
+        How many scan candidates to refine and return (at most).
+
+    Returns
+    -------
+    list of ndarray
+        Full beta vectors (with offset and initial state where the structure
+        estimates them).  Empty if the budget runs out first.
+
+    Raises
+    ------
+    ParameterError
+        For a nonlinearity with neither a basis nor a scan (e.g. a
+        :class:`~hammerstein_ctrl.nonlinearities.CustomNonlinearity`): give ``x0``.
+    """
+    nl = structure.nonlinearity
+    u = np.asarray(data.u, dtype=float)
+    if nl.basis(u) is None and (nl.shape_grid(u) is None or nl.scale_index is None):
+        raise ParameterError(
+            f"no automatic initial point for the {nl.name!r} nonlinearity (it has neither a basis nor a "
+            f"scan); give x0 = [{', '.join(structure.param_names)}]")
+    reg = _Regression(structure, data, budget)
+    drives = _drives(nl, u)
+    try:
+        starts = []
+        for rows in _candidate_linear(structure.linear, data, drives).values():
+            scored = sorted(((_reduced_sse(reg, theta, drives), i) for i, theta in enumerate(rows)))
+            starts += [rows[i] for _, i in scored[:count]]
+        refined = sorted((_refine_linear(reg, theta, drives) for theta in starts), key=lambda item: item[1])
+        points = []
+        for theta, _ in refined[:count]:
+            fitted = _nonlinearity_params(reg, theta, u)
+            if fitted is not None:
+                points.append(_assemble(structure, theta, *fitted))
+    except BudgetSpent:
+        return []
+    return points
+
+
+def nuisance_estimate(data, structure, core, budget: Budget) -> np.ndarray:
+    """Least-squares offset and initial state for given block parameters ``core``.
+
+    Returns the full beta (``core`` followed by the estimates); ``core`` itself
+    when the structure estimates neither.
+    """
+    core = np.asarray(core, dtype=float)
+    if structure.n_params == core.size:
+        return core.copy()
+    k = structure.linear.n_params
+    reg = _Regression(structure, data, budget)
+    v = structure.nonlinearity(np.asarray(data.u, dtype=float), core[k:])
+    w, _ = reg.solve(reg.columns(core[:k], v[None, :]))
+    extra = np.zeros(structure.n_params - core.size) if w is None else w[1:]
+    return np.concatenate([core, extra])
+
+
+def static_affine_sse(data) -> float:
+    """Sum of squared errors of the best static affine model ``y = k u + c``.
+
+    A dynamic model that does no better than this has found nothing.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from hammerstein_ctrl import IOData
+    >>> static_affine_sse(IOData(np.arange(5.0), 2 * np.arange(5.0) + 1, dt=1.0)) < 1e-20
+    True
+    """
+    u, y = np.asarray(data.u, dtype=float), np.asarray(data.y, dtype=float)
+    X = np.column_stack([u, np.ones_like(u)])
+    w, *_ = np.linalg.lstsq(X, y, rcond=None)
+    r = y - X @ w
+    return float(r @ r)
+
+
+def estimate_initial_state(model, data) -> np.ndarray:
+    """Least-squares initial state of ``model`` on ``data`` (its other parameters fixed).
+
+    Examples
+    --------
+    >>> import numpy as np, control as ct
+    >>> from hammerstein_ctrl import HammersteinModel, Coulomb, IOData
+    >>> m = HammersteinModel(ct.tf([1], [1, 1.0, 4.0]), Coulomb(), [1.0, 0.0, 0.0], initial_state=[0.5, -1.0])
+    >>> t = np.arange(0, 10, 0.01); d = IOData(np.sin(t), m.simulate(t, np.sin(t)), t)
+    >>> estimate_initial_state(m, d).round(6).tolist()
+    [0.5, -1.0]
+    """
+    rest = model.simulate(data, initial_state=np.zeros(model.order))
+    num, den = model.linear.num[0][0], model.linear.den[0][0]
+    Phi = free_response(num, den, data.dt, len(data))
+    if not (np.all(np.isfinite(Phi)) and np.all(np.isfinite(rest))):
+        return np.zeros(model.order)
+    x0, *_ = np.linalg.lstsq(Phi, np.asarray(data.y, dtype=float) - rest, rcond=None)
+    return x0

@@ -1,0 +1,374 @@
+"""The validated input/output record :class:`IOData` and its preprocessing.
+
+A record from a real rig rarely arrives ready to identify: the time stamps
+jitter or a sample was dropped, the interesting part is a window of a longer
+run, the output sits on an offset or drifts.  :class:`IOData` holds a record on
+an exactly uniform grid and offers the usual preparations, each returning a new
+record:
+
+* ``IOData(u, y, t, resample="linear")`` builds a record from jittered or gappy
+  time stamps by interpolation (see :meth:`IOData.resample` for the methods);
+* :meth:`IOData.window` keeps ``start <= t < stop`` (seconds);
+* :meth:`IOData.detrend` removes the mean or a straight line;
+* :meth:`IOData.remove_offset` subtracts given constants (or the first sample);
+* :meth:`IOData.check_identifiable` rejects records with nothing to identify.
+
+Examples
+--------
+>>> import numpy as np
+>>> from hammerstein_ctrl.iodata import IOData
+>>> d = IOData(u=np.zeros(5), y=np.arange(5.0), dt=0.5, name="toy")
+>>> d
+IOData('toy', N=5, dt=0.5 s, t=[0, 2] s)
+>>> u, y = d
+>>> d[1:3].t
+array([0.5, 1. ])
+>>> d.window(0.5, 1.5).y
+array([1., 2.])
+>>> d.detrend().y
+array([-2., -1.,  0.,  1.,  2.])
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from ._checks import (
+    GRID_TOLERANCE,
+    as_signal,
+    check_dt,
+    check_intersample,
+    check_tolerance,
+    finite_float,
+    optional_time,
+    resampling_grid,
+    uniform_grid,
+)
+from .exceptions import DataError
+
+__all__ = ["IOData", "RESAMPLE_METHODS", "DETREND_KINDS"]
+
+#: Interpolation methods of :meth:`IOData.resample` (for the input; the output
+#: is always interpolated linearly).
+RESAMPLE_METHODS = ("linear", "zoh")
+#: Trends :meth:`IOData.detrend` removes.
+DETREND_KINDS = ("constant", "linear")
+_SIGNAL_CHOICES = ("y", "u", "both")
+#: A time stamp this fraction of dt after a grid point counts as on it (ZOH lookup).
+_ON_GRID = 1e-9
+
+
+def _check_choice(value, choices, what: str) -> str:
+    key = str(value).strip().lower()
+    if key not in choices:
+        raise DataError(f"{what} must be one of {choices}, got {value!r}")
+    return key
+
+
+def _interpolate(t, u, y, grid, method: str, dt: float):
+    """Values of ``u`` (linear or held) and ``y`` (linear) at the times ``grid``."""
+    y_new = np.interp(grid, t, y)
+    if method == "linear":
+        return np.interp(grid, t, u), y_new
+    idx = np.searchsorted(t, grid + _ON_GRID * dt, side="right") - 1
+    return u[np.clip(idx, 0, t.size - 1)], y_new
+
+
+class IOData:
+    """A SISO input/output record on a uniform time grid.
+
+    Parameters
+    ----------
+    u, y : array_like, shape (N,)
+        Input and output samples (``(N, 1)`` columns are accepted).
+    t : array_like, shape (N,), optional
+        Sample times, strictly increasing.  Without ``resample`` they must be
+        uniform to within ``tolerance * dt`` and are regularised to exactly
+        ``t0 + k*dt``; with ``resample`` they may jitter or have short gaps.
+    dt : float, optional
+        Sampling interval, used when ``t`` is not given (``t = k*dt``), or the
+        interval of the resampled grid.
+    name : str
+        Label used in reports and plots.
+    input_name, output_name, input_unit, output_unit : str
+        Labels and units used on plot axes.
+    tolerance : float, default 1e-3
+        Allowed deviation of ``t`` from the uniform grid, as a fraction of dt
+        (``0 <= tolerance < 0.5``).  Time stamps that are noisy readings of a
+        uniform clock (the samples themselves were uniform) are accepted by
+        raising it; the error message says how far.
+    intersample : {"foh", "zoh"}, default "foh"
+        How the input behaves between samples, as MATLAB's ``iddata``
+        ``InterSample`` property: ``"foh"`` (linear between samples, the
+        paper's semantics) or ``"zoh"`` (held constant, as from a DAC).
+        Simulation and identification on this record honour it exactly.
+    resample : {None, "linear", "zoh"}
+        Interpolate samples truly taken at the irregular times ``t`` onto the
+        uniform grid fitted to them (or of interval ``dt``); see
+        :meth:`resample`.  Gaps longer than ``MAX_RESAMPLE_GAP`` intervals
+        are refused.
+
+    Raises
+    ------
+    DataError
+        On NaN/inf samples, empty or mismatched signals, a non-increasing or
+        irregular time grid (naming the sample and the tolerance or resampling
+        that would help), or a missing/invalid ``dt``.
+
+    Examples
+    --------
+    One dropped sample, interpolated back:
+
+    >>> t = np.array([0.0, 0.1, 0.2, 0.4, 0.5])
+    >>> d = IOData(2 * t, 3 * t, t, resample="linear")
+    >>> d.dt, d.y.round(12).tolist()
+    (0.1, [0.0, 0.3, 0.6, 0.9, 1.2, 1.5])
+    """
+
+    def __init__(
+        self,
+        u,
+        y,
+        t=None,
+        *,
+        dt: float | None = None,
+        name: str = "data",
+        input_name: str = "u",
+        output_name: str = "y",
+        input_unit: str = "",
+        output_unit: str = "",
+        tolerance: float = GRID_TOLERANCE,
+        intersample: str = "foh",
+        resample: str | None = None,
+    ):
+        self.intersample = check_intersample(intersample)
+        tolerance = check_tolerance(tolerance)
+        u = as_signal(u, "u")
+        y = as_signal(y, "y")
+        if u.size != y.size:
+            raise DataError(f"length mismatch: u has {u.size} samples but y has {y.size}")
+        if t is not None:
+            t_arr = as_signal(t, "t")
+            if t_arr.size != u.size:
+                raise DataError(f"length mismatch: t has {t_arr.size} samples but u and y have {u.size}")
+            if resample is not None:
+                method = _check_choice(resample, RESAMPLE_METHODS, "resample")
+                t_grid, step = resampling_grid(t_arr, dt)
+                u, y = _interpolate(t_arr, u, y, t_grid, method, step)
+            else:
+                t_grid, step = uniform_grid(t_arr, tolerance=tolerance)
+                if dt is not None and not np.isclose(step, check_dt(dt), rtol=max(tolerance, 1e-12), atol=0):
+                    raise DataError(f"dt = {dt!r} disagrees with the spacing of t ({step!r})")
+        else:
+            if resample is not None:
+                raise DataError("resample needs the sample times t")
+            if dt is None:
+                raise DataError("give the sample times t or the sampling interval dt")
+            step = check_dt(dt)
+            t_grid = step * np.arange(u.size)
+        if u.size < 2:
+            raise DataError("a record needs at least two samples")
+        for a in (t_grid, u, y):
+            a.setflags(write=False)
+        self.t, self.u, self.y, self.dt = t_grid, u, y, float(step)
+        self.name = str(name)
+        self.input_name, self.output_name = input_name, output_name
+        self.input_unit, self.output_unit = input_unit, output_unit
+
+    # -- container protocol -------------------------------------------------
+    def __len__(self) -> int:
+        return self.u.size
+
+    def __iter__(self):
+        return iter((self.u, self.y))
+
+    def __getitem__(self, index) -> "IOData":
+        if not isinstance(index, slice):
+            raise TypeError("IOData supports slicing only, e.g. data[:12000] or data[::2]")
+        start, stop, step = index.indices(len(self))
+        if step <= 0:
+            raise DataError("IOData slices must have a positive step (time runs forward)")
+        idx = np.arange(start, stop, step)
+        if idx.size < 2:
+            raise DataError(f"slice {index} leaves {idx.size} sample(s); a record needs at least two")
+        return self._replace(u=self.u[idx], y=self.y[idx], t=self.t[idx])
+
+    def _replace(self, **changes) -> "IOData":
+        kw = dict(
+            u=self.u, y=self.y, t=self.t, name=self.name, input_name=self.input_name,
+            output_name=self.output_name, input_unit=self.input_unit, output_unit=self.output_unit,
+            intersample=self.intersample,
+        )
+        kw.update(changes)
+        return IOData(**kw)
+
+    # -- convenience ----------------------------------------------------------
+    @property
+    def sampling_time(self) -> float:
+        """Alias of :attr:`dt` (the name used by ``nonlinear_benchmarks``)."""
+        return self.dt
+
+    @property
+    def duration(self) -> float:
+        """``t[-1] - t[0]``."""
+        return float(self.t[-1] - self.t[0])
+
+    # -- preprocessing ------------------------------------------------------------
+    def window(self, start: float | None = None, stop: float | None = None) -> "IOData":
+        """The samples with ``start <= t < stop`` (seconds; ``None`` is open-ended).
+
+        Times keep their origin (a window from 2 s starts at ``t = 2``).
+
+        Raises
+        ------
+        DataError
+            If the window keeps fewer than two samples or a bound is not a finite number.
+
+        Examples
+        --------
+        >>> d = IOData(np.arange(10.0), np.arange(10.0), dt=0.5)
+        >>> d.window(1.0, 3.0).t.tolist()
+        [1.0, 1.5, 2.0, 2.5]
+        """
+        start = optional_time(start, "start")
+        stop = optional_time(stop, "stop")
+        t0 = self.t[0]
+        lo = 0 if start is None else int(np.ceil((start - t0) / self.dt - _ON_GRID))
+        hi = len(self) if stop is None else int(np.ceil((stop - t0) / self.dt - _ON_GRID))
+        lo, hi = min(max(lo, 0), len(self)), min(max(hi, 0), len(self))
+        if hi - lo < 2:
+            raise DataError(
+                f"window(start={start}, stop={stop}) keeps {max(hi - lo, 0)} sample(s) of the record's "
+                f"t = [{self.t[0]:g}, {self.t[-1]:g}] s; a record needs at least two"
+            )
+        return self[lo:hi]
+
+    def detrend(self, kind: str = "constant", which: str = "y") -> "IOData":
+        """Remove the mean (``kind="constant"``) or the least-squares line in t (``"linear"``).
+
+        Parameters
+        ----------
+        kind : {"constant", "linear"}
+        which : {"y", "u", "both"}
+            The signal(s) to detrend.
+
+        Examples
+        --------
+        >>> d = IOData(np.ones(4), [1.0, 3.0, 5.0, 7.0], dt=1.0)
+        >>> d.detrend("linear").y.round(12).tolist()
+        [0.0, 0.0, 0.0, 0.0]
+        """
+        kind = _check_choice(kind, DETREND_KINDS, "kind")
+        which = _check_choice(which, _SIGNAL_CHOICES, "which")
+        tau = self.t - self.t[0]
+
+        def trend_free(x):
+            if kind == "constant":
+                return x - x.mean()
+            slope, intercept = np.polyfit(tau, x, 1)
+            return x - (intercept + slope * tau)
+
+        return self._replace(
+            u=trend_free(self.u) if which in ("u", "both") else self.u,
+            y=trend_free(self.y) if which in ("y", "both") else self.y,
+        )
+
+    def remove_offset(self, y=0.0, u=0.0) -> "IOData":
+        """Subtract constants from the output and input.
+
+        Parameters
+        ----------
+        y, u : float or "initial"
+            The constant to subtract, or ``"initial"`` for the first sample
+            (so the signal starts at 0, as the from-rest simulation assumes).
+
+        Examples
+        --------
+        >>> d = IOData([1.0, 2.0], [5.0, 6.0], dt=1.0)
+        >>> d.remove_offset(y="initial", u=1.0).y.tolist(), d.remove_offset(u=1.0).u.tolist()
+        ([0.0, 1.0], [0.0, 1.0])
+        """
+        def offset(value, x, label):
+            if isinstance(value, str):
+                _check_choice(value, ("initial",), f"{label} offset")
+                return x[0]
+            return finite_float(value, f"{label} offset", "a finite number or 'initial'")
+
+        return self._replace(u=self.u - offset(u, self.u, "u"), y=self.y - offset(y, self.y, "y"))
+
+    def resample(self, dt: float, method: str | None = None) -> "IOData":
+        """The record interpolated onto the uniform grid of interval ``dt``.
+
+        The grid starts at ``t[0]`` and keeps the points up to ``t[-1]``.  No
+        anti-aliasing filter is applied: to lower the rate of a record with
+        content above the new Nyquist frequency, filter it first.  Irregular
+        time stamps are resampled when the record is built
+        (``IOData(u, y, t, resample=...)`` or ``read_record(..., resample=...)``),
+        with the same methods.
+
+        Parameters
+        ----------
+        dt : float
+            The new sampling interval (s).
+        method : {"linear", "zoh"}, optional
+            How the input is interpolated: ``"linear"`` between samples, or
+            ``"zoh"`` holding the latest sample at or before each grid time (an
+            input held by a DAC).  The output is always interpolated linearly
+            (a measured output is continuous).  The default follows
+            :attr:`intersample` (``"zoh"`` for a held input).
+
+        Examples
+        --------
+        >>> d = IOData([0.0, 1.0, 2.0], [0.0, 2.0, 4.0], dt=1.0)
+        >>> d.resample(0.5).y.tolist(), d.resample(0.5, "zoh").u.tolist()
+        ([0.0, 1.0, 2.0, 3.0, 4.0], [0.0, 0.0, 1.0, 1.0, 2.0])
+        """
+        if method is None:
+            method = "zoh" if self.intersample == "zoh" else "linear"
+        method = _check_choice(method, RESAMPLE_METHODS, "method")
+        grid, step = resampling_grid(self.t, check_dt(dt), max_gap=np.inf)
+        u, y = _interpolate(self.t, self.u, self.y, grid, method, step)
+        return self._replace(u=u, y=y, t=grid)
+
+    def check_identifiable(self, n_params: int | None = None) -> None:
+        """Raise a :class:`DataError` if the record cannot identify a model.
+
+        The problems checked: an output that never changes (nothing to
+        identify), an input that is zero throughout (nothing excites the
+        system), and, given ``n_params``, fewer samples than parameters.
+
+        Examples
+        --------
+        >>> IOData([0.0, 1.0, 0.0], [0.5, 0.5, 0.5], dt=1.0).check_identifiable()
+        Traceback (most recent call last):
+        ...
+        hammerstein_ctrl.exceptions.DataError: record 'data': output y is constant (every sample is 0.5); nothing to identify
+        """
+        problems = []
+        if np.ptp(self.y) == 0:
+            problems.append(f"output y is constant (every sample is {self.y[0]:g}); nothing to identify")
+        if not np.any(self.u):
+            problems.append("input u is zero throughout; nothing excites the system")
+        if n_params is not None and len(self) < n_params:
+            problems.append(f"only {len(self)} samples for {n_params} parameters")
+        if problems:
+            raise DataError(f"record {self.name!r}: " + "; ".join(problems))
+
+    def to_csv(self, path) -> Path:
+        """Write ``t,u,y`` with full precision (readable by :func:`~hammerstein_ctrl.records.read_record`)."""
+        path = Path(path)
+        header = (
+            f"# {self.name}\n# input: {self.input_name} [{self.input_unit}], "
+            f"output: {self.output_name} [{self.output_unit}], dt = {self.dt!r} s\nt,u,y"
+        )
+        np.savetxt(path, np.column_stack([self.t, self.u, self.y]), delimiter=",", fmt="%.17g",
+                   header=header, comments="")
+        return path
+
+    def __repr__(self) -> str:
+        return (
+            f"IOData({self.name!r}, N={len(self)}, dt={self.dt:g} s, "
+            f"t=[{self.t[0]:g}, {self.t[-1]:g}] s)"
+        )

@@ -1,0 +1,467 @@
+"""Reading a user's own input/output record from a CSV, text, MAT or NPZ file.
+
+:func:`read_record` turns a file into an :class:`~hammerstein_ctrl.iodata.IOData`
+or raises a :class:`~hammerstein_ctrl.exceptions.DataError` naming the file and
+the problem (never a parser's traceback, never a silently wrong record):
+undecodable or truncated files, object or complex arrays, wrong shapes, text
+where numbers belong, duplicated or irregular time stamps.  The time-base
+options of real rigs (``tolerance``, ``resample``, ``start``/``stop``,
+``intersample``) are exposed, and :func:`add_record_arguments` /
+:func:`record_from_args` give a command line the same options.
+
+Examples
+--------
+>>> import tempfile, pathlib
+>>> path = pathlib.Path(tempfile.mkdtemp()) / "rig.csv"
+>>> _ = path.write_text("time [s];force [N];position [m]\\n0;0,5;1\\n0,1;1,5;2\\n0,2;2,5;3\\n")
+>>> d = read_record(path, input="force", output="position")  # names match without units
+>>> d.dt, d.u.tolist()
+(0.1, [0.5, 1.5, 2.5])
+"""
+
+from __future__ import annotations
+
+import argparse
+import codecs
+import csv
+import os
+from pathlib import Path
+
+import numpy as np
+
+from ._checks import GRID_TOLERANCE, INTERSAMPLE, as_signal, check_dt, optional_time
+from .exceptions import DataError
+from .iodata import RESAMPLE_METHODS, IOData
+
+__all__ = ["read_record", "DataNotFoundError", "add_record_arguments", "record_from_args", "FILE_TYPES"]
+
+#: File suffixes :func:`read_record` reads.
+FILE_TYPES = (".csv", ".txt", ".mat", ".npz")
+_TIME_NAMES = ("t", "time")
+_INPUT_NAMES = ("u", "input", "vir")
+_OUTPUT_NAMES = ("y", "output", "qm")
+#: Longest excerpt of a bad field or parser message quoted in an error.
+_QUOTE = 60
+#: Most column names listed in an error.
+_LISTED = 12
+#: Delimiters recognised in text files, by priority (None: whitespace).
+_DELIMITERS = (";", ",", "\t")
+
+
+class DataNotFoundError(DataError, FileNotFoundError):
+    """A data file could not be located."""
+
+
+def _quote(text) -> str:
+    text = " ".join(str(text).split())
+    return repr(text if len(text) <= _QUOTE else text[:_QUOTE] + "...")
+
+
+# ---------------------------------------------------------------------------
+# text files
+# ---------------------------------------------------------------------------
+def _decode(path: Path) -> str:
+    raw = path.read_bytes()
+    if raw.startswith((codecs.BOM_UTF16_LE, codecs.BOM_UTF16_BE)):
+        raise DataError(f"{path}: the file is UTF-16 text; save it as UTF-8 (or plain ASCII) CSV")
+    try:
+        text = raw.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        line = raw[: exc.start].count(b"\n") + 1
+        raise DataError(
+            f"{path}: not UTF-8 text (byte 0x{raw[exc.start]:02x} on line {line}); "
+            "save the file as UTF-8 (or plain ASCII) CSV"
+        ) from None
+    if "\x00" in text:
+        line = text[: text.index("\x00")].count("\n") + 1
+        raise DataError(f"{path}: NUL bytes on line {line}: binary data, or UTF-16 text without a "
+                        "byte-order mark; save the file as UTF-8 CSV")
+    return text
+
+
+def _content_lines(text: str) -> list[tuple[int, str]]:
+    """(line number, line) of the lines that are neither blank nor ``#`` comments."""
+    return [(i, ln) for i, ln in enumerate(text.splitlines(), 1)
+            if ln.strip() and not ln.lstrip().startswith("#")]
+
+
+def _split_rows(path: Path, lines) -> tuple[list[tuple[int, list[str]]], str | None]:
+    first = lines[0][1]
+    delimiter = next((d for d in _DELIMITERS if d in first), None)
+    if delimiter is None:
+        return [(n, ln.split()) for n, ln in lines], None
+    rows = []
+    reader = csv.reader((ln for _, ln in lines), delimiter=delimiter)
+    try:
+        for (n, _), fields in zip(lines, reader):
+            rows.append((n, [f.strip() for f in fields]))
+    except csv.Error as exc:
+        n = lines[len(rows)][0]
+        raise DataError(f"{path}: line {n}: {exc} (a corrupt or non-CSV file?)") from None
+    return rows, delimiter
+
+
+def _number(field: str, delimiter) -> float:
+    if delimiter == ";" and "," in field and "." not in field:
+        field = field.replace(",", ".")  # decimal comma (semicolon-separated files)
+    return float(field)
+
+
+def _is_numeric_row(fields, delimiter) -> bool:
+    try:
+        [_number(f, delimiter) for f in fields]
+    except ValueError:
+        return False
+    return True
+
+
+def _header_names(path: Path, fields) -> list[str]:
+    names = []
+    for j, name in enumerate(fields):
+        if not name:
+            raise DataError(f"{path}: column {j + 1} of the header has no name")
+        if name in names:
+            raise DataError(f"{path}: duplicated column name {name!r} in the header "
+                            f"(columns {names.index(name) + 1} and {j + 1})")
+        names.append(name)
+    return names
+
+
+def _bad_field_message(path, n, fields, names, delimiter) -> str:
+    for name, f in zip(names, fields):
+        try:
+            _number(f, delimiter)
+        except ValueError:
+            pass
+        else:
+            continue
+        try:
+            complex(f.replace(" ", ""))
+        except ValueError:
+            return f"{path}: line {n}: column {name!r} holds {_quote(f)}, not a number"
+        return (f"{path}: line {n}: column {name!r} holds the complex value {_quote(f)}; "
+                "hammerstein_ctrl needs real signals")
+    return f"{path}: line {n}: a field is not a number"  # pragma: no cover - guarded by the caller
+
+
+def _read_text_columns(path: Path) -> dict:
+    lines = _content_lines(_decode(path))
+    if not lines:
+        raise DataError(f"{path}: no data rows (the file is empty or holds only comments)")
+    rows, delimiter = _split_rows(path, lines)
+    if _is_numeric_row(rows[0][1], delimiter):
+        names = {2: ["u", "y"], 3: ["t", "u", "y"]}.get(len(rows[0][1]))
+        if names is None:
+            raise DataError(
+                f"{path}: a file without a header must have 2 columns (u, y) or 3 (t, u, y), "
+                f"found {len(rows[0][1])} on line {rows[0][0]}"
+            )
+        body = rows
+    else:
+        names = _header_names(path, rows[0][1])
+        body = rows[1:]
+        if not body:
+            raise DataError(f"{path}: a header ({', '.join(names)}) but no data rows")
+    values = np.empty((len(body), len(names)))
+    for i, (n, fields) in enumerate(body):
+        if len(fields) != len(names):
+            raise DataError(f"{path}: line {n} has {len(fields)} fields, expected {len(names)} "
+                            f"({', '.join(names)})")
+        try:
+            values[i] = [_number(f, delimiter) for f in fields]
+        except ValueError:
+            raise DataError(_bad_field_message(path, n, fields, names, delimiter)) from None
+    return {name: values[:, j] for j, name in enumerate(names)}
+
+
+# ---------------------------------------------------------------------------
+# binary files
+# ---------------------------------------------------------------------------
+def _read_mat_columns(path: Path) -> dict:
+    import scipy.io
+
+    try:
+        raw = scipy.io.loadmat(path)
+    except NotImplementedError:
+        raise DataError(f"{path}: MATLAB v7.3 (HDF5) MAT files are not supported; "
+                        "save with save(..., '-v7') or export a CSV") from None
+    except Exception as exc:  # noqa: BLE001 - a parser of foreign files can raise anything
+        raise DataError(f"{path}: not a readable MAT file ({type(exc).__name__}: {_quote(exc)})") from None
+    columns = {k: v for k, v in raw.items() if not k.startswith("__")}
+    if not columns:
+        raise DataError(f"{path}: the MAT file holds no variables")
+    return columns
+
+
+def _read_npz_columns(path: Path) -> dict:
+    try:
+        archive = np.load(path, allow_pickle=False)
+    except Exception as exc:  # noqa: BLE001 - see _read_mat_columns
+        raise DataError(f"{path}: not a readable NPZ archive ({type(exc).__name__}: {_quote(exc)})") from None
+    if isinstance(archive, np.ndarray):
+        raise DataError(f"{path}: this is a single NumPy array (.npy), not an .npz archive of named "
+                        "arrays; save with numpy.savez(path, t=t, u=u, y=y)")
+    columns = {}
+    with archive:
+        for key in archive.files:
+            try:
+                columns[key] = archive[key]
+            except ValueError as exc:
+                if "allow_pickle" in str(exc):
+                    raise DataError(f"{path}: array {key!r} holds Python objects, which are not loaded "
+                                    "(unsafe pickles); save plain numeric arrays") from None
+                raise DataError(f"{path}: array {key!r} is unreadable ({_quote(exc)})") from None
+            except Exception as exc:  # noqa: BLE001 - truncated/corrupt members
+                raise DataError(f"{path}: array {key!r} is unreadable, the archive looks truncated or "
+                                f"corrupt ({type(exc).__name__}: {_quote(exc)})") from None
+            if not isinstance(columns[key], np.ndarray):  # NpzFile returns raw bytes of non-.npy members
+                raise DataError(f"{path}: member {key!r} of the archive is not a NumPy array")
+    if not columns:
+        raise DataError(f"{path}: the NPZ archive holds no arrays")
+    return columns
+
+
+_KIND_NAMES = {"O": "Python objects or a MATLAB cell array", "V": "a MATLAB struct or record array",
+               "U": "text", "S": "text", "M": "dates (convert them to seconds)",
+               "m": "time differences (convert them to seconds)"}
+
+
+def _vector(path: Path, name: str, value) -> np.ndarray:
+    """The column ``name`` as a real 1-D float array, or a DataError naming the problem."""
+    if hasattr(value, "toarray"):  # scipy.sparse from a MAT file
+        value = value.toarray()
+    a = np.asarray(value)
+    kind = a.dtype.kind
+    if kind == "c":
+        bad = np.flatnonzero(np.imag(a).ravel())
+        where = f" (first at sample {bad[0]}: {a.ravel()[bad[0]]})" if bad.size else ""
+        raise DataError(f"{path}: column {name!r} holds complex values{where}; hammerstein_ctrl needs "
+                        "real signals (take the real part or the magnitude first)")
+    if kind not in "biuf":
+        raise DataError(f"{path}: column {name!r} holds {_KIND_NAMES.get(kind, a.dtype)}, not numbers")
+    if a.ndim > 1 and sum(d > 1 for d in a.shape) <= 1:
+        a = a.reshape(-1)
+    if a.ndim != 1:
+        raise DataError(f"{path}: column {name!r} has shape {a.shape}; expected a vector (one signal)")
+    if a.size == 0:
+        raise DataError(f"{path}: column {name!r} is empty")
+    return a.astype(float)
+
+
+# ---------------------------------------------------------------------------
+# columns and records
+# ---------------------------------------------------------------------------
+def _base(name: str) -> str:
+    """A column name without units or case: ``"Time [s]"`` -> ``"time"``."""
+    return name.split("[")[0].split("(")[0].strip().lower()
+
+
+def _describe(columns: dict) -> str:
+    parts = []
+    for k, v in list(columns.items())[:_LISTED]:
+        shape = np.shape(v)
+        parts.append(k if len(shape) == 1 else f"{k} {shape}")
+    more = f", ... ({len(columns)} in all)" if len(columns) > _LISTED else ""
+    return ", ".join(parts) + more
+
+
+def _pick(columns: dict, wanted, defaults, role: str, path) -> str | None:
+    """The column for ``role``: ``wanted`` (exactly, else without case/units), else a default name."""
+    if wanted is not None:
+        wanted = str(wanted)
+        if wanted in columns:
+            return wanted
+        matches = [c for c in columns if _base(c) == _base(wanted)]
+        if len(matches) > 1:
+            raise DataError(f"{path}: several {role} columns match {wanted!r}: {', '.join(matches)}; "
+                            "give the exact name")
+        if not matches:
+            raise DataError(f"{path}: no {role} column {wanted!r}; available: {_describe(columns)}")
+        return matches[0]
+    matches = [c for c in columns if _base(c) in defaults]
+    if len(matches) > 1:
+        raise DataError(f"{path}: several columns could be the {role}: {', '.join(matches)}; "
+                        f"choose one with {role}= (--{role} on the command line)")
+    return matches[0] if matches else None
+
+
+def _select(path: Path, columns: dict, input, output, time, dt):
+    keys = {role: _pick(columns, w, d, role, path) for role, w, d in (
+        ("input", input, _INPUT_NAMES), ("output", output, _OUTPUT_NAMES), ("time", time, _TIME_NAMES))}
+    for role in ("input", "output"):
+        if keys[role] is None:
+            raise DataError(
+                f"{path}: cannot tell which column is the {role}; available: {_describe(columns)} "
+                "(name it with input=/output=, or --input/--output on the command line)"
+            )
+    chosen = [k for k in keys.values() if k is not None]
+    if len(set(chosen)) < len(chosen):
+        raise DataError(f"{path}: the same column is chosen for two roles: {keys}")
+    if keys["time"] is None and dt is None:
+        raise DataError(f"{path}: no time column ({'/'.join(_TIME_NAMES)}); give dt (--dt)")
+    return [None if keys[r] is None else _vector(path, keys[r], columns[keys[r]])
+            for r in ("input", "output", "time")]
+
+
+_READERS = {".csv": _read_text_columns, ".txt": _read_text_columns,
+            ".mat": _read_mat_columns, ".npz": _read_npz_columns}
+
+
+def _columns(path: Path) -> dict:
+    if not path.exists():
+        raise DataNotFoundError(f"data file not found: {path}")
+    if path.is_dir():
+        raise DataError(f"{path} is a folder; give the data file itself")
+    suffix = path.suffix.lower()
+    if suffix not in _READERS:
+        raise DataError(f"{path}: unsupported file type {suffix or '(no suffix)'!r}; "
+                        f"use {', '.join(FILE_TYPES)}")
+    try:
+        if path.stat().st_size == 0:
+            raise DataError(f"{path}: the file is empty")
+        return _READERS[suffix](path)
+    except OSError as exc:
+        raise DataError(f"{path}: cannot read the file ({exc.strerror or exc})") from None
+
+
+def _window_raw(u, y, t, start, stop):
+    """The samples with ``start <= t < stop`` of a record not yet on a grid."""
+    start, stop = optional_time(start, "start"), optional_time(stop, "stop")
+    t = as_signal(t, "t")
+    keep = np.ones(t.size, dtype=bool)
+    if start is not None:
+        keep &= t >= start
+    if stop is not None:
+        keep &= t < stop
+    if keep.sum() < 2:
+        raise DataError(f"start={start}, stop={stop} keep {int(keep.sum())} sample(s) of the record's "
+                        f"t = [{t.min():g}, {t.max():g}] s; a record needs at least two")
+    return u[keep], y[keep], t[keep]
+
+
+def read_record(
+    path,
+    *,
+    input: str | None = None,
+    output: str | None = None,
+    time: str | None = None,
+    dt: float | None = None,
+    name: str | None = None,
+    start: float | None = None,
+    stop: float | None = None,
+    tolerance: float = GRID_TOLERANCE,
+    resample: str | None = None,
+    intersample: str = "foh",
+) -> IOData:
+    """Read a user's input/output record from a CSV, text, MAT or NPZ file.
+
+    Accepted layouts:
+
+    * **CSV / text**, UTF-8 (a byte-order mark is fine), separated by commas,
+      semicolons (then decimal commas are accepted), tabs or blanks, with a
+      header row naming the columns (``#`` lines are comments).  Names match
+      without case or units: ``Time [s]`` is a time column.  By default the
+      time column is ``t``/``time``, the input ``u``/``input``/``vir`` and the
+      output ``y``/``output``/``qm``.  Without a header, 3 columns mean
+      ``t, u, y`` and 2 columns ``u, y`` (then ``dt`` is required).
+    * **MAT** (``scipy.io.loadmat``, up to v7) or **NPZ** files with one vector
+      per variable, named as above (e.g. the EMPS files work unchanged).
+
+    Parameters
+    ----------
+    path : str or Path
+    input, output, time : str, optional
+        Column/variable names overriding the defaults.
+    dt : float, optional
+        Sampling interval when the file has no time column, or the interval of
+        the resampled grid.
+    name : str, optional
+        Record name (defaults to the file name).
+    start, stop : float, optional
+        Keep the samples with ``start <= t < stop`` (seconds), applied before
+        the time grid is checked, so a part without a gap can be kept.
+    tolerance : float, default 1e-3
+        How far (a fraction of dt) time stamps may stray from the uniform grid
+        and still be taken as uniform: raise it when the stamps are noisy
+        readings of a uniform clock.  Must be below 0.5.
+    resample : {None, "linear", "zoh"}
+        When the samples were truly taken at irregular times (jitter, a few
+        dropped samples), interpolate them onto a uniform grid: the input
+        linearly or held (``"zoh"``), the output linearly.  ``dt`` defaults
+        to the interval fitted to the time stamps; gaps longer than 10
+        intervals are refused.  See :meth:`IOData.resample`.
+    intersample : {"foh", "zoh"}
+        The input's behaviour between samples (:class:`IOData`).
+
+    Raises
+    ------
+    DataNotFoundError
+        If the file does not exist.
+    DataError
+        Naming the file and the problem: unknown format or column, an
+        undecodable, truncated or empty file, text, object, complex or
+        matrix-shaped data, or any problem :class:`IOData` detects.
+    """
+    if not isinstance(path, (str, os.PathLike)):
+        raise DataError(f"path must be a file name or path, got {path!r}")
+    path = Path(path).expanduser()
+    columns = _columns(path)
+    if dt is not None:
+        dt = check_dt(dt)
+    u, y, t = _select(path, columns, input, output, time, dt)
+    try:
+        if t is not None and (start is not None or stop is not None):
+            u, y, t = _window_raw(u, y, t, start, stop)
+        data = IOData(u, y, t, dt=dt, name=name or path.stem, tolerance=tolerance,
+                      resample=resample, intersample=intersample)
+        if t is None and (start is not None or stop is not None):
+            data = data.window(start, stop)
+    except DataError as exc:
+        raise DataError(f"{path}: {exc}") from None
+    return data
+
+
+# ---------------------------------------------------------------------------
+# command line
+# ---------------------------------------------------------------------------
+def add_record_arguments(parser: argparse.ArgumentParser) -> None:
+    """Add the options of :func:`read_record` to a command-line parser.
+
+    ``--data`` (required), ``--input``, ``--output``, ``--time``, ``--dt``,
+    ``--start``, ``--stop``, ``--tolerance``, ``--resample`` and
+    ``--intersample``; :func:`record_from_args` reads the record they describe.
+
+    Examples
+    --------
+    >>> p = argparse.ArgumentParser()
+    >>> add_record_arguments(p)
+    >>> a = p.parse_args(["--data", "rig.csv", "--resample", "zoh", "--start", "2"])
+    >>> a.resample, a.start, a.tolerance
+    ('zoh', 2.0, 0.001)
+    """
+    g = parser.add_argument_group("data")
+    g.add_argument("--data", required=True, help="CSV, text, MAT or NPZ file")
+    g.add_argument("--input", help="input column/variable name")
+    g.add_argument("--output", help="output column/variable name")
+    g.add_argument("--time", help="time column/variable name")
+    g.add_argument("--dt", type=float, help="sampling interval when the file has no time column "
+                   "(or of the resampled grid)")
+    g.add_argument("--start", type=float, help="keep samples with t >= START (s)")
+    g.add_argument("--stop", type=float, help="keep samples with t < STOP (s)")
+    g.add_argument("--tolerance", type=float, default=GRID_TOLERANCE,
+                   help="allowed deviation of time stamps from a uniform grid, as a fraction of dt "
+                        f"(default {GRID_TOLERANCE:g}; < 0.5)")
+    g.add_argument("--resample", choices=RESAMPLE_METHODS,
+                   help="interpolate irregular time stamps onto a uniform grid (input linear or held)")
+    g.add_argument("--intersample", choices=INTERSAMPLE, default="foh",
+                   help="the input between samples: foh (linear, default) or zoh (held)")
+
+
+def record_from_args(args: argparse.Namespace) -> IOData:
+    """The record described by the options of :func:`add_record_arguments`."""
+    return read_record(
+        args.data, input=args.input, output=args.output, time=args.time, dt=args.dt,
+        start=args.start, stop=args.stop, tolerance=args.tolerance, resample=args.resample,
+        intersample=args.intersample,
+    )
+
