@@ -161,7 +161,7 @@ def as_iodata(obj):
     >>> d.name, d.dt, len(d)
     ('train', 0.01, 3)
     """
-    from .datasets import IOData
+    from .iodata import IOData
 
     if isinstance(obj, IOData):
         return obj

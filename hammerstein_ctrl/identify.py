@@ -157,6 +157,9 @@ class IdentificationResult:
         from .display import result_html
         return result_html(self)
 
+    def _repr_pretty_(self, printer, cycle):  # IPython's text view: the summary, not the dataclass fields
+        printer.text(self.summary())
+
     def plot(self, **kwargs):
         """Measured vs simulated output, residual and g(u) (:func:`hammerstein_ctrl.plots.result_figure`)."""
         from .plots import result_figure

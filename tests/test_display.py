@@ -2,6 +2,7 @@
 
 import dataclasses
 import sys
+from html import escape as html_escape
 
 import control
 import numpy as np
@@ -164,7 +165,9 @@ def test_result_html_lists_parameters_fit_and_status(result):
     for name, value in result.params.items():
         assert f"<td>{name}</td><td>{value:.6g}</td>" in html
     assert f"fit {result.fit_percent:.2f} %" in html and f"NFE = {result.nfev}" in html
-    assert "success" in html and "LM*" in html
+    status = "success" if result.success else "FAILED"  # maxfev=300 stops LM early: an honest failure
+    assert f"<b style='color:{'green' if result.success else 'firebrick'}'>{status}</b>" in html
+    assert html_escape(result.message) in html and "LM*" in html
 
 
 def test_result_html_and_frame_show_standard_errors_from_a_jacobian(result):
@@ -211,3 +214,26 @@ def test_to_frame_without_pandas_names_the_extra(monkeypatch, result, study):
         result.to_frame()
     with pytest.raises(ImportError, match=r"pip install hammerstein_ctrl\[frames\]"):
         study.to_frame()
+
+
+def test_result_text_view_in_ipython_is_the_summary(result):
+    pretty = pytest.importorskip("IPython.lib.pretty")
+    assert pretty.pretty(result) == result.summary()
+
+
+def test_figures_returned_to_ipython_render_as_one_png(monkeypatch):
+    IPython = pytest.importorskip("IPython")
+    from IPython.core.formatters import PNGFormatter
+    from matplotlib.figure import Figure
+
+    import IPython.core.pylabtools  # noqa: F401  (loaded before the shell is faked)
+
+    class Shell:  # the part of an IPython shell the registration touches
+        display_formatter = type("DF", (), {"formatters": {"image/png": PNGFormatter()}})()
+
+    shell = Shell()
+    monkeypatch.setattr(IPython, "get_ipython", lambda: shell)
+    fig = hc.plots.input_signal(hc.presets.trs().data)
+    png = shell.display_formatter.formatters["image/png"](fig)
+    assert isinstance(png, bytes) and png.startswith(b"\x89PNG")
+    assert Figure in shell.display_formatter.formatters["image/png"].type_printers
