@@ -72,6 +72,8 @@ def _is_system(obj) -> bool:
 def _default_label(obj, index: int | None) -> str:
     if _is_result(obj):
         return method_label(obj.method)
+    if isinstance(obj, (np.ndarray, list, tuple)):
+        return "simulated" if index is None else f"simulated {index + 1}"
     name = getattr(obj, "name", None)
     if index is None:
         return str(name or type(obj).__name__)
@@ -123,8 +125,7 @@ def as_models(models, *, arrays: bool = False, systems: bool = False, need=("sim
         items = []
     elif isinstance(models, Mapping):
         items = [(str(k), v) for k, v in models.items()]
-    elif isinstance(models, (list, tuple)) and not (arrays and np.ndim(models) == 1 and len(models)
-                                                    and isinstance(models[0], numbers.Number)):
+    elif isinstance(models, (list, tuple)) and not (arrays and models and isinstance(models[0], numbers.Number)):
         items = [(_default_label(m, i), m) for i, m in enumerate(models)]
     else:
         items = [(_default_label(models, None), models)]

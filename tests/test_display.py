@@ -44,8 +44,11 @@ def test_as_models_normalises_every_accepted_form(trs_case, result):
     assert display.as_models([m, result, result]) == {"model 1": m, "LM*": result.model, "LM* (2)": result.model}
     assert display.as_models({"a": result}) == {"a": result.model}
     assert display.as_models(None, allow_empty=True) == {}
-    y = np.zeros(5)
-    assert display.as_models({"sim": y}, arrays=True)["sim"] is not None
+    y = np.arange(5.0)
+    np.testing.assert_array_equal(display.as_models({"sim": y}, arrays=True)["sim"], y)
+    assert list(display.as_models(y, arrays=True)) == ["simulated"]
+    assert list(display.as_models([0.0, 1.0], arrays=True)) == ["simulated"]
+    assert list(display.as_models([y, y], arrays=True)) == ["simulated 1", "simulated 2"]
     tf = control.tf([1], [1, 1])
     assert display.as_models([tf], systems=True, need=("linear",)) == {"model 1": tf}
 
