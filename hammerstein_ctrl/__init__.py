@@ -18,6 +18,7 @@ Examples
 """
 
 from . import datasets, iodata, metrics, nonlinearities, optimize, plots, presets, records, simulate, study
+from . import control_design, exact_export, persistence
 from .datasets import load_emps, load_trs, make_trs_reconstruction
 from .iodata import IOData
 from .records import read_record
@@ -38,6 +39,7 @@ from .nonlinearities import (
 )
 from .objective import HammersteinCost
 from .optimize import PerturbationGain, StepGain, minimize
+from .persistence import load_model, load_result, save_model, save_result
 from .structure import HammersteinStructure, LinearStructure
 from .study import StudyResult, run_study
 
@@ -45,7 +47,8 @@ __version__ = "0.1.0"
 
 __all__ = [
     "datasets", "iodata", "metrics", "nonlinearities", "optimize", "plots", "presets", "records", "simulate",
-    "study",
+    "study", "control_design", "exact_export", "persistence", "load_model", "save_model", "load_result",
+    "save_result",
     "IOData", "load_emps", "load_trs", "make_trs_reconstruction", "read_record",
     "DataError", "HammersteinError", "ParameterError", "UnknownNameError",
     "fit_percent", "fit_report", "nrmse", "rmse", "sse",

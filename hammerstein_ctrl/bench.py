@@ -12,7 +12,8 @@ import time
 import numpy as np
 
 __all__ = ["time_call", "forced_response_cost", "evaluation_speed", "optimizer_speed", "format_report",
-           "identification_comparison", "format_identification_table", "IDENTIFICATION_VARIANTS"]
+           "identification_comparison", "format_identification_table", "IDENTIFICATION_VARIANTS",
+           "pid_tuning_speed"]
 
 
 def time_call(fn, *, repeat: int = 5, number: int = 1) -> float:
@@ -154,3 +155,38 @@ def format_identification_table(rows, *, header: bool = True) -> str:
         lines.append(f"| {r['case']} | {r['variant']} | {r['mean']:.6g} | {r['best']:.6g} | {r['worst']:.6g} | "
                      f"{r['std']:.3g} | {r['success']}/{r['runs']} | {r['nfev']:.0f} | {r['seconds']:.3f} |")
     return "\n".join(lines)
+
+
+def pid_tuning_speed(model, rule: str = "nspsa", *, repeat: int = 3, reference_repeats: int = 1,
+                     **tune_kwargs) -> dict:
+    """Wall time of a whole model-based PID tuning run, and of one loop simulation both ways.
+
+    Returns the median seconds of :func:`~hammerstein_ctrl.control_design.tune_pid`
+    (after a warm-up run that compiles the kernels), its evaluation count, the
+    time of one compiled loop simulation (:func:`~hammerstein_ctrl.loop_sim.simulate_loops`)
+    and of the same loop through ``control.input_output_response``, and their ratio.
+    """
+    import control
+    from threadpoolctl import threadpool_limits
+
+    from .control_design import tune_pid
+    from .loop_sim import sampled_loop_iosys, sampled_plant, simulate_loops
+
+    pid = tune_pid(model, rule, **tune_kwargs)
+    with threadpool_limits(1):
+        seconds = time_call(lambda: tune_pid(model, rule, **tune_kwargs), repeat=repeat)
+    from .control_design import HORIZON_FACTOR
+
+    t_final = tune_kwargs.get("t_final") or HORIZON_FACTOR * (pid.approximation["tau_c"]
+                                                              + pid.approximation["theta"])
+    r = np.full(int(round(t_final / pid.dt)) + 1, tune_kwargs.get("step", 1.0))
+    limits = tune_kwargs.get("u_limit")
+    plant = sampled_plant(model, pid.dt)
+    with threadpool_limits(1):
+        fast = time_call(lambda: simulate_loops(plant, pid.gains, r, pid.dt, u_limit=limits), repeat=7, number=20)
+    loop = sampled_loop_iosys(model, pid.gains, pid.dt, u_limit=limits)
+    t = pid.dt * np.arange(r.size)
+    slow = time_call(lambda: control.input_output_response(loop, t, r), repeat=reference_repeats)
+    nfev = int(pid.optimize_result.nfev) if pid.optimize_result is not None else 0
+    return {"rule": rule, "seconds": seconds, "nfev": nfev, "samples": r.size, "loop_fast_s": fast,
+            "loop_python_control_s": slow, "loop_speedup": slow / fast, "cost": pid.cost}

@@ -176,8 +176,13 @@ class HammersteinModel:
                         intersample=hold if intersample is None else intersample)
 
     # -- python-control interop -------------------------------------------------
-    def to_iosys(self, name: str | None = None, *, inputs: str = "u", outputs: str = "y"):
+    def to_iosys(self, name: str | None = None, *, dt: float | None = None, inputs: str = "u",
+                 outputs: str = "y"):
         """The model as a :class:`control.NonlinearIOSystem` interconnection.
+
+        With ``dt`` given, the exact discrete-time system of
+        :func:`hammerstein_ctrl.exact_export.sampled_iosys` instead (its
+        ``control.input_output_response`` equals :meth:`simulate`).
 
         The static block ``g`` (``control.nlsys`` without states, output
         ``"v"``) feeds ``H`` (``control.ss``); the result has input ``inputs``
@@ -197,6 +202,10 @@ class HammersteinModel:
         """
         import control
 
+        if dt is not None:
+            from .exact_export import sampled_iosys
+
+            return sampled_iosys(self, dt, name=name, inputs=inputs, outputs=outputs)
         params = self.params
         nonlinearity = self.nonlinearity
 
@@ -213,22 +222,6 @@ class HammersteinModel:
         else:
             blocks.append(self.to_ss(inputs="v", outputs=[outputs], name="H"))
         return control.interconnect(blocks, inputs=[inputs], outputs=[outputs], name=name or self.name)
-
-    def to_ss(self, **kwargs):
-        """The linear block as :class:`control.StateSpace` in the realisation the simulator uses.
-
-        The controllable canonical form of
-        :func:`~hammerstein_ctrl.simulate.companion_realization`, so that
-        :attr:`initial_state` means the same state here, in :meth:`simulate`
-        and in :meth:`to_iosys` (pass ``X0=model.state0()`` to
-        :func:`control.input_output_response`).  ``kwargs`` go to :func:`control.ss`.
-        """
-        import control
-
-        from .simulate import companion_realization
-
-        A, B, C, D = companion_realization(self.linear.num[0][0], self.linear.den[0][0])
-        return control.ss(A[0], B[0][:, None], C[0][None, :], D[:, None], **kwargs)
 
     def linearize(self, u0: float = 0.0):
         """Small-signal transfer function ``g'(u0) H(p)`` around the input ``u0``.
@@ -273,6 +266,23 @@ class HammersteinModel:
             return " + ".join(terms).replace("+ -", "- ") or "0"
 
         return f"({poly(self.linear.num[0][0])})/({poly(self.linear.den[0][0])})"
+
+    # -- persistence and exact exports (issue 9) -----------------------------
+    def save(self, path) -> None:
+        """Write the model to ``path`` as versioned JSON (:func:`hammerstein_ctrl.load_model` reads it)."""
+        from .persistence import save_model
+
+        save_model(self, path)
+
+    def to_ss(self, **kwargs):
+        """The linear block as a :class:`control.StateSpace` in the simulator's realisation.
+
+        See :func:`hammerstein_ctrl.exact_export.linear_ss`; ``initial_state``
+        is a state of this system.
+        """
+        from .exact_export import linear_ss
+
+        return linear_ss(self, **kwargs)
 
     # -- python-control time responses (logic in display.py) ----------------------
     def response(self, data_or_t, u=None):

@@ -1,0 +1,105 @@
+"""The ``hammerstein-ctrl tune`` sub-command: PID tuning of a saved model.
+
+``hammerstein-ctrl tune model.json --rule simc|imc|nspsa|auto [--u-limit LO HI]
+[--reference step|FILE]`` prints the gains, the margins of the linearised loop
+and the step figures of the nonlinear loop, and writes a figure.  ``FILE`` is
+a text file of reference samples (one per line, at ``--dt``).
+
+Wire it into a parser with :func:`add_tune_parser`.
+"""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from .exceptions import DataError
+
+__all__ = ["add_tune_parser"]
+
+
+def add_tune_parser(subparsers):
+    """Add the ``tune`` sub-command to an ``argparse`` sub-parsers object."""
+    from .control_design import CRITERIA, DEFAULT_MAXFEV, RULES
+
+    tune = subparsers.add_parser(
+        "tune", help="tune a PID for a saved model (SIMC, IMC or N-SPSA on the nonlinear loop)",
+        description="Tune a PID for a model saved by model.save() or identify --out, print gains, "
+                    "margins and step figures, and write a figure of the closed loop.")
+    tune.add_argument("model", help="model or identification-result JSON file")
+    tune.add_argument("--rule", default="simc", choices=RULES, help="tuning rule (default simc)")
+    tune.add_argument("--u-limit", type=float, nargs=2, metavar=("LO", "HI"), help="actuator limits")
+    tune.add_argument("--reference", default="step", help="'step' (default) or a file of reference samples")
+    tune.add_argument("--step", type=float, default=1.0, help="step amplitude (default 1)")
+    tune.add_argument("--dt", type=float, help="controller sampling interval (default: the data's, if known)")
+    tune.add_argument("--u0", type=float, default=0.0, help="operating point of the linearisation (default 0)")
+    tune.add_argument("--tau-c", type=float, help="SIMC tau_c / IMC lambda")
+    tune.add_argument("--t-final", type=float, help="horizon of a step")
+    tune.add_argument("--criterion", default="itae", choices=CRITERIA)
+    tune.add_argument("--maxfev", type=int, default=DEFAULT_MAXFEV, help="budget of model-based tuning")
+    tune.add_argument("--seed", type=int, default=0)
+    tune.add_argument("--plot", help="figure path (default MODEL_pid_RULE.png beside the model)")
+    tune.set_defaults(func=_cmd_tune)
+    return tune
+
+
+def _model_and_dt(path: str, dt):
+    import json
+
+    from .persistence import RESULT_FORMAT, load_model, load_result
+
+    try:
+        fmt = json.loads(Path(path).read_text()).get("format")
+    except (ValueError, AttributeError):
+        fmt = None
+    if fmt == RESULT_FORMAT:
+        saved = load_result(path)
+        return saved.model, dt if dt is not None else saved.data.get("dt")
+    return load_model(path), dt
+
+
+def _reference(arg: str):
+    if arg == "step":
+        return "step"
+    try:
+        return np.loadtxt(arg, ndmin=1)
+    except ValueError as exc:
+        raise DataError(f"--reference {arg}: not a file of numbers ({exc})") from None
+
+
+def _cmd_tune(args) -> int:
+    from .control_design import analyze_loop, loop_figure, tune_pid
+
+    model, dt = _model_and_dt(args.model, args.dt)
+    reference = _reference(args.reference)
+    limits = tuple(args.u_limit) if args.u_limit else None
+    kwargs = dict(u0=args.u0, dt=dt, u_limit=limits, reference=reference, step=args.step,
+                  t_final=args.t_final)
+    pid = tune_pid(model, args.rule, tau_c=args.tau_c, criterion=args.criterion, maxfev=args.maxfev,
+                   seed=args.seed, **kwargs)
+    rep = analyze_loop(model, pid, u_limit=limits, reference=reference, step=args.step, dt=pid.dt,
+                       t_final=args.t_final)
+    a = pid.approximation
+    print(f"{args.rule} PID for {model!r}")
+    print(f"  kp = {pid.kp:.6g}, ki = {pid.ki:.6g}, kd = {pid.kd:.6g}, tf = {pid.tf:.6g} "
+          f"(parallel form kp + ki/s + kd s/(tf s + 1))")
+    print(f"  approximation: {a['kind']}, gain {a['gain']:.4g}, tau2 {a['tau2']:.4g}, delay {a['theta']:.4g}, "
+          f"tau_c {a['tau_c']:.4g}")
+    print(f"  linearised loop: gain margin {rep['gain_margin']:.4g}, phase margin {rep['phase_margin']:.4g} deg, "
+          f"Ms {rep['Ms']:.4g}, {'stable' if rep['stable'] else 'UNSTABLE'}")
+    info = rep["step_info"]
+    if info:
+        print(f"  nonlinear loop: rise time {info.get('RiseTime', np.nan):.4g} s, settling time "
+              f"{info.get('SettlingTime', np.nan):.4g} s, overshoot {info.get('Overshoot', np.nan):.4g} %")
+    print(f"  IAE {rep['iae']:.4g}, ISE {rep['ise']:.4g}, ITAE {rep['itae']:.4g}")
+    plot = Path(args.plot) if args.plot else Path(args.model).with_name(f"{Path(args.model).stem}_pid_{args.rule}.png")
+    import matplotlib
+
+    if "matplotlib.pyplot" not in sys.modules:
+        matplotlib.use("Agg")
+    fig = loop_figure({args.rule: rep}, u_limit=limits)
+    fig.savefig(plot, dpi=120)
+    print(f"figure written to {plot}")
+    return 0 if rep["stable"] else 1

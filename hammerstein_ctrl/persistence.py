@@ -1,0 +1,431 @@
+"""Save and load Hammerstein models and identification results as versioned JSON.
+
+The files are plain JSON (RFC 8259), read strictly and never evaluated:
+
+* every number in a model (coefficients, parameters, offset, initial state)
+  must be finite; a file holding ``NaN``/``Infinity`` literals or a non-finite
+  parameter is rejected with a message naming the field;
+* figures of a run that may legitimately be non-finite (``J``, ``fit_percent``,
+  ``rmse``, ``nrmse`` of a diverged run) are written as the strings ``"inf"``,
+  ``"-inf"`` or ``"nan"``, so the file stays valid JSON;
+* a wrong ``format`` or ``schema_version``, a missing or unexpected key, an
+  unknown nonlinearity or a parameter name that does not match the family are
+  errors (:class:`~hammerstein_ctrl.exceptions.ParameterError` or
+  :class:`~hammerstein_ctrl.exceptions.UnknownNameError`), never silently
+  repaired.
+
+Floats are written with Python's shortest round-trip representation, so a
+loaded model reproduces the saved one bit for bit.
+
+Schema, version 1 (a model file; a result file has ``"format":
+"hammerstein_ctrl/result"`` and the keys of :func:`result_to_dict`)::
+
+    {"format": "hammerstein_ctrl/model", "schema_version": 1,
+     "model": {"name": "emps",
+               "linear": {"num": [1.0], "den": [1.0, 3.1388, 0.0]},
+               "nonlinearity": {"family": "coulomb", "options": {},
+                                "params": {"d0": 0.5445, "d1": -0.3984, "d2": 0.0451}},
+               "offset": 0.0, "initial_state": null, "intersample": "foh"}}
+
+Examples
+--------
+>>> import control as ct, tempfile, os
+>>> from hammerstein_ctrl import HammersteinModel, Coulomb
+>>> m = HammersteinModel(ct.tf([1], [1, 3.138764, 0]), Coulomb(), [0.544501, -0.398365, 0.045066])
+>>> path = os.path.join(tempfile.mkdtemp(), "emps.json")
+>>> save_model(m, path)
+>>> m2 = load_model(path)
+>>> m2.params.tolist() == m.params.tolist(), m2.linear.den[0][0].tolist()
+(True, [1.0, 3.138764, 0.0])
+"""
+
+from __future__ import annotations
+
+import inspect
+import json
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from .exceptions import ParameterError, UnknownNameError
+from .exact_export import INTERSAMPLE, model_settings
+from .nonlinearities import NONLINEARITIES, PiecewiseLinear, Polynomial
+
+__all__ = [
+    "SCHEMA_VERSION", "MODEL_FORMAT", "RESULT_FORMAT",
+    "model_to_dict", "model_from_dict", "save_model", "load_model",
+    "result_to_dict", "result_from_dict", "save_result", "load_result", "SavedResult",
+]
+
+#: Version of the JSON schema written by this module (files of other versions are refused).
+SCHEMA_VERSION = 1
+MODEL_FORMAT = "hammerstein_ctrl/model"
+RESULT_FORMAT = "hammerstein_ctrl/result"
+
+#: Strings standing for non-finite figures of a run.
+_NONFINITE = {"inf": math.inf, "-inf": -math.inf, "nan": math.nan}
+
+_MODEL_KEYS = ("name", "linear", "nonlinearity", "offset", "initial_state", "intersample")
+_RESULT_KEYS = ("format", "schema_version", "model", "structure", "params", "beta", "data", "J",
+                "fit_percent", "rmse", "nrmse", "nfev", "method", "success", "message", "elapsed_s")
+_DATA_KEYS = ("name", "dt", "n_samples", "input_name", "output_name", "input_unit", "output_unit",
+              "intersample")
+
+
+# ---------------------------------------------------------------------------
+# strict readers
+# ---------------------------------------------------------------------------
+def _keys(obj, where: str, required, optional=()) -> dict:
+    """Check that ``obj`` is an object with exactly the allowed keys."""
+    if not isinstance(obj, dict):
+        raise ParameterError(f"{where} must be a JSON object, got {type(obj).__name__}")
+    missing = [k for k in required if k not in obj]
+    if missing:
+        raise ParameterError(f"{where} is missing the field(s) {missing}")
+    unexpected = sorted(set(obj) - set(required) - set(optional))
+    if unexpected:
+        raise ParameterError(f"{where} has unexpected field(s) {unexpected}")
+    return obj
+
+
+def _number(value, where: str, *, finite: bool = True) -> float:
+    """A JSON number (or, with ``finite=False``, one of the strings 'inf', '-inf', 'nan')."""
+    if not finite and isinstance(value, str) and value in _NONFINITE:
+        return _NONFINITE[value]
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise ParameterError(f"{where} must be a number, got {value!r}")
+    value = float(value)
+    if finite and not math.isfinite(value):
+        raise ParameterError(f"{where} must be a finite number, got {value!r}")
+    return value
+
+
+def _numbers(value, where: str) -> np.ndarray:
+    if not isinstance(value, list) or not value:
+        raise ParameterError(f"{where} must be a non-empty list of numbers, got {value!r}")
+    return np.array([_number(v, f"{where}[{i}]") for i, v in enumerate(value)])
+
+
+def _string(value, where: str) -> str:
+    if not isinstance(value, str):
+        raise ParameterError(f"{where} must be a string, got {value!r}")
+    return value
+
+
+def _integer(value, where: str) -> int:
+    if isinstance(value, bool) or not isinstance(value, int):
+        raise ParameterError(f"{where} must be an integer, got {value!r}")
+    return value
+
+
+def _boolean(value, where: str) -> bool:
+    if not isinstance(value, bool):
+        raise ParameterError(f"{where} must be true or false, got {value!r}")
+    return value
+
+
+def _header(obj, fmt: str, where: str) -> None:
+    if not isinstance(obj, dict):
+        raise ParameterError(f"{where}: not a hammerstein_ctrl file (top level is not a JSON object)")
+    if obj.get("format") != fmt:
+        raise ParameterError(f"{where}: format is {obj.get('format')!r}, expected {fmt!r}")
+    if "schema_version" not in obj:
+        raise ParameterError(f"{where} is missing the field(s) ['schema_version']")
+    version = obj["schema_version"]
+    if version != SCHEMA_VERSION or isinstance(version, bool):
+        raise ParameterError(
+            f"{where}: unsupported schema_version {version!r}; this version of hammerstein_ctrl "
+            f"reads version {SCHEMA_VERSION}"
+        )
+
+
+def _encode(value):
+    """A float for JSON: finite floats as numbers, non-finite ones as strings."""
+    value = float(value)
+    if math.isfinite(value):
+        return value
+    return "nan" if math.isnan(value) else ("inf" if value > 0 else "-inf")
+
+
+# ---------------------------------------------------------------------------
+# nonlinearities and structures
+# ---------------------------------------------------------------------------
+def _nonlinearity_to_dict(nl) -> dict:
+    if type(nl) not in NONLINEARITIES.values():
+        raise ParameterError(
+            f"cannot save a {type(nl).__name__} nonlinearity: only the named families "
+            f"{sorted(NONLINEARITIES)} can be stored (a custom function is code, not data)"
+        )
+    options = {}
+    if isinstance(nl, Polynomial):
+        options["degree"] = nl.degree
+    elif isinstance(nl, PiecewiseLinear):
+        options["breakpoints"] = nl.breakpoints.tolist()
+    return {"family": nl.name, "options": options}
+
+
+def _nonlinearity_from_dict(obj, where: str):
+    family = _string(obj["family"], f"{where}.family")
+    if family not in NONLINEARITIES:
+        raise UnknownNameError(
+            f"{where}.family: unknown nonlinearity {family!r}; known: {', '.join(sorted(NONLINEARITIES))}"
+        )
+    options = _keys(obj["options"], f"{where}.options", (), ("degree", "breakpoints"))
+    kwargs = {}
+    if "degree" in options:
+        kwargs["degree"] = _integer(options["degree"], f"{where}.options.degree")
+    if "breakpoints" in options:
+        kwargs["breakpoints"] = _numbers(options["breakpoints"], f"{where}.options.breakpoints")
+    try:
+        return NONLINEARITIES[family](**kwargs)
+    except TypeError as exc:
+        raise ParameterError(f"{where}.options do not fit the {family!r} family: {exc}") from None
+
+
+def _structure_to_dict(structure) -> dict:
+    from .structure import HammersteinStructure
+
+    if not isinstance(structure, HammersteinStructure):
+        raise ParameterError(f"cannot save a structure of type {type(structure).__name__}")
+    lin = structure.linear
+    return {"linear": {"num_order": lin.num_order, "den_order": lin.den_order,
+                       "monic_numerator": lin.monic_numerator, "fixed": dict(lin.fixed)},
+            "nonlinearity": _nonlinearity_to_dict(structure.nonlinearity)}
+
+
+def _structure_from_dict(obj, where: str):
+    from .structure import HammersteinStructure, LinearStructure
+
+    _keys(obj, where, ("linear", "nonlinearity"))
+    lin = _keys(obj["linear"], f"{where}.linear", ("num_order", "den_order", "monic_numerator", "fixed"))
+    fixed = lin["fixed"]
+    if not isinstance(fixed, dict):
+        raise ParameterError(f"{where}.linear.fixed must be a JSON object")
+    fixed = {k: _number(v, f"{where}.linear.fixed.{k}") for k, v in fixed.items()}
+    linear = LinearStructure(_integer(lin["num_order"], f"{where}.linear.num_order"),
+                             _integer(lin["den_order"], f"{where}.linear.den_order"),
+                             monic_numerator=_boolean(lin["monic_numerator"], f"{where}.linear.monic_numerator"),
+                             fixed=fixed)
+    nl = _keys(obj["nonlinearity"], f"{where}.nonlinearity", ("family", "options"))
+    return HammersteinStructure(linear, _nonlinearity_from_dict(nl, f"{where}.nonlinearity"))
+
+
+# ---------------------------------------------------------------------------
+# models
+# ---------------------------------------------------------------------------
+def model_to_dict(model) -> dict:
+    """The ``"model"`` object of the schema for a :class:`~hammerstein_ctrl.HammersteinModel`.
+
+    Raises
+    ------
+    ParameterError
+        For a custom nonlinearity (code cannot be stored) or non-finite numbers.
+    """
+    settings = model_settings(model)
+    num = np.trim_zeros(np.asarray(model.linear.num[0][0], dtype=float), "f")
+    den = np.trim_zeros(np.asarray(model.linear.den[0][0], dtype=float), "f")
+    nl = _nonlinearity_to_dict(model.nonlinearity)
+    nl["params"] = dict(zip(model.nonlinearity.param_names, np.asarray(model.params, float).tolist()))
+    x0 = settings["initial_state"]
+    out = {"name": str(model.name), "linear": {"num": (num if num.size else np.zeros(1)).tolist(),
+                                               "den": den.tolist()},
+           "nonlinearity": nl, "offset": settings["offset"],
+           "initial_state": x0.tolist() if np.any(x0 != 0) else None,
+           "intersample": settings["intersample"]}
+    numbers = out["linear"]["num"] + out["linear"]["den"] + list(nl["params"].values()) + [out["offset"]]
+    if not all(math.isfinite(v) for v in numbers + (out["initial_state"] or [])):
+        raise ParameterError("cannot save a model with non-finite coefficients or parameters")
+    return out
+
+
+def _model_kwargs(offset: float, initial_state, intersample: str, name: str) -> dict:
+    """Constructor keywords, leaving out settings an older HammersteinModel does not take."""
+    from .model import HammersteinModel
+
+    accepted = inspect.signature(HammersteinModel.__init__).parameters
+    wanted = {"offset": (offset, offset == 0.0), "initial_state": (initial_state, initial_state is None),
+              "intersample": (intersample, intersample == "foh")}
+    kwargs = {"name": name}
+    for key, (value, is_default) in wanted.items():
+        if key in accepted:
+            kwargs[key] = value
+        elif not is_default:
+            raise ParameterError(f"this HammersteinModel does not support {key}={value!r}")
+    return kwargs
+
+
+def model_from_dict(obj, where: str = "model"):
+    """Build a :class:`~hammerstein_ctrl.HammersteinModel` from its ``"model"`` object.
+
+    Raises
+    ------
+    ParameterError, UnknownNameError
+        On any deviation from the schema (see the module notes).
+    """
+    import control
+
+    from .model import HammersteinModel
+
+    _keys(obj, where, _MODEL_KEYS)
+    lin = _keys(obj["linear"], f"{where}.linear", ("num", "den"))
+    num, den = _numbers(lin["num"], f"{where}.linear.num"), _numbers(lin["den"], f"{where}.linear.den")
+    nl_obj = _keys(obj["nonlinearity"], f"{where}.nonlinearity", ("family", "options", "params"))
+    nl = _nonlinearity_from_dict(nl_obj, f"{where}.nonlinearity")
+    params = _keys(nl_obj["params"], f"{where}.nonlinearity.params", nl.param_names)
+    values = [_number(params[k], f"{where}.nonlinearity.params.{k}") for k in nl.param_names]
+    x0 = obj["initial_state"]
+    x0 = None if x0 is None else _numbers(x0, f"{where}.initial_state")
+    intersample = _string(obj["intersample"], f"{where}.intersample")
+    if intersample not in INTERSAMPLE:
+        raise ParameterError(f"{where}.intersample must be one of {list(INTERSAMPLE)}, got {intersample!r}")
+    kwargs = _model_kwargs(_number(obj["offset"], f"{where}.offset"), x0, intersample,
+                           _string(obj["name"], f"{where}.name"))
+    return HammersteinModel(control.tf(num, den), nl, values, **kwargs)
+
+
+def _read(path) -> dict:
+    def reject(constant):
+        raise ParameterError(f"{path}: the non-standard JSON constant {constant} is not allowed "
+                             "(non-finite figures are written as the strings 'inf', '-inf', 'nan')")
+
+    text = Path(path).read_text()
+    try:
+        return json.loads(text, parse_constant=reject)
+    except json.JSONDecodeError as exc:
+        raise ParameterError(f"{path}: not valid JSON ({exc})") from None
+
+
+def _write(obj: dict, path) -> None:
+    Path(path).write_text(json.dumps(obj, indent=2, allow_nan=False) + "\n")
+
+
+def save_model(model, path) -> None:
+    """Write ``model`` to ``path`` (see the module notes for the schema)."""
+    _write({"format": MODEL_FORMAT, "schema_version": SCHEMA_VERSION, "model": model_to_dict(model)}, path)
+
+
+def load_model(path):
+    """Read a model written by :func:`save_model` (or the model of a result file).
+
+    Raises
+    ------
+    ParameterError, UnknownNameError
+        With a message naming the offending field.
+    FileNotFoundError
+        If ``path`` does not exist.
+    """
+    obj = _read(path)
+    if isinstance(obj, dict) and obj.get("format") == RESULT_FORMAT:
+        _header(obj, RESULT_FORMAT, str(path))
+    else:
+        _header(obj, MODEL_FORMAT, str(path))
+        _keys(obj, str(path), ("format", "schema_version", "model"))
+    return model_from_dict(obj.get("model"), f"{path}: model")
+
+
+# ---------------------------------------------------------------------------
+# identification results
+# ---------------------------------------------------------------------------
+@dataclass
+class SavedResult:
+    """An identification result read back from JSON (the model and the run's figures).
+
+    The estimation record itself is not stored, only its description in
+    :attr:`data` (name, sampling interval, length, labels, units, intersample).
+    """
+
+    model: object
+    structure: object
+    x: np.ndarray
+    fun: float
+    fit_percent: float
+    rmse: float
+    nrmse: float
+    nfev: int
+    method: str
+    success: bool
+    message: str
+    elapsed: float
+    data: dict = field(default_factory=dict)
+
+    @property
+    def params(self) -> dict:
+        """The fitted parameters by name."""
+        return dict(zip(self.structure.param_names, self.x.tolist()))
+
+
+def _data_to_dict(data) -> dict:
+    if data is None:
+        return {k: None for k in _DATA_KEYS}
+    return {"name": str(getattr(data, "name", "data")), "dt": float(data.dt), "n_samples": len(data),
+            "input_name": getattr(data, "input_name", "u"), "output_name": getattr(data, "output_name", "y"),
+            "input_unit": getattr(data, "input_unit", ""), "output_unit": getattr(data, "output_unit", ""),
+            "intersample": getattr(data, "intersample", "foh")}
+
+
+def result_to_dict(result) -> dict:
+    """The JSON object of an :class:`~hammerstein_ctrl.IdentificationResult` (or a :class:`SavedResult`)."""
+    structure = result.structure
+    x = np.asarray(result.x, dtype=float)
+    data = result.data if isinstance(result.data, dict) else _data_to_dict(getattr(result, "data", None))
+    return {
+        "format": RESULT_FORMAT, "schema_version": SCHEMA_VERSION,
+        "model": model_to_dict(result.model), "structure": _structure_to_dict(structure),
+        "params": {k: _encode(v) for k, v in zip(structure.param_names, x.tolist())},
+        "beta": [_encode(v) for v in x.tolist()], "data": data,
+        "J": _encode(result.fun), "fit_percent": _encode(getattr(result, "fit_percent", math.nan)),
+        "rmse": _encode(getattr(result, "rmse", math.nan)), "nrmse": _encode(getattr(result, "nrmse", math.nan)),
+        "nfev": int(getattr(result, "nfev", 0)), "method": str(getattr(result, "method", "")),
+        "success": bool(getattr(result, "success", False)), "message": str(getattr(result, "message", "")),
+        "elapsed_s": _encode(getattr(result, "elapsed", math.nan)),
+    }
+
+
+def _data_from_dict(obj, where: str) -> dict:
+    _keys(obj, where, _DATA_KEYS)
+    out = dict(obj)
+    if obj["dt"] is not None:
+        out["dt"] = _number(obj["dt"], f"{where}.dt")
+    if obj["n_samples"] is not None:
+        out["n_samples"] = _integer(obj["n_samples"], f"{where}.n_samples")
+    return out
+
+
+def result_from_dict(obj, where: str = "result") -> SavedResult:
+    """Build a :class:`SavedResult` from the object written by :func:`result_to_dict`."""
+    _header(obj, RESULT_FORMAT, where)
+    _keys(obj, where, _RESULT_KEYS)
+    model = model_from_dict(obj["model"], f"{where}: model")
+    structure = _structure_from_dict(obj["structure"], f"{where}: structure")
+    beta = _numbers(obj["beta"], f"{where}: beta")
+    if beta.size != structure.n_params:
+        raise ParameterError(f"{where}: beta has {beta.size} entries, the structure has {structure.n_params}")
+    params = _keys(obj["params"], f"{where}: params", structure.param_names)
+    named = np.array([_number(params[k], f"{where}: params.{k}") for k in structure.param_names])
+    if not np.array_equal(named, beta):
+        raise ParameterError(f"{where}: params {params} disagree with beta {beta.tolist()}")
+    if not np.allclose(structure.beta(model), beta, rtol=1e-12, atol=0):
+        raise ParameterError(f"{where}: the model does not have the parameters beta = {beta.tolist()}")
+    return SavedResult(
+        model=model, structure=structure, x=beta, fun=_number(obj["J"], f"{where}: J", finite=False),
+        fit_percent=_number(obj["fit_percent"], f"{where}: fit_percent", finite=False),
+        rmse=_number(obj["rmse"], f"{where}: rmse", finite=False),
+        nrmse=_number(obj["nrmse"], f"{where}: nrmse", finite=False),
+        nfev=_integer(obj["nfev"], f"{where}: nfev"), method=_string(obj["method"], f"{where}: method"),
+        success=_boolean(obj["success"], f"{where}: success"),
+        message=_string(obj["message"], f"{where}: message"),
+        elapsed=_number(obj["elapsed_s"], f"{where}: elapsed_s", finite=False),
+        data=_data_from_dict(obj["data"], f"{where}: data"),
+    )
+
+
+def save_result(result, path) -> None:
+    """Write an identification result to ``path`` (see :func:`result_to_dict`)."""
+    _write(result_to_dict(result), path)
+
+
+def load_result(path) -> SavedResult:
+    """Read a result written by :func:`save_result`."""
+    return result_from_dict(_read(path), str(path))

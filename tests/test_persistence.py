@@ -1,0 +1,190 @@
+"""Versioned JSON persistence of models and identification results (issue 9)."""
+
+import inspect
+import json
+
+import control as ct
+import numpy as np
+import pytest
+
+import hammerstein_ctrl as hc
+from hammerstein_ctrl import persistence
+from hammerstein_ctrl.exceptions import ParameterError, UnknownNameError
+
+EMPS_OPT = [3.138764, 0.544501, -0.398365, 0.045066]
+
+
+def _simulated_sse(model, data):
+    return float(np.sum((data.y - model.simulate(data)) ** 2))
+
+
+def test_emps_round_trip_reproduces_J_exactly(emps_case, tmp_path):
+    model = emps_case.structure.model(EMPS_OPT)
+    path = tmp_path / "emps.json"
+    model.save(path)
+    loaded = hc.load_model(path)
+    # bit for bit: same coefficients, same simulation, same J (both ways of computing it)
+    assert loaded.linear.den[0][0].tolist() == model.linear.den[0][0].tolist()
+    assert loaded.params.tolist() == model.params.tolist()
+    assert _simulated_sse(loaded, emps_case.data) == _simulated_sse(model, emps_case.data)
+    assert emps_case.cost(emps_case.structure.beta(loaded)) == emps_case.cost(np.array(EMPS_OPT))
+    assert abs(emps_case.cost(np.array(EMPS_OPT)) - 0.208517) < 1e-6  # DESIGN.md's oracle
+
+
+def test_emps_result_round_trip(emps_case, tmp_path):
+    res = hc.identify(emps_case.data, emps_case.structure, method="lm", x0=EMPS_OPT, maxfev=60)
+    path = tmp_path / "result.json"
+    hc.save_result(res, path)
+    saved = hc.load_result(path)
+    assert saved.fun == res.fun and saved.nfev == res.nfev and saved.method == "lm"
+    assert saved.params == res.params and saved.success == res.success
+    assert saved.fit_percent == res.fit_percent and saved.message == res.message
+    assert saved.data["dt"] == emps_case.data.dt and saved.data["n_samples"] == 12000
+    assert saved.data["name"] == emps_case.data.name and saved.data["output_unit"] == "m"
+    assert saved.structure.describe() == emps_case.structure.describe()
+    # the loaded model reproduces J on the estimation data to machine precision
+    assert emps_case.cost(saved.structure.beta(saved.model)) == emps_case.cost(res.x)
+    assert _simulated_sse(saved.model, emps_case.data) == _simulated_sse(res.model, emps_case.data)
+    assert abs(_simulated_sse(saved.model, emps_case.data) - res.fun) <= 1e-14 * res.fun
+    assert hc.load_model(path).params.tolist() == res.model.params.tolist()
+
+
+def test_trs_round_trip_is_bitwise(trs_case, tmp_path):
+    model = trs_case.structure.model(trs_case.true_beta)
+    hc.save_model(model, tmp_path / "trs.json")
+    loaded = hc.load_model(tmp_path / "trs.json")
+    np.testing.assert_array_equal(loaded.simulate(trs_case.data), model.simulate(trs_case.data))
+    assert loaded.nonlinearity.param_names == ("d0", "d1")
+
+
+@pytest.mark.parametrize("nl, params", [
+    (hc.Polynomial(3), [1.0, -0.2, 0.05]),
+    (hc.PiecewiseLinear([-1.0, 0.0, 0.5, 2.0]), [-1.0, 0.0, 0.7, 1.1]),
+    (hc.Saturation(), [2.0, 0.7]),
+    (hc.DeadZone(), [1.5, 0.2]),
+])
+def test_family_options_survive(nl, params, tmp_path):
+    model = hc.HammersteinModel(ct.tf([1.0, 2.0], [1.0, 3.0, 2.0]), nl, params, name="demo")
+    hc.save_model(model, tmp_path / "m.json")
+    loaded = hc.load_model(tmp_path / "m.json")
+    assert repr(loaded.nonlinearity) == repr(nl) and loaded.name == "demo"
+    t = np.arange(200) * 0.01
+    u = np.sin(3 * t) * 2
+    np.testing.assert_array_equal(loaded.simulate(t, u), model.simulate(t, u))
+
+
+def _tamper(tmp_path, edit, name="bad.json"):
+    model = hc.HammersteinModel(ct.tf([1], [1, 3.138764, 0]), hc.Coulomb(), EMPS_OPT[1:])
+    obj = persistence.model_to_dict(model)
+    doc = {"format": persistence.MODEL_FORMAT, "schema_version": persistence.SCHEMA_VERSION, "model": obj}
+    text = edit(doc)
+    path = tmp_path / name
+    path.write_text(text if isinstance(text, str) else json.dumps(doc))
+    return path
+
+
+def _set(path_keys, value):
+    def edit(doc):
+        target = doc
+        for k in path_keys[:-1]:
+            target = target[k]
+        target[path_keys[-1]] = value
+    return edit
+
+
+def _delete(path_keys):
+    def edit(doc):
+        target = doc
+        for k in path_keys[:-1]:
+            target = target[k]
+        del target[path_keys[-1]]
+    return edit
+
+
+@pytest.mark.parametrize("edit, error, message", [
+    (_set(["schema_version"], 99), ParameterError, "unsupported schema_version 99"),
+    (_set(["format"], "something/else"), ParameterError, "format is 'something/else'"),
+    (_delete(["model", "offset"]), ParameterError, "missing the field(s) ['offset']"),
+    (_delete(["model", "nonlinearity", "params", "d2"]), ParameterError, "missing the field(s) ['d2']"),
+    (_set(["model", "nonlinearity", "params", "d1"], "nan"), ParameterError, "params.d1 must be a number"),
+    (_set(["model", "nonlinearity", "family"], "wavelet"), UnknownNameError, "unknown nonlinearity 'wavelet'"),
+    (_set(["model", "linear", "den"], []), ParameterError, "linear.den must be a non-empty list"),
+    (_set(["model", "intersample"], "bl"), ParameterError, "intersample must be one of"),
+    (_set(["model", "surprise"], 1), ParameterError, "unexpected field(s) ['surprise']"),
+])
+def test_tampered_files_fail_with_specific_messages(tmp_path, edit, error, message):
+    path = _tamper(tmp_path, edit)
+    with pytest.raises(error) as info:
+        hc.load_model(path)
+    assert message in str(info.value)
+
+
+def test_nan_literal_and_overflow_are_rejected(tmp_path):
+    path = _tamper(tmp_path, lambda doc: json.dumps(doc).replace("-0.398365", "NaN"))
+    with pytest.raises(ParameterError, match="non-standard JSON constant NaN"):
+        hc.load_model(path)
+    path = _tamper(tmp_path, lambda doc: json.dumps(doc).replace("-0.398365", "-1e999"))
+    with pytest.raises(ParameterError, match=r"params.d1 must be a finite number, got -inf"):
+        hc.load_model(path)
+    path = _tamper(tmp_path, lambda doc: "{not json")
+    with pytest.raises(ParameterError, match="not valid JSON"):
+        hc.load_model(path)
+
+
+def test_custom_nonlinearity_cannot_be_saved(tmp_path):
+    model = hc.HammersteinModel(ct.tf([1], [1, 1]), hc.CustomNonlinearity(lambda u, p: p[0] * u, 1), [2.0])
+    with pytest.raises(ParameterError, match="custom function is code, not data"):
+        hc.save_model(model, tmp_path / "c.json")
+
+
+def test_non_finite_run_figures_are_valid_json(trs_case, tmp_path):
+    res = hc.identify(trs_case.data, trs_case.structure, method="nspsa", x0=trs_case.x0, maxfev=15, seed=0)
+    res.fun, res.fit_percent, res.rmse = float("inf"), float("-inf"), float("nan")
+    path = tmp_path / "diverged.json"
+    hc.save_result(res, path)
+
+    def strict(constant):
+        raise AssertionError(f"non-standard constant {constant} in the file")
+
+    doc = json.loads(path.read_text(), parse_constant=strict)
+    assert (doc["J"], doc["fit_percent"], doc["rmse"]) == ("inf", "-inf", "nan")
+    saved = hc.load_result(path)
+    assert saved.fun == np.inf and saved.fit_percent == -np.inf and np.isnan(saved.rmse)
+    # in a model field the same strings are refused
+    doc["model"]["offset"] = "inf"
+    path.write_text(json.dumps(doc))
+    with pytest.raises(ParameterError, match="model.offset must be a number"):
+        hc.load_result(path)
+
+
+def test_result_with_inconsistent_beta_is_rejected(trs_case, tmp_path):
+    res = hc.identify(trs_case.data, trs_case.structure, method="nspsa", x0=trs_case.x0, maxfev=15, seed=0)
+    doc = persistence.result_to_dict(res)
+    doc["beta"][0] += 1.0
+    doc["params"]["b0"] += 1.0
+    path = tmp_path / "r.json"
+    path.write_text(json.dumps(doc))
+    with pytest.raises(ParameterError, match="the model does not have the parameters beta"):
+        hc.load_result(path)
+
+
+def test_model_settings_are_stored(tmp_path):
+    """offset, initial state and intersample are part of the schema."""
+    model = hc.HammersteinModel(ct.tf([1], [1, 3.0, 0]), hc.Coulomb(), [0.5, -0.4, 0.05])
+    accepted = inspect.signature(hc.HammersteinModel.__init__).parameters
+    settings = {"offset": 0.25, "initial_state": [0.1, -0.2], "intersample": "zoh"}
+    if "offset" in accepted:  # the model takes them as keywords
+        model = hc.HammersteinModel(model.linear, model.nonlinearity, model.params, **settings)
+    else:
+        for k, v in settings.items():
+            setattr(model, k, v)
+    doc = persistence.model_to_dict(model)
+    assert (doc["offset"], doc["initial_state"], doc["intersample"]) == (0.25, [0.1, -0.2], "zoh")
+    hc.save_model(model, tmp_path / "s.json")
+    if "offset" in accepted:
+        loaded = hc.load_model(tmp_path / "s.json")
+        assert loaded.offset == 0.25 and list(loaded.initial_state) == [0.1, -0.2]
+        assert loaded.intersample == "zoh"
+    else:
+        with pytest.raises(ParameterError, match="does not support offset"):
+            hc.load_model(tmp_path / "s.json")
