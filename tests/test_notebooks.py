@@ -35,7 +35,7 @@ def test_committed_notebook_carries_its_outputs(path):
     assert not [o for o in outputs if o.output_type == "error"]
     assert not [o for o in outputs if "application/vnd.jupyter.widget-view+json" in o.get("data", {})]
     images = [sum("image/png" in o.get("data", {}) for o in c.outputs) for c in code]
-    assert sum(images) >= 2, f"{path.name} has no figures saved"
+    assert sum(images) >= 1, f"{path.name} has no figures saved"
     assert max(images) == 1, f"{path.name}: a cell shows a figure twice"
 
 
