@@ -141,6 +141,7 @@ def test_response_plots_with_python_control():
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    plt.close("all")  # python-control draws into pyplot's current figure
     model = hc.HammersteinModel(control.tf([1], [1, 1]), hc.Tanh(), [1.0, 1.0])
     t = np.linspace(0, 5, 51)
     cplt = model.response(t, np.ones_like(t)).plot()
