@@ -7,6 +7,10 @@ paper and its rivals, simulates them exactly and fast, and hands them to
 python-control (``control.TransferFunction``, ``control.NonlinearIOSystem``)
 for analysis and controller design.
 
+Sub-modules and the names below are imported on first use (PEP 562), so
+``import hammerstein_ctrl`` costs no numpy, scipy, numba or python-control
+import until something is actually needed.
+
 Examples
 --------
 >>> import hammerstein_ctrl as hc
@@ -17,33 +21,36 @@ Examples
 (True, 'TransferFunction')
 """
 
-from . import datasets, iodata, metrics, nonlinearities, optimize, plots, presets, records, simulate, study
-from . import control_design, exact_export, persistence
-from .datasets import load_emps, load_trs, make_trs_reconstruction
-from .iodata import IOData
-from .records import read_record
+import importlib
+import sys
+import types
+
 from .exceptions import DataError, HammersteinError, ParameterError, UnknownNameError
-from .identify import IdentificationResult, identify
-from .metrics import fit_percent, fit_report, nrmse, rmse, sse
-from .model import HammersteinModel
-from .nonlinearities import (
-    Coulomb,
-    CustomNonlinearity,
-    DeadZone,
-    Nonlinearity,
-    PiecewiseLinear,
-    Polynomial,
-    Saturation,
-    Tanh,
-    nonlinearity_from_name,
-)
-from .objective import HammersteinCost
-from .optimize import PerturbationGain, StepGain, minimize
-from .persistence import load_model, load_result, save_model, save_result
-from .structure import HammersteinStructure, LinearStructure
-from .study import StudyResult, run_study
 
 __version__ = "0.1.0"
+
+#: Sub-modules exposed as attributes of the package.
+_SUBMODULES = ("datasets", "iodata", "metrics", "nonlinearities", "optimize", "plots", "presets", "records",
+               "simulate", "study", "control_design", "exact_export", "persistence")
+
+#: Public name -> the sub-module that defines it.
+_LAZY_NAMES = {
+    "load_emps": "datasets", "load_trs": "datasets", "make_trs_reconstruction": "datasets",
+    "IOData": "iodata", "read_record": "records",
+    "IdentificationResult": "identify", "identify": "identify",
+    "fit_percent": "metrics", "fit_report": "metrics", "nrmse": "metrics", "rmse": "metrics", "sse": "metrics",
+    "BlockModel": "model", "HammersteinModel": "model", "WienerModel": "model", "HammersteinWienerModel": "model",
+    "Coulomb": "nonlinearities", "CustomNonlinearity": "nonlinearities", "DeadZone": "nonlinearities",
+    "Nonlinearity": "nonlinearities", "PiecewiseLinear": "nonlinearities", "Polynomial": "nonlinearities",
+    "Saturation": "nonlinearities", "Tanh": "nonlinearities", "nonlinearity_from_name": "nonlinearities",
+    "HammersteinCost": "objective",
+    "PerturbationGain": "optimize", "StepGain": "optimize", "minimize": "optimize",
+    "BlockStructure": "structure", "HammersteinStructure": "structure", "WienerStructure": "structure",
+    "HammersteinWienerStructure": "structure", "LinearStructure": "structure",
+    "load_model": "persistence", "save_model": "persistence", "load_result": "persistence",
+    "save_result": "persistence",
+    "StudyResult": "study", "run_study": "study",
+}
 
 __all__ = [
     "datasets", "iodata", "metrics", "nonlinearities", "optimize", "plots", "presets", "records", "simulate",
@@ -52,10 +59,43 @@ __all__ = [
     "IOData", "load_emps", "load_trs", "make_trs_reconstruction", "read_record",
     "DataError", "HammersteinError", "ParameterError", "UnknownNameError",
     "fit_percent", "fit_report", "nrmse", "rmse", "sse",
-    "HammersteinModel", "identify", "IdentificationResult",
+    "BlockModel", "HammersteinModel", "WienerModel", "HammersteinWienerModel", "identify", "IdentificationResult",
     "Nonlinearity", "Tanh", "Coulomb", "Polynomial", "Saturation", "DeadZone", "PiecewiseLinear",
     "CustomNonlinearity", "nonlinearity_from_name",
-    "HammersteinCost", "HammersteinStructure", "LinearStructure",
+    "HammersteinCost", "BlockStructure", "HammersteinStructure", "WienerStructure", "HammersteinWienerStructure",
+    "LinearStructure",
     "minimize", "StepGain", "PerturbationGain", "run_study", "StudyResult",
     "__version__",
 ]
+
+
+def __getattr__(name):
+    """Import a sub-module or public name on first access (PEP 562)."""
+    if name in _SUBMODULES:
+        value = importlib.import_module(f"{__name__}.{name}")
+    elif name in _LAZY_NAMES:
+        value = getattr(importlib.import_module(f"{__name__}.{_LAZY_NAMES[name]}"), name)
+    else:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    globals()[name] = value
+    return value
+
+
+def __dir__():
+    return sorted(set(globals()) | set(__all__))
+
+
+class _Package(types.ModuleType):
+    """The package's module type: a public *function* wins over a same-named sub-module.
+
+    ``hammerstein_ctrl.identify`` is both the function and the module defining
+    it.  Importing the sub-module binds the module on the package; eagerly, the
+    package rebound the function right after, and this keeps it that way.
+    """
+
+    def __setattr__(self, name, value):
+        if not (isinstance(value, types.ModuleType) and name in _LAZY_NAMES):
+            super().__setattr__(name, value)
+
+
+sys.modules[__name__].__class__ = _Package

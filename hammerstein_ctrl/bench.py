@@ -6,12 +6,19 @@ measurements taken in the same run, each the median of several repeats.
 
 from __future__ import annotations
 
+import contextlib
+import signal
 import statistics
+import subprocess
+import sys
 import time
 
 import numpy as np
 
 __all__ = ["time_call", "forced_response_cost", "evaluation_speed", "optimizer_speed", "format_report",
+           "synthetic_record", "memory_child", "peak_memory", "run_child", "MEMORY_BUDGETS", "SYNTHETIC_BETA",
+           "SYNTHETIC_X0", "busy_sibling", "contention_ratio", "contention_speed", "first_call_latency", "lm_speed",
+           "hand_route", "identification_routes", "full_report", "MEMORY_SAMPLES", "identify_long_record",
            "identification_comparison", "format_identification_table", "IDENTIFICATION_VARIANTS",
            "pid_tuning_speed"]
 
@@ -167,13 +174,13 @@ def pid_tuning_speed(model, rule: str = "nspsa", *, repeat: int = 3, reference_r
     and of the same loop through ``control.input_output_response``, and their ratio.
     """
     import control
-    from threadpoolctl import threadpool_limits
 
+    from ._linalg import single_threaded_blas
     from .control_design import tune_pid
     from .loop_sim import sampled_loop_iosys, sampled_plant, simulate_loops
 
     pid = tune_pid(model, rule, **tune_kwargs)
-    with threadpool_limits(1):
+    with single_threaded_blas():
         seconds = time_call(lambda: tune_pid(model, rule, **tune_kwargs), repeat=repeat)
     from .control_design import HORIZON_FACTOR
 
@@ -182,7 +189,7 @@ def pid_tuning_speed(model, rule: str = "nspsa", *, repeat: int = 3, reference_r
     r = np.full(int(round(t_final / pid.dt)) + 1, tune_kwargs.get("step", 1.0))
     limits = tune_kwargs.get("u_limit")
     plant = sampled_plant(model, pid.dt)
-    with threadpool_limits(1):
+    with single_threaded_blas():
         fast = time_call(lambda: simulate_loops(plant, pid.gains, r, pid.dt, u_limit=limits), repeat=7, number=20)
     loop = sampled_loop_iosys(model, pid.gains, pid.dt, u_limit=limits)
     t = pid.dt * np.arange(r.size)
@@ -190,3 +197,470 @@ def pid_tuning_speed(model, rule: str = "nspsa", *, repeat: int = 3, reference_r
     nfev = int(pid.optimize_result.nfev) if pid.optimize_result is not None else 0
     return {"rule": rule, "seconds": seconds, "nfev": nfev, "samples": r.size, "loop_fast_s": fast,
             "loop_python_control_s": slow, "loop_speedup": slow / fast, "cost": pid.cost}
+
+
+# ---------------------------------------------------------------------------
+# Peak memory on long records
+# ---------------------------------------------------------------------------
+
+#: Methods whose peak memory :func:`peak_memory` measures, with the evaluation budget of the run
+#: (small: the peak is reached in the first iterations, and a 1e7-sample evaluation takes 0.1 s).
+MEMORY_BUDGETS = {"nspsa": 21, "lm": 25, "auto": 40, "amvo-sca": 100}
+#: Hold time, in samples, of each random level of the synthetic input.
+_HOLD_SAMPLES = 500
+#: Sampling interval of the synthetic records (the EMPS rate).
+_SYNTHETIC_DT = 1e-3
+#: Parameters generating the synthetic records: the paper's best N-SPSA EMPS model (Table 8).
+SYNTHETIC_BETA = (3.2870, 0.59130, -0.4448, 0.0486)
+#: Initial point of the runs on synthetic records: stable, unlike the paper's EMPS start
+#: (``a1 = -1``), whose response overflows on records of 1e6 samples.
+SYNTHETIC_X0 = (2.0, 0.5, -0.4, 0.0)
+
+
+def synthetic_record(n_samples: int, *, seed: int = 0):
+    """An EMPS-like record of any length: the EMPS structure at the paper's N-SPSA optimum.
+
+    The input holds uniform random levels in [-1, 1] for 500 samples each; the
+    output is simulated from that input (no noise).  Used to measure memory
+    and time on records longer than the real one.
+
+    Examples
+    --------
+    >>> rec = synthetic_record(1000)
+    >>> len(rec), rec.dt
+    (1000, 0.001)
+    """
+    from .iodata import IOData
+    from .objective import HammersteinCost
+    from .presets import emps_structure
+
+    rng = np.random.default_rng(seed)
+    levels = rng.uniform(-1.0, 1.0, n_samples // _HOLD_SAMPLES + 1)
+    u = np.repeat(levels, _HOLD_SAMPLES)[:n_samples]
+    structure = emps_structure()
+    y = HammersteinCost(IOData(u, np.zeros(n_samples), dt=_SYNTHETIC_DT), structure).simulate(SYNTHETIC_BETA)
+    return IOData(u, y, dt=_SYNTHETIC_DT, name=f"synthetic-emps-{n_samples}")
+
+
+def identify_long_record(data, method: str):
+    """One small-budget identification (:data:`MEMORY_BUDGETS`) of a synthetic record, as a user would call it.
+
+    From :data:`SYNTHETIC_X0` (``auto`` finds its own starts); AMVO-SCA in the
+    paper's EMPS box with a population of half the budget (two iterations).
+    """
+    from .identify import identify
+    from .optimize.presets import EMPS_BOUNDS
+    from .presets import emps_structure
+
+    kwargs = {"maxfev": MEMORY_BUDGETS[method], "seed": 0}
+    if method != "auto":
+        kwargs["x0"] = SYNTHETIC_X0
+    if method == "amvo-sca":
+        kwargs.update(bounds=EMPS_BOUNDS, options={"pop_size": MEMORY_BUDGETS[method] // 2})
+    return identify(data, emps_structure(), method=method, **kwargs)
+
+
+def _proc_status_kb(field: str) -> int:
+    with open("/proc/self/status") as fh:
+        for line in fh:
+            if line.startswith(field + ":"):
+                return int(line.split()[1])
+    raise OSError(f"no {field} in /proc/self/status")
+
+
+def _reset_peak_rss():
+    """Reset the process's high-water mark of resident memory (Linux >= 4.0)."""
+    with open("/proc/self/clear_refs", "w") as fh:
+        fh.write("5")
+
+
+def memory_child(method: str, n_samples: int) -> dict:
+    """Measure one identification's peak memory in this process (run it in a fresh one).
+
+    The record is built and the kernels compiled first (on a short record);
+    then the peak resident memory is reset and the identification run.
+    ``peak_bytes`` is the rise of resident memory above what the process held
+    with the record loaded, so it counts every allocation of the run
+    (numpy's, numba's, scipy's and MINPACK's); ``tracemalloc_bytes`` counts
+    the allocations Python's allocator sees (numpy arrays, not numba's).
+    """
+    import gc
+    import tracemalloc
+
+    identify_long_record(synthetic_record(4 * _HOLD_SAMPLES), method)  # compile, load everything
+    data = synthetic_record(n_samples)
+    gc.collect()
+    base = _proc_status_kb("VmRSS")
+    _reset_peak_rss()
+    tracemalloc.start()
+    t0 = time.perf_counter()
+    result = identify_long_record(data, method)
+    seconds = time.perf_counter() - t0
+    traced = tracemalloc.get_traced_memory()[1]
+    tracemalloc.stop()
+    peak = (_proc_status_kb("VmHWM") - base) * 1024
+    return {"method": method, "samples": n_samples, "peak_bytes": peak, "per_sample": peak / n_samples,
+            "tracemalloc_bytes": traced, "tracemalloc_per_sample": traced / n_samples,
+            "record_bytes": data.u.nbytes + data.y.nbytes + data.t.nbytes, "seconds": seconds,
+            "nfev": int(result.nfev)}
+
+
+def _child_env() -> dict:
+    """Environment for a child Python that imports this copy of the package."""
+    import os
+    from pathlib import Path
+
+    env = dict(os.environ)
+    root = str(Path(__file__).resolve().parent.parent)
+    env["PYTHONPATH"] = os.pathsep.join([root] + [p for p in env.get("PYTHONPATH", "").split(os.pathsep) if p])
+    return env
+
+
+def run_child(code: str, *, timeout: float = 1800) -> dict:
+    """Run ``code`` in a fresh Python process; it must print one JSON object as its last line."""
+    import json
+
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=_child_env(),
+                          timeout=timeout)
+    if proc.returncode != 0:
+        raise RuntimeError(f"child process failed ({proc.returncode}): {proc.stderr.strip()[-2000:]}")
+    return json.loads(proc.stdout.strip().splitlines()[-1])
+
+
+def peak_memory(method: str, n_samples: int) -> dict:
+    """Peak memory of a small-budget identification of an ``n_samples`` record, in a fresh process.
+
+    See :func:`memory_child` for what is counted.
+    """
+    return run_child("import json; from hammerstein_ctrl.bench import memory_child; "
+                     f"print(json.dumps(memory_child({method!r}, {int(n_samples)})))")
+
+
+# ---------------------------------------------------------------------------
+# Contention: a busy sibling process on the other core
+# ---------------------------------------------------------------------------
+
+#: The sibling's work: a BLAS matrix product in a loop, on one thread.
+_SPIN = ("import sys, numpy as np\n"
+         "a = np.random.default_rng(0).random((200, 200))\n"
+         "print('ready', flush=True)\n"
+         "while True:\n"
+         "    a = a @ a; a /= np.abs(a).max()\n")
+#: Measurement blocks of each kind (quiet, busy) in :func:`contention_ratio`.
+CONTENTION_PAIRS = 7
+
+
+@contextlib.contextmanager
+def busy_sibling():
+    """Run a process spinning a single-threaded BLAS loop for the duration of the block.
+
+    Yields the :class:`subprocess.Popen`; pause and resume it with
+    ``SIGSTOP``/``SIGCONT`` to interleave quiet and busy measurements.
+    """
+    env = _child_env()
+    env.update(OPENBLAS_NUM_THREADS="1", OMP_NUM_THREADS="1", MKL_NUM_THREADS="1")
+    proc = subprocess.Popen([sys.executable, "-c", _SPIN], stdout=subprocess.PIPE, text=True, env=env)
+    try:
+        proc.stdout.readline()
+        yield proc
+    finally:
+        proc.kill()
+        proc.wait()
+        proc.stdout.close()
+
+
+def _per_call(fn, number: int) -> tuple[float, float]:
+    """Wall and CPU (all threads of this process) seconds per call."""
+    t0, c0 = time.perf_counter(), time.process_time()
+    for _ in range(number):
+        fn()
+    return (time.perf_counter() - t0) / number, (time.process_time() - c0) / number
+
+
+def contention_ratio(fn, *, number: int = 100, pairs: int = CONTENTION_PAIRS) -> dict:
+    """Wall time per call of ``fn`` with the sibling paused and running, interleaved.
+
+    ``pairs`` blocks of each kind alternate (so drifts in the machine's load
+    hit both alike); each figure is the median over its blocks.
+
+    Returns
+    -------
+    dict
+        ``quiet_s``, ``busy_s`` (wall seconds per call), ``ratio`` (busy /
+        quiet) and ``cpu_ratio``, the same ratio of the process's CPU time (all its threads):
+        threads spinning against each other raise both, while merely sharing
+        the cores with more processes raises the wall time only.
+        ``sibling_share`` is the sibling's CPU time over the wall time of the
+        busy blocks (how busy it really kept a core).
+    """
+    fn()  # warm-up
+    quiet, busy = [], []
+    with busy_sibling() as proc:
+        sibling0, busy_wall = _cpu_seconds(proc.pid), 0.0
+        for _ in range(pairs):
+            proc.send_signal(signal.SIGSTOP)
+            quiet.append(_per_call(fn, number))
+            proc.send_signal(signal.SIGCONT)
+            busy.append(_per_call(fn, number))
+            busy_wall += busy[-1][0] * number
+        sibling_share = (_cpu_seconds(proc.pid) - sibling0) / busy_wall
+    (q, qc), (b, bc) = ([statistics.median(col) for col in zip(*runs)] for runs in (quiet, busy))
+    return {"quiet_s": q, "busy_s": b, "ratio": b / q, "cpu_ratio": bc / qc, "sibling_share": sibling_share}
+
+
+def _cpu_seconds(pid: int) -> float:
+    """User + system CPU seconds of a process (Linux ``/proc``; NaN elsewhere)."""
+    import os
+
+    try:
+        with open(f"/proc/{pid}/stat") as fh:
+            fields = fh.read().rsplit(")", 1)[1].split()
+    except OSError:
+        return float("nan")
+    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+
+
+def contention_speed(case, beta=None, *, batch: int = 50) -> list[dict]:
+    """:func:`contention_ratio` of control.forced_response, our single and batched evaluations,
+    and a whole ``identify(method="lm")`` from the case's x0 (per evaluation)."""
+    from .identify import identify
+
+    beta = np.asarray(case.x0 if beta is None else beta, dtype=float)
+    model = case.structure.model(beta)
+    betas = beta + 1e-3 * np.random.default_rng(0).standard_normal((batch, beta.size))
+
+    def run_identify():
+        return identify(case.data, case.structure, method="lm", x0=case.x0)
+
+    rows = [("forced_response", contention_ratio(lambda: forced_response_cost(case, model), number=2, pairs=5), 1),
+            ("ours, single", contention_ratio(lambda: case.cost(beta)), 1),
+            ("ours, batched", contention_ratio(lambda: case.cost.batch(betas), number=5), batch),
+            ("identify lm /eval", contention_ratio(run_identify, number=2, pairs=5), run_identify().nfev)]
+    return [{"path": name, "quiet_s": r["quiet_s"] / per, "busy_s": r["busy_s"] / per, "ratio": r["ratio"],
+             "cpu_ratio": r["cpu_ratio"]} for name, r, per in rows]
+
+
+# ---------------------------------------------------------------------------
+# First-call latency in a fresh process
+# ---------------------------------------------------------------------------
+
+_FIRST_CALL = """
+import json, time
+t0 = time.perf_counter()
+import hammerstein_ctrl as hc
+t1 = time.perf_counter()
+import numpy, scipy.optimize, scipy.linalg, numba, control
+t2 = time.perf_counter()
+case = hc.presets.emps()
+t3 = time.perf_counter()
+r = hc.identify(case.data, case.structure, method="lm", x0=case.x0)
+t4 = time.perf_counter()
+r = hc.identify(case.data, case.structure, method="lm", x0=case.x0)
+t5 = time.perf_counter()
+print(json.dumps({"import_s": t1 - t0, "dependencies_s": t2 - t1, "load_s": t3 - t2,
+                  "first_identify_s": t4 - t3, "second_identify_s": t5 - t4, "fun": r.fun}))
+"""
+
+
+def _wall(argv) -> float:
+    t0 = time.perf_counter()
+    subprocess.run(argv, check=True, capture_output=True, env=_child_env())
+    return time.perf_counter() - t0
+
+
+def first_call_latency(*, repeat: int = 3) -> dict:
+    """Import time, first ``identify(method="lm")`` on EMPS and ``--help`` time, each in a fresh process.
+
+    The kernel cache is warmed by one untimed run first.  The package imports
+    its dependencies on first use; ``dependencies_s`` is the import of those
+    an identification needs (numpy, scipy, numba, python-control, which the
+    returned ``TransferFunction`` needs), ``load_s`` reading the EMPS preset,
+    ``first_identify_s`` the first call (loading the compiled kernels) and
+    ``second_identify_s`` the same call again, so their difference is the
+    package's own first-call overhead.  ``python_s`` is a bare interpreter's start-up, to
+    read ``help_s`` against.  Medians over ``repeat`` processes.
+    """
+    run_child(_FIRST_CALL)
+    runs = [run_child(_FIRST_CALL) for _ in range(repeat)]
+    out = {k: statistics.median(r[k] for r in runs) for k in runs[0]}
+    out["python_s"] = statistics.median(_wall([sys.executable, "-c", "pass"]) for _ in range(repeat))
+    out["help_s"] = statistics.median(_wall([sys.executable, "-m", "hammerstein_ctrl.cli", "--help"])
+                                      for _ in range(repeat))
+    return out
+
+
+# ---------------------------------------------------------------------------
+# Levenberg-Marquardt: wall time per iteration, Jacobian cost
+# ---------------------------------------------------------------------------
+
+class _JacobianCounter:
+    """A cost's residual methods, counting the batched (Jacobian) calls."""
+
+    def __init__(self, cost):
+        self.cost, self.jacobians = cost, 0
+
+    def residuals(self, beta):
+        return self.cost.residuals(beta)
+
+    def residuals_batch(self, betas):
+        self.jacobians += 1
+        return self.cost.residuals_batch(betas)
+
+
+def lm_speed(case, *, repeat: int = 5) -> dict:
+    """Levenberg-Marquardt on a preset: wall time per iteration and Jacobian cost, in single evaluations.
+
+    ``single_s`` is one residual vector; ``jacobian_s`` the batched
+    forward-difference Jacobian (all columns in one call) and
+    ``jacobian_2point_s`` scipy's own 2-point scheme (one call per column),
+    both at the optimum.  ``iteration_s`` is the LM run's wall time over its
+    number of Jacobians (one per iteration, plus the final one scipy forms).
+    """
+    import scipy.optimize
+
+    from .optimize import minimize
+
+    x = np.asarray(case.paper["nspsa"]["beta"], dtype=float)
+    steps = np.sqrt(np.finfo(float).eps) * np.maximum(1.0, np.abs(x))
+    X = x + np.diag(steps)
+    single = time_call(lambda: case.cost.residuals(x), repeat=7, number=20)
+    jac = time_call(lambda: case.cost.residuals_batch(X), repeat=7, number=10)
+    two_point = time_call(lambda: scipy.optimize.approx_fprime(x, case.cost.residuals, steps), repeat=7)
+    counter = _JacobianCounter(case.cost)
+    kwargs = case.minimize_kwargs("lm")
+    result = minimize(counter, case.x0, **kwargs)
+    iterations = counter.jacobians
+    run = time_call(lambda: minimize(case.cost, case.x0, **kwargs), repeat=repeat)
+    return {"case": case.name, "n_params": x.size, "single_s": single, "jacobian_s": jac,
+            "jacobian_2point_s": two_point, "run_s": run, "nfev": int(result.nfev), "iterations": iterations,
+            "iteration_s": run / iterations, "fun": float(result.fun)}
+
+
+# ---------------------------------------------------------------------------
+# A whole identification against the route a user would write by hand
+# ---------------------------------------------------------------------------
+
+def hand_route(case) -> dict:
+    """``scipy.optimize.least_squares`` on ``control.forced_response`` residuals, from the case's x0."""
+    import control
+    import scipy.optimize
+
+    t, u, y = case.data.t, case.data.u, case.data.y
+
+    def residuals(beta):
+        model = case.structure.model(beta)
+        return y - control.forced_response(model.linear, t, model.g(u)).outputs
+
+    t0 = time.perf_counter()
+    res = scipy.optimize.least_squares(residuals, case.x0)
+    return {"route": "least_squares on forced_response", "seconds": time.perf_counter() - t0,
+            "fun": float(2 * res.cost), "nfev": int(res.nfev + res.njev * case.x0.size)}
+
+
+def identification_routes(case, *, repeat: int = 3) -> list[dict]:
+    """A whole identification of ``case``: by hand through python-control, and by :func:`identify`."""
+    from .identify import identify
+
+    rows = [hand_route(case)]
+    for method, x0 in (("lm", case.x0), ("auto", None)):
+        r = identify(case.data, case.structure, method=method, x0=x0)
+        secs = time_call(lambda: identify(case.data, case.structure, method=method, x0=x0), repeat=repeat)
+        rows.append({"route": f"identify(method={method!r})", "seconds": secs, "fun": float(r.fun),
+                     "nfev": int(r.nfev)})
+    return rows
+
+
+# ---------------------------------------------------------------------------
+# The whole report
+# ---------------------------------------------------------------------------
+
+#: Record lengths of the peak-memory table.
+MEMORY_SAMPLES = (10**6, 10**7)
+
+
+def full_report(cases, methods=("nspsa",), *, memory_samples=MEMORY_SAMPLES, echo=None) -> str:
+    """Everything ``hammerstein-ctrl bench`` prints, measured in this one run.
+
+    The cost-evaluation table and the preset runs for every case; for the
+    EMPS case also contention, first-call latency, Levenberg-Marquardt
+    iteration cost, peak memory on long records and a whole identification
+    against the hand-written python-control route.  ``echo`` (e.g. ``print``)
+    receives each section as soon as it is measured.
+    """
+    sections = []
+
+    def emit(text):
+        sections.append(text)
+        if echo is not None:
+            echo(text + "\n")
+
+    evals = [evaluation_speed(case, case.paper["nspsa"]["beta"]) for case in cases]
+    emit(format_report(evals, [optimizer_speed(case, m) for case in cases for m in methods]))
+    for case in cases:
+        if case.name != "emps":
+            continue
+        beta = case.paper["nspsa"]["beta"]
+        emit(format_contention(contention_speed(case, beta)))
+        emit(format_first_call(first_call_latency()))
+        emit(format_lm_speed(lm_speed(case)))
+        if memory_samples:
+            emit(format_memory([peak_memory(m, n) for n in memory_samples for m in MEMORY_BUDGETS]))
+        emit(format_routes(identification_routes(case)))
+    return "\n\n".join(sections)
+
+
+def format_contention(rows) -> str:
+    import os
+
+    load = ", ".join(f"{v:.1f}" for v in os.getloadavg()) if hasattr(os, "getloadavg") else "n/a"
+    lines = ["With a busy sibling process (a one-thread BLAS loop; paused/running blocks interleaved, medians;",
+             f"{os.cpu_count()} cores, load average {load}: when the other core is taken by other work, sharing",
+             "a core with the sibling alone doubles the wall time, while spinning threads raise the CPU time)",
+             "", f"{'path':<18}{'quiet':>12}{'busy':>12}{'busy/quiet':>12}{'CPU time ratio':>16}"]
+    lines += [f"{r['path']:<18}{r['quiet_s'] * 1e6:>9.1f} us{r['busy_s'] * 1e6:>9.1f} us{r['ratio']:>11.2f}x"
+              f"{r['cpu_ratio']:>15.2f}x" for r in rows]
+    return "\n".join(lines)
+
+
+def format_first_call(r) -> str:
+    return "\n".join([
+        "Fresh process, kernel cache warm (medians of 3 processes)", "",
+        f"import hammerstein_ctrl            {r['import_s']:.3f} s",
+        f"then numpy, scipy, numba, control  {r['dependencies_s']:.3f} s (imported on first use; "
+        "identify returns a control.TransferFunction)",
+        f"then presets.emps() (read record)  {r['load_s']:.3f} s",
+        f"first identify(method='lm'), EMPS  {r['first_identify_s']:.3f} s "
+        f"(the same call again: {r['second_identify_s']:.3f} s; first-call overhead "
+        f"{r['first_identify_s'] - r['second_identify_s']:.3f} s)",
+        f"hammerstein-ctrl --help            {r['help_s']:.3f} s (bare python start-up: {r['python_s']:.3f} s)",
+    ])
+
+
+def format_lm_speed(r) -> str:
+    s = r["single_s"]
+    return "\n".join([
+        f"Levenberg-Marquardt on {r['case']} ({r['n_params']} parameters; times in single residual "
+        f"evaluations of {s * 1e6:.0f} us)", "",
+        f"Jacobian, batched forward differences   {r['jacobian_s'] / s:5.2f} evaluations",
+        f"Jacobian, scipy 2-point (one per column) {r['jacobian_2point_s'] / s:5.2f} evaluations",
+        f"one iteration ({r['iterations']} Jacobians, {r['nfev']} evaluations, {r['run_s'] * 1e3:.1f} ms, "
+        f"J = {r['fun']:.6g})   {r['iteration_s'] / s:5.2f} evaluations",
+    ])
+
+
+def format_memory(rows) -> str:
+    lines = ["Peak memory of identify() on long synthetic EMPS records (fresh process; rise of resident memory",
+             "above the loaded record, whose own 24 B/sample are not counted)", "",
+             f"{'method':<10}{'samples':>10}{'nfev':>6}{'peak':>11}{'per sample':>13}{'time':>9}"]
+    lines += [f"{r['method']:<10}{r['samples']:>10.0e}{r['nfev']:>6}{r['peak_bytes'] / 2**20:>8.0f} MB"
+              f"{r['per_sample']:>11.1f} B{r['seconds']:>8.2f}s" for r in rows]
+    return "\n".join(lines)
+
+
+def format_routes(rows) -> str:
+    ref = rows[0]["seconds"]
+    lines = ["A whole EMPS identification from the paper's x0: by hand through python-control vs identify()", "",
+             f"{'route':<36}{'wall':>10}{'ratio':>9}{'J':>12}{'nfev':>7}"]
+    lines += [f"{r['route']:<36}{r['seconds']:>8.3f} s{ref / r['seconds']:>8.0f}x{r['fun']:>12.6g}{r['nfev']:>7}"
+              for r in rows]
+    return "\n".join(lines)

@@ -2,24 +2,115 @@
 
 Sub-commands: ``bench`` (speed against python-control), ``reproduce`` (the
 paper's comparison tables and figures), ``identify`` (fit a user's record).
-Errors in the input exit with status 2 and one line on stderr, no traceback.
+Every argument and output path is checked before any work starts.  Every
+failure exits with status 2 and one line ``hammerstein-ctrl: error: ...`` on
+stderr; ``--debug`` shows the traceback instead (for bug reports).
 """
 
 from __future__ import annotations
 
 import argparse
+import math
+import os
 import sys
-
-import numpy as np
+import traceback
+import warnings
+from pathlib import Path
 
 from .exceptions import HammersteinError
 
-__all__ = ["main"]
+__all__ = ["main", "build_parser", "EXIT_ERROR", "PROG"]
+
+#: Description of ``identify``.
+IDENTIFY_DESCRIPTION = ("Fit a Hammerstein (--nonlinearity), Wiener (--output-nonlinearity) or "
+                        "Hammerstein-Wiener model (both) to a record. Accepted files: CSV with a header row naming "
+                    "the columns (time t/time, input u/input/vir, output y/output/qm by default; # lines "
+                    "are comments), CSV without a header (t,u,y or u,y with --dt), MAT or NPZ files with "
+                    "one vector per variable.")
+#: One-line help of ``tune`` (its options come from :mod:`hammerstein_ctrl.cli_tune`).
+TUNE_HELP = "tune a PID for a saved model (SIMC, IMC or N-SPSA on the nonlinear loop)"
+#: Program name used in messages.
+PROG = "hammerstein-ctrl"
+#: Exit status of every failure (argparse's convention).
+EXIT_ERROR = 2
+#: Exit status after Ctrl-C.
+EXIT_INTERRUPTED = 130
+#: Numbers accepted by ``--gain-a`` (a [A [alpha]]) and ``--gain-c`` (c [gamma]).
+GAIN_A_ARGS, GAIN_C_ARGS = 3, 2
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse with the one-line error of the rest of the CLI (no usage block)."""
+
+    def error(self, message):
+        self.exit(EXIT_ERROR, f"{PROG}: error: {message} (see {self.prog} --help)\n")
+
+
+def _count(least: int):
+    """argparse type: an integer >= ``least``."""
+    def parse(text):
+        try:
+            value = int(text)
+        except ValueError:
+            value = None
+        if value is None or value < least:
+            kind = {0: "a non-negative integer", 1: "a positive integer"}.get(least, f"an integer >= {least}")
+            raise argparse.ArgumentTypeError(f"must be {kind}, got {text!r}")
+        return value
+    return parse
+
+
+def _number(*, positive: bool = False, allow_inf: bool = False):
+    """argparse type: a float that is not NaN (finite unless ``allow_inf``; > 0 if ``positive``)."""
+    def parse(text):
+        try:
+            value = float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"invalid float value: {text!r}") from None
+        if math.isnan(value) or (math.isinf(value) and not allow_inf) or (positive and not value > 0):
+            raise argparse.ArgumentTypeError(
+                f"must be a {'positive ' if positive else ''}{'' if allow_inf else 'finite '}number, got {text!r}")
+        return value
+    return parse
+
+
+def _writable_file(option: str, path: str) -> Path:
+    """``path`` as a Path, after checking that a file can be written there."""
+    p = Path(path)
+    if p.is_dir():
+        raise HammersteinError(f"{option} {path}: is a directory, give a file name")
+    parent = p.parent if str(p.parent) else Path(".")
+    if not parent.is_dir():
+        raise HammersteinError(f"{option} {path}: folder {parent} does not exist")
+    if not os.access(parent, os.W_OK) or (p.exists() and not os.access(p, os.W_OK)):
+        raise HammersteinError(f"{option} {path}: not writable")
+    return p
+
+
+def _check_plot_path(path: str) -> Path:
+    from matplotlib.backend_bases import FigureCanvasBase
+
+    p = _writable_file("--plot", path)
+    formats = FigureCanvasBase.get_supported_filetypes()
+    if p.suffix.lower().lstrip(".") not in formats:
+        raise HammersteinError(f"--plot {path}: unknown figure format {p.suffix or '(none)'!r}; "
+                               f"use one of {', '.join('.' + f for f in sorted(formats))}")
+    return p
+
+
+def _output_dir(path: str) -> Path:
+    out = Path(path)
+    if out.exists() and not out.is_dir():
+        raise HammersteinError(f"--out {path}: exists and is not a directory")
+    out.mkdir(parents=True, exist_ok=True)
+    if not os.access(out, os.W_OK):
+        raise HammersteinError(f"--out {path}: directory not writable")
+    return out
 
 
 def _cmd_bench(args) -> int:
     from . import presets
-    from .bench import evaluation_speed, format_report, optimizer_speed
+    from .bench import full_report
 
     cases = []
     for name in args.cases:
@@ -27,9 +118,7 @@ def _cmd_bench(args) -> int:
             cases.append(presets.get(name))
         except FileNotFoundError as exc:
             print(f"skipping {name}: {str(exc).splitlines()[0]}", file=sys.stderr)
-    evals = [evaluation_speed(case, case.paper["nspsa"]["beta"]) for case in cases]
-    runs = [optimizer_speed(case, m) for case in cases for m in args.methods]
-    print(format_report(evals, runs))
+    full_report(cases, args.methods, memory_samples=[int(n) for n in args.memory_samples], echo=print)
     return 0
 
 
@@ -48,19 +137,20 @@ def _cmd_reproduce(args) -> int:
     from pathlib import Path
 
     from . import presets
-    from .bench import forced_response_cost, time_call
     from .plots import study_figures
-    from .report import best_models
+    from .report import best_models, json_safe
     from .study import run_study
 
     kwargs = {"path": args.data} if (args.case == "emps" and args.data) else {}
     if args.case == "trs" and args.data:
         raise HammersteinError("--data applies to the EMPS case only (the TRS reconstruction is bundled)")
+    if args.data and not Path(args.data).exists():
+        raise HammersteinError(f"--data {args.data}: no such file or folder")
+    methods = _unique_methods(args.methods)
+    out = _output_dir(args.out or f"results/{args.case}")
     case = presets.get(args.case, **kwargs)
-    out = Path(args.out or f"results/{args.case}")
-    out.mkdir(parents=True, exist_ok=True)
     progress = sys.stderr.isatty() if args.progress is None else args.progress
-    study = run_study(case, args.methods, trials=args.trials, seed=args.seed, jobs=args.jobs,
+    study = run_study(case, methods, trials=args.trials, seed=args.seed, jobs=args.jobs,
                       results_path=out / "results.jsonl", progress=progress)
     print(study.table("text"))
     (out / "summary.md").write_text(study.table("markdown"))
@@ -69,42 +159,68 @@ def _cmd_reproduce(args) -> int:
 
     validation = case.validation() if case.validation is not None else None
     best = best_models(study, validation)
-    (out / "best_models.json").write_text(json.dumps(best, indent=2, default=str))
+    (out / "best_models.json").write_text(json.dumps(json_safe(best), indent=2, default=str, allow_nan=False))
     if validation is not None:
         print(f"\nBest models on the validation record ({validation.name}):")
         for m, e in best.items():
             v = e.get("validation")
             print(f"  {m:<9} " + ("diverged" if v is None else
                                   f"fit {v['fit_percent']:6.2f} %  RMSE {v['rmse']:.4g} {validation.output_unit}"))
-
-    nfev = sum(r["nfev"] for r in study.records)
-    ours = sum(r["elapsed"] for r in study.records) / max(nfev, 1)
-    # time python-control on a representative model: the best one found (at the TRS initial point
-    # g(u) = 0 and forced_response would take its zero-input shortcut)
-    finite = [r for r in study.records if np.isfinite(float(r["fun"]))]
-    model = case.structure.model(np.array(min(finite, key=lambda r: float(r["fun"]))["x"], dtype=float))
-    reference = time_call(lambda: forced_response_cost(case, model), repeat=3)
-    print(f"\n{len(study.records)} trials, {nfev} evaluations: {study.elapsed:.1f} s wall here"
-          + (f" ({study.resumed} trials reused from {out / 'results.jsonl'})" if study.resumed else ""))
-    print(f"per evaluation: ours {ours * 1e6:.0f} us (in the trials) vs control.forced_response "
-          f"{reference * 1e3:.1f} ms (measured now): {reference / ours:.0f}x; the same evaluations through "
-          f"forced_response would take ~{nfev * reference / 3600:.2f} h")
+    _print_cost_comparison(case, study, out)
     if not args.no_figures:
         _use_agg()
         formats = ("png", "svg") if args.svg else ("png",)
-        paths = study_figures(study, out / "figures", formats=formats, validation=validation)
+        with warnings.catch_warnings():  # empty legends when every method diverged
+            warnings.filterwarnings("ignore", message="No artists with labels")
+            paths = study_figures(study, out / "figures", formats=formats, validation=validation)
         print(f"figures: {len(paths)} files in {out / 'figures'}")
     print(f"results: {out}/results.jsonl, summary.json, summary.md, summary.csv, best_models.json")
     return 0
 
 
+def _unique_methods(names) -> list[str]:
+    """Canonical method names, each once; a note on stderr for the repeats dropped."""
+    from .optimize import canonical_method
+
+    methods = [canonical_method(m) for m in names]
+    unique = list(dict.fromkeys(methods))
+    if len(unique) < len(methods):
+        print(f"{PROG}: note: --methods names {len(methods)} methods but only {len(unique)} different "
+              f"ones ({' '.join(unique)}); each is run once", file=sys.stderr)
+    return unique
+
+
+def _print_cost_comparison(case, study, out):
+    """Evaluations and time per evaluation, against control.forced_response on the best model."""
+    import numpy as np
+
+    from .bench import forced_response_cost, time_call
+
+    nfev = sum(r["nfev"] for r in study.records)
+    ours = sum(r["elapsed"] for r in study.records) / max(nfev, 1)
+    reused = (f" ({study.resumed} trials reused from {out / 'results.jsonl'})" if study.resumed else "")
+    print(f"\n{len(study.records)} trials, {nfev} evaluations: {study.elapsed:.1f} s wall here{reused}")
+    # time python-control on a representative model: the best one found (at the TRS initial point
+    # g(u) = 0 and forced_response would take its zero-input shortcut)
+    finite = [r for r in study.records if np.isfinite(float(r["fun"]))]
+    if not finite:
+        print("no trial ended with a finite J: no model to time control.forced_response on")
+        return
+    model = case.structure.model(np.array(min(finite, key=lambda r: float(r["fun"]))["x"], dtype=float))
+    reference = time_call(lambda: forced_response_cost(case, model), repeat=3)
+    print(f"per evaluation: ours {ours * 1e6:.0f} us (in the trials) vs control.forced_response "
+          f"{reference * 1e3:.1f} ms (measured now): {reference / ours:.0f}x; the same evaluations through "
+          f"forced_response would take ~{nfev * reference / 3600:.2f} h")
+
+
 def _structure_from_args(args):
     from . import presets
     from .nonlinearities import nonlinearity_from_name
-    from .structure import HammersteinStructure, LinearStructure
+    from .structure import HammersteinStructure, HammersteinWienerStructure, LinearStructure, WienerStructure
 
     if args.structure:
         extra = [flag for flag, given in (("--orders", args.orders), ("--nonlinearity", args.nonlinearity),
+                                          ("--output-nonlinearity", args.output_nonlinearity),
                                           ("--fix", args.fix), ("--degree", args.degree is not None),
                                           ("--breakpoints", args.breakpoints), ("--free-gain", args.free_gain))
                  if given]
@@ -112,8 +228,9 @@ def _structure_from_args(args):
             raise HammersteinError(f"{', '.join(extra)} cannot be combined with --structure {args.structure} "
                                    "(use --orders/--nonlinearity to build your own structure)")
         return presets.STRUCTURES[args.structure](), presets.X0[args.structure]
-    if not (args.orders and args.nonlinearity):
-        raise HammersteinError("give --structure trs|emps, or --orders L M and --nonlinearity NAME")
+    if not (args.orders and (args.nonlinearity or args.output_nonlinearity)):
+        raise HammersteinError("give --structure trs|emps, or --orders L M and --nonlinearity NAME "
+                               "and/or --output-nonlinearity NAME")
     fixed = {}
     for item in args.fix or []:
         name, sep, value = item.partition("=")
@@ -123,79 +240,157 @@ def _structure_from_args(args):
             fixed[name.strip()] = float(value)
         except ValueError:
             raise HammersteinError(f"--fix {item!r}: {value!r} is not a number") from None
-    nl_kwargs = {}
-    if args.degree is not None:
-        nl_kwargs["degree"] = args.degree
-    if args.breakpoints is not None:
-        nl_kwargs["breakpoints"] = args.breakpoints
     linear = LinearStructure(args.orders[0], args.orders[1], monic_numerator=not args.free_gain, fixed=fixed)
-    return HammersteinStructure(linear, nonlinearity_from_name(args.nonlinearity, **nl_kwargs)), None
+    g = h = None
+    if args.nonlinearity:
+        g = nonlinearity_from_name(args.nonlinearity, **_family_options(args.degree, args.breakpoints))
+    if args.output_nonlinearity:
+        h = nonlinearity_from_name(args.output_nonlinearity,
+                                   **_family_options(args.output_degree, args.output_breakpoints))
+    if g is not None and h is not None:
+        return HammersteinWienerStructure(linear, g, h), None
+    return (HammersteinStructure(linear, g) if h is None else WienerStructure(linear, h)), None
+
+
+def _family_options(degree, breakpoints) -> dict:
+    """Keyword arguments of a nonlinearity family from --degree/--breakpoints style options."""
+    options = {}
+    if degree is not None:
+        options["degree"] = degree
+    if breakpoints is not None:
+        options["breakpoints"] = breakpoints
+    return options
 
 
 def _cmd_identify(args) -> int:
-    import json
+    from .identify import AUTO, identify
+    from .optimize import canonical_method
+    from .persistence import save_result
+    from .records import record_from_args
 
-    from .datasets import read_record
-    from .identify import identify
-    from .optimize import PerturbationGain, StepGain
-
-    data = read_record(args.data, input=args.input, output=args.output, time=args.time, dt=args.dt)
+    auto = args.method.strip().lower() == AUTO
+    if not auto:
+        canonical_method(args.method)
+    options = _gain_options(args)
+    plot = _check_plot_path(args.plot) if args.plot else None
+    out = _writable_file("--out", args.out) if args.out else None
+    data = record_from_args(args)
     structure, default_x0 = _structure_from_args(args)
-    x0 = args.x0 if args.x0 is not None else default_x0
-    options = {}
-    if args.gain_a is not None:
-        options["a"] = StepGain(*args.gain_a)
-    if args.gain_c is not None:
-        options["c"] = PerturbationGain(*args.gain_c)
-    if args.norm_limit is not None:
-        options["norm_limit"] = args.norm_limit
-    if args.pop_size is not None:
-        options["pop_size"] = args.pop_size
+    data.check_identifiable(structure.n_params)
+    x0 = args.x0 if args.x0 is not None else (None if auto else default_x0)
     bounds = None
     if args.bounds is not None:
         if len(args.bounds) != 2 * structure.n_params:
             raise HammersteinError(f"--bounds needs {2 * structure.n_params} numbers (low high per parameter "
                                    f"{list(structure.param_names)}), got {len(args.bounds)}")
         bounds = list(zip(args.bounds[0::2], args.bounds[1::2]))
-    maxfev = args.maxfev if args.maxfev is not None else (None if args.maxiter else 2501)
+    maxfev = args.maxfev if args.maxfev is not None else (None if args.maxiter or auto else 2501)
     result = identify(data, structure, method=args.method, x0=x0, maxfev=maxfev, maxiter=args.maxiter,
-                      seed=args.seed, options=options or None, bounds=bounds)
+                      seed=args.seed, options=options or None, bounds=bounds, offset=args.offset or None,
+                      initial_state=args.initial_state, allow_unstable=args.allow_unstable)
     print(result.summary())
-    if args.out:
-        with open(args.out, "w") as fh:
-            json.dump(result.to_dict(), fh, indent=2, default=str)
-        print(f"model written to {args.out}")
-    if args.plot:
+    if out is not None:
+        save_result(result, out)
+        print(f"result written to {out}")
+    if plot is not None:
         _use_agg()
         from .plots import time_response
 
         fig = time_response(data, {result.method: result.model})
-        fig.savefig(args.plot, dpi=120)
-        print(f"figure written to {args.plot}")
+        fig.savefig(plot, dpi=120)
+        print(f"figure written to {plot}")
     return 0 if result.success else 1
 
 
-def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+def _gain_options(args) -> dict:
+    """Optimiser options from --gain-a, --gain-c, --norm-limit, --pop-size (checked before any work)."""
+    from .optimize import PerturbationGain, StepGain
+
+    options = {}
+    for flag, given, cls, most in (("--gain-a", args.gain_a, StepGain, GAIN_A_ARGS),
+                                   ("--gain-c", args.gain_c, PerturbationGain, GAIN_C_ARGS)):
+        if given is not None:
+            if len(given) > most:
+                raise HammersteinError(f"{flag} takes at most {most} numbers, got {len(given)}")
+            options[flag[-1]] = cls(*given)
+    if args.norm_limit is not None:
+        options["norm_limit"] = args.norm_limit
+    if args.pop_size is not None:
+        options["pop_size"] = args.pop_size
+    return options
+
+
+def _add_identify_arguments(ide):
+    from .records import add_record_arguments
+
+    add_record_arguments(ide)
+    ide.add_argument("--structure", choices=["trs", "emps"], help="a case study's structure (and x0)")
+    ide.add_argument("--orders", type=_count(0), nargs=2, metavar=("L", "M"),
+                     help="numerator and denominator degrees of H(p)")
+    ide.add_argument("--nonlinearity", help="tanh, coulomb, polynomial, saturation, deadzone, piecewise_linear")
+    ide.add_argument("--degree", type=_count(0), help="polynomial degree")
+    ide.add_argument("--breakpoints", type=_number(), nargs="+", help="piecewise-linear breakpoints")
+    ide.add_argument("--output-nonlinearity", metavar="NAME",
+                     help="a static output nonlinearity after H: a Wiener model, or Hammerstein-Wiener "
+                          "with --nonlinearity")
+    ide.add_argument("--output-degree", type=_count(0), help="polynomial degree of the output nonlinearity")
+    ide.add_argument("--output-breakpoints", type=_number(), nargs="+",
+                     help="piecewise-linear breakpoints of the output nonlinearity")
+    ide.add_argument("--fix", nargs="+", metavar="NAME=VALUE", help="fixed coefficients, e.g. a0=0")
+    ide.add_argument("--free-gain", action="store_true", help="do not fix the leading numerator coefficient to 1")
+    ide.add_argument("--method", default="auto",
+                     help="auto (default: needs no x0 or tuning), nspsa, nlspsa, spsa, amvo-sca, lm, nelder-mead, ...")
+    ide.add_argument("--x0", type=_number(), nargs="+",
+                     help="initial parameter vector beta (optional with --method auto)")
+    ide.add_argument("--offset", action="store_true", help="estimate a constant output offset y0")
+    ide.add_argument("--initial-state", choices=["zero", "estimate"], default=None,
+                     help="start H from rest (default) or estimate its initial state")
+    ide.add_argument("--allow-unstable", action="store_true", help="accept an unstable model as a success")
+    ide.add_argument("--bounds", type=_number(allow_inf=True), nargs="+", metavar="LO HI",
+                     help="low high for each parameter")
+    ide.add_argument("--maxfev", type=_count(1),
+                     help="evaluation budget (default: 2000 for auto, 2501 for the others unless --maxiter)")
+    ide.add_argument("--maxiter", type=_count(1), help="iteration limit")
+    ide.add_argument("--seed", type=_count(0), default=0, help="seed of the stochastic methods (>= 0)")
+    ide.add_argument("--gain-a", type=_number(), nargs="+", metavar="A", help="a [A [alpha]] of a(k) = a/(k+A)^alpha")
+    ide.add_argument("--gain-c", type=_number(), nargs="+", metavar="C", help="c [gamma] of c(k) = c/(k+1)^gamma")
+    ide.add_argument("--norm-limit", type=_number(positive=True), help="NL-SPSA's delta")
+    ide.add_argument("--pop-size", type=_count(2), help="AMVO-SCA population")
+    ide.add_argument("--out", help="write the result as versioned JSON (hammerstein_ctrl.load_result reads it)")
+    ide.add_argument("--plot", help="write a time-response figure (PNG/SVG/PDF)")
+
+
+def build_parser(command: str | None = None) -> argparse.ArgumentParser:
+    """The command-line parser.
+
+    With ``command`` given, only that sub-command gets its full options (the
+    ``identify`` and ``tune`` options need the numeric libraries): the others
+    are listed by name, which keeps ``hammerstein-ctrl --help`` instant.
+    """
+    parser = _Parser(
         prog="hammerstein-ctrl",
         description="Continuous-time Hammerstein identification (N-SPSA and rivals) on python-control.",
     )
+    parser.add_argument("--debug", action="store_true",
+                        help="show the traceback of a failure (for bug reports); accepted anywhere")
     sub = parser.add_subparsers(dest="command", required=True)
 
     bench = sub.add_parser("bench", help="time cost evaluations and runs against control.forced_response")
     bench.add_argument("--cases", nargs="+", default=["emps", "trs"], choices=["emps", "trs"])
     bench.add_argument("--methods", nargs="+", default=["nspsa"],
                        help="methods whose preset run is timed (default: nspsa)")
+    bench.add_argument("--memory-samples", nargs="*", type=float, default=[1e6, 1e7], metavar="N",
+                       help="record lengths of the EMPS peak-memory table (default: 1e6 1e7; none: skip)")
     bench.set_defaults(func=_cmd_bench)
 
     rep = sub.add_parser("reproduce", help="run the paper's comparison (Table 3 / Table 7) and write figures")
     rep.add_argument("case", choices=["trs", "emps"])
-    rep.add_argument("--trials", type=int, default=25, help="independent trials per method (default 25)")
+    rep.add_argument("--trials", type=_count(1), default=25, help="independent trials per method (default 25)")
     rep.add_argument("--methods", nargs="+", default=DEFAULT_METHODS,
                      help=f"methods to compare (default: {' '.join(DEFAULT_METHODS)})")
-    rep.add_argument("--seed", type=int, default=0, help="study seed (trial i uses a seed derived from it)")
+    rep.add_argument("--seed", type=_count(0), default=0, help="study seed (trial i uses a seed derived from it)")
     rep.add_argument("--out", help="output directory (default results/CASE); rerunning resumes")
-    rep.add_argument("--jobs", type=int, default=None, help="worker processes (default: all cores)")
+    rep.add_argument("--jobs", type=_count(1), default=None, help="worker processes (default: all cores)")
     rep.add_argument("--data", help="folder or file of the EMPS data (default: $HAMMERSTEIN_CTRL_DATA)")
     rep.add_argument("--svg", action="store_true", help="also write SVG figures")
     rep.add_argument("--no-figures", action="store_true", help="skip the figures")
@@ -205,54 +400,55 @@ def build_parser() -> argparse.ArgumentParser:
     rep.set_defaults(func=_cmd_reproduce)
 
     ide = sub.add_parser(
-        "identify", help="fit a Hammerstein model to your own record",
-        description="Fit a Hammerstein model to a record. Accepted files: CSV with a header row naming "
-                    "the columns (time t/time, input u/input/vir, output y/output/qm by default; # lines "
-                    "are comments), CSV without a header (t,u,y or u,y with --dt), MAT or NPZ files with "
-                    "one vector per variable.")
-    ide.add_argument("--data", required=True, help="CSV, MAT or NPZ file")
-    ide.add_argument("--input", help="input column/variable name")
-    ide.add_argument("--output", help="output column/variable name")
-    ide.add_argument("--time", help="time column/variable name")
-    ide.add_argument("--dt", type=float, help="sampling interval when the file has no time column")
-    ide.add_argument("--structure", choices=["trs", "emps"], help="a case study's structure (and x0)")
-    ide.add_argument("--orders", type=int, nargs=2, metavar=("L", "M"),
-                     help="numerator and denominator degrees of H(p)")
-    ide.add_argument("--nonlinearity", help="tanh, coulomb, polynomial, saturation, deadzone, piecewise_linear")
-    ide.add_argument("--degree", type=int, help="polynomial degree")
-    ide.add_argument("--breakpoints", type=float, nargs="+", help="piecewise-linear breakpoints")
-    ide.add_argument("--fix", nargs="+", metavar="NAME=VALUE", help="fixed coefficients, e.g. a0=0")
-    ide.add_argument("--free-gain", action="store_true", help="do not fix the leading numerator coefficient to 1")
-    ide.add_argument("--method", default="nspsa", help="nspsa (default), nlspsa, spsa, amvo-sca, lm, nelder-mead, ...")
-    ide.add_argument("--x0", type=float, nargs="+", help="initial parameter vector beta")
-    ide.add_argument("--bounds", type=float, nargs="+", metavar="LO HI", help="low high for each parameter")
-    ide.add_argument("--maxfev", type=int, help="evaluation budget (default 2501 unless --maxiter)")
-    ide.add_argument("--maxiter", type=int, help="iteration limit")
-    ide.add_argument("--seed", type=int, default=0)
-    ide.add_argument("--gain-a", type=float, nargs="+", metavar="A", help="a [A [alpha]] of a(k) = a/(k+A)^alpha")
-    ide.add_argument("--gain-c", type=float, nargs="+", metavar="C", help="c [gamma] of c(k) = c/(k+1)^gamma")
-    ide.add_argument("--norm-limit", type=float, help="NL-SPSA's delta")
-    ide.add_argument("--pop-size", type=int, help="AMVO-SCA population")
-    ide.add_argument("--out", help="write the fitted model as JSON")
-    ide.add_argument("--plot", help="write a time-response figure (PNG/SVG/PDF)")
+        "identify", help="fit a Hammerstein, Wiener or Hammerstein-Wiener model to your own record",
+        description=IDENTIFY_DESCRIPTION)
+    if command in (None, "identify"):
+        _add_identify_arguments(ide)
     ide.set_defaults(func=_cmd_identify)
+    if command in (None, "tune"):
+        from .cli_tune import add_tune_parser
+
+        add_tune_parser(sub)
+    else:
+        sub.add_parser("tune", help=TUNE_HELP)
     return parser
 
 
+def _one_line(exc: BaseException) -> str:
+    """The error message of ``exc`` on one line; the exception type for anything unexpected."""
+    text = " ".join(line.strip() for line in str(exc).strip().splitlines() if line.strip())
+    if isinstance(exc, (HammersteinError, OSError)):
+        return text or type(exc).__name__
+    return f"{type(exc).__name__}: {text} (an unexpected failure: rerun with --debug for the traceback)"
+
+
+def _show_warning(message, category, filename, lineno, file=None, line=None):
+    print(f"{PROG}: warning: {' '.join(str(message).split())}", file=sys.stderr)
+
+
 def main(argv=None) -> int:
-    parser = build_parser()
-    args = parser.parse_args(argv)
+    """Run the command line; returns the exit status (0, 1 for a fit that failed, 2 for errors)."""
+    argv = list(sys.argv[1:] if argv is None else argv)
+    debug = "--debug" in argv
+    argv = [a for a in argv if a != "--debug"]
+    parser = build_parser(next((a for a in argv if not a.startswith("-")), ""))
     try:
-        return args.func(args)
-    except (HammersteinError, FileNotFoundError, OSError) as exc:
-        message = str(exc).strip().splitlines()
-        print(f"hammerstein-ctrl: error: {message[0] if message else repr(exc)}", file=sys.stderr)
-        for line in message[1:]:
-            print(f"  {line}", file=sys.stderr)
-        return 2
+        args = parser.parse_args(argv)
+    except SystemExit as stop:  # --help, --version, or an argument error already printed as one line
+        return stop.code if isinstance(stop.code, int) else EXIT_ERROR
+    try:
+        with warnings.catch_warnings():
+            if not debug:
+                warnings.showwarning = _show_warning
+            return args.func(args)
     except KeyboardInterrupt:
-        print("hammerstein-ctrl: interrupted", file=sys.stderr)
-        return 130
+        print(f"{PROG}: interrupted", file=sys.stderr)
+        return EXIT_INTERRUPTED
+    except Exception as exc:  # every failure: one line and exit 2 (the traceback with --debug)
+        if debug:
+            traceback.print_exc()
+        print(f"{PROG}: error: {_one_line(exc)}", file=sys.stderr)
+        return EXIT_ERROR
 
 
 if __name__ == "__main__":  # pragma: no cover

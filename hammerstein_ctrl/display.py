@@ -77,7 +77,8 @@ def _default_label(obj, index: int | None) -> str:
     name = getattr(obj, "name", None)
     if index is None:
         return str(name or type(obj).__name__)
-    if isinstance(name, str) and name and name != "hammerstein" and not _is_system(obj):
+    default = str(getattr(obj, "kind", "hammerstein")).replace("-", "_")
+    if isinstance(name, str) and name and name != default and not _is_system(obj):
         return name
     return f"model {index + 1}"
 

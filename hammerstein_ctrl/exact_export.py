@@ -171,7 +171,8 @@ def sampled_iosys(model, dt: float, *, intersample: str | None = None, name: str
 
     Parameters
     ----------
-    model : HammersteinModel
+    model : BlockModel
+        A Hammerstein, Wiener or Hammerstein-Wiener model.
     dt : float
         Sampling interval of the system (the grid it must be simulated on).
     intersample : {"foh", "zoh"}, optional
@@ -190,22 +191,22 @@ def sampled_iosys(model, dt: float, *, intersample: str | None = None, name: str
     settings = model_settings(model)
     x0, offset = settings["initial_state"], settings["offset"]
     n = Ad.shape[0]
-    g, params = model.nonlinearity, model.params
+    g, h = model.g, model.h  # input and output nonlinearities (identity where absent)
 
     def state(z, v):
         # x[k] from z[k]; at the first sample (started = 0) x[0] = initial_state + z[0]
         return z[:n] + (B1 * v if z[n] else x0)
 
     def update(t, z, u, p):
-        v = float(g(np.atleast_1d(u)[:1], params)[0])
+        v = float(g(np.atleast_1d(u)[:1])[0])
         out = np.empty(n + 1)
         out[:n] = Ad @ state(z, v) + B0 * v
         out[n] = 1.0
         return out
 
     def output(t, z, u, p):
-        v = float(g(np.atleast_1d(u)[:1], params)[0])
-        return np.array([C @ state(z, v) + D * v + offset])
+        v = float(g(np.atleast_1d(u)[:1])[0])
+        return np.array([float(h(np.array([C @ state(z, v) + D * v]))[0]) + offset])
 
     return control.nlsys(update, output, inputs=[inputs], outputs=[outputs],
                          states=[f"z[{i}]" for i in range(n)] + ["started"], dt=dt,

@@ -38,11 +38,11 @@ from .datasets import IOData
 from .exceptions import ParameterError
 from .initialize import static_affine_sse
 from .metrics import fit_report
-from .model import HammersteinModel
+from .model import BlockModel
 from .objective import HammersteinCost
 from .optimize import DIVERGED, canonical_method, minimize
 from .simulate import unstable
-from .structure import HammersteinStructure
+from .structure import BlockStructure
 
 __all__ = ["identify", "IdentificationResult", "AUTO"]
 
@@ -58,8 +58,9 @@ class IdentificationResult:
 
     Attributes
     ----------
-    model : HammersteinModel
-        The fitted model; ``model.linear`` is a ``control.TransferFunction``.
+    model : BlockModel
+        The fitted model (a HammersteinModel, WienerModel or
+        HammersteinWienerModel); ``model.linear`` is a ``control.TransferFunction``.
     x : ndarray
         The fitted beta.
     fun : float
@@ -75,13 +76,13 @@ class IdentificationResult:
         The optimiser's per-iteration record (``nit, nfev, fun, best``).
     elapsed : float
         Wall time in seconds.
-    structure : HammersteinStructure
+    structure : BlockStructure
     data : IOData
     optimize_result : scipy.optimize.OptimizeResult
         The optimiser's full result.
     """
 
-    model: HammersteinModel
+    model: BlockModel
     x: np.ndarray
     fun: float
     nfev: int
@@ -93,7 +94,7 @@ class IdentificationResult:
     message: str
     history: dict
     elapsed: float
-    structure: HammersteinStructure = field(repr=False)
+    structure: BlockStructure = field(repr=False)
     data: IOData = field(repr=False)
     optimize_result: object = field(repr=False)
 
@@ -147,9 +148,10 @@ class IdentificationResult:
             "fit_percent": self.fit_percent, "rmse": self.rmse, "nrmse": self.nrmse,
             "success": self.success, "message": self.message, "elapsed_s": self.elapsed,
             "linear": {"num": num, "den": den},
-            "nonlinearity": {"name": self.model.nonlinearity.name,
-                             "params": dict(zip(self.model.nonlinearity.param_names,
-                                                self.model.params.tolist()))},
+            **{key: {"name": nl.name, "params": dict(zip(nl.param_names, np.asarray(p).tolist()))}
+               for key, nl, p in (("nonlinearity", self.model.input_nonlinearity, self.model.input_params),
+                                  ("output_nonlinearity", self.model.output_nonlinearity,
+                                   self.model.output_params)) if nl is not None},
         }
 
     # -- notebook display (logic in display.py / plots.py) ---------------------
@@ -199,7 +201,7 @@ def identify(
     ----------
     data : IOData
         Estimation record; its ``intersample`` ("foh"/"zoh") is honoured.
-    structure : HammersteinStructure or {"trs", "emps"}
+    structure : HammersteinStructure, WienerStructure, HammersteinWienerStructure or {"trs", "emps"}
         The model structure (a preset name uses that case's structure and,
         for the paper's methods when ``x0`` is omitted, its initial point).
     method : str, default "auto"
@@ -262,8 +264,9 @@ def _resolve_structure(data, structure, method, x0):
         if x0 is None and str(method).strip().lower() != AUTO:
             x0 = presets.X0[structure.lower()]
         structure = presets.STRUCTURES[structure.lower()]()
-    if not isinstance(structure, HammersteinStructure):
-        raise ParameterError(f"structure must be a HammersteinStructure, got {type(structure).__name__}")
+    if not isinstance(structure, BlockStructure):
+        raise ParameterError("structure must be a HammersteinStructure, WienerStructure or "
+                             f"HammersteinWienerStructure, got {type(structure).__name__}")
     return structure, x0
 
 

@@ -23,8 +23,8 @@ once the linear block ``H`` is fixed:
    and fit the scale by least squares.
 3. Offset and initial state come out of the same least-squares solve.
 
-Every simulated candidate counts as one evaluation against the caller's
-budget (:class:`Budget`).
+Every simulated signal (each column of a regression, each free response)
+counts as one evaluation against the caller's budget (:class:`Budget`).
 
 Examples
 --------
@@ -190,31 +190,48 @@ def stabilize(linear, theta) -> np.ndarray:
 # ---------------------------------------------------------------------------
 def _drives(nonlinearity, u) -> np.ndarray:
     """Signals whose responses span the output with ``H`` fixed: the basis, else ``[u, 1]``."""
-    basis = nonlinearity.basis(u)
+    basis = None if nonlinearity is None else nonlinearity.basis(u)
     if basis is not None:
         return np.asarray(basis, dtype=float)
     return np.stack([u, np.ones_like(u)])
 
 
 class _Regression:
-    """Least-squares fit of ``y`` by responses of one linear block (and nuisance columns)."""
+    """Least-squares fit of ``y`` by responses of one linear block (and nuisance columns).
 
-    def __init__(self, structure, data, budget: Budget):
+    With ``affine_output`` (structures with an output nonlinearity, whose
+    affine stand-in has a constant term) a constant column is always present.
+    """
+
+    def __init__(self, structure, data, budget: Budget, *, affine_output: bool = False):
         self.structure, self.data, self.budget = structure, data, budget
         self.y = np.asarray(data.y, dtype=float)
+        self.constant = structure.offset or affine_output
 
-    def columns(self, theta, drives) -> np.ndarray:
-        """Responses of ``H(theta)`` to each drive, then offset and free-response columns."""
-        self.budget.charge(1)
+    def simulate(self, theta, drives) -> np.ndarray:
+        """Responses ``(N, k)`` of ``H(theta)`` to each drive (``k`` counted evaluations)."""
+        self.budget.charge(drives.shape[0])
         num, den = self.structure.linear.coefficients(theta)
         k = drives.shape[0]
-        cols = simulate_batch(np.repeat(num, k, 0), np.repeat(den, k, 0), drives, self.data.dt,
-                              intersample=self.data.intersample)
-        parts = [cols.T]
+        return simulate_batch(np.repeat(num, k, 0), np.repeat(den, k, 0), drives, self.data.dt,
+                              intersample=self.data.intersample).T
+
+    def columns(self, theta, drives) -> np.ndarray:
+        """Responses of ``H(theta)`` to each drive, then constant and free-response columns."""
+        parts = [self.simulate(theta, drives)]
+        if self.constant:
+            parts.append(np.ones((self.y.size, 1)))
+        if self.structure.initial_state == "estimate" and self.structure.output_nonlinearity is None:
+            num, den = self.structure.linear.coefficients(theta)
+            self.budget.charge(self.structure.linear.den_order)
+            parts.append(free_response(num[0], den[0], self.data.dt, self.y.size))
+        return np.column_stack(parts)
+
+    def static_columns(self, signals) -> np.ndarray:
+        """The signals themselves (``(k, N)``) as columns, then the offset column."""
+        parts = [np.asarray(signals, dtype=float).T]
         if self.structure.offset:
             parts.append(np.ones((self.y.size, 1)))
-        if self.structure.initial_state == "estimate":
-            parts.append(free_response(num[0], den[0], self.data.dt, self.y.size))
         return np.column_stack(parts)
 
     def solve(self, Phi):
@@ -252,19 +269,20 @@ def _refine_linear(reg: _Regression, theta, drives) -> tuple[np.ndarray, float]:
     return res.x, float(res.fun @ res.fun)
 
 
-def _nonlinearity_params(reg: _Regression, theta, u) -> tuple[np.ndarray, np.ndarray] | None:
-    """``(g parameters, nuisance coefficients)`` with ``H(theta)`` fixed, or ``None``."""
-    nl = reg.structure.nonlinearity
-    basis = nl.basis(u)
+def _fit_static(reg: _Regression, nl, signal, columns) -> tuple[np.ndarray, np.ndarray] | None:
+    """``(parameters of nl, remaining coefficients)`` fitting ``y`` by ``columns(nl's regressors)``.
+
+    Families linear in their parameters are solved directly; families with a
+    scale parameter scan their shape (:meth:`~Nonlinearity.shape_grid`) over the
+    range of ``signal`` and fit the scale.
+    """
+    basis = nl.basis(signal)
     if basis is not None:
-        w, r = reg.solve(reg.columns(theta, np.asarray(basis, dtype=float)))
+        w, _ = reg.solve(columns(np.asarray(basis, dtype=float)))
         return None if w is None else (w[:nl.n_params], w[nl.n_params:])
-    grid = nl.shape_grid(u)
-    if grid is None or nl.scale_index is None:
-        return None
     best = None
-    for p in grid:
-        w, r = reg.solve(reg.columns(theta, nl(u, p)[None, :]))
+    for p in nl.shape_grid(signal):
+        w, r = reg.solve(columns(nl(signal, p)[None, :]))
         if w is not None and (best is None or r @ r < best[0]):
             q = p.copy()
             q[nl.scale_index] = w[0]
@@ -272,8 +290,72 @@ def _nonlinearity_params(reg: _Regression, theta, u) -> tuple[np.ndarray, np.nda
     return None if best is None else (best[1], best[2])
 
 
-def _assemble(structure, theta, g_params, nuisance) -> np.ndarray:
-    return structure.normalize(np.concatenate([theta, g_params, nuisance]))
+def _input_candidates(reg: _Regression, theta, u):
+    """Candidate full parameter vectors of ``g``: its least-squares fit through ``H``, then
+    (with an output nonlinearity, where ``g`` has unit gain) every shape of its scan."""
+    g = reg.structure.input_nonlinearity
+    fitted = _fit_static(reg, g, u, lambda d: reg.columns(theta, d))
+    if fitted is None:
+        return []
+    first = (np.array(fitted[0], dtype=float), fitted[1])
+    if reg.structure.output_nonlinearity is None:
+        return [first]
+    grid = g.shape_grid(u)
+    shapes = [first[0]] + ([] if grid is None else list(grid))
+    for p in shapes:
+        p[g.gain_index] = 1.0
+    return [(p, np.empty(0)) for p in shapes]
+
+
+def _output_fit(reg: _Regression, theta, v):
+    """``(h parameters, offset coefficients, sse)`` of ``h`` fitted to ``z = H v``, or ``None``."""
+    z = reg.simulate(theta, np.asarray(v, dtype=float)[None, :])[:, 0]
+    fitted = _fit_static(reg, reg.structure.output_nonlinearity, z, reg.static_columns)
+    if fitted is None:
+        return None
+    h, offset = fitted
+    with np.errstate(all="ignore"):
+        r = reg.y - (reg.structure.output_nonlinearity(z, h) + (offset[0] if offset.size else 0.0))
+    return h, offset, float(r @ r) if np.all(np.isfinite(r)) else np.inf
+
+
+def _static_blocks(reg: _Regression, theta, u):
+    """``(free g parameters, h parameters, nuisance)`` with ``H(theta)`` fixed, or ``None``.
+
+    Input block: fitted through ``H``.  Output block: fitted to ``z = H g(u)``
+    for each candidate ``g`` (unit gain in a Hammerstein-Wiener structure, ``h``
+    then carries the gain).  The initial state of a structure with an output
+    nonlinearity starts at zero (it enters nonlinearly).
+    """
+    s = reg.structure
+    if s.output_nonlinearity is None:
+        candidates = _input_candidates(reg, theta, u)
+        return None if not candidates else (candidates[0][0], np.empty(0), candidates[0][1])
+    inputs = [(None, u)] if s.input_nonlinearity is None else [
+        (p, s.input_nonlinearity(u, p)) for p, _ in _input_candidates(reg, theta, u)]
+    best = None
+    for p, v in inputs:
+        fitted = _output_fit(reg, theta, v)
+        if fitted is not None and (best is None or fitted[2] < best[2][2]):
+            best = (p, v, fitted)
+    if best is None:
+        return None
+    p, _, (h, offset, _) = best
+    g_free = np.empty(0) if p is None else np.delete(p, s.input_nonlinearity.gain_index)
+    state = np.zeros(s.linear.den_order if s.initial_state == "estimate" else 0)
+    return g_free, h, np.concatenate([offset, state])
+
+
+def _assemble(structure, theta, g_params, h_params, nuisance) -> np.ndarray:
+    return structure.normalize(np.concatenate([theta, g_params, h_params, nuisance]))
+
+
+def _check_automatic(structure, u):
+    for nl in (structure.input_nonlinearity, structure.output_nonlinearity):
+        if nl is not None and nl.basis(u) is None and (nl.shape_grid(u) is None or nl.scale_index is None):
+            raise ParameterError(
+                f"no automatic initial point for the {nl.name!r} nonlinearity (it has neither a basis nor a "
+                f"scan); give x0 = [{', '.join(structure.param_names)}]")
 
 
 def initial_points(data, structure, budget: Budget, *, count: int = REFINED_CANDIDATES) -> list[np.ndarray]:
@@ -282,7 +364,7 @@ def initial_points(data, structure, budget: Budget, *, count: int = REFINED_CAND
     Parameters
     ----------
     data : IOData
-    structure : HammersteinStructure
+    structure : HammersteinStructure, WienerStructure or HammersteinWienerStructure
     budget : Budget
         Shared evaluation counter; every simulated candidate costs one.
     count : int
@@ -300,14 +382,11 @@ def initial_points(data, structure, budget: Budget, *, count: int = REFINED_CAND
         For a nonlinearity with neither a basis nor a scan (e.g. a
         :class:`~hammerstein_ctrl.nonlinearities.CustomNonlinearity`): give ``x0``.
     """
-    nl = structure.nonlinearity
     u = np.asarray(data.u, dtype=float)
-    if nl.basis(u) is None and (nl.shape_grid(u) is None or nl.scale_index is None):
-        raise ParameterError(
-            f"no automatic initial point for the {nl.name!r} nonlinearity (it has neither a basis nor a "
-            f"scan); give x0 = [{', '.join(structure.param_names)}]")
-    reg = _Regression(structure, data, budget)
-    drives = _drives(nl, u)
+    _check_automatic(structure, u)
+    affine = structure.output_nonlinearity is not None
+    reg = _Regression(structure, data, budget, affine_output=affine)
+    drives = _drives(structure.input_nonlinearity, u)
     try:
         starts = []
         for rows in _candidate_linear(structure.linear, data, drives).values():
@@ -315,8 +394,9 @@ def initial_points(data, structure, budget: Budget, *, count: int = REFINED_CAND
             starts += [rows[i] for _, i in scored[:count]]
         refined = sorted((_refine_linear(reg, theta, drives) for theta in starts), key=lambda item: item[1])
         points = []
+        reg.constant = structure.offset
         for theta, _ in refined[:count]:
-            fitted = _nonlinearity_params(reg, theta, u)
+            fitted = _static_blocks(reg, theta, u)
             if fitted is not None:
                 points.append(_assemble(structure, theta, *fitted))
     except BudgetSpent:
@@ -333,12 +413,14 @@ def nuisance_estimate(data, structure, core, budget: Budget) -> np.ndarray:
     core = np.asarray(core, dtype=float)
     if structure.n_params == core.size:
         return core.copy()
+    extra = np.zeros(structure.n_params - core.size)
+    if structure.output_nonlinearity is not None:  # enters nonlinearly: start at zero
+        return np.concatenate([core, extra])
     k = structure.linear.n_params
     reg = _Regression(structure, data, budget)
-    v = structure.nonlinearity(np.asarray(data.u, dtype=float), core[k:])
+    v = structure.input_nonlinearity(np.asarray(data.u, dtype=float), core[k:])
     w, _ = reg.solve(reg.columns(core[:k], v[None, :]))
-    extra = np.zeros(structure.n_params - core.size) if w is None else w[1:]
-    return np.concatenate([core, extra])
+    return np.concatenate([core, extra if w is None else w[1:]])
 
 
 def static_affine_sse(data) -> float:

@@ -1,12 +1,17 @@
-"""The Hammerstein model: a static nonlinearity followed by an LTI block.
+"""Block-oriented models: Hammerstein (``g`` then ``H``), Wiener (``H`` then ``h``) and both.
+
+:class:`BlockModel` holds a linear block ``H`` (a :class:`control.TransferFunction`)
+with an optional static input nonlinearity ``g`` and an optional static output
+nonlinearity ``h``: ``y = h(H(p) g(u)) + offset``.  :class:`HammersteinModel`,
+:class:`WienerModel` and :class:`HammersteinWienerModel` are its three shapes.
 
 Two views of the same model exist on purpose:
 
-* :meth:`HammersteinModel.simulate` uses the *sampled* semantics the paper's
+* :meth:`BlockModel.simulate` uses the *sampled* semantics the paper's
   numbers depend on: ``g`` is applied to the input samples and ``g(u)`` is
   interpolated linearly between samples (exactly
   ``control.forced_response(H, t, g(u))``).  This is what identification uses.
-* :meth:`HammersteinModel.to_iosys` returns a :class:`control.NonlinearIOSystem`
+* :meth:`BlockModel.to_iosys` returns a :class:`control.NonlinearIOSystem`
   (``control.nlsys`` for ``g`` wired to ``H`` with ``control.interconnect``) for
   closed loops and controller design.  Simulated with
   :func:`control.input_output_response`, ``g`` acts on the interpolated input
@@ -33,7 +38,7 @@ from ._checks import as_signal, check_intersample
 from .exceptions import ParameterError
 from .nonlinearities import Nonlinearity
 
-__all__ = ["HammersteinModel"]
+__all__ = ["BlockModel", "HammersteinModel", "WienerModel", "HammersteinWienerModel"]
 
 
 def _finite_scalar(value, label: str) -> float:
@@ -57,20 +62,55 @@ def _state_vector(value, n: int):
     return x
 
 
-class HammersteinModel:
-    """``y = H(p) g(u)`` with ``H`` a :class:`control.TransferFunction`.
+def _check_block(nonlinearity, params, label: str):
+    """``(nonlinearity, read-only finite parameter vector)`` or ``(None, None)``."""
+    if nonlinearity is None:
+        if params is not None:
+            raise ParameterError(f"{label} parameters given without an {label} nonlinearity")
+        return None, None
+    if not isinstance(nonlinearity, Nonlinearity):
+        raise ParameterError(f"{label} nonlinearity must be a Nonlinearity, got {type(nonlinearity).__name__}")
+    p = nonlinearity.check_params(params)
+    if p.ndim != 1:
+        raise ParameterError(f"a model takes one parameter vector for its {label} nonlinearity")
+    if not np.all(np.isfinite(p)):
+        raise ParameterError(f"{label} nonlinearity parameters must be finite, got {p.tolist()}")
+    p = p.copy()
+    p.setflags(write=False)
+    return nonlinearity, p
+
+
+def _check_linear(linear):
+    import control
+
+    if isinstance(linear, control.StateSpace):
+        linear = control.ss2tf(linear)
+    if not isinstance(linear, control.TransferFunction):
+        raise ParameterError(f"linear must be a control.TransferFunction, got {type(linear).__name__}")
+    if linear.ninputs != 1 or linear.noutputs != 1:
+        raise ParameterError("the linear block must be SISO")
+    if linear.isdtime(strict=True):
+        raise ParameterError("the linear block must be continuous-time (dt=0)")
+    num, den = np.trim_zeros(linear.num[0][0], "f"), np.trim_zeros(linear.den[0][0], "f")
+    if num.size > den.size:
+        raise ParameterError("the linear block must be proper (numerator degree <= denominator degree)")
+    return linear, den.size - 1
+
+
+class BlockModel:
+    """``y = h(H(p) g(u)) + offset`` with ``H`` a :class:`control.TransferFunction`.
 
     Parameters
     ----------
     linear : control.TransferFunction or control.StateSpace
         Continuous-time SISO linear block ``H(p)`` (state-space blocks are
         converted to a transfer function).
-    nonlinearity : Nonlinearity
-        The static nonlinearity family.
-    params : array_like
-        Parameters of the nonlinearity.
+    input_nonlinearity, output_nonlinearity : Nonlinearity, optional
+        The static blocks ``g`` before and ``h`` after ``H`` (identity if omitted).
+    input_params, output_params : array_like, optional
+        Their parameters.
     offset : float, default 0
-        Constant added to the output: ``y = H(p) g(u) + offset``.
+        Constant added to the output.
     initial_state : array_like, optional
         State ``x(0)`` of ``H``'s controllable canonical realisation
         (:func:`~hammerstein_ctrl.simulate.companion_realization`, the one
@@ -80,51 +120,34 @@ class HammersteinModel:
         is given ``(t, u)`` arrays; a record's own ``intersample`` wins.
     name : str, optional
         Name used for the interconnected system.
-
-    Attributes
-    ----------
-    linear : control.TransferFunction
-    nonlinearity : Nonlinearity
-    params : ndarray
-    offset : float
-    initial_state : ndarray or None
-    intersample : str
     """
 
-    def __init__(self, linear, nonlinearity: Nonlinearity, params, *, offset: float = 0.0,
-                 initial_state=None, intersample: str = "foh", name: str | None = None):
-        import control
+    #: Short name of the structure family.
+    kind = "block"
 
-        if isinstance(linear, control.StateSpace):
-            linear = control.ss2tf(linear)
-        if not isinstance(linear, control.TransferFunction):
-            raise ParameterError(
-                f"linear must be a control.TransferFunction, got {type(linear).__name__}"
-            )
-        if linear.ninputs != 1 or linear.noutputs != 1:
-            raise ParameterError("the linear block must be SISO")
-        if linear.isdtime(strict=True):
-            raise ParameterError("the linear block must be continuous-time (dt=0)")
-        num, den = np.trim_zeros(linear.num[0][0], "f"), np.trim_zeros(linear.den[0][0], "f")
-        if num.size > den.size:
-            raise ParameterError("the linear block must be proper (numerator degree <= denominator degree)")
-        if not isinstance(nonlinearity, Nonlinearity):
-            raise ParameterError(
-                f"nonlinearity must be a Nonlinearity, got {type(nonlinearity).__name__}"
-            )
-        p = nonlinearity.check_params(params)
-        if p.ndim != 1:
-            raise ParameterError("a model takes one parameter vector for its nonlinearity")
-        if not np.all(np.isfinite(p)):
-            raise ParameterError(f"nonlinearity parameters must be finite, got {p.tolist()}")
-        self.linear = linear
-        self.nonlinearity = nonlinearity
-        self.params = p.copy()
-        self.params.setflags(write=False)
+    def __init__(self, linear, *, input_nonlinearity=None, input_params=None, output_nonlinearity=None,
+                 output_params=None, offset: float = 0.0, initial_state=None, intersample: str = "foh",
+                 name: str | None = None):
+        self.linear, order = _check_linear(linear)
+        self.input_nonlinearity, self.input_params = _check_block(input_nonlinearity, input_params, "input")
+        self.output_nonlinearity, self.output_params = _check_block(output_nonlinearity, output_params, "output")
         self.offset = _finite_scalar(offset, "offset")
-        self.initial_state = _state_vector(initial_state, den.size - 1)
+        self.initial_state = _state_vector(initial_state, order)
         self.intersample = check_intersample(intersample)
-        self.name = name or "hammerstein"
+        self.name = name or self.kind.replace("-", "_")
+
+    @staticmethod
+    def build(linear, *, input_nonlinearity=None, input_params=None, output_nonlinearity=None,
+              output_params=None, **kwargs) -> "BlockModel":
+        """The model of the right shape for the blocks given (Hammerstein, Wiener or both)."""
+        if input_nonlinearity is not None and output_nonlinearity is None:
+            return HammersteinModel(linear, input_nonlinearity, input_params, **kwargs)
+        if output_nonlinearity is not None and input_nonlinearity is None:
+            return WienerModel(linear, output_nonlinearity, output_params, **kwargs)
+        if input_nonlinearity is not None:
+            return HammersteinWienerModel(linear, input_nonlinearity, input_params, output_nonlinearity,
+                                          output_params, **kwargs)
+        return BlockModel(linear, **kwargs)
 
     @property
     def order(self) -> int:
@@ -137,8 +160,16 @@ class HammersteinModel:
 
     # -- evaluation -------------------------------------------------------------
     def g(self, u) -> np.ndarray:
-        """Evaluate the static nonlinearity ``g(u)``."""
-        return self.nonlinearity(u, self.params)
+        """The input nonlinearity ``g(u)`` (the identity if there is none)."""
+        if self.input_nonlinearity is None:
+            return np.asarray(u, dtype=float)
+        return self.input_nonlinearity(u, self.input_params)
+
+    def h(self, z) -> np.ndarray:
+        """The output nonlinearity ``h(z)`` (the identity if there is none)."""
+        if self.output_nonlinearity is None:
+            return np.asarray(z, dtype=float)
+        return self.output_nonlinearity(z, self.output_params)
 
     def simulate(self, t, u=None, *, initial_state=None, intersample: str | None = None) -> np.ndarray:
         """Simulate the model with the sampled (identification) semantics.
@@ -158,11 +189,11 @@ class HammersteinModel:
         Returns
         -------
         ndarray
-            The output; at rest, with first-order hold and no offset it equals
-            ``control.forced_response(H, t, g(u)).outputs``.
+            The output; at rest, with first-order hold, no offset and no
+            output nonlinearity it equals ``control.forced_response(H, t, g(u)).outputs``.
         """
-        from .datasets import IOData
-        from .simulate import simulate
+        from .iodata import IOData
+        from .simulate import simulate_blocks
 
         hold = self.intersample
         if isinstance(t, IOData):
@@ -172,8 +203,7 @@ class HammersteinModel:
         elif u is None:
             raise ParameterError("simulate needs the input u (or an IOData record)")
         x0 = self.initial_state if initial_state is None else _state_vector(initial_state, self.order)
-        return simulate(self.linear, self.nonlinearity, self.params, t, u, x0=x0, offset=self.offset,
-                        intersample=hold if intersample is None else intersample)
+        return simulate_blocks(self, t, u, x0=x0, intersample=hold if intersample is None else intersample)
 
     # -- python-control interop -------------------------------------------------
     def to_iosys(self, name: str | None = None, *, dt: float | None = None, inputs: str = "u",
@@ -184,10 +214,12 @@ class HammersteinModel:
         :func:`hammerstein_ctrl.exact_export.sampled_iosys` instead (its
         ``control.input_output_response`` equals :meth:`simulate`).
 
-        The static block ``g`` (``control.nlsys`` without states, output
-        ``"v"``) feeds ``H`` (``control.ss``); the result has input ``inputs``
-        and output ``outputs`` and can be wired into other python-control
-        systems, e.g. a feedback loop with a controller.
+        The static blocks (``control.nlsys`` without states) and ``H``
+        (``control.ss`` in the realisation of :meth:`to_ss`) are wired with
+        :func:`control.interconnect`; the result has input ``inputs`` and
+        output ``outputs`` and can be wired into other python-control systems,
+        e.g. a feedback loop with a controller.  Simulate it from the model's
+        initial state with ``X0=model.state0()``.
 
         Examples
         --------
@@ -206,33 +238,44 @@ class HammersteinModel:
             from .exact_export import sampled_iosys
 
             return sampled_iosys(self, dt, name=name, inputs=inputs, outputs=outputs)
-        params = self.params
-        nonlinearity = self.nonlinearity
-
-        def output(t, x, u, p):
-            return nonlinearity(np.atleast_1d(u)[:1], params)
-
-        g = control.nlsys(None, output, inputs=[inputs], outputs=["v"], name="g")
-        blocks = [g]
-        if self.offset:
-            offset = self.offset
-            lin = self.to_ss(inputs="v", outputs="z", name="H")
-            blocks += [lin, control.nlsys(None, lambda t, x, u, p: np.atleast_1d(u)[:1] + offset,
-                                          inputs=["z"], outputs=[outputs], name="offset")]
-        else:
-            blocks.append(self.to_ss(inputs="v", outputs=[outputs], name="H"))
+        g, h, offset = self.g, self.h, self.offset
+        blocks = [control.nlsys(None, lambda t, x, u, p: g(np.atleast_1d(u)[:1]), inputs=[inputs],
+                                outputs=["v"], name="g"),
+                  self.to_ss(inputs="v", outputs="z", name="H"),
+                  control.nlsys(None, lambda t, x, u, p: h(np.atleast_1d(u)[:1]) + offset, inputs=["z"],
+                                outputs=[outputs], name="h")]
         return control.interconnect(blocks, inputs=[inputs], outputs=[outputs], name=name or self.name)
 
-    def linearize(self, u0: float = 0.0):
-        """Small-signal transfer function ``g'(u0) H(p)`` around the input ``u0``.
+    def linearize(self, u0: float = 0.0, *, z0: float | None = None):
+        """Small-signal transfer function ``h'(z0) H(p) g'(u0)`` around the input ``u0``.
+
+        Parameters
+        ----------
+        u0 : float
+            Operating input.
+        z0 : float, optional
+            Operating point of ``H``'s output, for an output nonlinearity.
+            Default: the steady state ``H(0) g(u0)``; required when ``H`` has
+            a pole at the origin (no steady state).
 
         Returns
         -------
         control.TransferFunction
         """
         u0 = float(as_signal(u0, "u0")[0])
-        gain = float(np.asarray(self.nonlinearity.derivative(np.array([u0]), self.params))[0])
+        gain = 1.0
+        if self.input_nonlinearity is not None:
+            gain = float(np.asarray(self.input_nonlinearity.derivative(np.array([u0]), self.input_params))[0])
+        if self.output_nonlinearity is not None:
+            z0 = self._steady_state(u0) if z0 is None else float(as_signal(z0, "z0")[0])
+            gain *= float(np.asarray(self.output_nonlinearity.derivative(np.array([z0]), self.output_params))[0])
         return gain * self.linear
+
+    def _steady_state(self, u0: float) -> float:
+        den0 = float(np.asarray(self.linear.den[0][0], dtype=float)[-1])
+        if den0 == 0:
+            raise ParameterError("H has a pole at the origin (no steady state): give the operating point z0")
+        return float(self.linear.num[0][0][-1]) / den0 * float(self.g(np.array([u0]))[0])
 
     # -- properties -------------------------------------------------------------
     def poles(self) -> np.ndarray:
@@ -243,14 +286,19 @@ class HammersteinModel:
         """Whether every pole has a strictly negative real part."""
         return bool(np.all(self.poles().real < 0))
 
+    def _blocks_repr(self) -> str:
+        parts = [f"linear={self._tf_string()}"]
+        if self.input_nonlinearity is not None:
+            parts.append(f"g={self.input_nonlinearity.describe(self.input_params)}")
+        if self.output_nonlinearity is not None:
+            parts.append(f"h={self.output_nonlinearity.describe(self.output_params)}")
+        return ", ".join(parts)
+
     def __repr__(self):
         extra = (f", offset={self.offset:.6g}" if self.offset else "") + (
             ", x(0) set" if self.initial_state is not None and np.any(self.initial_state) else "") + (
             ", zoh" if self.intersample == "zoh" else "")
-        return (
-            f"HammersteinModel(linear={self._tf_string()}, "
-            f"g={self.nonlinearity.describe(self.params)}{extra})"
-        )
+        return f"{type(self).__name__}({self._blocks_repr()}{extra})"
 
     def _tf_string(self) -> str:
         def poly(c):
@@ -267,7 +315,7 @@ class HammersteinModel:
 
         return f"({poly(self.linear.num[0][0])})/({poly(self.linear.den[0][0])})"
 
-    # -- persistence and exact exports (issue 9) -----------------------------
+    # -- persistence and exact exports ----------------------------------------
     def save(self, path) -> None:
         """Write the model to ``path`` as versioned JSON (:func:`hammerstein_ctrl.load_model` reads it)."""
         from .persistence import save_model
@@ -289,3 +337,79 @@ class HammersteinModel:
         """:meth:`simulate` as a ``control.TimeResponseData`` (:func:`hammerstein_ctrl.display.response`)."""
         from .display import response
         return response(self, data_or_t, u)
+
+class HammersteinModel(BlockModel):
+    """``y = H(p) g(u) + offset``: a static nonlinearity followed by the linear block.
+
+    Parameters
+    ----------
+    linear : control.TransferFunction or control.StateSpace
+    nonlinearity : Nonlinearity
+        The input nonlinearity ``g``.
+    params : array_like
+        Its parameters.
+    **kwargs
+        ``offset``, ``initial_state``, ``intersample``, ``name`` (see :class:`BlockModel`).
+
+    Attributes
+    ----------
+    nonlinearity, params
+        ``g`` and its parameters (the same objects as ``input_nonlinearity``
+        and ``input_params``).
+    """
+
+    kind = "hammerstein"
+
+    def __init__(self, linear, nonlinearity: Nonlinearity, params, **kwargs):
+        super().__init__(linear, input_nonlinearity=nonlinearity, input_params=params, **kwargs)
+        if self.input_nonlinearity is None:
+            raise ParameterError("a Hammerstein model needs a nonlinearity")
+
+    @property
+    def nonlinearity(self) -> Nonlinearity:
+        return self.input_nonlinearity
+
+    @property
+    def params(self) -> np.ndarray:
+        return self.input_params
+
+
+class WienerModel(BlockModel):
+    """``y = h(H(p) u) + offset``: the linear block followed by a static nonlinearity.
+
+    Examples
+    --------
+    >>> import numpy as np, control as ct
+    >>> from hammerstein_ctrl import Saturation
+    >>> m = WienerModel(ct.tf([1], [1, 1]), Saturation(), [2.0, 0.5])   # a sensor that clips at 1
+    >>> float(m.simulate(np.arange(0, 10, 0.1), np.ones(100))[-1])
+    1.0
+    """
+
+    kind = "wiener"
+
+    def __init__(self, linear, nonlinearity: Nonlinearity, params, **kwargs):
+        super().__init__(linear, output_nonlinearity=nonlinearity, output_params=params, **kwargs)
+        if self.output_nonlinearity is None:
+            raise ParameterError("a Wiener model needs a nonlinearity")
+
+    @property
+    def nonlinearity(self) -> Nonlinearity:
+        return self.output_nonlinearity
+
+    @property
+    def params(self) -> np.ndarray:
+        return self.output_params
+
+
+class HammersteinWienerModel(BlockModel):
+    """``y = h(H(p) g(u)) + offset``: input nonlinearity, linear block, output nonlinearity."""
+
+    kind = "hammerstein-wiener"
+
+    def __init__(self, linear, input_nonlinearity: Nonlinearity, input_params,
+                 output_nonlinearity: Nonlinearity, output_params, **kwargs):
+        super().__init__(linear, input_nonlinearity=input_nonlinearity, input_params=input_params,
+                         output_nonlinearity=output_nonlinearity, output_params=output_params, **kwargs)
+        if self.input_nonlinearity is None or self.output_nonlinearity is None:
+            raise ParameterError("a Hammerstein-Wiener model needs an input and an output nonlinearity")

@@ -56,6 +56,25 @@ class Nonlinearity:
     #: (``g(u; p) = p[i] g(u; p with p[i] = 1)``), or ``None``.  With it, the
     #: automatic initial point fits that parameter by linear least squares.
     scale_index: int | None = None
+    #: Name of the compiled scalar form in :mod:`hammerstein_ctrl.compiled_maps`
+    #: (used when the family is an output nonlinearity), or ``None``.
+    compiled_map: str | None = None
+
+    def map_extra(self) -> np.ndarray:
+        """Fixed data passed to the compiled map (e.g. breakpoints); empty by default."""
+        return np.empty(0)
+
+    @property
+    def gain_index(self) -> int | None:
+        """The parameter that scales ``g`` as a whole: :attr:`scale_index`, or the first
+        parameter of a family linear in its parameters (``None`` if neither).
+
+        A Hammerstein-Wiener structure fixes this parameter of its input
+        nonlinearity to 1, which removes the gain ambiguity between the blocks.
+        """
+        if self.scale_index is not None:
+            return self.scale_index
+        return 0 if self.n_params and self.basis(np.zeros(1)) is not None else None
 
     @property
     def n_params(self) -> int:
@@ -181,9 +200,12 @@ SCAN_POINTS = 16
 
 
 def _input_quantiles(u, low: float, high: float) -> np.ndarray:
-    """Distinct positive quantiles of ``|u|`` between the fractions ``low`` and ``high``."""
+    """Distinct positive levels of ``|u|``: its quantiles between the fractions ``low`` and
+    ``high``, and as many evenly spaced levels up to the same fraction of its range (a signal
+    that dwells near zero has its quantiles bunched there)."""
     a = np.abs(np.asarray(u, dtype=float))
-    q = np.unique(np.quantile(a, np.linspace(low, high, SCAN_POINTS)))
+    even = np.linspace(0.0, high * float(a.max(initial=0.0)), SCAN_POINTS + 1)[1:]
+    q = np.unique(np.concatenate([np.quantile(a, np.linspace(low, high, SCAN_POINTS)), even]))
     return q[q > 0] if np.any(q > 0) else np.array([1.0])
 
 
@@ -199,6 +221,7 @@ class Tanh(Nonlinearity):
     """
 
     name = "tanh"
+    compiled_map = "tanh_map"
     param_names = ("d0", "d1")
     scale_index = 0
     #: Range of ``d1 * max|u|`` scanned by :meth:`shape_grid` (almost linear to hard switching).
@@ -239,6 +262,7 @@ class Coulomb(Nonlinearity):
     """
 
     name = "coulomb"
+    compiled_map = "coulomb_map"
     param_names = ("d0", "d1", "d2")
 
     def _evaluate(self, u, p):
@@ -270,6 +294,7 @@ class Polynomial(Nonlinearity):
     """
 
     name = "polynomial"
+    compiled_map = "polynomial_map"
 
     def __init__(self, degree: int = 3):
         if int(degree) != degree or degree < 1:
@@ -299,7 +324,29 @@ class Polynomial(Nonlinearity):
         return f"Polynomial(degree={self.degree})"
 
 
-class Saturation(Nonlinearity):
+class _GainAndThreshold(Nonlinearity):
+    """A gain times a symmetric clipping of ``u`` at ``|a|`` (saturation, dead zone)."""
+
+    scale_index = 0
+    #: Range of the scanned thresholds, as fractions of the input's quantiles/range.
+    SCAN_FRACTIONS = (0.05, 1.0)
+    #: Whether the scan includes a zero threshold.
+    SCAN_ZERO = False
+
+    def normalize(self, params):
+        """Make the threshold non-negative (it enters as ``|a|``)."""
+        p = super().normalize(params)
+        p[..., 1] = np.abs(p[..., 1])
+        return p
+
+    def shape_grid(self, u):
+        a = _input_quantiles(u, *self.SCAN_FRACTIONS)
+        if self.SCAN_ZERO:
+            a = np.concatenate([[0.0], a])
+        return np.column_stack([np.ones_like(a), a])
+
+
+class Saturation(_GainAndThreshold):
     r"""Symmetric saturation with a gain.
 
     .. math:: g(u) = k \, \min(\max(u, -|a|), |a|)
@@ -311,18 +358,8 @@ class Saturation(Nonlinearity):
     """
 
     name = "saturation"
+    compiled_map = "saturation_map"
     param_names = ("gain", "limit")
-    scale_index = 0
-
-    def normalize(self, params):
-        """Make the limit non-negative (it enters as ``|a|``)."""
-        p = super().normalize(params)
-        p[..., 1] = np.abs(p[..., 1])
-        return p
-
-    def shape_grid(self, u):
-        a = _input_quantiles(u, 0.05, 1.0)
-        return np.column_stack([np.ones_like(a), a])
 
     def _evaluate(self, u, p):
         k, a = self._columns(p)
@@ -334,7 +371,7 @@ class Saturation(Nonlinearity):
         return np.where(np.abs(u) < abs(a), k, 0.0)
 
 
-class DeadZone(Nonlinearity):
+class DeadZone(_GainAndThreshold):
     r"""Symmetric dead zone with a gain.
 
     .. math:: g(u) = k\,(u - \min(\max(u, -|a|), |a|))
@@ -346,18 +383,10 @@ class DeadZone(Nonlinearity):
     """
 
     name = "deadzone"
+    compiled_map = "deadzone_map"
     param_names = ("gain", "width")
-    scale_index = 0
-
-    def normalize(self, params):
-        """Make the width non-negative (it enters as ``|a|``)."""
-        p = super().normalize(params)
-        p[..., 1] = np.abs(p[..., 1])
-        return p
-
-    def shape_grid(self, u):
-        a = np.concatenate([[0.0], _input_quantiles(u, 0.02, 0.8)])
-        return np.column_stack([np.ones_like(a), a])
+    SCAN_FRACTIONS = (0.02, 0.8)
+    SCAN_ZERO = True
 
     def _evaluate(self, u, p):
         k, a = self._columns(p)
@@ -391,6 +420,7 @@ class PiecewiseLinear(Nonlinearity):
     """
 
     name = "piecewise_linear"
+    compiled_map = "piecewise_linear_map"
 
     def __init__(self, breakpoints: Sequence[float]):
         bp = np.asarray(breakpoints, dtype=float)
@@ -424,6 +454,9 @@ class PiecewiseLinear(Nonlinearity):
         phi[idx, cols] = 1.0 - w
         phi[idx + 1, cols] = w
         return phi
+
+    def map_extra(self) -> np.ndarray:
+        return self.breakpoints
 
     def __repr__(self):
         return f"PiecewiseLinear(breakpoints={self.breakpoints.tolist()})"

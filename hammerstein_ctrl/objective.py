@@ -7,6 +7,14 @@ simulation is non-finite (overflow, NaN parameters) scores ``inf``.  A wrong
 *length* of beta is a programming error and raises
 :class:`~hammerstein_ctrl.exceptions.ParameterError`.
 
+Memory stays bounded on long records: a batch is formed a chunk of candidates
+at a time (:data:`CHUNK_BYTES` of signals), and past :data:`BASIS_MAX_BYTES`
+the basis of ``g`` is recomputed in blocks instead of stored.  The public
+methods do not enter a BLAS thread limit themselves (it would cost ~7 us, a
+tenth of an EMPS evaluation, and the evaluation calls no BLAS: the matrix
+exponential and the signal combination are compiled loops); the entry points
+that drive them (``identify``, ``minimize``, ``run_study``) hold it.
+
 Unstable candidates are simulated like any other by default, because that is
 what the paper does: EMPS's initial point (Table 5, ``a1 = -1``) is unstable
 and has the finite cost 3.82e11 that the SPSA family starts from.  Pass
@@ -28,21 +36,45 @@ import numpy as np
 
 from .exceptions import ParameterError
 from .simulate import simulate_batch, sse_batch
-from .structure import HammersteinStructure
+from .structure import BlockStructure
 
-__all__ = ["HammersteinCost"]
+__all__ = ["HammersteinCost", "CHUNK_BYTES", "BASIS_MAX_BYTES", "BASIS_BLOCK", "NONFINITE_RESIDUAL"]
+
+
+#: Largest block of per-candidate signals ``g(u)`` (and simulated outputs) formed
+#: at once, in bytes.  A batch whose ``B x N`` signals would exceed it is
+#: evaluated a chunk of candidates at a time, so that memory per sample stays
+#: bounded on long records (one candidate at a time from 2 million samples up);
+#: records of ordinary length take the whole batch in one chunk.
+CHUNK_BYTES = 1 << 24
+
+#: Value given to non-finite residuals, so that trust-region solvers back off instead of failing.
+NONFINITE_RESIDUAL = 1e150
+
+
+#: Largest basis of ``g`` (``p x N`` regressors) kept in memory.  Longer records
+#: recompute it in blocks of :data:`BASIS_BLOCK` samples whenever signals are
+#: formed, trading a little time for ``8 p`` bytes per sample.
+BASIS_MAX_BYTES = 1 << 26
+
+#: Samples per block of a recomputed basis.
+BASIS_BLOCK = 1 << 16
 
 
 @numba.njit(cache=True, nogil=True)
-def _combine(P, basis):  # pragma: no cover - compiled
-    """``P @ basis`` single-threaded (BLAS threads would compete with the simulation)."""
+def _combine(P, basis, out, start):  # pragma: no cover - compiled
+    """``out[:B, start:start + n] = P @ basis`` single-threaded (BLAS threads would compete with the simulation)."""
     batch, p = P.shape
-    V = np.empty((batch, basis.shape[1]))
+    n = basis.shape[1]
     for b in range(batch):
-        V[b, :] = P[b, 0] * basis[0]
+        row = out[b, start:start + n]  # slices, not offset indices: LLVM vectorises these loops
+        c, first = P[b, 0], basis[0]
+        for i in range(n):
+            row[i] = c * first[i]
         for j in range(1, p):
-            V[b, :] += P[b, j] * basis[j]
-    return V
+            c, bj = P[b, j], basis[j]
+            for i in range(n):
+                row[i] += c * bj[i]
 
 
 class HammersteinCost:
@@ -52,7 +84,7 @@ class HammersteinCost:
     ----------
     data : IOData
         The estimation record (uniform time grid).
-    structure : HammersteinStructure
+    structure : HammersteinStructure, WienerStructure or HammersteinWienerStructure
         Maps beta to a model.
     reject_unstable : bool, default False
         Score candidates with a pole in the open right half-plane as ``inf``.
@@ -63,14 +95,15 @@ class HammersteinCost:
     param_names : tuple of str
     """
 
-    def __init__(self, data, structure: HammersteinStructure, *, reject_unstable: bool = False):
+    def __init__(self, data, structure: BlockStructure, *, reject_unstable: bool = False):
         from .datasets import IOData
 
         if not isinstance(data, IOData):
             raise ParameterError(f"data must be an IOData record, got {type(data).__name__}")
-        if not isinstance(structure, HammersteinStructure):
+        if not isinstance(structure, BlockStructure):
             raise ParameterError(
-                f"structure must be a HammersteinStructure, got {type(structure).__name__}"
+                "structure must be a HammersteinStructure, WienerStructure or HammersteinWienerStructure, "
+                f"got {type(structure).__name__}"
             )
         self.data = data
         self.structure = structure
@@ -80,8 +113,12 @@ class HammersteinCost:
         self._n_linear = structure.linear.n_params
         # g(u; d) = d @ basis for nonlinearities linear in their parameters: a
         # batch of signals is then one matrix product (7x cheaper than the formula).
-        basis = structure.nonlinearity.basis(self._u)
-        self._basis = None if basis is None else np.ascontiguousarray(basis, dtype=float)
+        g = structure.input_nonlinearity
+        probe = None if g is None else g.basis(self._u[:1])
+        self._linear_in_params = probe is not None
+        self._basis = None
+        if self._linear_in_params and probe.size * self._u.size * self._u.itemsize <= BASIS_MAX_BYTES:
+            self._basis = np.ascontiguousarray(g.basis(self._u), dtype=float)
 
     @property
     def n_params(self) -> int:
@@ -91,18 +128,49 @@ class HammersteinCost:
     def param_names(self) -> tuple[str, ...]:
         return self.structure.param_names
 
-    def _pieces(self, b: np.ndarray):
-        """Coefficients, signals and simulation options for a validated ``(B, n_params)`` array."""
-        k, m = self._n_linear, self.structure.n_core
-        num, den = self.structure.linear._coefficients(b[:, :k])
+    def _chunks(self, batch: int):
+        """Slices of at most ``CHUNK_BYTES`` worth of signals covering ``range(batch)``."""
+        rows = max(1, CHUNK_BYTES // (self._y.itemsize * max(1, self._y.size)))
+        return [slice(i, min(i + rows, batch)) for i in range(0, batch, rows)]
+
+    def _pieces(self, b: np.ndarray, buffer=None):
+        """Coefficients, signals and simulation options for a validated ``(B, n_params)`` array.
+
+        ``buffer`` (at least ``B`` rows of ``N``) receives the signals when the
+        nonlinearity has a basis, so chunks reuse one block of memory.
+        """
+        s = self.structure
+        num, den = s.linear._coefficients(b[:, :self._n_linear])
+        g_params = s.input_params(b)
         with np.errstate(all="ignore"):
-            if self._basis is not None:
-                V = _combine(np.ascontiguousarray(b[:, k:m]), self._basis)
+            if g_params is None:
+                V = self._u
+            elif self._linear_in_params:
+                V = self._combined(np.ascontiguousarray(g_params), buffer)
             else:
-                V = self.structure.nonlinearity._evaluate(self._u, b[:, k:m])
-        offset, x0 = self.structure.nuisance(b)
-        opts = {"offset": offset, "x0": x0, "intersample": self.data.intersample}
+                V = s.input_nonlinearity._evaluate(self._u, g_params)
+        offset, x0 = s.nuisance(b)
+        h_params = s.output_params(b)
+        opts = {"offset": offset, "x0": x0, "intersample": self.data.intersample,
+                "output_map": None if h_params is None else (s.output_nonlinearity, h_params)}
         return num, den, V, opts
+
+    def _combined(self, P, buffer):
+        """Signals ``P @ basis`` in (the first rows of) ``buffer``, from the stored or a recomputed basis."""
+        if buffer is None:
+            buffer = np.empty((P.shape[0], self._u.size))
+        if self._basis is not None:
+            _combine(P, self._basis, buffer, 0)
+        else:
+            for start in range(0, self._u.size, BASIS_BLOCK):
+                block = self.structure.input_nonlinearity.basis(self._u[start:start + BASIS_BLOCK])
+                _combine(P, np.ascontiguousarray(block, dtype=float), buffer, start)
+        return buffer[:P.shape[0]]
+
+    def _signal_buffer(self, chunks):
+        """One block of signals reused by every chunk (``None`` without a basis)."""
+        rows = chunks[0].stop - chunks[0].start if chunks else 0
+        return np.empty((rows, self._u.size)) if self._linear_in_params else None
 
     def __call__(self, beta) -> float:
         """J at one beta (``inf`` if the candidate cannot be simulated)."""
@@ -117,8 +185,14 @@ class HammersteinCost:
         return self._sse(b.reshape(-1, b.shape[-1]))
 
     def _sse(self, b: np.ndarray) -> np.ndarray:
-        num, den, V, opts = self._pieces(b)
-        return sse_batch(num, den, V, self.data.dt, self._y, reject_unstable=self.reject_unstable, **opts)
+        J = np.empty(b.shape[0])
+        chunks = self._chunks(b.shape[0])
+        buffer = self._signal_buffer(chunks)
+        for rows in chunks:
+            num, den, V, opts = self._pieces(b[rows], buffer)
+            J[rows] = sse_batch(num, den, V, self.data.dt, self._y, reject_unstable=self.reject_unstable,
+                                **opts)
+        return J
 
     def simulate(self, beta) -> np.ndarray:
         """Simulated output ŷ for one beta (NaN where the simulation fails)."""
@@ -127,22 +201,54 @@ class HammersteinCost:
     def simulate_batch(self, betas) -> np.ndarray:
         """Simulated outputs for each row of ``betas``, shape ``(B, N)`` (NaN rows where it fails)."""
         b = self.structure.check_beta(betas)
-        num, den, V, opts = self._pieces(b.reshape(-1, b.shape[-1]))
+        b = b.reshape(-1, b.shape[-1])
+        chunks = self._chunks(b.shape[0])
+        if len(chunks) == 1:
+            return self._simulate_chunk(b, None)
+        Y = np.empty((b.shape[0], self._y.size))
+        for rows in chunks:
+            # a chunk's signals go to its own rows of the output: the simulation reads them whole
+            # before its outputs are copied over them
+            Y[rows] = self._simulate_chunk(b[rows], Y[rows] if self._linear_in_params else None)
+        return Y
+
+    def _simulate_chunk(self, b, buffer):
+        num, den, V, opts = self._pieces(b, buffer)
         with np.errstate(all="ignore"):
             return simulate_batch(num, den, V, self.data.dt, **opts)
 
     def residuals(self, beta) -> np.ndarray:
         """``y - ŷ`` for one beta, for least-squares solvers (``J = sum(residuals**2)``).
 
-        Non-finite residuals are replaced by a large finite value so that
-        trust-region solvers back off instead of failing.
+        Non-finite residuals are replaced by a large finite value
+        (:data:`NONFINITE_RESIDUAL`) so that trust-region solvers back off
+        instead of failing.
         """
+        b = self.structure.check_beta(beta)
+        if b.ndim != 1:
+            raise ParameterError("residuals(beta) takes one vector; use residuals_batch for a batch")
+        return self.residuals_batch(b)[0]
+
+    def residuals_batch(self, betas) -> np.ndarray:
+        """:meth:`residuals` for each row of ``betas``, shape ``(B, N)``, in one compiled pass.
+
+        Finite-difference Jacobians evaluate all their columns with it.
+
+        Examples
+        --------
+        >>> from hammerstein_ctrl import presets
+        >>> p = presets.trs()
+        >>> R = p.cost.residuals_batch([p.true_beta, p.x0])
+        >>> R.shape == (2, len(p.data)), round(float(R[0] @ R[0]), 6)
+        (True, 178.5)
+        """
+        R = self.simulate_batch(betas)
         with np.errstate(all="ignore"):
-            r = self._y - self.simulate(beta)
-        bad = ~np.isfinite(r)
-        if bad.any():
-            r[bad] = 1e150
-        return r
+            np.subtract(self._y, R, out=R)
+            for r in R:  # a finite sum proves a finite row without an N-long mask
+                if not np.isfinite(r.sum()):
+                    r[~np.isfinite(r)] = NONFINITE_RESIDUAL
+        return R
 
     def __repr__(self):
         return f"HammersteinCost({self.data.name!r}, {self.structure.describe()})"

@@ -17,15 +17,19 @@ The files are plain JSON (RFC 8259), read strictly and never evaluated:
 Floats are written with Python's shortest round-trip representation, so a
 loaded model reproduces the saved one bit for bit.
 
-Schema, version 1 (a model file; a result file has ``"format":
+Schema, version 2 (a model file; a result file has ``"format":
 "hammerstein_ctrl/result"`` and the keys of :func:`result_to_dict`)::
 
-    {"format": "hammerstein_ctrl/model", "schema_version": 1,
-     "model": {"name": "emps",
+    {"format": "hammerstein_ctrl/model", "schema_version": 2,
+     "model": {"name": "emps", "kind": "hammerstein",
                "linear": {"num": [1.0], "den": [1.0, 3.1388, 0.0]},
-               "nonlinearity": {"family": "coulomb", "options": {},
-                                "params": {"d0": 0.5445, "d1": -0.3984, "d2": 0.0451}},
+               "input_nonlinearity": {"family": "coulomb", "options": {},
+                                      "params": {"d0": 0.5445, "d1": -0.3984, "d2": 0.0451}},
+               "output_nonlinearity": null,
                "offset": 0.0, "initial_state": null, "intersample": "foh"}}
+
+``kind`` is ``"hammerstein"``, ``"wiener"`` or ``"hammerstein-wiener"`` and
+must agree with which of the two nonlinearities are present.
 
 Examples
 --------
@@ -41,7 +45,6 @@ Examples
 
 from __future__ import annotations
 
-import inspect
 import json
 import math
 from dataclasses import dataclass, field
@@ -60,14 +63,17 @@ __all__ = [
 ]
 
 #: Version of the JSON schema written by this module (files of other versions are refused).
-SCHEMA_VERSION = 1
+SCHEMA_VERSION = 2
 MODEL_FORMAT = "hammerstein_ctrl/model"
 RESULT_FORMAT = "hammerstein_ctrl/result"
 
 #: Strings standing for non-finite figures of a run.
 _NONFINITE = {"inf": math.inf, "-inf": -math.inf, "nan": math.nan}
 
-_MODEL_KEYS = ("name", "linear", "nonlinearity", "offset", "initial_state", "intersample")
+_MODEL_KEYS = ("name", "kind", "linear", "input_nonlinearity", "output_nonlinearity", "offset", "initial_state",
+               "intersample")
+#: Structure kinds and which nonlinearities (input, output) each has.
+_KINDS = {"hammerstein": (True, False), "wiener": (False, True), "hammerstein-wiener": (True, True)}
 _RESULT_KEYS = ("format", "schema_version", "model", "structure", "params", "beta", "data", "J",
                 "fit_percent", "rmse", "nrmse", "nfev", "method", "success", "message", "elapsed_s")
 _DATA_KEYS = ("name", "dt", "n_samples", "input_name", "output_name", "input_unit", "output_unit",
@@ -184,21 +190,38 @@ def _nonlinearity_from_dict(obj, where: str):
         raise ParameterError(f"{where}.options do not fit the {family!r} family: {exc}") from None
 
 
-def _structure_to_dict(structure) -> dict:
-    from .structure import HammersteinStructure
+def _check_kind(obj, where: str) -> tuple:
+    kind = _string(obj["kind"], f"{where}.kind")
+    if kind not in _KINDS:
+        raise UnknownNameError(f"{where}.kind: unknown structure {kind!r}; known: {', '.join(_KINDS)}")
+    for present, key in zip(_KINDS[kind], ("input_nonlinearity", "output_nonlinearity")):
+        if present != (obj[key] is not None):
+            raise ParameterError(f"{where}.{key} must be {'an object' if present else 'null'} in a {kind} "
+                                 "structure")
+    return kind, _KINDS[kind]
 
-    if not isinstance(structure, HammersteinStructure):
+
+def _structure_to_dict(structure) -> dict:
+    from .structure import BlockStructure
+
+    if not isinstance(structure, BlockStructure) or structure.kind not in _KINDS:
         raise ParameterError(f"cannot save a structure of type {type(structure).__name__}")
     lin = structure.linear
-    return {"linear": {"num_order": lin.num_order, "den_order": lin.den_order,
+    return {"kind": structure.kind,
+            "linear": {"num_order": lin.num_order, "den_order": lin.den_order,
                        "monic_numerator": lin.monic_numerator, "fixed": dict(lin.fixed)},
-            "nonlinearity": _nonlinearity_to_dict(structure.nonlinearity)}
+            **{key: None if nl is None else _nonlinearity_to_dict(nl)
+               for key, nl in (("input_nonlinearity", structure.input_nonlinearity),
+                               ("output_nonlinearity", structure.output_nonlinearity))},
+            "offset": structure.offset, "initial_state": structure.initial_state}
 
 
 def _structure_from_dict(obj, where: str):
-    from .structure import HammersteinStructure, LinearStructure
+    from .structure import (INITIAL_STATES, HammersteinStructure, HammersteinWienerStructure, LinearStructure,
+                            WienerStructure)
 
-    _keys(obj, where, ("linear", "nonlinearity"))
+    _keys(obj, where, ("kind", "linear", "input_nonlinearity", "output_nonlinearity", "offset", "initial_state"))
+    kind, _ = _check_kind(obj, where)
     lin = _keys(obj["linear"], f"{where}.linear", ("num_order", "den_order", "monic_numerator", "fixed"))
     fixed = lin["fixed"]
     if not isinstance(fixed, dict):
@@ -208,15 +231,29 @@ def _structure_from_dict(obj, where: str):
                              _integer(lin["den_order"], f"{where}.linear.den_order"),
                              monic_numerator=_boolean(lin["monic_numerator"], f"{where}.linear.monic_numerator"),
                              fixed=fixed)
-    nl = _keys(obj["nonlinearity"], f"{where}.nonlinearity", ("family", "options"))
-    return HammersteinStructure(linear, _nonlinearity_from_dict(nl, f"{where}.nonlinearity"))
+    blocks = [_nonlinearity_from_dict(_keys(obj[key], f"{where}.{key}", ("family", "options")), f"{where}.{key}")
+              for key in ("input_nonlinearity", "output_nonlinearity") if obj[key] is not None]
+    initial_state = _string(obj["initial_state"], f"{where}.initial_state")
+    if initial_state not in INITIAL_STATES:
+        raise ParameterError(f"{where}.initial_state must be one of {list(INITIAL_STATES)}, got {initial_state!r}")
+    cls = {"hammerstein": HammersteinStructure, "wiener": WienerStructure,
+           "hammerstein-wiener": HammersteinWienerStructure}[kind]
+    return cls(linear, *blocks, offset=_boolean(obj["offset"], f"{where}.offset"), initial_state=initial_state)
 
 
 # ---------------------------------------------------------------------------
 # models
 # ---------------------------------------------------------------------------
+def _block_to_dict(nl, params) -> dict | None:
+    if nl is None:
+        return None
+    out = _nonlinearity_to_dict(nl)
+    out["params"] = dict(zip(nl.param_names, np.asarray(params, float).tolist()))
+    return out
+
+
 def model_to_dict(model) -> dict:
-    """The ``"model"`` object of the schema for a :class:`~hammerstein_ctrl.HammersteinModel`.
+    """The ``"model"`` object of the schema for a Hammerstein, Wiener or Hammerstein-Wiener model.
 
     Raises
     ------
@@ -226,38 +263,32 @@ def model_to_dict(model) -> dict:
     settings = model_settings(model)
     num = np.trim_zeros(np.asarray(model.linear.num[0][0], dtype=float), "f")
     den = np.trim_zeros(np.asarray(model.linear.den[0][0], dtype=float), "f")
-    nl = _nonlinearity_to_dict(model.nonlinearity)
-    nl["params"] = dict(zip(model.nonlinearity.param_names, np.asarray(model.params, float).tolist()))
     x0 = settings["initial_state"]
-    out = {"name": str(model.name), "linear": {"num": (num if num.size else np.zeros(1)).tolist(),
-                                               "den": den.tolist()},
-           "nonlinearity": nl, "offset": settings["offset"],
+    blocks = {"input_nonlinearity": _block_to_dict(model.input_nonlinearity, model.input_params),
+              "output_nonlinearity": _block_to_dict(model.output_nonlinearity, model.output_params)}
+    out = {"name": str(model.name), "kind": model.kind,
+           "linear": {"num": (num if num.size else np.zeros(1)).tolist(), "den": den.tolist()},
+           **blocks, "offset": settings["offset"],
            "initial_state": x0.tolist() if np.any(x0 != 0) else None,
            "intersample": settings["intersample"]}
-    numbers = out["linear"]["num"] + out["linear"]["den"] + list(nl["params"].values()) + [out["offset"]]
+    params = [v for b in blocks.values() if b is not None for v in b["params"].values()]
+    numbers = out["linear"]["num"] + out["linear"]["den"] + params + [out["offset"]]
     if not all(math.isfinite(v) for v in numbers + (out["initial_state"] or [])):
         raise ParameterError("cannot save a model with non-finite coefficients or parameters")
     return out
 
 
-def _model_kwargs(offset: float, initial_state, intersample: str, name: str) -> dict:
-    """Constructor keywords, leaving out settings an older HammersteinModel does not take."""
-    from .model import HammersteinModel
-
-    accepted = inspect.signature(HammersteinModel.__init__).parameters
-    wanted = {"offset": (offset, offset == 0.0), "initial_state": (initial_state, initial_state is None),
-              "intersample": (intersample, intersample == "foh")}
-    kwargs = {"name": name}
-    for key, (value, is_default) in wanted.items():
-        if key in accepted:
-            kwargs[key] = value
-        elif not is_default:
-            raise ParameterError(f"this HammersteinModel does not support {key}={value!r}")
-    return kwargs
+def _block_from_dict(obj, where: str):
+    if obj is None:
+        return None, None
+    nl_obj = _keys(obj, where, ("family", "options", "params"))
+    nl = _nonlinearity_from_dict(nl_obj, where)
+    params = _keys(nl_obj["params"], f"{where}.params", nl.param_names)
+    return nl, [_number(params[k], f"{where}.params.{k}") for k in nl.param_names]
 
 
 def model_from_dict(obj, where: str = "model"):
-    """Build a :class:`~hammerstein_ctrl.HammersteinModel` from its ``"model"`` object.
+    """Build a model (Hammerstein, Wiener or Hammerstein-Wiener) from its ``"model"`` object.
 
     Raises
     ------
@@ -266,23 +297,23 @@ def model_from_dict(obj, where: str = "model"):
     """
     import control
 
-    from .model import HammersteinModel
+    from .model import BlockModel
 
     _keys(obj, where, _MODEL_KEYS)
+    _check_kind(obj, where)
     lin = _keys(obj["linear"], f"{where}.linear", ("num", "den"))
     num, den = _numbers(lin["num"], f"{where}.linear.num"), _numbers(lin["den"], f"{where}.linear.den")
-    nl_obj = _keys(obj["nonlinearity"], f"{where}.nonlinearity", ("family", "options", "params"))
-    nl = _nonlinearity_from_dict(nl_obj, f"{where}.nonlinearity")
-    params = _keys(nl_obj["params"], f"{where}.nonlinearity.params", nl.param_names)
-    values = [_number(params[k], f"{where}.nonlinearity.params.{k}") for k in nl.param_names]
+    g, g_params = _block_from_dict(obj["input_nonlinearity"], f"{where}.input_nonlinearity")
+    h, h_params = _block_from_dict(obj["output_nonlinearity"], f"{where}.output_nonlinearity")
     x0 = obj["initial_state"]
     x0 = None if x0 is None else _numbers(x0, f"{where}.initial_state")
     intersample = _string(obj["intersample"], f"{where}.intersample")
     if intersample not in INTERSAMPLE:
         raise ParameterError(f"{where}.intersample must be one of {list(INTERSAMPLE)}, got {intersample!r}")
-    kwargs = _model_kwargs(_number(obj["offset"], f"{where}.offset"), x0, intersample,
-                           _string(obj["name"], f"{where}.name"))
-    return HammersteinModel(control.tf(num, den), nl, values, **kwargs)
+    return BlockModel.build(control.tf(num, den), input_nonlinearity=g, input_params=g_params,
+                            output_nonlinearity=h, output_params=h_params,
+                            offset=_number(obj["offset"], f"{where}.offset"), initial_state=x0,
+                            intersample=intersample, name=_string(obj["name"], f"{where}.name"))
 
 
 def _read(path) -> dict:

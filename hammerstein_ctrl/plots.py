@@ -414,9 +414,33 @@ def bode(models, *, omega=None, u0: float | None = None, title=None):
     return fig
 
 
-def _input_range(models, u_range):
+#: Per static block: evaluating method, x-axis name, y-axis label.
+_BLOCKS = {"input": ("g", "input u", "g(u) (input of H)"),
+           "output": ("h", "output of H, z", "h(z) (model output before the offset)")}
+
+
+def _has_block(model, block: str) -> bool:
+    """Whether ``model`` has that static block (models without the attribute are Hammerstein-like)."""
+    return getattr(model, f"{block}_nonlinearity", block == "input") is not None
+
+
+def _linear_output(model, data) -> np.ndarray:
+    """``z = H(p) g(u)`` on the record: the signal entering the output nonlinearity."""
+    from .model import BlockModel
+
+    inner = BlockModel.build(model.linear, input_nonlinearity=model.input_nonlinearity,
+                             input_params=model.input_params, initial_state=model.initial_state,
+                             intersample=model.intersample)
+    with np.errstate(all="ignore"):
+        return inner.simulate(data)
+
+
+def _block_range(models, u_range, block):
     if u_range is None:
-        ranges = [(float(m.data.u.min()), float(m.data.u.max())) for m in _results(models)]
+        ranges = []
+        for r in _results(models):
+            x = r.data.u if block == "input" else _linear_output(r.model, r.data)
+            ranges.append((float(np.nanmin(x)), float(np.nanmax(x))))
         if not ranges:
             raise ParameterError("give u_range=(low, high) (it defaults to the record of an IdentificationResult)")
         return min(r[0] for r in ranges), max(r[1] for r in ranges)
@@ -438,20 +462,32 @@ def _results(models):
     return [m for m in items if isinstance(m, IdentificationResult)]
 
 
-def nonlinearity(models, u_range=None, *, unit_in: str = "", title=None, ax=None, n: int = 400):
-    """The identified static nonlinearities ``g(u)`` over an input range.
+def nonlinearity(models, u_range=None, *, block: str = "input", unit_in: str = "", title=None, ax=None,
+                 n: int = 400):
+    """The identified static nonlinearities over a range of their input.
 
-    ``u_range`` defaults to the input range of the records of the
-    IdentificationResults passed.
+    Parameters
+    ----------
+    models : model, list, dict or IdentificationResult
+    u_range : (float, float), optional
+        Range of the block's input; defaults to the range seen on the records
+        of the IdentificationResults passed.
+    block : {"input", "output"}
+        ``g(u)`` before the linear block (Hammerstein) or ``h(z)`` after it (Wiener).
     """
-    lo, hi = _input_range(models, u_range)
-    models = as_models(models, need=("g",))
-    u = np.linspace(lo, hi, int(n))
+    if block not in _BLOCKS:
+        raise ParameterError(f"block must be one of {sorted(_BLOCKS)}, got {block!r}")
+    method, xname, ylabel = _BLOCKS[block]
+    lo, hi = _block_range(models, u_range, block)
+    models = as_models(models, need=(method,))
+    for label, m in models.items():
+        if not _has_block(m, block):
+            raise ParameterError(f"model {label!r} has no {block} nonlinearity")
+    x = np.linspace(lo, hi, int(n))
     fig, a = _single_axes(ax)
     for label, m in models.items():
-        a.plot(u, m.g(u), lw=1.2, label=label)
-    _finish(a, xlabel=_label("input u", unit_in), ylabel="g(u) (input of H)",
-            title=title or "Identified static nonlinearities")
+        a.plot(x, getattr(m, method)(x), lw=1.2, label=label)
+    _finish(a, xlabel=_label(xname, unit_in), ylabel=ylabel, title=title or "Identified static nonlinearities")
     return fig
 
 
@@ -698,7 +734,7 @@ def compare(records, models, *, title=None):
 
 
 def result_figure(result, *, zoom=None):
-    """Overview of one IdentificationResult: measured vs simulated, the residual, and ``g(u)``."""
+    """Overview of one IdentificationResult: measured vs simulated, the residual, and ``g(u)`` / ``h(z)``."""
     from .identify import IdentificationResult
 
     if not isinstance(result, IdentificationResult):
@@ -706,8 +742,9 @@ def result_figure(result, *, zoom=None):
     data, model, label = result.data, result.model, method_label(result.method)
     with np.errstate(all="ignore"):
         yhat = np.asarray(model.simulate(data), dtype=float)
-    fig, axes = _new_figure(3, 1, figsize=(_WIDTH, 8.5))
-    a, b, c = axes[:, 0]
+    blocks = [b for b in ("input", "output") if _has_block(model, b)]
+    fig, axes = _new_figure(2 + len(blocks), 1, figsize=(_WIDTH, 3.0 + 2.8 * (len(blocks) + 1)))
+    (a, b), static = axes[:2, 0], axes[2:, 0]
     sel = np.ones(len(data), bool) if zoom is None else _window(data, zoom)
     ylabel = _label(data.output_name, data.output_unit)
     a.plot(data.t[sel], data.y[sel], label="measured", **_MEASURED)
@@ -723,11 +760,18 @@ def result_figure(result, *, zoom=None):
                   + ("" if result.success else " [FAILED]"))
     _finish(b, xlabel="time (s)", ylabel=_label(f"residual in {data.output_name}", data.output_unit),
             title="residual y - yhat")
-    u = np.linspace(float(data.u.min()), float(data.u.max()), 400)
-    c.plot(u, model.g(u), color="C2", lw=1.2, label=model.nonlinearity.describe(model.params))
-    _finish(c, xlabel=_label(data.input_name, data.input_unit), ylabel="g(u) (input of H)",
-            title="static nonlinearity over the input range of the record")
+    for c, block in zip(static, blocks):
+        nonlinearity(result, block=block, ax=c, unit_in=data.input_unit if block == "input" else "",
+                     title=f"static {block} nonlinearity over the range seen on the record")
+        c.get_lines()[-1].set_label(_describe_block(model, block))
+        c.legend(loc="best", fontsize="small")
     return fig
+
+
+def _describe_block(model, block: str) -> str:
+    nl = getattr(model, f"{block}_nonlinearity", None) or model.nonlinearity
+    params = getattr(model, f"{block}_params", None)
+    return nl.describe(model.params if params is None else params)
 
 
 # -- study reports -------------------------------------------------------------

@@ -194,31 +194,36 @@ def _read_mat_columns(path: Path) -> dict:
 
 
 def _read_npz_columns(path: Path) -> dict:
-    try:
-        archive = np.load(path, allow_pickle=False)
-    except Exception as exc:  # noqa: BLE001 - see _read_mat_columns
-        raise DataError(f"{path}: not a readable NPZ archive ({type(exc).__name__}: {_quote(exc)})") from None
-    if isinstance(archive, np.ndarray):
-        raise DataError(f"{path}: this is a single NumPy array (.npy), not an .npz archive of named "
-                        "arrays; save with numpy.savez(path, t=t, u=u, y=y)")
-    columns = {}
-    with archive:
-        for key in archive.files:
-            try:
-                columns[key] = archive[key]
-            except ValueError as exc:
-                if "allow_pickle" in str(exc):
-                    raise DataError(f"{path}: array {key!r} holds Python objects, which are not loaded "
-                                    "(unsafe pickles); save plain numeric arrays") from None
-                raise DataError(f"{path}: array {key!r} is unreadable ({_quote(exc)})") from None
-            except Exception as exc:  # noqa: BLE001 - truncated/corrupt members
-                raise DataError(f"{path}: array {key!r} is unreadable, the archive looks truncated or "
-                                f"corrupt ({type(exc).__name__}: {_quote(exc)})") from None
-            if not isinstance(columns[key], np.ndarray):  # NpzFile returns raw bytes of non-.npy members
-                raise DataError(f"{path}: member {key!r} of the archive is not a NumPy array")
+    # the file is opened here so that it is closed whatever numpy makes of its contents
+    with open(path, "rb") as handle:
+        try:
+            archive = np.load(handle, allow_pickle=False)
+        except Exception as exc:  # noqa: BLE001 - see _read_mat_columns
+            raise DataError(f"{path}: not a readable NPZ archive ({type(exc).__name__}: {_quote(exc)})") from None
+        if isinstance(archive, np.ndarray):
+            raise DataError(f"{path}: this is a single NumPy array (.npy), not an .npz archive of named "
+                            "arrays; save with numpy.savez(path, t=t, u=u, y=y)")
+        with archive:
+            columns = {key: _npz_member(path, archive, key) for key in archive.files}
     if not columns:
         raise DataError(f"{path}: the NPZ archive holds no arrays")
     return columns
+
+
+def _npz_member(path: Path, archive, key: str) -> np.ndarray:
+    try:
+        value = archive[key]
+    except ValueError as exc:
+        if "allow_pickle" in str(exc):
+            raise DataError(f"{path}: array {key!r} holds Python objects, which are not loaded "
+                            "(unsafe pickles); save plain numeric arrays") from None
+        raise DataError(f"{path}: array {key!r} is unreadable ({_quote(exc)})") from None
+    except Exception as exc:  # noqa: BLE001 - truncated/corrupt members
+        raise DataError(f"{path}: array {key!r} is unreadable, the archive looks truncated or "
+                        f"corrupt ({type(exc).__name__}: {_quote(exc)})") from None
+    if not isinstance(value, np.ndarray):  # NpzFile returns raw bytes of non-.npy members
+        raise DataError(f"{path}: member {key!r} of the archive is not a NumPy array")
+    return value
 
 
 _KIND_NAMES = {"O": "Python objects or a MATLAB cell array", "V": "a MATLAB struct or record array",

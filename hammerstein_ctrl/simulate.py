@@ -45,16 +45,17 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from ._checks import as_signal, check_intersample, uniform_grid
+from ._checks import as_signal, check_intersample, check_transfer_function, uniform_grid
 from ._linalg import expm_batch, single_threaded_blas
 from .exceptions import DataError, ParameterError
-from .kernels import MAX_UNROLLED_STATES, get_kernel
+from .kernels import MAX_UNROLLED_STATES, get_kernel, has_output_maps
 
 __all__ = [
     "companion_realization",
     "discretize",
     "lsim",
     "simulate",
+    "simulate_blocks",
     "simulate_batch",
     "sse_batch",
     "free_response",
@@ -214,7 +215,7 @@ def _lti_system(linear, dt: float):
     import control
 
     if isinstance(linear, tuple) and len(linear) == 2:
-        E, C, D, _ = _tf_system(*linear, dt)
+        E, C, D, _ = _tf_system(*check_transfer_function(*linear, name="linear block"), dt)
         return E, C, D
     if not isinstance(linear, (control.TransferFunction, control.StateSpace)):
         raise ParameterError(
@@ -226,7 +227,8 @@ def _lti_system(linear, dt: float):
     if linear.isdtime(strict=True):
         raise ParameterError("the linear block must be a continuous-time system (dt=0)")
     if isinstance(linear, control.TransferFunction):
-        E, C, D, _ = _tf_system(linear.num[0][0], linear.den[0][0], dt)
+        E, C, D, _ = _tf_system(*check_transfer_function(linear.num[0][0], linear.den[0][0],
+                                                         name="linear block"), dt)
         return E, C, D
     n = linear.nstates
     A = np.asarray(linear.A, dtype=float).reshape(1, n, n)
@@ -337,6 +339,33 @@ def simulate(linear, nonlinearity, params, t, u, *, x0=None, offset=0.0, intersa
     return _response(linear, dt, v, x0=x0, offset=offset, intersample=intersample)
 
 
+def simulate_blocks(model, t, u, *, x0=None, intersample: str = "foh") -> np.ndarray:
+    """Simulate a block-oriented model ``y = h(H g(u)) + offset`` (Hammerstein, Wiener or both).
+
+    ``g`` acts on the input samples, the linear block is simulated exactly
+    with the given intersample behaviour, and ``h`` acts on its output samples
+    in the same compiled pass.
+
+    Parameters
+    ----------
+    model : BlockModel
+    t, u : array_like, shape (N,)
+    x0 : array_like, optional
+        Initial state of the linear block; default 0.
+    intersample : {"foh", "zoh"}, default "foh"
+
+    Returns
+    -------
+    ndarray, shape (N,)
+    """
+    dt, u = _check_pair(t, u, "u")
+    num, den = check_transfer_function(model.linear.num[0][0], model.linear.den[0][0], name="linear block")
+    v = as_signal(model.g(u), "g(u)")
+    h = None if model.output_nonlinearity is None else (model.output_nonlinearity, model.output_params)
+    return simulate_batch(num[None, :], den[None, :], v, dt, x0=x0, offset=model.offset,
+                          intersample=intersample, output_map=h)[0]
+
+
 def _tf_system(num, den, dt: float):
     """(E, C, D, ok) for a batch of transfer functions; ``ok`` flags usable rows.
 
@@ -380,7 +409,31 @@ def _signals(V, batch: int) -> np.ndarray:
     return np.ascontiguousarray(V)
 
 
-def simulate_batch(num, den, V, dt: float, *, x0=None, offset=None, intersample: str = "foh") -> np.ndarray:
+def _output_map(output_map, batch: int, n: int):
+    """``(compiled map name or None, its kernel arguments, python fallback or None)``."""
+    if output_map is None:
+        return None, (), None
+    nonlinearity, params = output_map
+    HP = np.ascontiguousarray(np.broadcast_to(nonlinearity.check_params(params).reshape(-1, nonlinearity.n_params)
+                                              if np.ndim(params) else params, (batch, nonlinearity.n_params)),
+                              dtype=float)
+    if nonlinearity.compiled_map and has_output_maps(n):
+        extra = np.ascontiguousarray(nonlinearity.map_extra(), dtype=float)
+        return nonlinearity.compiled_map, (HP, extra), None
+    return None, (), (nonlinearity, HP)
+
+
+def _apply_python_map(Y, fallback, offsets):
+    """Output map of a family without a compiled form, applied row by row after the recursion."""
+    nonlinearity, HP = fallback
+    with np.errstate(all="ignore"):
+        for b in range(Y.shape[0]):
+            Y[b] = nonlinearity._evaluate(Y[b], HP[b]) + offsets[b]
+    return Y
+
+
+def simulate_batch(num, den, V, dt: float, *, x0=None, offset=None, intersample: str = "foh",
+                   output_map=None) -> np.ndarray:
     """Simulate a batch of linear blocks driven by a batch of intermediate signals.
 
     Parameters
@@ -396,6 +449,10 @@ def simulate_batch(num, den, V, dt: float, *, x0=None, offset=None, intersample:
     offset : array_like, shape (B,) or scalar, optional
         Output offsets; default 0.
     intersample : {"foh", "zoh"}, default "foh"
+    output_map : (Nonlinearity, array_like of shape (B, m) or (m,)), optional
+        A static output nonlinearity ``h`` and its parameters: the output is
+        ``h(H v) + offset`` (Wiener and Hammerstein-Wiener models), applied in
+        the compiled pass where the family has a compiled form.
 
     Returns
     -------
@@ -408,13 +465,18 @@ def simulate_batch(num, den, V, dt: float, *, x0=None, offset=None, intersample:
     batch, n = E.shape[0], E.shape[1] - 2
     V = _signals(V, batch)
     Y = np.empty(V.shape)
-    get_kernel(n, "outputs", hold)(E, C, D, _state_rows(x0, batch, n), _offset_rows(offset, batch), V, Y)
+    outmap, map_args, fallback = _output_map(output_map, batch, n)
+    offsets = _offset_rows(offset, batch)
+    get_kernel(n, "outputs", hold, outmap)(E, C, D, _state_rows(x0, batch, n),
+                                           np.zeros(batch) if fallback else offsets, V, *map_args, Y)
+    if fallback:
+        Y = _apply_python_map(Y, fallback, offsets)
     Y[~ok] = np.nan
     return Y
 
 
 def sse_batch(num, den, V, dt: float, y, *, x0=None, offset=None, intersample: str = "foh",
-              reject_unstable: bool = False) -> np.ndarray:
+              output_map=None, reject_unstable: bool = False) -> np.ndarray:
     """Sum of squared output errors ``J`` (paper Eq. 13) for a batch of candidates.
 
     Never raises or warns for hostile candidates: a candidate whose
@@ -424,7 +486,7 @@ def sse_batch(num, den, V, dt: float, y, *, x0=None, offset=None, intersample: s
 
     Parameters
     ----------
-    num, den, V, dt, x0, offset, intersample
+    num, den, V, dt, x0, offset, intersample, output_map
         As for :func:`simulate_batch`.
     y : ndarray, shape (N,)
         Measured output.
@@ -440,10 +502,18 @@ def sse_batch(num, den, V, dt: float, y, *, x0=None, offset=None, intersample: s
     if reject_unstable:
         ok &= ~unstable(den)
     batch, n = E.shape[0], E.shape[1] - 2
-    V = _signals(V, batch)
-    J = np.empty(batch)
-    get_kernel(n, "sse", hold)(E, C, D, _state_rows(x0, batch, n), _offset_rows(offset, batch), V,
-                               np.ascontiguousarray(y, dtype=float), J)
+    outmap, map_args, fallback = _output_map(output_map, batch, n)
+    y = np.ascontiguousarray(y, dtype=float)
+    if fallback:
+        Y = simulate_batch(num, den, V, dt, x0=x0, offset=offset, intersample=hold, output_map=output_map)
+        with np.errstate(all="ignore"):
+            J = np.sum((y - Y) ** 2, axis=1)
+        J[~np.isfinite(J)] = np.inf
+    else:
+        V = _signals(V, batch)
+        J = np.empty(batch)
+        get_kernel(n, "sse", hold, outmap)(E, C, D, _state_rows(x0, batch, n), _offset_rows(offset, batch), V,
+                                           *map_args, y, J)
     J[~ok] = np.inf
     return J
 

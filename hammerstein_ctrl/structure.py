@@ -26,10 +26,12 @@ from typing import Mapping
 
 import numpy as np
 
+from ._checks import MAX_ORDER
 from .exceptions import ParameterError
 from .nonlinearities import Nonlinearity
 
-__all__ = ["LinearStructure", "HammersteinStructure"]
+__all__ = ["LinearStructure", "BlockStructure", "HammersteinStructure", "WienerStructure",
+           "HammersteinWienerStructure", "INITIAL_STATES"]
 
 
 class LinearStructure:
@@ -70,6 +72,8 @@ class LinearStructure:
         num_order, den_order = int(num_order), int(den_order)
         if den_order < 1:
             raise ParameterError("den_order must be >= 1 (a dynamic linear block)")
+        if den_order > MAX_ORDER:
+            raise ParameterError(f"den_order {den_order} exceeds MAX_ORDER = {MAX_ORDER} (orders 1..{MAX_ORDER})")
         if num_order > den_order:
             raise ParameterError(
                 f"improper structure: num_order {num_order} exceeds den_order {den_order}"
@@ -270,18 +274,218 @@ OFFSET_NAME = "y0"
 STATE_PREFIX = "xi"
 
 
-class HammersteinStructure:
-    """A linear structure and a nonlinearity family: the full beta <-> model map.
+def _check_nonlinearity(value, label: str):
+    if not isinstance(value, Nonlinearity):
+        raise ParameterError(f"{label} must be a Nonlinearity, got {type(value).__name__}")
+    return value
 
-    beta is ``[linear coefficients, nonlinearity parameters]`` (paper Eq. 14),
-    followed by the optional real-data parameters: the output offset ``y0``
-    (``offset=True``) and the initial state ``xi0 .. xi{n-1}`` of ``H``'s
-    controllable canonical realisation (``initial_state="estimate"``).
+
+class BlockStructure:
+    """Base of the block-oriented structures: ``u -> [g] -> H -> [h] -> y``.
+
+    beta is ``[linear coefficients, free parameters of g, parameters of h]``
+    (paper Eq. 14 for the Hammerstein case), followed by the optional
+    real-data parameters: the output offset ``y0`` (``offset=True``) and the
+    initial state ``xi0 .. xi{n-1}`` of ``H``'s controllable canonical
+    realisation (``initial_state="estimate"``).
+
+    **Gain convention.**  A gain can move freely between blocks; fixing it
+    makes the parameters unique.  The linear block keeps a monic numerator
+    (paper Assumption 3), so ``H``'s gain is fixed and the static blocks carry
+    it.  With both an input and an output nonlinearity (Hammerstein-Wiener),
+    the input nonlinearity's gain parameter
+    (:attr:`~hammerstein_ctrl.nonlinearities.Nonlinearity.gain_index`) is
+    fixed to 1 as well and is not part of beta.
+
+    When the two nonlinearities share a parameter name, all their names
+    are prefixed ``g_`` and ``h_`` (e.g. ``g_d1``, ``h_d1``).
+
+    Subclasses: :class:`HammersteinStructure`, :class:`WienerStructure`,
+    :class:`HammersteinWienerStructure`; a new structure is a new subclass.
+    """
+
+    #: Short name of the structure family.
+    kind = "block"
+
+    def __init__(self, linear: LinearStructure, input_nonlinearity=None, output_nonlinearity=None, *,
+                 offset: bool = False, initial_state: str = "zero"):
+        if not isinstance(linear, LinearStructure):
+            raise ParameterError(f"linear must be a LinearStructure, got {type(linear).__name__}")
+        if initial_state not in INITIAL_STATES:
+            raise ParameterError(f"initial_state must be one of {INITIAL_STATES}, got {initial_state!r}")
+        self.linear = linear
+        self.input_nonlinearity = input_nonlinearity
+        self.output_nonlinearity = output_nonlinearity
+        self.offset = bool(offset)
+        self.initial_state = initial_state
+        self._fixed_gain = None
+        if input_nonlinearity is not None and output_nonlinearity is not None:
+            self._fixed_gain = input_nonlinearity.gain_index
+            if self._fixed_gain is None:
+                raise ParameterError(
+                    f"the input nonlinearity {input_nonlinearity.name!r} of a Hammerstein-Wiener structure needs a "
+                    "gain parameter to fix to 1 (a scale parameter, or parameters it is linear in)")
+        g_names = () if input_nonlinearity is None else tuple(
+            n for i, n in enumerate(input_nonlinearity.param_names) if i != self._fixed_gain)
+        h_names = () if output_nonlinearity is None else output_nonlinearity.param_names
+        if set(g_names) & set(h_names):  # e.g. Coulomb in, polynomial out: g_d1, ... and h_d1, ...
+            g_names = tuple(f"g_{n}" for n in g_names)
+            h_names = tuple(f"h_{n}" for n in h_names)
+        self._n_g, self._n_h = len(g_names), len(h_names)
+        self.core_names: tuple[str, ...] = linear.param_names + g_names + h_names
+        extra = ((OFFSET_NAME,) if self.offset else ()) + (
+            tuple(f"{STATE_PREFIX}{i}" for i in range(linear.den_order)) if initial_state == "estimate" else ())
+        self.param_names: tuple[str, ...] = self.core_names + extra
+        if len(set(self.param_names)) != len(self.param_names):
+            raise ParameterError(f"parameter names clash: {list(self.param_names)}")
+
+    # -- sizes and options --------------------------------------------------
+    @property
+    def n_params(self) -> int:
+        """Length of beta."""
+        return len(self.param_names)
+
+    @property
+    def n_core(self) -> int:
+        """Number of parameters of the blocks themselves (without offset and initial state)."""
+        return len(self.core_names)
+
+    def _block_args(self) -> tuple:
+        """Positional constructor arguments of the subclass (its blocks)."""
+        raise NotImplementedError
+
+    def with_options(self, *, offset: bool | None = None, initial_state: str | None = None):
+        """The same blocks with other real-data options (``None`` keeps the current one)."""
+        return type(self)(*self._block_args(), offset=self.offset if offset is None else offset,
+                          initial_state=self.initial_state if initial_state is None else initial_state)
+
+    # -- beta <-> blocks ----------------------------------------------------
+    def check_beta(self, beta) -> np.ndarray:
+        """Return beta as a float array of shape ``(n,)`` or ``(B, n)``.
+
+        Raises
+        ------
+        ParameterError
+            On a wrong length, naming the expected parameters.
+        """
+        b = np.asarray(beta, dtype=float)
+        if b.ndim not in (1, 2) or b.shape[-1] != self.n_params:
+            got = b.shape[-1] if b.ndim else "a scalar"
+            raise ParameterError(
+                f"beta must have {self.n_params} entries {list(self.param_names)}, got {got}"
+                + (f" (array of shape {b.shape})" if b.ndim != 1 else "")
+            )
+        return b
+
+    def linear_params(self, beta) -> np.ndarray:
+        """The free coefficients of ``H``."""
+        return self.check_beta(beta)[..., :self.linear.n_params]
+
+    def input_params(self, beta):
+        """The full parameter vector(s) of ``g`` (its fixed gain inserted), or ``None``."""
+        if self.input_nonlinearity is None:
+            return None
+        b = self.check_beta(beta)
+        k = self.linear.n_params
+        free = b[..., k:k + self._n_g]
+        if self._fixed_gain is None:
+            return free
+        return np.insert(free, self._fixed_gain, 1.0, axis=-1)
+
+    def output_params(self, beta):
+        """The parameter vector(s) of ``h``, or ``None``."""
+        if self.output_nonlinearity is None:
+            return None
+        k = self.linear.n_params + self._n_g
+        return self.check_beta(beta)[..., k:k + self._n_h]
+
+    def nuisance(self, beta):
+        """``(offset, initial_state)`` of a beta or batch (``None`` where not estimated)."""
+        b = self.check_beta(beta)
+        i = self.n_core
+        offset = None
+        if self.offset:
+            offset, i = b[..., i], i + 1
+        state = b[..., i:] if self.initial_state == "estimate" else None
+        return offset, state
+
+    def _free_input(self, params) -> np.ndarray:
+        p = np.asarray(params, dtype=float)
+        if self._fixed_gain is None:
+            return p
+        if not np.isclose(p[self._fixed_gain], 1.0):
+            raise ParameterError(f"the input nonlinearity's gain {self.input_nonlinearity.param_names[self._fixed_gain]}"
+                                 f" must be 1 in a {self.kind} structure (move the gain to the output block)")
+        return np.delete(p, self._fixed_gain)
+
+    def model(self, beta, **kwargs):
+        """The model for one beta (``kwargs``: ``intersample``, ``name``)."""
+        from .model import BlockModel
+
+        b = self.check_beta(beta)
+        if b.ndim != 1:
+            raise ParameterError("model() takes a single beta vector, not a batch")
+        offset, state = self.nuisance(b)
+        return BlockModel.build(
+            self.linear.transfer_function(self.linear_params(b)),
+            input_nonlinearity=self.input_nonlinearity, input_params=self.input_params(b),
+            output_nonlinearity=self.output_nonlinearity, output_params=self.output_params(b),
+            offset=0.0 if offset is None else float(offset), initial_state=state, **kwargs)
+
+    def beta(self, model) -> np.ndarray:
+        """The beta vector of a model that has this structure."""
+        for label, mine, theirs in (("input", self.input_nonlinearity, model.input_nonlinearity),
+                                    ("output", self.output_nonlinearity, model.output_nonlinearity)):
+            if (mine is None) != (theirs is None) or (mine is not None and (
+                    type(mine) is not type(theirs) or mine.param_names != theirs.param_names)):
+                raise ParameterError(f"model's {label} nonlinearity {theirs!r} does not match {mine!r}")
+        parts = [self.linear.parameters(model.linear)]
+        if self.input_nonlinearity is not None:
+            parts.append(self._free_input(model.input_params))
+        if self.output_nonlinearity is not None:
+            parts.append(model.output_params)
+        if self.offset:
+            parts.append([model.offset])
+        if self.initial_state == "estimate":
+            parts.append(model.state0())
+        return np.concatenate(parts)
+
+    def normalize(self, beta) -> np.ndarray:
+        """beta with the nonlinearities' parameters in their canonical form (see
+        :meth:`~hammerstein_ctrl.nonlinearities.Nonlinearity.normalize`); the model is unchanged."""
+        b = np.array(self.check_beta(beta), dtype=float)
+        k = self.linear.n_params
+        if self.input_nonlinearity is not None and self._fixed_gain is None:
+            b[..., k:k + self._n_g] = self.input_nonlinearity.normalize(b[..., k:k + self._n_g])
+        if self.output_nonlinearity is not None:
+            j = k + self._n_g
+            b[..., j:j + self._n_h] = self.output_nonlinearity.normalize(b[..., j:j + self._n_h])
+        return b
+
+    def describe(self) -> str:
+        """One-line description, e.g. ``H(p) = (p + b0)/(p^2 + a1 p + a0); g = tanh(d0, d1)``."""
+        parts = [f"H(p) = {self.linear.describe()}"]
+        for label, nl in (("g", self.input_nonlinearity), ("h", self.output_nonlinearity)):
+            if nl is not None:
+                parts.append(f"{label} = {nl.name}({', '.join(nl.param_names)})")
+        extra = (" + y0" if self.offset else "") + ("; x(0) estimated" if self.initial_state == "estimate" else "")
+        return "; ".join(parts) + extra
+
+    def __repr__(self):
+        opts = (", offset=True" if self.offset else "") + (
+            f", initial_state={self.initial_state!r}" if self.initial_state != "zero" else "")
+        args = ", ".join(repr(a) for a in self._block_args())
+        return f"{type(self).__name__}({args}{opts})"
+
+
+class HammersteinStructure(BlockStructure):
+    """``y = H(p) g(u)``: a static input nonlinearity, then the linear block (the paper's model).
 
     Parameters
     ----------
     linear : LinearStructure
     nonlinearity : Nonlinearity
+        The input nonlinearity ``g``.
     offset : bool, default False
         Estimate a constant ``y0`` added to the output.
     initial_state : {"zero", "estimate"}, default "zero"
@@ -300,120 +504,78 @@ class HammersteinStructure:
     ('y0', 'xi0', 'xi1')
     """
 
+    kind = "hammerstein"
+
     def __init__(self, linear: LinearStructure, nonlinearity: Nonlinearity, *, offset: bool = False,
                  initial_state: str = "zero"):
-        if not isinstance(linear, LinearStructure):
-            raise ParameterError(f"linear must be a LinearStructure, got {type(linear).__name__}")
-        if not isinstance(nonlinearity, Nonlinearity):
-            raise ParameterError(
-                f"nonlinearity must be a Nonlinearity, got {type(nonlinearity).__name__}"
-            )
-        if initial_state not in INITIAL_STATES:
-            raise ParameterError(f"initial_state must be one of {INITIAL_STATES}, got {initial_state!r}")
-        self.linear = linear
-        self.nonlinearity = nonlinearity
-        self.offset = bool(offset)
-        self.initial_state = initial_state
-        self.core_names: tuple[str, ...] = linear.param_names + nonlinearity.param_names
-        extra = ((OFFSET_NAME,) if self.offset else ()) + (
-            tuple(f"{STATE_PREFIX}{i}" for i in range(linear.den_order)) if initial_state == "estimate" else ())
-        self.param_names: tuple[str, ...] = self.core_names + extra
+        super().__init__(linear, _check_nonlinearity(nonlinearity, "nonlinearity"), None, offset=offset,
+                         initial_state=initial_state)
 
     @property
-    def n_params(self) -> int:
-        """Length of beta."""
-        return len(self.param_names)
+    def nonlinearity(self) -> Nonlinearity:
+        """The input nonlinearity ``g``."""
+        return self.input_nonlinearity
 
-    @property
-    def n_core(self) -> int:
-        """Number of parameters of the blocks themselves (without offset and initial state)."""
-        return len(self.core_names)
-
-    def with_options(self, *, offset: bool | None = None, initial_state: str | None = None):
-        """The same blocks with other real-data options (``None`` keeps the current one)."""
-        return type(self)(self.linear, self.nonlinearity,
-                          offset=self.offset if offset is None else offset,
-                          initial_state=self.initial_state if initial_state is None else initial_state)
-
-    def check_beta(self, beta) -> np.ndarray:
-        """Return beta as a float array of shape ``(n,)`` or ``(B, n)``.
-
-        Raises
-        ------
-        ParameterError
-            On a wrong length, naming the expected parameters.
-        """
-        b = np.asarray(beta, dtype=float)
-        if b.ndim not in (1, 2) or b.shape[-1] != self.n_params:
-            got = b.shape[-1] if b.ndim else "a scalar"
-            raise ParameterError(
-                f"beta must have {self.n_params} entries {list(self.param_names)}, got {got}"
-                + (f" (array of shape {b.shape})" if b.ndim != 1 else "")
-            )
-        return b
+    def _block_args(self) -> tuple:
+        return (self.linear, self.input_nonlinearity)
 
     def split(self, beta):
         """Split beta into (linear parameters, nonlinearity parameters)."""
-        b = self.check_beta(beta)
-        k = self.linear.n_params
-        return b[..., :k], b[..., k:self.n_core]
+        return self.linear_params(beta), self.input_params(beta)
 
-    def nuisance(self, beta):
-        """``(offset, initial_state)`` of a beta or batch (``None`` where not estimated)."""
-        b = self.check_beta(beta)
-        i = self.n_core
-        offset = None
-        if self.offset:
-            offset, i = b[..., i], i + 1
-        state = b[..., i:] if self.initial_state == "estimate" else None
-        return offset, state
 
-    def model(self, beta, **kwargs):
-        """The :class:`~hammerstein_ctrl.model.HammersteinModel` for one beta.
+class WienerStructure(BlockStructure):
+    """``y = h(H(p) u)``: the linear block, then a static output nonlinearity (e.g. a sensor limit).
 
-        ``kwargs`` (``intersample``, ``name``) go to the model.
-        """
-        from .model import HammersteinModel
+    Parameters are those of :class:`HammersteinStructure`; ``nonlinearity`` is
+    the output nonlinearity ``h``, which carries the gain (``H`` has a monic
+    numerator).
 
-        b = self.check_beta(beta)
-        if b.ndim != 1:
-            raise ParameterError("model() takes a single beta vector, not a batch")
-        lin, nl = self.split(b)
-        offset, state = self.nuisance(b)
-        return HammersteinModel(self.linear.transfer_function(lin), self.nonlinearity, nl,
-                                offset=0.0 if offset is None else float(offset), initial_state=state,
-                                **kwargs)
+    Examples
+    --------
+    >>> from hammerstein_ctrl.nonlinearities import Saturation
+    >>> s = WienerStructure(LinearStructure(0, 2), Saturation())
+    >>> s.param_names, s.describe()
+    (('a0', 'a1', 'gain', 'limit'), 'H(p) = (1)/(p^2 + a1 p + a0); h = saturation(gain, limit)')
+    """
 
-    def beta(self, model) -> np.ndarray:
-        """The beta vector of a model that has this structure."""
-        if model.nonlinearity.param_names != self.nonlinearity.param_names or type(
-            model.nonlinearity
-        ) is not type(self.nonlinearity):
-            raise ParameterError(
-                f"model's nonlinearity {model.nonlinearity!r} does not match {self.nonlinearity!r}"
-            )
-        parts = [self.linear.parameters(model.linear), model.params]
-        if self.offset:
-            parts.append([model.offset])
-        if self.initial_state == "estimate":
-            parts.append(model.state0())
-        return np.concatenate(parts)
+    kind = "wiener"
 
-    def normalize(self, beta) -> np.ndarray:
-        """beta with the nonlinearity's parameters in their canonical form (see
-        :meth:`~hammerstein_ctrl.nonlinearities.Nonlinearity.normalize`); the model is unchanged."""
-        b = np.array(self.check_beta(beta), dtype=float)
-        k = self.linear.n_params
-        b[..., k:self.n_core] = self.nonlinearity.normalize(b[..., k:self.n_core])
-        return b
+    def __init__(self, linear: LinearStructure, nonlinearity: Nonlinearity, *, offset: bool = False,
+                 initial_state: str = "zero"):
+        super().__init__(linear, None, _check_nonlinearity(nonlinearity, "nonlinearity"), offset=offset,
+                         initial_state=initial_state)
 
-    def describe(self) -> str:
-        """One-line description, e.g. ``H(p) = (p + b0)/(p^2 + a1 p + a0); g = tanh(d0, d1)``."""
-        names = ", ".join(self.nonlinearity.param_names)
-        extra = (" + y0" if self.offset else "") + ("; x(0) estimated" if self.initial_state == "estimate" else "")
-        return f"H(p) = {self.linear.describe()}; g = {self.nonlinearity.name}({names}){extra}"
+    @property
+    def nonlinearity(self) -> Nonlinearity:
+        """The output nonlinearity ``h``."""
+        return self.output_nonlinearity
 
-    def __repr__(self):
-        opts = (", offset=True" if self.offset else "") + (
-            f", initial_state={self.initial_state!r}" if self.initial_state != "zero" else "")
-        return f"HammersteinStructure({self.linear!r}, {self.nonlinearity!r}{opts})"
+    def _block_args(self) -> tuple:
+        return (self.linear, self.output_nonlinearity)
+
+
+class HammersteinWienerStructure(BlockStructure):
+    """``y = h(H(p) g(u))``: input nonlinearity, linear block, output nonlinearity.
+
+    The input nonlinearity's gain parameter is fixed to 1 (and left out of
+    beta); ``h`` carries the gain.
+
+    Examples
+    --------
+    >>> from hammerstein_ctrl.nonlinearities import DeadZone, Saturation
+    >>> s = HammersteinWienerStructure(LinearStructure(0, 1), DeadZone(), Saturation())
+    >>> s.param_names
+    ('a0', 'width', 'gain', 'limit')
+    """
+
+    kind = "hammerstein-wiener"
+
+    def __init__(self, linear: LinearStructure, input_nonlinearity: Nonlinearity,
+                 output_nonlinearity: Nonlinearity, *, offset: bool = False, initial_state: str = "zero"):
+        super().__init__(linear, _check_nonlinearity(input_nonlinearity, "input_nonlinearity"),
+                         _check_nonlinearity(output_nonlinearity, "output_nonlinearity"), offset=offset,
+                         initial_state=initial_state)
+
+    def _block_args(self) -> tuple:
+        return (self.linear, self.input_nonlinearity, self.output_nonlinearity)

@@ -6,7 +6,11 @@ uses a seed derived only from the study seed and ``i``
 executor, the order of completion or the other methods.  Each finished trial
 is appended to a JSON-lines file at once; rerunning with the same
 ``results_path`` skips the trials already recorded, so an interrupted study
-loses at most the trials that were running.
+loses at most the trials that were running.  The file is checked, never
+trusted: every line carries a digest of its content and settings and must
+match :data:`RECORD_SCHEMA`, or it is moved aside, reported and its trial run
+again.  One run at a time writes a results file (a lock refuses the second),
+and the worker processes end with the run, even when it is killed.
 
 Trials run on any :class:`concurrent.futures.Executor`: by default a local
 process pool over the machine's cores; ``executor="serial"`` runs them in
@@ -25,27 +29,53 @@ Examples
 from __future__ import annotations
 
 import concurrent.futures as cf
+import contextlib
+import ctypes
 import hashlib
 import json
 import math
 import multiprocessing
 import os
+import signal
+import sys
+import threading
 import time
+import warnings
+from concurrent.futures.process import BrokenProcessPool
 from pathlib import Path
 
 import numpy as np
 import scipy.stats
 
-from .exceptions import ParameterError
+from ._linalg import single_threaded_blas
+from .exceptions import HammersteinError, ParameterError
 from .optimize import canonical_method, minimize
+from .report import json_float, json_safe
 
-__all__ = ["run_study", "StudyResult", "trial_seed", "ranksum"]
+__all__ = ["run_study", "StudyResult", "trial_seed", "ranksum", "validate_record", "record_digest", "RECORD_SCHEMA",
+           "StudyLockedError", "StudyInterrupted", "ResultsFileWarning"]
 
 #: Points kept from each trial's convergence curve (for plots).
 CURVE_POINTS = 200
 #: Version of the JSON-lines record layout; part of every fingerprint, so files
 #: written by an older layout are never mixed into a resumed study.
-RECORD_VERSION = 2
+RECORD_VERSION = 3
+#: Seconds between a worker's checks that the process that started it is alive.
+PARENT_WATCH_INTERVAL = 0.5
+#: ``prctl`` option asking Linux to signal a process when its parent dies.
+_PR_SET_PDEATHSIG = 1
+
+
+class StudyLockedError(HammersteinError):
+    """Another run is writing into the same results file."""
+
+
+class StudyInterrupted(RuntimeError):
+    """A worker process died (killed by the system); finished trials are kept."""
+
+
+class ResultsFileWarning(UserWarning):
+    """Lines of a results file were rejected (damaged, edited or duplicated) and their trials rerun."""
 
 
 def trial_seed(seed: int, trial: int) -> int:
@@ -100,13 +130,8 @@ def _curve(history: dict) -> dict:
     if nfev.size > CURVE_POINTS:
         idx = np.unique(np.linspace(0, nfev.size - 1, CURVE_POINTS).round().astype(int))
         nfev, best, est = nfev[idx], best[idx], est[idx]
-    return {"nfev": nfev.tolist(), "best": [_json_float(b) for b in best],
-            "estimate": [_json_float(e) for e in est]}
-
-
-def _json_float(v):
-    v = float(v)
-    return v if math.isfinite(v) else ("inf" if v > 0 else "-inf" if v < 0 else "nan")
+    return {"nfev": nfev.tolist(), "best": [json_float(b) for b in best],
+            "estimate": [json_float(e) for e in est]}
 
 
 def _from_json_float(v):
@@ -120,49 +145,212 @@ def _run_trial(case, method: str, kwargs: dict, trial: int, seed: int, fingerpri
     spinning worker threads in several processes on the same cores slow a
     trial down about 50-fold.
     """
-    from threadpoolctl import threadpool_limits
-
     t0 = time.perf_counter()
     if kwargs.get("method") in ("spsa", "nlspsa", "nspsa"):  # curves at the iterate; never changes the run
         kwargs = {**kwargs, "options": {**(kwargs.get("options") or {}), "monitor": CURVE_POINTS // 2}}
-    with threadpool_limits(limits=1):
+    with single_threaded_blas():
         res = minimize(case.cost, case.x0, seed=seed, **kwargs)
-    return {
+    record = {
         "case": case.name, "method": method, "trial": trial, "seed": seed, "config": fingerprint,
-        "fun": _json_float(res.fun), "x": [_json_float(v) for v in res.x], "nfev": int(res.nfev),
+        "fun": json_float(res.fun), "x": [json_float(v) for v in res.x], "nfev": int(res.nfev),
         "nit": int(res.nit), "status": int(res.status), "success": bool(res.success),
         "diverged": int(res.status) == 2, "message": str(res.message),
-        "best_fun": _json_float(res.best_fun), "nfev_monitor": int(res.nfev_monitor),
+        "best_fun": json_float(res.best_fun), "nfev_monitor": int(res.nfev_monitor),
         "elapsed": time.perf_counter() - t0,
         "curve": _curve(res.history),
     }
+    record["digest"] = record_digest(record)
+    return record
 
 
-def _read_records(path: Path) -> list[dict]:
-    records = []
-    if path.is_file():
-        with open(path) as fh:
-            for line in fh:
-                try:
-                    records.append(json.loads(line))
-                except json.JSONDecodeError:  # a line cut short by an interruption
-                    continue
-    return records
+def record_digest(record: dict) -> str:
+    """SHA-256 of a record's content (every field but ``digest``, settings fingerprint included).
+
+    Examples
+    --------
+    >>> r = {"trial": 0, "fun": 1.5, "config": "abc"}
+    >>> record_digest(r) == record_digest(dict(r)) != record_digest({**r, "fun": 1.25})
+    True
+    """
+    body = {k: v for k, v in record.items() if k != "digest"}
+    return hashlib.sha256(json.dumps(body, sort_keys=True, allow_nan=True).encode()).hexdigest()
 
 
-def _ends_with_newline(path: Path) -> bool:
+def _is_number(v) -> bool:
+    return isinstance(v, (int, float)) and not isinstance(v, bool)
+
+
+def _is_count(v) -> bool:
+    return isinstance(v, int) and not isinstance(v, bool) and v >= 0
+
+
+def _is_value(v) -> bool:
+    """A JSON-encoded float: a number or one of the strings written for non-finite values."""
+    return _is_number(v) or v in ("inf", "-inf", "nan")
+
+
+def _is_curve(v) -> bool:
+    if not isinstance(v, dict) or not all(isinstance(v.get(k), list) for k in ("nfev", "best", "estimate")):
+        return False
+    return (len({len(v["nfev"]), len(v["best"]), len(v["estimate"])}) == 1
+            and all(map(_is_count, v["nfev"])) and all(map(_is_value, v["best"] + v["estimate"])))
+
+
+#: Every field of a results line and the check its value must pass.
+RECORD_SCHEMA = {
+    "case": lambda v: isinstance(v, str), "method": lambda v: isinstance(v, str), "trial": _is_count,
+    "seed": _is_count, "config": lambda v: isinstance(v, str), "fun": _is_value,
+    "x": lambda v: isinstance(v, list) and len(v) > 0 and all(map(_is_value, v)),
+    "nfev": _is_count, "nit": _is_count, "status": _is_count, "success": lambda v: isinstance(v, bool),
+    "diverged": lambda v: isinstance(v, bool), "message": lambda v: isinstance(v, str),
+    "best_fun": _is_value, "nfev_monitor": _is_count,
+    "elapsed": lambda v: _is_number(v) and math.isfinite(v) and v >= 0, "curve": _is_curve,
+    "digest": lambda v: isinstance(v, str),
+}
+
+
+def validate_record(record) -> str | None:
+    """Why ``record`` (a parsed results line) cannot be trusted, or None if it can.
+
+    It must be an object with exactly the fields of :data:`RECORD_SCHEMA`, each
+    of the right type, and its ``digest`` must match its content.
+
+    Examples
+    --------
+    >>> validate_record(42)
+    'not a JSON object'
+    >>> validate_record({"trial": None}).split(" [")[0]
+    'missing field(s)'
+    """
+    if not isinstance(record, dict):
+        return "not a JSON object"
+    missing = sorted(set(RECORD_SCHEMA) - set(record))
+    if missing:
+        return f"missing field(s) {missing}"
+    extra = sorted(set(record) - set(RECORD_SCHEMA))
+    if extra:
+        return f"unknown field(s) {extra}"
+    for key, check in RECORD_SCHEMA.items():
+        if not check(record[key]):
+            return f"field {key!r} has an invalid value {str(record[key])[:40]!r}"
+    if record["digest"] != record_digest(record):
+        return "content does not match its digest (edited or damaged)"
+    return None
+
+
+def _parse_line(raw: bytes):
+    """``(record, None)`` for a trustworthy line, ``(None, reason)`` otherwise."""
+    if not raw.endswith(b"\n"):
+        return None, "cut short (no end of line: an interrupted write)"
+    try:
+        record = json.loads(raw.decode("utf-8"))
+    except UnicodeDecodeError:
+        return None, "not UTF-8 text"
+    except json.JSONDecodeError as exc:
+        return None, f"not JSON ({exc.msg})"
+    reason = validate_record(record)
+    return (None, reason) if reason else (record, None)
+
+
+def _load_results(path: Path, accept) -> tuple[dict, list]:
+    """Trusted records of ``path`` for which ``accept(record)`` holds, keyed by (method, trial).
+
+    Lines that fail :func:`validate_record`, and repeats of a trial already
+    read, are moved to ``<name>.rejected<suffix>`` next to ``path`` (byte for
+    byte, so nothing is lost) and returned as ``(line number, reason)``.
+    """
+    done, rejected, keep, bad, seen = {}, [], [], [], set()
+    if not path.is_file():
+        return done, rejected
     with open(path, "rb") as fh:
-        fh.seek(-1, os.SEEK_END)
-        return fh.read(1) == b"\n"
+        lines = fh.readlines()
+    for number, raw in enumerate(lines, start=1):
+        if not raw.strip():
+            continue
+        record, reason = _parse_line(raw)
+        if record is not None:
+            key = (record["method"], record["trial"], record["config"], record["seed"])
+            reason = "a repeat of a trial already in the file" if key in seen else None
+            seen.add(key)
+        if reason:
+            rejected.append((number, reason))
+            bad.append(raw if raw.endswith(b"\n") else raw + b"\n")
+            continue
+        keep.append(raw)
+        if accept(record):
+            done[(record["method"], record["trial"])] = record
+    if rejected:
+        with open(path.with_name(f"{path.stem}.rejected{path.suffix}"), "ab") as fh:
+            fh.writelines(bad)
+        tmp = path.with_name(path.name + ".tmp")
+        tmp.write_bytes(b"".join(keep))
+        os.replace(tmp, path)
+    return done, rejected
+
+
+@contextlib.contextmanager
+def _locked(path: Path):
+    """Hold an exclusive lock on ``<path>.lock`` or raise :class:`StudyLockedError` at once.
+
+    The lock is an ``flock`` on an open file: the system releases it when the
+    holder exits, however it exits, so a killed run leaves no stale lock.
+    """
+    try:
+        import fcntl
+    except ImportError:  # pragma: no cover - not POSIX: no locking
+        yield
+        return
+    lock = path.with_name(path.name + ".lock")
+    with open(lock, "a+") as fh:
+        try:
+            fcntl.flock(fh, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            fh.seek(0)
+            holder = fh.read().strip() or "unknown"
+            raise StudyLockedError(
+                f"another run (pid {holder}) is writing {path}; wait for it to finish or choose "
+                "another output directory"
+            ) from None
+        fh.seek(0)
+        fh.truncate()
+        fh.write(str(os.getpid()))
+        fh.flush()
+        try:
+            yield
+        finally:
+            fcntl.flock(fh, fcntl.LOCK_UN)
+
+
+def _watch_parent(parent_pid: int):
+    while os.getppid() == parent_pid:
+        time.sleep(PARENT_WATCH_INTERVAL)
+    os._exit(1)
+
+
+def _worker_init(parent_pid: int):
+    """Make a pool worker end when the study's process dies, even by SIGKILL.
+
+    Linux kills the worker at once through ``PR_SET_PDEATHSIG``; elsewhere a
+    daemon thread notices the change of parent within :data:`PARENT_WATCH_INTERVAL`.
+    """
+    if sys.platform.startswith("linux"):
+        with contextlib.suppress(OSError, AttributeError):
+            ctypes.CDLL(None, use_errno=True).prctl(_PR_SET_PDEATHSIG, int(signal.SIGKILL), 0, 0, 0)
+    threading.Thread(target=_watch_parent, args=(parent_pid,), daemon=True).start()
+    if os.getppid() != parent_pid:  # the parent died before the watch began
+        os._exit(1)
 
 
 def _make_executor(executor, jobs: int | None):
+    if jobs is not None and (isinstance(jobs, bool) or int(jobs) != jobs or jobs < 1):
+        raise ParameterError(f"jobs must be a positive integer, got {jobs!r}")
     if executor is None:
-        workers = jobs or os.cpu_count() or 1
+        workers = int(jobs or os.cpu_count() or 1)
         if workers == 1:
             return None, False
         ctx = multiprocessing.get_context("fork" if "fork" in multiprocessing.get_all_start_methods() else None)
-        return cf.ProcessPoolExecutor(max_workers=workers, mp_context=ctx), True
+        return cf.ProcessPoolExecutor(max_workers=workers, mp_context=ctx, initializer=_worker_init,
+                                      initargs=(os.getpid(),)), True
     if executor == "serial":
         return None, False
     if not hasattr(executor, "submit"):
@@ -179,7 +367,8 @@ def run_study(case, methods, trials: int = 25, seed: int = 0, executor=None, res
     case : Preset or str
         A :class:`~hammerstein_ctrl.presets.Preset` (or ``"trs"``/``"emps"``).
     methods : sequence of str
-        Methods to compare; each uses the case's paper settings
+        Methods to compare (aliases such as ``"N-SPSA"`` name the same method
+        and are counted once); each uses the case's paper settings
         (``case.minimize_kwargs(method)``) unless ``settings`` overrides them.
     trials : int, default 25
     seed : int, default 0
@@ -188,7 +377,13 @@ def run_study(case, methods, trials: int = 25, seed: int = 0, executor=None, res
         ``None``: a local process pool with ``jobs`` workers (default: all cores).
     results_path : str or Path, optional
         JSON-lines file; trials are appended as they finish, and trials already
-        in it (same case, settings, data and seed) are not run again.
+        in it (same case, settings, data and seed) are not run again.  Each line
+        carries a digest of its content (settings fingerprint included) and is
+        checked against :data:`RECORD_SCHEMA`: a damaged, edited or repeated
+        line is moved to ``<name>.rejected.jsonl``, reported with a
+        :class:`ResultsFileWarning`, and its trial is run again.  A lock
+        (``<name>.lock``) makes a second concurrent run into the same file
+        raise :class:`StudyLockedError` at once.
     jobs : int, optional
         Worker count of the default pool.
     progress : bool, default False
@@ -204,42 +399,63 @@ def run_study(case, methods, trials: int = 25, seed: int = 0, executor=None, res
 
     if isinstance(case, str):
         case = presets.get(case)
-    if int(trials) != trials or trials < 1:
+    if isinstance(trials, bool) or int(trials) != trials or trials < 1:
         raise ParameterError(f"trials must be a positive integer, got {trials!r}")
-    methods = [canonical_method(m) for m in methods]
+    trials = int(trials)
+    if isinstance(seed, bool) or int(seed) != seed or seed < 0:
+        raise ParameterError(f"seed must be a non-negative integer, got {seed!r}")
+    methods = list(dict.fromkeys(canonical_method(m) for m in methods))  # "nspsa", "N-SPSA": one method
     if not methods:
         raise ParameterError("give at least one method")
-    settings = dict(settings or {})
+    settings = {canonical_method(m): v for m, v in (settings or {}).items()}
     plan = {}
     for m in methods:
         kwargs = dict(settings[m]) if m in settings else case.minimize_kwargs(m)
         kwargs.setdefault("method", m)
         plan[m] = (kwargs, _fingerprint(case, m, kwargs))
+    pool, owned = _make_executor(executor, jobs)
 
     path = Path(results_path) if results_path is not None else None
-    done = {}
-    if path is not None:
+    try:
+        if path is None:
+            return _execute(case, methods, trials, seed, plan, pool, owned, None, progress)
         path.parent.mkdir(parents=True, exist_ok=True)
-        for r in _read_records(path):
-            key = (r.get("method"), r.get("trial"))
-            if key[0] in plan and r.get("config") == plan[key[0]][1] and r.get("seed") == trial_seed(seed, key[1]):
-                done[key] = r
-    todo = [(m, i) for m in methods for i in range(int(trials)) if (m, i) not in done]
+        with _locked(path):
+            return _execute(case, methods, trials, seed, plan, pool, owned, path, progress)
+    finally:
+        if owned:
+            pool.shutdown(wait=True, cancel_futures=True)
 
+
+def _resume(path: Path, plan: dict, seed: int, trials: int) -> tuple[dict, list]:
+    """Records of ``path`` usable by this study, and the lines rejected (reported as a warning)."""
+    def usable(r):
+        m, i = r["method"], r["trial"]
+        return m in plan and r["config"] == plan[m][1] and i < trials and r["seed"] == trial_seed(seed, i)
+
+    done, rejected = _load_results(path, usable)
+    if rejected:
+        shown = "; ".join(f"line {n}: {why}" for n, why in rejected[:5])
+        more = f"; and {len(rejected) - 5} more" if len(rejected) > 5 else ""
+        warnings.warn(f"{path}: {len(rejected)} line(s) rejected and moved to "
+                      f"{path.stem}.rejected{path.suffix} (trials left without a trusted line run again): "
+                      f"{shown}{more}",
+                      ResultsFileWarning, stacklevel=4)
+    return done, rejected
+
+
+def _execute(case, methods, trials, seed, plan, pool, owned, path, progress):
+    """Run the trials not already in ``path``; append each to it as it finishes."""
+    done, rejected = _resume(path, plan, seed, trials) if path is not None else ({}, [])
+    todo = [(m, i) for m in methods for i in range(trials) if (m, i) not in done]
     records = dict(done)
-    pool, owned = _make_executor(executor, jobs)
     bar = None
     if progress:
         from tqdm.auto import tqdm
 
-        bar = tqdm(total=len(methods) * int(trials), initial=len(done), unit="trial",
+        bar = tqdm(total=len(methods) * trials, initial=len(done), unit="trial",
                    desc=f"{case.name}: {'/'.join(methods)}")
-    out = None
-    if path is not None:
-        out = open(path, "a")
-        if path.stat().st_size and not _ends_with_newline(path):
-            out.write("\n")  # close a line cut short by an interruption; it is skipped when read
-            out.flush()
+    out = open(path, "a", encoding="utf-8") if path is not None else None
     started = time.perf_counter()
     try:
         def finish(rec):
@@ -254,28 +470,42 @@ def run_study(case, methods, trials: int = 25, seed: int = 0, executor=None, res
             for m, i in todo:
                 finish(_run_trial(case, m, plan[m][0], i, trial_seed(seed, i), plan[m][1]))
         else:
-            if owned and todo:  # compile both kernels once (J, and outputs for lm); forked workers inherit them
-                case.cost.batch(np.stack([case.x0, case.x0]))
-                case.cost.simulate(case.x0)
-            futures = [pool.submit(_run_trial, case, m, plan[m][0], i, trial_seed(seed, i), plan[m][1])
-                       for m, i in todo]
-            try:
-                for fut in cf.as_completed(futures):
-                    finish(fut.result())
-            except BaseException:
-                for fut in futures:
-                    fut.cancel()
-                raise
+            _run_pool(case, plan, seed, todo, pool, owned, finish, path)
     finally:
         if out is not None:
             out.close()
         if bar is not None:
             bar.close()
-        if owned:
-            pool.shutdown(wait=True, cancel_futures=True)
-    ordered = [records[(m, i)] for m in methods for i in range(int(trials))]
+    ordered = [records[(m, i)] for m in methods for i in range(trials)]
     return StudyResult(case=case, methods=methods, records=ordered, seed=seed,
-                       elapsed=time.perf_counter() - started, resumed=len(done))
+                       elapsed=time.perf_counter() - started, resumed=len(done), rejected=rejected)
+
+
+def _run_pool(case, plan, seed, todo, pool, owned, finish, path):
+    if owned and todo:  # compile both kernels once (J, and outputs for lm); forked workers inherit them
+        case.cost.batch(np.stack([case.x0, case.x0]))
+        case.cost.simulate(case.x0)
+    futures = [pool.submit(_run_trial, case, m, plan[m][0], i, trial_seed(seed, i), plan[m][1])
+               for m, i in todo]
+    try:
+        for fut in cf.as_completed(futures):
+            finish(fut.result())
+    except BrokenProcessPool:
+        for fut in futures:
+            fut.cancel()
+        where = f"; the finished trials are saved in {path}, rerun to resume" if path is not None else ""
+        raise StudyInterrupted("a worker process died unexpectedly (killed by the system, e.g. out of "
+                               f"memory){where}") from None
+    except BaseException:
+        for fut in futures:
+            fut.cancel()
+        raise
+
+
+def _rank_value(v) -> float:
+    """A final J for ranking: NaN (a failed trial) ranks last."""
+    v = _from_json_float(v)
+    return math.inf if math.isnan(v) else v
 
 
 def ranksum(x, y, alpha: float = 0.05) -> dict:
@@ -304,11 +534,15 @@ class StudyResult:
         Wall time of this call (trials reused from a results file cost nothing).
     resumed : int
         Trials taken from the results file instead of being run.
+    rejected : list of (int, str)
+        Lines of the results file that could not be trusted (line number,
+        reason); they were moved aside and their trials run again.
     """
 
-    def __init__(self, case, methods, records, seed, elapsed, resumed=0):
+    def __init__(self, case, methods, records, seed, elapsed, resumed=0, rejected=()):
         self.case, self.methods, self.records = case, list(methods), list(records)
         self.seed, self.elapsed, self.resumed = seed, elapsed, resumed
+        self.rejected = list(rejected)
 
     def values(self, method: str) -> np.ndarray:
         """Final J of each trial of ``method``."""
@@ -344,7 +578,7 @@ class StudyResult:
         rs = [r for r in self.records if r["method"] == method]
         if not rs:
             raise ParameterError(f"no trials of {method!r} in this study")
-        return min(rs, key=lambda r: _from_json_float(r["fun"]))
+        return min(rs, key=lambda r: _rank_value(r["fun"]))
 
     def best_model(self, method: str):
         """The :class:`~hammerstein_ctrl.model.HammersteinModel` of :meth:`best`."""
@@ -362,16 +596,9 @@ class StudyResult:
 
     def to_json(self, path, alpha: float = 0.05) -> Path:
         """Write ``summary()`` (with non-finite numbers as strings) to ``path``."""
-        def clean(v):
-            if isinstance(v, dict):
-                return {k: clean(x) for k, x in v.items()}
-            if isinstance(v, float):
-                return _json_float(v)
-            return v
-
         path = Path(path)
         summary = self.summary(alpha)
-        data = clean(summary)
+        data = json_safe(summary)
         data["_meta"] = {"case": self.case.name, "seed": self.seed, "elapsed_s": self.elapsed,
                          "trials": max(v["n"] for k, v in summary.items() if k != "ranksum")}
         path.write_text(json.dumps(data, indent=2))

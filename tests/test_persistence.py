@@ -1,6 +1,5 @@
 """Versioned JSON persistence of models and identification results (issue 9)."""
 
-import inspect
 import json
 
 import control as ct
@@ -105,9 +104,9 @@ def _delete(path_keys):
     (_set(["schema_version"], 99), ParameterError, "unsupported schema_version 99"),
     (_set(["format"], "something/else"), ParameterError, "format is 'something/else'"),
     (_delete(["model", "offset"]), ParameterError, "missing the field(s) ['offset']"),
-    (_delete(["model", "nonlinearity", "params", "d2"]), ParameterError, "missing the field(s) ['d2']"),
-    (_set(["model", "nonlinearity", "params", "d1"], "nan"), ParameterError, "params.d1 must be a number"),
-    (_set(["model", "nonlinearity", "family"], "wavelet"), UnknownNameError, "unknown nonlinearity 'wavelet'"),
+    (_delete(["model", "input_nonlinearity", "params", "d2"]), ParameterError, "missing the field(s) ['d2']"),
+    (_set(["model", "input_nonlinearity", "params", "d1"], "nan"), ParameterError, "params.d1 must be a number"),
+    (_set(["model", "input_nonlinearity", "family"], "wavelet"), UnknownNameError, "unknown nonlinearity 'wavelet'"),
     (_set(["model", "linear", "den"], []), ParameterError, "linear.den must be a non-empty list"),
     (_set(["model", "intersample"], "bl"), ParameterError, "intersample must be one of"),
     (_set(["model", "surprise"], 1), ParameterError, "unexpected field(s) ['surprise']"),
@@ -170,21 +169,30 @@ def test_result_with_inconsistent_beta_is_rejected(trs_case, tmp_path):
 
 def test_model_settings_are_stored(tmp_path):
     """offset, initial state and intersample are part of the schema."""
-    model = hc.HammersteinModel(ct.tf([1], [1, 3.0, 0]), hc.Coulomb(), [0.5, -0.4, 0.05])
-    accepted = inspect.signature(hc.HammersteinModel.__init__).parameters
-    settings = {"offset": 0.25, "initial_state": [0.1, -0.2], "intersample": "zoh"}
-    if "offset" in accepted:  # the model takes them as keywords
-        model = hc.HammersteinModel(model.linear, model.nonlinearity, model.params, **settings)
-    else:
-        for k, v in settings.items():
-            setattr(model, k, v)
+    model = hc.HammersteinModel(ct.tf([1], [1, 3.0, 0]), hc.Coulomb(), [0.5, -0.4, 0.05], offset=0.25,
+                                initial_state=[0.1, -0.2], intersample="zoh")
     doc = persistence.model_to_dict(model)
     assert (doc["offset"], doc["initial_state"], doc["intersample"]) == (0.25, [0.1, -0.2], "zoh")
     hc.save_model(model, tmp_path / "s.json")
-    if "offset" in accepted:
-        loaded = hc.load_model(tmp_path / "s.json")
-        assert loaded.offset == 0.25 and list(loaded.initial_state) == [0.1, -0.2]
-        assert loaded.intersample == "zoh"
-    else:
-        with pytest.raises(ParameterError, match="does not support offset"):
-            hc.load_model(tmp_path / "s.json")
+    loaded = hc.load_model(tmp_path / "s.json")
+    assert loaded.offset == 0.25 and list(loaded.initial_state) == [0.1, -0.2]
+    assert loaded.intersample == "zoh"
+
+
+def test_wiener_and_hammerstein_wiener_round_trip(tmp_path):
+    t = np.arange(0, 5, 0.01)
+    u = np.sin(3 * t)
+    models = [hc.WienerModel(ct.tf([1], [1, 2.0, 3.0]), hc.Saturation(), [2.0, 0.1], offset=0.5),
+              hc.HammersteinWienerModel(ct.tf([1], [1, 1.5]), hc.DeadZone(), [1.0, 0.2], hc.Tanh(), [3.0, 0.7])]
+    for model in models:
+        hc.save_model(model, tmp_path / "m.json")
+        loaded = hc.load_model(tmp_path / "m.json")
+        assert type(loaded) is type(model) and loaded.kind == model.kind
+        assert np.array_equal(loaded.simulate(t, u), model.simulate(t, u))
+    doc = json.loads((tmp_path / "m.json").read_text())
+    doc["model"]["kind"] = "wiener"
+    (tmp_path / "m.json").write_text(json.dumps(doc))
+    with pytest.raises(ParameterError, match="input_nonlinearity must be null in a wiener structure"):
+        hc.load_model(tmp_path / "m.json")
+
+

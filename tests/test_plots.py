@@ -300,3 +300,23 @@ def test_convergence_and_nonlinearity_take_identification_results(trs_case, trs_
     fig = plots.nonlinearity(trs_result)  # the input range defaults to the result's record
     u = fig.axes[0].lines[0].get_xdata()
     assert (u[0], u[-1]) == (trs_case.data.u.min(), trs_case.data.u.max())
+
+
+def test_wiener_blocks_plot_their_output_nonlinearity(trs_case, trs_result):
+    import dataclasses
+
+    wiener = hc.WienerModel(control.tf([1], [1, 1]), hc.Saturation(), [2.0, 0.5])
+    fig = plots.nonlinearity(wiener, (-1, 1), block="output")
+    z = fig.axes[0].lines[0].get_xdata()
+    np.testing.assert_allclose(fig.axes[0].lines[0].get_ydata(), wiener.h(z))
+    assert fig.axes[0].get_ylabel().startswith("h(z)")
+    with pytest.raises(ParameterError, match="has no input nonlinearity"):
+        plots.nonlinearity(wiener, (-1, 1))
+    with pytest.raises(ParameterError, match="block must be one of"):
+        plots.nonlinearity(wiener, (-1, 1), block="middle")
+    fake = dataclasses.replace(trs_result, model=wiener)  # a result holding a Wiener model
+    fig = plots.result_figure(fake)
+    assert len(fig.axes) == 3 and fig.axes[2].get_ylabel().startswith("h(z)")
+    zr = fig.axes[2].lines[0].get_xdata()
+    z_true = control.forced_response(wiener.linear, trs_case.data.t, trs_case.data.u).outputs
+    assert (zr[0], zr[-1]) == pytest.approx((float(np.min(z_true)), float(np.max(z_true))), rel=1e-6)

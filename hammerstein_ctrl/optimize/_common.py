@@ -102,6 +102,38 @@ class CountedObjective:
         return F
 
 
+def check_budget(maxfev, maxiter=None) -> tuple[int | None, int | None]:
+    """Validate an evaluation budget and an iteration limit; return them as ints (or None).
+
+    ``maxfev`` must be a positive integer and ``maxiter`` a non-negative one;
+    NaN, infinities, fractions and booleans are rejected rather than ignored.
+
+    Examples
+    --------
+    >>> check_budget(100, None)
+    (100, None)
+    >>> check_budget(float("nan"))
+    Traceback (most recent call last):
+    ...
+    hammerstein_ctrl.exceptions.ParameterError: maxfev must be a positive integer, got nan
+    """
+    return _as_count(maxfev, "maxfev", 1), _as_count(maxiter, "maxiter", 0)
+
+
+def _as_count(value, name: str, least: int) -> int | None:
+    if value is None:
+        return None
+    ok = not isinstance(value, (bool, np.bool_))
+    try:
+        ok = ok and float(value) == int(value) and int(value) >= least
+    except (TypeError, ValueError, OverflowError):
+        ok = False
+    if not ok:
+        kind = "a positive" if least == 1 else "a non-negative"
+        raise ParameterError(f"{name} must be {kind} integer, got {value!r}")
+    return int(value)
+
+
 def as_rng(seed) -> np.random.Generator:
     """A :class:`numpy.random.Generator` from a seed, a Generator, or None."""
     if isinstance(seed, np.random.Generator):

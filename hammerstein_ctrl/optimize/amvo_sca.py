@@ -58,6 +58,7 @@ from ._common import (
     as_rng,
     as_x0,
     call_back,
+    check_budget,
     make_result,
 )
 
@@ -124,6 +125,7 @@ def amvo_sca(fun, x0, *, bounds, maxfev: int | None = 5000, maxiter: int | None 
     if int(pop_size) != pop_size or pop_size < 2:
         raise ParameterError(f"pop_size must be an integer >= 2, got {pop_size!r}")
     pop_size = int(pop_size)
+    maxfev, maxiter = check_budget(maxfev, maxiter)
     if maxfev is None and maxiter is None:
         raise ParameterError("give maxfev or maxiter")
     T = math.inf if maxiter is None else int(maxiter)

@@ -6,11 +6,14 @@ evaluation than the SPSA family.  From the paper's EMPS initial point it reaches
 the least-squares optimum J = 0.208517 in a few hundred evaluations, below every
 value in the paper's Table 7.
 
-This wraps :func:`scipy.optimize.least_squares` (``method="lm"``, or ``"trf"``
-when bounds are given) with exact evaluation counting: every residual vector
-computed, including those for the finite-difference Jacobian, is one
-evaluation, and ``maxfev`` is never exceeded.  It is deterministic (``seed`` is
-accepted and ignored).
+This runs MINPACK's Levenberg-Marquardt (:func:`scipy.optimize.leastsq`, the
+same lmder that ``least_squares(method="lm")`` calls, with the same settings
+and messages), or :func:`scipy.optimize.least_squares`'s ``"trf"`` when bounds
+are given, with exact evaluation counting: every residual vector computed,
+including those for the finite-difference Jacobian, is one evaluation, and
+``maxfev`` is never exceeded.  The Jacobian's columns (scipy's ``"2-point"``
+steps) are evaluated in one batched call when the objective has
+``residuals_batch``.  It is deterministic (``seed`` is accepted and ignored).
 """
 
 from __future__ import annotations
@@ -19,8 +22,8 @@ import time
 
 import numpy as np
 import scipy.optimize
-from threadpoolctl import threadpool_limits
 
+from .._linalg import single_threaded_blas
 from ..exceptions import ParameterError
 from ._common import (
     COMPLETED,
@@ -30,27 +33,154 @@ from ._common import (
     History,
     as_bounds,
     as_x0,
+    check_budget,
     make_result,
 )
 
 __all__ = ["levenberg_marquardt"]
 
 
+#: Relative step of the forward-difference Jacobian (scipy's "2-point" default, sqrt(eps)).
+FD_REL_STEP = float(np.sqrt(np.finfo(float).eps))
+
+#: MINPACK's exit codes that mean convergence, and the messages scipy's least_squares gives for them.
+_MINPACK_CONVERGED = (1, 2, 3, 4)
+_MINPACK_MESSAGES = {
+    0: "Improper input parameters status returned from `leastsq`",
+    1: "`ftol` termination condition is satisfied.",
+    2: "`xtol` termination condition is satisfied.",
+    3: "Both `ftol` and `xtol` termination conditions are satisfied.",
+    4: "`gtol` termination condition is satisfied.",
+    5: "The maximum number of function evaluations is exceeded.",
+}
+#: MINPACK's own cap on residual evaluations per parameter (scipy's default for method "lm").
+_MINPACK_MAXFEV_PER_PARAM = 100
+
+
 class _CountedResiduals(CountedObjective):
-    """:class:`CountedObjective` for a residual vector: counts, budgets and tracks J = r @ r."""
+    """:class:`CountedObjective` for a residual vector: counts, budgets and tracks J = r @ r.
+
+    Remembers the last residual vector: asked again for the same point (as
+    MINPACK and the Jacobian are), it returns it without a new evaluation,
+    as scipy's least_squares does.
+    """
 
     def __init__(self, residuals, maxfev):
         super().__init__(residuals, (), maxfev)
         self.history = History()
+        self._last = (None, None)
+
+    def record(self, x, r):
+        """Book one charged evaluation: best point (NaN never wins) and history row."""
+        f = float(r @ r)
+        if f < self.best_fun:
+            self.best_fun, self.best_x = f, np.array(x, dtype=float)
+        self.history.append(self.nfev, self.nfev, f, self.best_fun, self.best_fun)
 
     def __call__(self, x):
+        last_x, last_r = self._last
+        if last_x is not None and np.array_equal(last_x, x):
+            return last_r
         self._charge(1)
         with np.errstate(all="ignore"):
             r = np.asarray(self.fun(x), dtype=float)
-        f = float(r @ r)
-        self._track([x], np.array([f]))
-        self.history.append(self.nfev, self.nfev, f, self.best_fun, self.best_fun)
+        self.record(x, r)
+        self._last = (np.array(x, dtype=float), r)
         return r
+
+    charge = CountedObjective._charge
+
+
+class _BatchedJacobian:
+    """Forward-difference Jacobian of the residuals, all columns in one batched call.
+
+    The same steps as scipy's ``"2-point"`` scheme (``h = sqrt(eps) max(1, |x|)``,
+    sign of ``x``, flipped to stay inside ``bounds``), and every column counts
+    as one evaluation against the budget, as with scipy's own differences.  If
+    fewer evaluations than columns remain, the columns that fit are evaluated
+    (and count, and can become the best point) before the budget stops the run.
+    Without ``residuals_batch`` the columns are evaluated one by one.
+    """
+
+    def __init__(self, counted: _CountedResiduals, residuals_batch, box):
+        self.counted = counted
+        self.residuals_batch = residuals_batch or (lambda X: np.array([counted.fun(x) for x in X]))
+        self.upper = None if box is None else box[1]
+        self._cache = (None, None)
+        self._formed = 0
+
+    def steps(self, x):
+        h = FD_REL_STEP * np.where(x >= 0, 1.0, -1.0) * np.maximum(1.0, np.abs(x))
+        if self.upper is not None:
+            h = np.where(x + h > self.upper, -h, h)
+        return (x + h) - x
+
+    def columns(self, x):
+        """The Jacobian's columns as the rows of an ``(n, N)`` array.
+
+        The first one is kept for one repeated request at the same point
+        (leastsq checks the shape at ``x0`` before MINPACK asks for it); later
+        ones are not kept, since MINPACK holds its own copy.
+        """
+        x = np.asarray(x, dtype=float)
+        (cached_x, cached), self._cache = self._cache, (None, None)
+        if cached_x is not None and np.array_equal(cached_x, x):
+            return cached
+        del cached
+        r0 = self.counted(x)
+        h = self.steps(x)
+        X = x + np.diag(h)
+        fit = int(min(x.size, self.counted.remaining))
+        with np.errstate(all="ignore"):
+            R = np.asarray(self.residuals_batch(X[:fit]), dtype=float)
+        for xk, rk in zip(X[:fit], R):  # one by one, as scipy's differences would have
+            self.counted.charge(1)
+            self.counted.record(xk, rk)
+        if fit < x.size:
+            self.counted.charge(x.size - fit)  # raises BudgetExhausted
+        R -= r0
+        R /= h[:, None]
+        if not self._formed:
+            self._cache = (x.copy(), R)
+        self._formed += 1
+        return R
+
+    def __call__(self, x):
+        return self.columns(x).T
+
+
+def _solve(counted, jac, x0, box, tolerances):
+    """Run MINPACK's lmder (no bounds) or scipy's trust-region reflective method; ``(x, J, success, message)``."""
+    if box is not None:
+        res = scipy.optimize.least_squares(counted, x0, jac=jac, method="trf", bounds=box, **tolerances)
+        return res.x, float(2.0 * res.cost), bool(res.success), str(res.message)
+    # lmder through leastsq: the Jacobian goes in as rows (col_deriv), copied once into MINPACK's own
+    # array, and no extra Jacobian is formed at the solution (least_squares does both, at n evaluations
+    # and two more Jacobian-sized copies)
+    x, _, info, _, ier = scipy.optimize.leastsq(
+        counted, x0, Dfun=jac.columns, full_output=True, col_deriv=True,
+        maxfev=_MINPACK_MAXFEV_PER_PARAM * x0.size, **tolerances)
+    f = info["fvec"]
+    return x, float(f @ f), ier in _MINPACK_CONVERGED, _MINPACK_MESSAGES.get(ier, f"MINPACK exit code {ier}")
+
+
+def _trf_box(bounds, x0):
+    """``as_bounds`` plus what scipy's trust-region-reflective solver needs: lo < hi, x0 inside."""
+    box = as_bounds(bounds, x0.size)
+    if box is None:
+        return None
+    lo, hi = box
+    same = np.flatnonzero(lo >= hi)
+    if same.size:
+        raise ParameterError(
+            f"method 'lm' needs low < high for every bound; parameter {int(same[0])} has low = high = "
+            f"{lo[same[0]]:g} (fix that parameter in the structure instead of bounding it)"
+        )
+    out = np.flatnonzero((x0 < lo) | (x0 > hi))
+    if out.size:
+        i = int(out[0])
+        raise ParameterError(f"x0[{i}] = {x0[i]:g} lies outside its bounds [{lo[i]:g}, {hi[i]:g}]")
+    return box
 
 
 def levenberg_marquardt(fun, x0, *, maxfev: int | None = None, maxiter=None, seed=None, args=(),
@@ -60,7 +190,9 @@ def levenberg_marquardt(fun, x0, *, maxfev: int | None = None, maxiter=None, see
     Parameters
     ----------
     fun : object with a ``residuals(x)`` method
-        Such as :class:`~hammerstein_ctrl.objective.HammersteinCost`.
+        Such as :class:`~hammerstein_ctrl.objective.HammersteinCost`.  If it
+        also has ``residuals_batch(X)`` (rows of ``X`` to residual vectors),
+        the forward-difference Jacobian is evaluated in one batched call.
     x0 : array_like
 
     Notes
@@ -93,22 +225,18 @@ def levenberg_marquardt(fun, x0, *, maxfev: int | None = None, maxiter=None, see
         raise ParameterError("method 'lm' does not take args")
     if maxiter is not None or callback is not None:
         raise ParameterError("method 'lm' supports neither maxiter nor callback; use maxfev")
+    maxfev, _ = check_budget(maxfev)
     x0 = as_x0(x0)
-    box = as_bounds(bounds, x0.size)
+    box = _trf_box(bounds, x0)
     counted = _CountedResiduals(residuals, maxfev)
-    kwargs = dict(ftol=ftol, xtol=xtol, gtol=gtol)
-    if box is None:
-        kwargs.update(method="lm")
-    else:
-        kwargs.update(method="trf", bounds=box)
+    jac = _BatchedJacobian(counted, getattr(fun, "residuals_batch", None), box)
     try:
         # The residual vectors are long enough for OpenBLAS to thread its dot
         # products; handing off to those threads between compiled simulations
         # made each evaluation ~50x slower on a 2-core machine.
-        with threadpool_limits(limits=1, user_api="blas"):
-            res = scipy.optimize.least_squares(counted, x0, **kwargs)
-        x, status, message = res.x, (COMPLETED if res.success else SOLVER_FAILED), str(res.message)
-        fun_x = float(2.0 * res.cost)
+        with single_threaded_blas():
+            x, fun_x, success, message = _solve(counted, jac, x0, box, dict(ftol=ftol, xtol=xtol, gtol=gtol))
+        status = COMPLETED if success else SOLVER_FAILED
     except BudgetExhausted:
         x, fun_x = counted.best_x, counted.best_fun
         status, message = COMPLETED, f"evaluation budget of {maxfev} exhausted"

@@ -18,6 +18,7 @@ import time
 import numpy as np
 import scipy.optimize
 
+from .._linalg import single_threaded_blas
 from ..exceptions import ParameterError, UnknownNameError
 from ._common import (
     COMPLETED,
@@ -26,6 +27,7 @@ from ._common import (
     CountedObjective,
     History,
     as_x0,
+    check_budget,
     check_options,
     make_result,
 )
@@ -129,8 +131,16 @@ def minimize(fun, x0, method: str = "nspsa", *, args=(), maxfev: int | None = No
         For an unknown method.
     ParameterError
         For unknown options or invalid settings.
+
+    Notes
+    -----
+    BLAS and OpenMP thread pools are held to one thread while it runs: the
+    objectives here do small dense linear algebra, for which threads only spin
+    against other work (entering the limit costs a few microseconds per call
+    of ``minimize``, not per evaluation).
     """
     key = canonical_method(method)
+    maxfev, maxiter = check_budget(maxfev, maxiter)
     if isinstance(options, str):
         if options != "auto" or key not in ("spsa", "nlspsa", "nspsa"):
             raise ParameterError(f"options={options!r}: only 'auto' (gains calibrated from the problem) "
@@ -139,10 +149,13 @@ def minimize(fun, x0, method: str = "nspsa", *, args=(), maxfev: int | None = No
     options = dict(options or {})
     if key in METHODS:
         check_options(key, options, _OPTIONS[key])
-        return METHODS[key](fun, x0, args=args, maxfev=maxfev, maxiter=maxiter, seed=seed,
-                            bounds=bounds, callback=callback, **options)
-    return _scipy_minimize(key, fun, x0, args=args, maxfev=maxfev, maxiter=maxiter,
-                           options=options, callback=callback, bounds=bounds)
+    # the objectives here do tiny dense linear algebra: BLAS threads only spin against other work
+    with single_threaded_blas():
+        if key in METHODS:
+            return METHODS[key](fun, x0, args=args, maxfev=maxfev, maxiter=maxiter, seed=seed,
+                                bounds=bounds, callback=callback, **options)
+        return _scipy_minimize(key, fun, x0, args=args, maxfev=maxfev, maxiter=maxiter,
+                               options=options, callback=callback, bounds=bounds)
 
 
 def _scipy_minimize(method, fun, x0, *, args, maxfev, maxiter, options, callback, bounds):
@@ -159,6 +172,10 @@ def _scipy_minimize(method, fun, x0, *, args, maxfev, maxiter, options, callback
     def step(intermediate_result):
         nonlocal nit
         nit += 1
+        if not isinstance(intermediate_result, scipy.optimize.OptimizeResult):
+            # tnc (and scipy's legacy callbacks) pass only the current point
+            intermediate_result = scipy.optimize.OptimizeResult(x=np.array(intermediate_result, dtype=float),
+                                                                fun=obj.best_fun)
         history.append(nit, obj.nfev, float(intermediate_result.fun), obj.best_fun, obj.best_fun)
         if callback is not None and callback(intermediate_result):
             raise StopIteration

@@ -68,12 +68,14 @@ from ._common import (
     as_rng,
     as_x0,
     call_back,
+    check_budget,
     make_result,
 )
-from .gains import SPALL_ALPHA, PerturbationGain, StepGain, as_gain
+from .gains import PerturbationGain, StepGain, as_gain
 
-__all__ = ["spsa", "nlspsa", "nspsa", "normalized_difference", "DEFAULT_MAXITER", "AUTO",
-           "CALIBRATION_PAIRS", "AUTO_PERTURBATION", "AUTO_FIRST_STEP", "AUTO_SCALE_FLOOR"]
+__all__ = ["spsa", "nlspsa", "nspsa", "normalized_difference", "iterations_for_budget", "auto_scale",
+           "DEFAULT_MAXITER", "AUTO", "CALIBRATION_PAIRS", "AUTO_PERTURBATION", "AUTO_FIRST_STEP",
+           "AUTO_SCALE_FLOOR"]
 
 DEFAULT_MAXITER = 1000
 #: Value of ``a``/``c``/``scale`` asking for calibration from the problem itself.
@@ -83,7 +85,12 @@ CALIBRATION_PAIRS = 4
 #: Automatic ``c``: perturbations of this fraction of each parameter's scale.
 AUTO_PERTURBATION = 0.1
 #: Automatic ``a``: the first step moves a parameter by about this fraction of its scale.
-AUTO_FIRST_STEP = 0.1
+AUTO_FIRST_STEP = 0.05
+#: Automatic ``a``: decay exponent.  N-SPSA's normalised difference does not
+#: shrink with the gradient far from the optimum, so the step must decay by
+#: itself: ``1/k``, Spall's asymptotically optimal rate, not the robust 0.602
+#: (measured: EMPS mean J 0.24 over 6 seeds against 0.29 with 0.602, TRS 178.9 for both).
+AUTO_ALPHA = 1.0
 #: Automatic ``scale``: a parameter's scale is ``|x0_i|``, but at least this
 #: fraction of the largest ``|x0_j|`` (and at least :data:`AUTO_SCALE_MIN`).
 AUTO_SCALE_FLOOR = 0.1
@@ -139,6 +146,39 @@ def _nanmin2(a: float, b: float) -> float:
     return min(a, b)
 
 
+def iterations_for_budget(maxfev, maxiter, monitor: int = 0, reserved: int = 0) -> int:
+    """``k_max`` of a run: ``maxiter``, else what ``maxfev`` pays for, else :data:`DEFAULT_MAXITER`.
+
+    A run costs ``reserved`` evaluations (gain calibration), ``2 k_max + 1``
+    evaluations plus the monitor's evaluations of the iterate; ``k_max`` is
+    the largest count whose total fits in ``maxfev`` (``(maxfev - 1) // 2``
+    without a monitor or calibration), so ``maxfev`` is never exceeded.
+
+    Examples
+    --------
+    >>> iterations_for_budget(1_000_000, None), iterations_for_budget(None, None)
+    (499999, 1000)
+    >>> k = iterations_for_budget(201, None, monitor=50); 2 * k + 1 + _monitor_count(k, 50) <= 201
+    True
+    """
+    maxfev, maxiter = check_budget(maxfev, maxiter)
+    if maxfev is None:
+        return DEFAULT_MAXITER if maxiter is None else maxiter
+    if maxfev < reserved + 1:
+        raise ParameterError(f"automatic gains need maxfev >= {reserved + 1} ({reserved // 2} calibration "
+                             f"pairs and the final evaluation), got {maxfev}")
+    paid = maxfev - reserved
+    kmax = (paid - 1) // 2 if maxiter is None else min(maxiter, (paid - 1) // 2)
+    while kmax > 0 and 2 * kmax + 1 + _monitor_count(kmax, monitor) > paid:
+        kmax -= 1
+    return kmax
+
+
+def _monitor_count(kmax: int, monitor: int) -> int:
+    """Monitor evaluations of a ``kmax``-iteration run (at multiples of ``every`` below ``kmax``)."""
+    return (kmax - 1) // max(1, kmax // monitor) if monitor and kmax > 0 else 0
+
+
 def auto_scale(x0) -> np.ndarray:
     """Per-parameter scales from the initial point (see :data:`AUTO_SCALE_FLOOR`).
 
@@ -163,7 +203,7 @@ def _calibrate(variant: str, obj, theta, scale, kmax: int, rng, c=None):
     ``a`` is set from the median magnitude of :data:`CALIBRATION_PAIRS`
     gradient estimates at ``theta`` so that the first step moves each
     parameter by about :data:`AUTO_FIRST_STEP` of its scale, with
-    ``alpha = 0.602``, ``gamma = 0.101`` and ``A = 10 %`` of the iterations.
+    ``alpha =`` :data:`AUTO_ALPHA`, ``gamma = 0.101`` and ``A = 10 %`` of the iterations.
     """
     c = PerturbationGain(AUTO_PERTURBATION) if c is None else c
     A = AUTO_A_FRACTION * max(kmax, 1)
@@ -175,23 +215,8 @@ def _calibrate(variant: str, obj, theta, scale, kmax: int, rng, c=None):
         if math.isfinite(h) and h > 0:
             mags.append(h)
     g = float(np.median(mags)) if mags else 1.0
-    a = StepGain(AUTO_FIRST_STEP * (1.0 + A) ** SPALL_ALPHA / g, A, SPALL_ALPHA)
+    a = StepGain(AUTO_FIRST_STEP * (1.0 + A) ** AUTO_ALPHA / g, A, AUTO_ALPHA)
     return a, c
-
-
-def _iterations(maxiter, maxfev, calibration: int) -> int:
-    """``k_max``: ``maxiter``, else as many as ``maxfev`` allows, else :data:`DEFAULT_MAXITER`."""
-    if maxiter is not None and not (int(maxiter) == maxiter and maxiter >= 0):
-        raise ParameterError(f"maxiter must be a non-negative integer, got {maxiter!r}")
-    if maxfev is None:
-        return DEFAULT_MAXITER if maxiter is None else int(maxiter)
-    if not (np.isfinite(maxfev) and int(maxfev) == maxfev and maxfev >= 1):
-        raise ParameterError(f"maxfev must be a positive integer, got {maxfev!r}")
-    if maxfev < calibration + 1:
-        raise ParameterError(f"automatic gains need maxfev >= {calibration + 1} ({CALIBRATION_PAIRS} "
-                             f"calibration pairs and the final evaluation), got {maxfev}")
-    by_budget = (int(maxfev) - 1 - calibration) // 2
-    return by_budget if maxiter is None else min(int(maxiter), by_budget)
 
 
 def _tag(value):
@@ -212,14 +237,23 @@ def _scale_vector(scale, theta, auto: bool) -> np.ndarray:
     return s
 
 
-def _gains(variant, obj, theta, scale, kmax, rng, a, c, auto):
-    """The gain sequences: given, or calibrated at ``theta`` (counted evaluations)."""
+def _gains(variant, obj, theta, scale, kmax, rng, a, c, auto, *, calibrate: bool = True):
+    """The gain sequences: given, or calibrated at ``theta`` (counted evaluations).
+
+    A budget too small to calibrate falls back to Spall's default gains in scaled units.
+    """
     if c is not None and _tag(c) is None:
         c = as_gain(c, PerturbationGain, "c")
     if auto:
-        cal_a, cal_c = _calibrate(variant, obj, theta, scale, kmax, rng, None if _tag(c) or c is None else c)
+        if calibrate:
+            cal_a, cal_c = _calibrate(variant, obj, theta, scale, kmax, rng, None if _tag(c) or c is None else c)
+        else:
+            cal_a, cal_c = StepGain.spall(AUTO_FIRST_STEP, max(kmax, 1)), PerturbationGain(AUTO_PERTURBATION)
         a = cal_a if a is None or _tag(a) else a
         c = cal_c if c is None or _tag(c) else c
+    else:  # one gain given: the other keeps Spall's default
+        a = StepGain.spall(AUTO_FIRST_STEP, max(kmax, 1)) if a is None else a
+        c = PerturbationGain(AUTO_PERTURBATION) if c is None else c
     for value, label, kind in ((a, "a", StepGain), (c, "c", PerturbationGain)):
         if _tag(value) is not None:
             raise ParameterError(f"option {label!r} must be a {kind.__name__}, a number or 'auto', got {value!r}")
@@ -251,23 +285,24 @@ def _run(
     box = as_bounds(bounds, n)
     if box is not None and (np.any(theta < box[0]) or np.any(theta > box[1])):
         raise ParameterError(f"x0 {theta.tolist()} lies outside the bounds")
+    if int(monitor) != monitor or monitor < 0:
+        raise ParameterError(f"monitor must be a non-negative integer, got {monitor!r}")
     auto = (a is None and c is None) or AUTO in (_tag(a), _tag(c))
-    calibration = 2 * CALIBRATION_PAIRS if auto else 0
-    kmax = _iterations(maxiter, maxfev, calibration)
+    # calibrate only when the budget leaves at least one iteration after it
+    calibration = 2 * CALIBRATION_PAIRS if auto and (maxfev is None or maxfev >= 2 * CALIBRATION_PAIRS + 3) else 0
+    kmax = iterations_for_budget(maxfev, maxiter, int(monitor), reserved=calibration)
     scale = _scale_vector(scale, theta, auto)
     if variant == "nlspsa":
         if norm_limit is None or not (np.isfinite(norm_limit) and norm_limit > 0):
             raise ParameterError(f"NL-SPSA needs a positive finite norm_limit (delta), got {norm_limit!r}")
     if not divergence_factor > 1:
         raise ParameterError(f"divergence_factor must exceed 1, got {divergence_factor!r}")
-    if int(monitor) != monitor or monitor < 0:
-        raise ParameterError(f"monitor must be a non-negative integer, got {monitor!r}")
     every = max(1, kmax // int(monitor)) if monitor else 0
 
     radius = divergence_factor * max(1.0, math.sqrt(float(theta @ theta)))
     obj = CountedObjective(fun, args, maxfev=2 * kmax + 1 + calibration)
     with np.errstate(all="ignore"):
-        a, c = _gains(variant, obj, theta, scale, kmax, rng, a, c, auto)
+        a, c = _gains(variant, obj, theta, scale, kmax, rng, a, c, auto, calibrate=calibration > 0)
     history = History()
     status, message = COMPLETED, f"completed {kmax} iterations"
     f_ref = None
@@ -339,7 +374,7 @@ def spsa(fun, x0, *, a=None, c=None, maxiter=None, maxfev=None, seed=None, args=
     a : StepGain, float or "auto", optional
         Step gains ``a(k)``.  ``"auto"`` (the default when neither ``a`` nor
         ``c`` is given) calibrates them from the problem by Spall's practical
-        guidelines: ``alpha = 0.602``, ``A`` = 10 % of the iterations, and ``a``
+        guidelines: ``alpha =`` :data:`AUTO_ALPHA`, ``A`` = 10 % of the iterations, and ``a``
         such that the first steps move each parameter by about
         :data:`AUTO_FIRST_STEP` of its scale, judged from
         :data:`CALIBRATION_PAIRS` gradient estimates at ``x0`` (counted in ``nfev``).
@@ -347,9 +382,11 @@ def spsa(fun, x0, *, a=None, c=None, maxiter=None, maxfev=None, seed=None, args=
         Perturbation gains ``c(k)``; ``"auto"``: :data:`AUTO_PERTURBATION` of
         each parameter's scale, ``gamma = 0.101``.
     maxiter : int, optional
-        Iterations ``k_max`` (default: as many as ``maxfev`` allows, else 1000).
+        Iterations ``k_max`` (default: what ``maxfev`` pays for, else 1000).
     maxfev : int, optional
-        Evaluation budget, never exceeded: ``k_max <= (maxfev - 1 - calibration) // 2``.
+        Evaluation budget, never exceeded (calibration and monitor evaluations
+        included): ``k_max = (maxfev - 1) // 2`` with given gains and no monitor
+        (see :func:`iterations_for_budget`).
     seed : int or numpy.random.Generator, optional
         Source of the perturbations; the same seed gives the same run.
     args : tuple
@@ -365,7 +402,7 @@ def spsa(fun, x0, *, a=None, c=None, maxiter=None, maxfev=None, seed=None, args=
         Evaluate f at the iterate theta(k) at about this many evenly spaced
         iterations, for convergence curves (``history["estimate"]``).  These
         evaluations never influence the search and are counted in
-        ``nfev_monitor``, not in ``nfev``.
+        ``nfev_monitor``, not in ``nfev``; with ``maxfev`` they are paid from it.
     scale : array_like or "auto", optional
         Per-parameter scales: the iteration runs on ``theta / scale``.  Default:
         ``"auto"`` (:func:`auto_scale`) with automatic gains, else ones (the

@@ -1,0 +1,211 @@
+"""Hostile command-line arguments: each a single line ``hammerstein-ctrl: error: ...`` and exit 2.
+
+Arguments and output paths must be refused before any work starts: the
+``no_work`` fixture replaces the fit and the study with recorders, and each
+case asserts that neither ran.  Cases whose problem can only be seen by the
+optimiser (bounds against the initial point, option sets) run the real code
+and must still fail before the first evaluation, as one line.
+
+The hostile *data files* (NPZ/MAT/CSV garbage, encodings) have their own
+corpus with ``read_record``; here the file is a valid record.
+"""
+
+import importlib
+import re
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from hammerstein_ctrl import load_trs
+from hammerstein_ctrl.cli import main
+
+from _processes import REPO
+
+TRS = ["--structure", "trs"]
+ORDERS = ["--orders", "1", "2", "--nonlinearity", "tanh"]
+
+#: (argv, expected part of the error line); {csv} a valid record, {tmp} a scratch folder.
+BEFORE_ANY_WORK = [
+    # reproduce
+    (["reproduce", "trs", "--seed", "-1"], "argument --seed: must be a non-negative integer"),
+    (["reproduce", "trs", "--seed", "abc"], "argument --seed"),
+    (["reproduce", "trs", "--seed", "1.5"], "argument --seed"),
+    (["reproduce", "trs", "--seed", ""], "argument --seed"),
+    (["reproduce", "trs", "--trials", "0"], "argument --trials: must be a positive integer"),
+    (["reproduce", "trs", "--trials", "-3"], "argument --trials"),
+    (["reproduce", "trs", "--trials", "1e3"], "argument --trials"),
+    (["reproduce", "trs", "--jobs", "0"], "argument --jobs: must be a positive integer"),
+    (["reproduce", "trs", "--jobs", "-1"], "argument --jobs: must be a positive integer"),
+    (["reproduce", "trs", "--jobs", "two"], "argument --jobs"),
+    (["reproduce", "trs", "--methods", "pso"], "unknown method 'pso'"),
+    (["reproduce", "trs", "--methods", "nspsa", ""], "unknown method ''"),
+    (["reproduce", "trs", "--methods"], "argument --methods: expected at least one argument"),
+    (["reproduce", "emps", "--data", "{tmp}/nonexistent"], "nonexistent: no such file or folder"),
+    (["reproduce", "trs", "--data", "{csv}"], "--data applies to the EMPS case only"),
+    (["reproduce", "trs", "--out", "{csv}"], "exists and is not a directory"),
+    (["reproduce", "trs", "--out", "/proc/forbidden/x"], "/proc/forbidden"),
+    (["reproduce", "xyz"], "argument case: invalid choice: 'xyz'"),
+    (["reproduce"], "the following arguments are required: case"),
+    # identify: numbers
+    (["identify", "--data", "{csv}", *TRS, "--seed", "-1"], "argument --seed: must be a non-negative integer"),
+    (["identify", "--data", "{csv}", *TRS, "--dt", "0"], "dt must be a positive finite number, got 0.0"),
+    (["identify", "--data", "{csv}", *TRS, "--dt", "-0.1"], "dt must be a positive finite number, got -0.1"),
+    (["identify", "--data", "{csv}", *TRS, "--dt", "nan"], "dt must be a positive finite number, got nan"),
+    (["identify", "--data", "{csv}", *TRS, "--dt", "inf"], "dt must be a positive finite number, got inf"),
+    (["identify", "--data", "{csv}", *TRS, "--maxfev", "0"], "argument --maxfev: must be a positive integer"),
+    (["identify", "--data", "{csv}", *TRS, "--maxfev", "-1"], "argument --maxfev"),
+    (["identify", "--data", "{csv}", *TRS, "--maxfev", "nan"], "argument --maxfev"),
+    (["identify", "--data", "{csv}", *TRS, "--maxfev", "2.5"], "argument --maxfev"),
+    (["identify", "--data", "{csv}", *TRS, "--method", "powell", "--maxfev", "0"], "argument --maxfev"),
+    (["identify", "--data", "{csv}", *TRS, "--maxiter", "0"], "argument --maxiter: must be a positive integer"),
+    (["identify", "--data", "{csv}", *TRS, "--maxiter", "-4"], "argument --maxiter"),
+    (["identify", "--data", "{csv}", *TRS, "--x0", "nan", "0", "5", "-5", "0"], "argument --x0: must be a finite"),
+    (["identify", "--data", "{csv}", *TRS, "--x0", "inf", "0", "5", "-5", "0"], "argument --x0"),
+    (["identify", "--data", "{csv}", *TRS, "--x0", "1", "abc"], "argument --x0: invalid float value: 'abc'"),
+    (["identify", "--data", "{csv}", *ORDERS, "--bounds", "nan", "1"], "argument --bounds"),
+    (["identify", "--data", "{csv}", *TRS, "--gain-a", "1", "2", "3", "4"], "--gain-a takes at most 3 numbers, got 4"),
+    (["identify", "--data", "{csv}", *TRS, "--gain-a", "0"], "gain scale must be positive"),
+    (["identify", "--data", "{csv}", *TRS, "--gain-a", "-1"], "gain scale must be positive"),
+    (["identify", "--data", "{csv}", *TRS, "--gain-a", "nan"], "argument --gain-a"),
+    (["identify", "--data", "{csv}", *TRS, "--gain-c", "1", "2", "3"], "--gain-c takes at most 2 numbers, got 3"),
+    (["identify", "--data", "{csv}", *TRS, "--gain-c", "0"], "gain scale must be positive"),
+    (["identify", "--data", "{csv}", *TRS, "--norm-limit", "0"], "argument --norm-limit"),
+    (["identify", "--data", "{csv}", *TRS, "--norm-limit", "-1"], "argument --norm-limit"),
+    (["identify", "--data", "{csv}", *TRS, "--norm-limit", "inf"], "argument --norm-limit"),
+    (["identify", "--data", "{csv}", *TRS, "--pop-size", "1"], "argument --pop-size: must be an integer >= 2"),
+    (["identify", "--data", "{csv}", *TRS, "--pop-size", "0"], "argument --pop-size"),
+    (["identify", "--data", "{csv}", *ORDERS[:3], "--nonlinearity", "polynomial", "--degree", "-1"],
+     "argument --degree"),
+    # identify: names and structures
+    (["identify", "--data", "{csv}", *TRS, "--method", "pso"], "unknown method 'pso'"),
+    (["identify", "--data", "{csv}", *TRS, "--method", ""], "unknown method ''"),
+    (["identify", "--data", "{csv}", "--orders", "0", "50", "--nonlinearity", "tanh"],
+     "den_order 50 exceeds MAX_ORDER = 10"),
+    (["identify", "--data", "{csv}", "--orders", "2", "1", "--nonlinearity", "tanh"], "improper structure"),
+    (["identify", "--data", "{csv}", "--orders", "1", "0", "--nonlinearity", "tanh"], "den_order must be >= 1"),
+    (["identify", "--data", "{csv}", "--orders", "-1", "2", "--nonlinearity", "tanh"], "argument --orders"),
+    (["identify", "--data", "{csv}", "--orders", "1", "--nonlinearity", "tanh"], "argument --orders"),
+    (["identify", "--data", "{csv}", "--orders", "1", "2", "--nonlinearity", "cubic"], "unknown nonlinearity"),
+    (["identify", "--data", "{csv}", "--orders", "1", "2"], "give --structure trs|emps"),
+    (["identify", "--data", "{csv}", *TRS, "--orders", "1", "2"], "cannot be combined with --structure"),
+    (["identify", "--data", "{csv}", *ORDERS, "--fix", "a0"], "--fix expects NAME=VALUE"),
+    (["identify", "--data", "{csv}", *ORDERS, "--fix", "a0=abc"], "is not a number"),
+    (["identify", "--data", "{csv}", *ORDERS, "--fix", "zz=1"], "cannot fix unknown coefficient 'zz'"),
+    (["identify", "--data", "{csv}", *ORDERS, "--fix", "a0=nan"], "must be finite"),
+    (["identify", "--data", "{csv}", *TRS, "--structure", "xyz"], "argument --structure: invalid choice"),
+    (["identify", "--data", "{csv}", *TRS, "--bounds", "0", "1"], "--bounds needs 10 numbers"),
+    # identify: files
+    (["identify", "--data", "{tmp}/nope.csv", *TRS], "data file not found"),
+    (["identify", "--data", "{csv}", *TRS, "--input", "volts"], "no input column 'volts'"),
+    (["identify", "--data", "{flat}", *TRS], "output y is constant"),
+    (["identify", "--data", "{csv}", *TRS, "--plot", "{tmp}/x.xyz"], "unknown figure format '.xyz'"),
+    (["identify", "--data", "{csv}", *TRS, "--plot", "{tmp}/figure"], "unknown figure format '(none)'"),
+    (["identify", "--data", "{csv}", *TRS, "--plot", "{tmp}/no/dir/x.png"], "does not exist"),
+    (["identify", "--data", "{csv}", *TRS, "--plot", "{tmp}"], "is a directory"),
+    (["identify", "--data", "{csv}", *TRS, "--out", "{tmp}/no/dir/m.json"], "does not exist"),
+    (["identify", "--data", "{csv}", *TRS, "--out", "{tmp}"], "is a directory"),
+    (["identify", *TRS], "the following arguments are required: --data"),
+    # the command itself
+    ([], "the following arguments are required: command"),
+    (["bogus"], "argument command: invalid choice: 'bogus'"),
+    (["bench", "--cases", "xyz"], "argument --cases: invalid choice"),
+    (["identify", "--data", "{csv}", *TRS, "--no-such-flag"], "unrecognized arguments: --no-such-flag"),
+]
+
+#: Problems only the optimiser can see; they must still fail before the first evaluation.
+AT_THE_OPTIMISER = [
+    (["--method", "lm", "--bounds", "0", "1", "0", "10", "0", "10", "-10", "0", "0", "1"],
+     r"x0\[0\] = -2 lies outside its bounds \[0, 1\]"),
+    (["--method", "lm", "--bounds", "-5", "-5", "0", "10", "0", "10", "-10", "0", "0", "1"], "needs low < high"),
+    (["--method", "lm", "--bounds", "0", "-5", "0", "10", "0", "10", "-10", "0", "0", "1"], "invalid bounds"),
+    (["--method", "lm", "--maxiter", "5"], "supports neither maxiter nor callback"),
+    (["--method", "lm", "--gain-a", "1"], r"unknown option\(s\) \['a'\] for method 'lm'"),
+    (["--method", "nspsa", "--norm-limit", "0.1"], r"unknown option\(s\) \['norm_limit'\]"),
+    (["--method", "amvo-sca"], "amvo-sca needs finite bounds"),
+    (["--method", "amvo-sca", "--pop-size", "500", "--maxfev", "10", "--bounds", "-5", "0", "0", "10", "0", "10",
+      "-10", "0", "0", "1"], "budget too small"),
+    (["--method", "nspsa", "--bounds", "0", "1", "0", "10", "0", "10", "-10", "0", "0", "1"], "outside the bounds"),
+]
+
+
+def _run(capsys, argv):
+    try:
+        code = main(argv)
+    except SystemExit as exc:
+        code = exc.code
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def _assert_one_error_line(code, err, pattern):
+    assert code == 2, err
+    assert "Traceback" not in err
+    rows = [r for r in err.splitlines() if r.strip()]
+    assert len(rows) == 1, err
+    assert rows[0].startswith("hammerstein-ctrl: error: "), err
+    assert re.search(pattern, rows[0]), rows[0]
+
+
+@pytest.fixture
+def files(tmp_path):
+    t = np.arange(0.0, 2.0, 0.01)
+    flat = tmp_path / "flat.csv"
+    np.savetxt(flat, np.column_stack([t, np.sin(t), np.full_like(t, 3.0)]), delimiter=",", header="t,u,y",
+               comments="")
+    return {"{csv}": str(load_trs()[:600].to_csv(tmp_path / "trs.csv")), "{tmp}": str(tmp_path),
+            "{flat}": str(flat)}
+
+
+def _fill(argv, files):
+    for key, value in files.items():
+        argv = [a.replace(key, value) for a in argv]
+    return argv
+
+
+@pytest.fixture
+def no_work(monkeypatch):
+    started = []
+    monkeypatch.setattr(importlib.import_module("hammerstein_ctrl.identify"), "identify",
+                        lambda *a, **k: started.append("fit"))
+    monkeypatch.setattr(importlib.import_module("hammerstein_ctrl.study"), "run_study",
+                        lambda *a, **k: started.append("study"))
+    return started
+
+
+@pytest.mark.parametrize("argv, pattern", BEFORE_ANY_WORK, ids=[" ".join(a)[-60:] for a, _ in BEFORE_ANY_WORK])
+def test_refused_before_any_work(capsys, files, no_work, argv, pattern):
+    code, out, err = _run(capsys, _fill(argv, files))
+    _assert_one_error_line(code, err, re.escape(pattern))
+    assert no_work == []
+
+
+
+@pytest.mark.parametrize("extra, pattern", AT_THE_OPTIMISER, ids=[" ".join(a)[:60] for a, _ in AT_THE_OPTIMISER])
+def test_refused_by_the_optimiser_before_evaluating(capsys, files, monkeypatch, extra, pattern):
+    from hammerstein_ctrl.objective import HammersteinCost
+
+    calls = []
+    for name in ("__call__", "batch", "residuals"):
+        original = getattr(HammersteinCost, name)
+        monkeypatch.setattr(HammersteinCost, name,
+                            lambda self, *a, _o=original, **k: (calls.append(1), _o(self, *a, **k))[1])
+    code, out, err = _run(capsys, _fill(["identify", "--data", "{csv}", *TRS, *extra], files))
+    _assert_one_error_line(code, err, pattern)
+    assert calls == []
+
+
+def test_hostile_case_count():
+    """The corpus size reported for issue 11."""
+    assert len(BEFORE_ANY_WORK) + len(AT_THE_OPTIMISER) >= 80
+
+
+def test_a_real_process_prints_one_line_and_exits_2(tmp_path):
+    proc = subprocess.run([sys.executable, "-m", "hammerstein_ctrl.cli", "reproduce", "trs", "--seed", "-1"],
+                          capture_output=True, text=True, env={"PYTHONPATH": str(REPO), "PATH": "/usr/bin:/bin"},
+                          timeout=120)
+    assert proc.returncode == 2 and proc.stdout == ""
+    assert proc.stderr.splitlines() == [
+        "hammerstein-ctrl: error: argument --seed: must be a non-negative integer, got '-1' "
+        "(see hammerstein-ctrl reproduce --help)"]

@@ -1,0 +1,109 @@
+"""Levenberg-Marquardt's batched forward-difference Jacobian against scipy's own 2-point scheme.
+
+``levenberg_marquardt`` evaluates all perturbed parameter vectors of a
+Jacobian in one ``cost.residuals_batch`` call.  It must be the very Jacobian
+scipy's ``"2-point"`` differences give (same steps, same formula), count one
+evaluation per column exactly as before, and so leave the whole run unchanged.
+"""
+
+import numpy as np
+import pytest
+from scipy.optimize import least_squares
+from scipy.optimize._numdiff import approx_derivative
+
+from hammerstein_ctrl.optimize import levenberg_marquardt
+from hammerstein_ctrl.optimize.least_squares import _BatchedJacobian, _CountedResiduals
+
+
+class ResidualsOnly:
+    """The same residuals without ``residuals_batch``: the Jacobian is formed column by column."""
+
+    def __init__(self, cost):
+        self.cost = cost
+
+    def residuals(self, beta):
+        return self.cost.residuals(beta)
+
+
+def _jacobian(cost, x, bounds=None):
+    counted = _CountedResiduals(cost.residuals, None)
+    box = None if bounds is None else (np.array([b[0] for b in bounds]), np.array([b[1] for b in bounds]))
+    J = _BatchedJacobian(counted, cost.residuals_batch, box)(np.asarray(x, dtype=float))
+    return J, counted.nfev
+
+
+@pytest.mark.parametrize("point", ["x0", "paper"])
+def test_trs_jacobian_equals_scipy_2point(trs_case, point):
+    x = trs_case.x0 if point == "x0" else np.asarray(trs_case.paper["nspsa"]["beta"])
+    J, nfev = _jacobian(trs_case.cost, x)
+    ref = approx_derivative(trs_case.cost.residuals, x, method="2-point")
+    assert J.shape == (len(trs_case.data), x.size) and nfev == x.size + 1
+    np.testing.assert_allclose(J, ref, rtol=1e-12, atol=1e-12 * np.abs(ref).max())
+
+
+def test_emps_jacobian_equals_scipy_2point_and_central_differences(emps_case):
+    x = np.asarray(emps_case.paper["nspsa"]["beta"])
+    J, _ = _jacobian(emps_case.cost, x)
+    np.testing.assert_allclose(J, approx_derivative(emps_case.cost.residuals, x, method="2-point"),
+                               rtol=1e-12, atol=1e-12)
+    # and it is a derivative: close to the (more accurate) central differences
+    central = approx_derivative(emps_case.cost.residuals, x, method="3-point")
+    assert np.abs(J - central).max() < 1e-5 * np.abs(central).max()
+
+
+def test_jacobian_steps_inward_at_an_upper_bound(trs_case):
+    x = np.asarray(trs_case.paper["nspsa"]["beta"], dtype=float)
+    bounds = [(v - 1.0, v) for v in x]  # every parameter at its upper bound
+    J, _ = _jacobian(trs_case.cost, x, bounds)
+    lb, ub = np.array([b[0] for b in bounds]), np.array([b[1] for b in bounds])
+    ref = approx_derivative(trs_case.cost.residuals, x, method="2-point", bounds=(lb, ub))
+    np.testing.assert_allclose(J, ref, rtol=1e-12, atol=1e-12 * np.abs(ref).max())
+
+
+@pytest.mark.parametrize("case", ["trs_case", "emps_case"])
+def test_lm_iterates_exactly_as_scipy_least_squares(case, request):
+    """The same MINPACK run as scipy.optimize.least_squares(method="lm") with its own 2-point Jacobian."""
+    case = request.getfixturevalue(case)
+    calls = []
+
+    def residuals(x):
+        calls.append(1)
+        return case.cost.residuals(x)
+
+    ours = levenberg_marquardt(case.cost, case.x0)
+    ref = least_squares(residuals, case.x0, method="lm", ftol=1e-10, xtol=1e-10, gtol=1e-10)
+    np.testing.assert_array_equal(ours.x, ref.x)
+    assert ours.fun == 2 * ref.cost and ours.message == ref.message and ours.success == ref.success
+    # scipy evaluates one Jacobian more, at the solution, for its report (and the point itself if
+    # it was not the last one evaluated)
+    n = case.x0.size
+    assert len(calls) - n - 1 <= ours.nfev <= len(calls) - n
+
+
+@pytest.mark.parametrize("maxfev", [None, 7, 23, 60])
+def test_lm_run_unchanged_by_batching(trs_case, maxfev):
+    """Same iterates, value, evaluation count and history, including a budget running out mid-Jacobian."""
+    cost = trs_case.cost
+    batched = levenberg_marquardt(cost, trs_case.x0, maxfev=maxfev)
+    columns = levenberg_marquardt(ResidualsOnly(cost), trs_case.x0, maxfev=maxfev)
+    assert batched.nfev == columns.nfev
+    if maxfev is not None:
+        assert batched.nfev == maxfev
+    np.testing.assert_array_equal(batched.x, columns.x)
+    assert batched.fun == columns.fun and batched.best_fun == columns.best_fun
+    for key in ("nfev", "fun", "best"):
+        np.testing.assert_array_equal(batched.history[key], columns.history[key])
+
+
+def test_lm_with_bounds_unchanged_by_batching(trs_case):
+    bounds = [(-5.0, 5.0)] * 3 + [(-10.0, 10.0), (-1.0, 1.0)]
+    batched = levenberg_marquardt(trs_case.cost, trs_case.x0, bounds=bounds, maxfev=300)
+    columns = levenberg_marquardt(ResidualsOnly(trs_case.cost), trs_case.x0, bounds=bounds, maxfev=300)
+    assert batched.nfev == columns.nfev
+    np.testing.assert_array_equal(batched.x, columns.x)
+
+
+def test_lm_reaches_the_emps_optimum_with_batched_jacobian(emps_case):
+    r = levenberg_marquardt(emps_case.cost, emps_case.x0, maxfev=2501)
+    # the least-squares optimum of the EMPS record (below every value of the paper's Table 7)
+    assert abs(r.fun - 0.208517) < 1e-6 and r.nfev < 400

@@ -1,0 +1,72 @@
+"""``import hammerstein_ctrl`` and ``hammerstein-ctrl --help`` load no heavy dependency.
+
+The package imports its sub-modules and public names on first use (PEP 562),
+so the import is quick; every public name must still resolve, and the
+function ``identify`` must not be shadowed by its own sub-module.
+Each check runs in a fresh interpreter, where nothing is imported yet.
+"""
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+HEAVY = ("numpy", "scipy", "numba", "control", "matplotlib")
+
+
+def fresh(code: str) -> dict:
+    import os
+
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")]))
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, check=True)
+    return json.loads(out.stdout.strip().splitlines()[-1])
+
+
+def test_import_loads_no_heavy_dependency():
+    loaded = fresh("import sys, json; import hammerstein_ctrl; "
+                   f"print(json.dumps([m for m in {HEAVY!r} if m in sys.modules]))")
+    assert loaded == []
+
+
+def test_help_loads_no_heavy_dependency():
+    code = ("import sys, json, contextlib, io\n"
+            "from hammerstein_ctrl.cli import main\n"
+            "with contextlib.redirect_stdout(io.StringIO()) as out:\n"
+            "    try:\n"
+            "        main(['--help'])\n"
+            "    except SystemExit:\n"
+            "        pass\n"
+            f"print(json.dumps({{'loaded': [m for m in {HEAVY!r} if m in sys.modules],"
+            " 'usage': 'usage: hammerstein-ctrl' in out.getvalue()}))")
+    assert fresh(code) == {"loaded": [], "usage": True}
+
+
+def test_every_public_name_resolves():
+    import hammerstein_ctrl as hc
+
+    for name in hc.__all__:
+        assert getattr(hc, name) is not None, name
+    assert set(hc.__all__) <= set(dir(hc))
+    with pytest.raises(AttributeError, match="no attribute 'nonexistent'"):
+        hc.nonexistent  # noqa: B018
+
+
+def test_identify_is_the_function_even_after_importing_its_module():
+    result = fresh("import json, types, importlib; import hammerstein_ctrl as hc\n"
+                   "importlib.import_module('hammerstein_ctrl.identify')\n"
+                   "from hammerstein_ctrl import identify\n"
+                   "print(json.dumps([type(hc.identify).__name__, identify is hc.identify,"
+                   " type(hc.presets).__name__, hc.HammersteinCost.__module__]))")
+    assert result == ["function", True, "module", "hammerstein_ctrl.objective"]
+
+
+def test_star_import_gives_all_names():
+    namespace: dict = {}
+    exec("from hammerstein_ctrl import *", namespace)
+    import hammerstein_ctrl as hc
+
+    assert set(hc.__all__) <= set(namespace)
+    assert namespace["identify"] is hc.identify and callable(namespace["run_study"])
