@@ -804,18 +804,26 @@ def _study_models(study):
 
 
 def _model_figures(study, shown, note, validation, u0):
+    """Figures of the best models; with none (every method diverged) the measurement alone, no Bode plot."""
     case, data = study.case, study.case.data
     zoom = _zoom_window(data)
+    none = f"every trial of every method diverged{note}: no model to show"
     figures = {
         "time_response": time_response(data, shown, zoom=zoom,
                                        title=f"{data.name}: measured and best identified outputs{note}"),
-        "error": error_response(data, shown, zoom=zoom, title=f"{data.name}: output error of each best model{note}"),
         "psd": psd(data, shown, logx=True, title=f"{data.name}: output PSD{note}"),
-        "bode": bode(shown, u0=u0, title=f"{case.name.upper()}: small-signal plant g'(u0)·H(p) "
-                                         f"at u0 = {u0:.3g} {data.input_unit}{note}"),
-        "nonlinearity": nonlinearity(shown, (float(data.u.min()), float(data.u.max())), unit_in=data.input_unit,
-                                     title=f"{case.name.upper()}: identified static nonlinearities{note}"),
     }
+    if shown:
+        figures["error"] = error_response(data, shown, zoom=zoom,
+                                          title=f"{data.name}: output error of each best model{note}")
+        figures["bode"] = bode(shown, u0=u0, title=f"{case.name.upper()}: small-signal plant g'(u0)·H(p) "
+                                                   f"at u0 = {u0:.3g} {data.input_unit}{note}")
+        figures["nonlinearity"] = nonlinearity(shown, (float(data.u.min()), float(data.u.max())),
+                                               unit_in=data.input_unit,
+                                               title=f"{case.name.upper()}: identified static nonlinearities{note}")
+    else:
+        figures["error"] = _placeholder(f"{data.name}: output error", none)
+        figures["nonlinearity"] = _placeholder(f"{case.name.upper()}: identified static nonlinearities", none)
     if validation is not None:
         figures["validation"] = time_response(validation, shown, zoom=_zoom_window(validation),
                                               title=f"{validation.name}: best models on the validation record{note}")
@@ -827,18 +835,14 @@ def study_figure_set(study, *, validation=None, u0: float | None = None) -> dict
 
     Methods whose every trial diverged are left out of the model figures (their
     outputs would swamp the scale) and named in the titles; if every method
-    diverged, those figures say so instead.  ``u0`` (default: the median input)
-    is the operating point of the small-signal Bode plot.
+    diverged, the time response and PSD show the measurement alone, the error
+    and nonlinearity figures say so, and there is no Bode plot.  ``u0``
+    (default: the median input) is the operating point of the small-signal Bode plot.
     """
     data = study.case.data
     shown, note = _study_models(study)
     u0 = float(np.median(data.u)) if u0 is None else float(u0)
-    if shown:
-        figures = _model_figures(study, shown, note, as_iodata(validation) if validation is not None else None, u0)
-    else:
-        msg = f"every trial of every method diverged{note}: no model to show"
-        figures = {name: _placeholder(f"{study.case.name.upper()}: {name}", msg)
-                   for name in ("time_response", "error", "psd", "bode", "nonlinearity")}
+    figures = _model_figures(study, shown, note, as_iodata(validation) if validation is not None else None, u0)
     start = _zoom_window(data)[0]
     figures["input"] = input_signal(data, zoom=(start, float(f"{start + INPUT_ZOOM_SAMPLES * data.dt:.3g}")))
     figures["convergence"] = convergence(study, title=f"{study.case.name.upper()}: convergence over trials")
