@@ -154,6 +154,29 @@ class IdentificationResult:
                                    self.model.output_params)) if nl is not None},
         }
 
+    # -- notebook display (logic in display.py / plots.py) ---------------------
+    def _repr_html_(self) -> str:
+        from .display import result_html
+        return result_html(self)
+
+    def _repr_pretty_(self, printer, cycle):  # IPython's text view: the summary, not the dataclass fields
+        printer.text(self.summary())
+
+    def plot(self, **kwargs):
+        """Measured vs simulated output, residual and g(u) (:func:`hammerstein_ctrl.plots.result_figure`)."""
+        from .plots import result_figure
+        return result_figure(self, **kwargs)
+
+    def compare(self, *records, **kwargs):
+        """Fit % of this model on each record, one figure (:func:`hammerstein_ctrl.plots.compare`)."""
+        from .plots import compare
+        return compare(list(records) or [self.data], self, **kwargs)
+
+    def to_frame(self):
+        """Parameters (``value``, ``stderr``) as a pandas DataFrame (:func:`hammerstein_ctrl.display.result_frame`)."""
+        from .display import result_frame
+        return result_frame(self)
+
 
 def identify(
     data: IOData,

@@ -332,6 +332,11 @@ class BlockModel:
 
         return linear_ss(self, **kwargs)
 
+    # -- python-control time responses (logic in display.py) ----------------------
+    def response(self, data_or_t, u=None):
+        """:meth:`simulate` as a ``control.TimeResponseData`` (:func:`hammerstein_ctrl.display.response`)."""
+        from .display import response
+        return response(self, data_or_t, u)
 
 class HammersteinModel(BlockModel):
     """``y = H(p) g(u) + offset``: a static nonlinearity followed by the linear block.

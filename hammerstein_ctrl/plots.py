@@ -1,265 +1,533 @@
-"""Figures for judging identified models (the paper's Figs. 2-3, 8-12, 16-18).
+"""Figures for judging identified models (the paper's Figs. 2-3, 6, 8-12, 14, 16-18).
 
-Every function returns the :class:`matplotlib.figure.Figure` (and accepts an
-``ax`` where a single axes makes sense) so it can be restyled; none calls
-``plt.show()``.  Models are given as a mapping ``{label: model}`` where a model
-is a :class:`~hammerstein_ctrl.model.HammersteinModel` or an already simulated
-output array.
+Every helper returns a :class:`matplotlib.figure.Figure` built *without* pyplot,
+so a notebook cell ending in a plot call shows the figure once (Jupyter renders
+the returned Figure, see :func:`~hammerstein_ctrl.display.register_figure_formatter`;
+nothing is left registered with pyplot to be shown again), and none calls
+``plt.show()``.  In a script, write them with ``fig.savefig(path)``.  Helpers
+that draw one axes also accept ``ax`` (then they draw into your figure).
+
+Wherever a model is expected you may pass one model, a list, a dict
+``{label: model}`` or an :class:`~hammerstein_ctrl.identify.IdentificationResult`
+(see :func:`hammerstein_ctrl.display.as_models`); wherever a record is expected,
+an :class:`~hammerstein_ctrl.datasets.IOData` or a ``nonlinear_benchmarks``
+record (see :func:`hammerstein_ctrl.display.as_iodata`).
 
 Examples
 --------
->>> import matplotlib
->>> matplotlib.use("Agg")
 >>> import hammerstein_ctrl as hc
 >>> from hammerstein_ctrl import plots
 >>> case = hc.presets.trs()
->>> fig = plots.time_response(case.data, {"true": case.structure.model(case.true_beta)}, zoom=(100, 150))
->>> [ax.get_ylabel() for ax in fig.axes]
-['pitch y (rad)', 'pitch y (rad)']
+>>> fig = plots.time_response(case.data, case.structure.model(case.true_beta), zoom=(100, 150))
+>>> [(ax.get_title(), ax.get_ylabel()) for ax in fig.axes]   # the zoom shares the y axis
+[('full record', 'pitch y (rad)'), ('zoom 100-150 s', '')]
+>>> fig.savefig("response.png")                              # doctest: +SKIP
 """
 
 from __future__ import annotations
 
+import warnings
 from pathlib import Path
 
 import numpy as np
 
+from .display import as_iodata, as_models, method_label, register_figure_formatter
+from .exceptions import ParameterError
+
 __all__ = [
-    "time_response", "error_response", "psd", "dominant_frequency", "bode", "convergence",
-    "nonlinearity", "final_cost", "study_figure_set", "study_figures",
+    "time_response", "error_response", "psd", "dominant_frequency", "spectral_peak", "input_signal",
+    "bode", "convergence", "nonlinearity", "final_cost", "compare", "compare_fits", "result_figure",
+    "study_figure_set", "study_figures", "MIN_PEAK_BINS", "PEAK_PROMINENCE", "SMOOTH_BINS", "LOG_SPAN",
 ]
 
-
-def _pyplot():
-    import matplotlib.pyplot as plt
-
-    return plt
+#: Default lower edge of the PSD peak search, in Welch resolution widths (keeps the DC end out).
+MIN_PEAK_BINS = 3
+#: A PSD peak must stand out by this many decades above the valleys around it.
+PEAK_PROMINENCE = 0.5
+#: Bins over which the log-PSD is averaged before the peak search.
+SMOOTH_BINS = 5
+#: Welch segment length (samples) used by default.
+NPERSEG = 1024
+#: Ratio of largest to smallest final J above which final_cost uses a log scale.
+LOG_SPAN = 10.0
+#: Samples shown in the zoom panel of the study's input figure.
+INPUT_ZOOM_SAMPLES = 200
+#: Resolution of the saved study figures (dots per inch).
+FIGURE_DPI = 110
+_ROW_HEIGHT = 2.2
+_WIDTH = 9.5
+_MEASURED = dict(color="k", lw=1.0)
 
 
 def _label(name: str, unit: str) -> str:
     return f"{name} ({unit})" if unit else name
 
 
-def _outputs(data, models) -> dict:
-    """Simulate each model on the record (arrays are passed through)."""
-    out = {}
-    for label, m in (models or {}).items():
-        if hasattr(m, "simulate"):
-            with np.errstate(all="ignore"):
-                y = m.simulate(data)
-        else:
-            y = np.asarray(m, dtype=float)
-            if y.shape != data.y.shape:
-                raise ValueError(f"output for {label!r} has shape {y.shape}, the record {data.y.shape}")
-        out[label] = y
-    return out
+def _new_figure(nrows=1, ncols=1, figsize=(_WIDTH, 4), **kwargs):
+    """A Figure not registered with pyplot (so Jupyter shows it once) and its 2-D axes array."""
+    from matplotlib.figure import Figure
+
+    register_figure_formatter()
+    fig = Figure(figsize=figsize, layout="constrained")
+    return fig, fig.subplots(nrows, ncols, squeeze=False, **kwargs)
 
 
-def _figure(ax, nrows=1, figsize=(9, 4)):
+def _single_axes(ax, figsize=(_WIDTH, 4)):
     if ax is not None:
-        return ax.figure, [ax]
-    fig, axes = _pyplot().subplots(nrows, 1, figsize=figsize, squeeze=False)
-    return fig, list(axes[:, 0])
+        return ax.figure, ax
+    fig, axes = _new_figure(figsize=figsize)
+    return fig, axes[0, 0]
+
+
+def _finish(a, *, xlabel=None, ylabel=None, title=None, legend=True, grid="major"):
+    if xlabel:
+        a.set_xlabel(xlabel)
+    if ylabel:
+        a.set_ylabel(ylabel)
+    if title:
+        a.set_title(title, fontsize="medium")
+    if legend and a.get_legend_handles_labels()[0]:
+        a.legend(loc="best", fontsize="small")
+    a.grid(True, which=grid, alpha=0.3)
+
+
+def _outputs(data, models) -> tuple[dict, list]:
+    """Simulate each model on the record; returns ``({label: y}, [labels with non-finite output])``."""
+    ys, bad = {}, []
+    for label, m in models.items():
+        if isinstance(m, np.ndarray):
+            if m.shape != data.y.shape:
+                raise ParameterError(f"output for {label!r} has shape {m.shape}, the record {data.y.shape}")
+            y = m
+        else:
+            with np.errstate(all="ignore"):
+                y = np.asarray(m.simulate(data), dtype=float)
+        if np.all(np.isfinite(y)):
+            ys[label] = y
+        else:
+            bad.append(label)
+    return ys, bad
+
+
+def _mark_unusable(a, bad):
+    for label in bad:
+        a.plot([], [], " ", label=f"{label}: non-finite output (not drawn)")
 
 
 def _window(data, zoom):
-    lo, hi = zoom
+    try:
+        lo, hi = (float(v) for v in zoom)
+    except (TypeError, ValueError):
+        raise ParameterError(f"zoom must be a (start, stop) pair of times, got {zoom!r}") from None
     if not lo < hi:
-        raise ValueError(f"zoom window must be (start, stop) with start < stop, got {zoom}")
+        raise ParameterError(f"zoom window must be (start, stop) with start < stop, got {zoom}")
     return (data.t >= lo) & (data.t <= hi)
 
 
-def _time_panels(data, zoom, ax, title, ylabel, draw):
-    """Full-record panel plus an optional zoom panel; ``draw(axes, mask)`` adds the curves."""
-    fig, axes = _figure(ax, 2 if (zoom is not None and ax is None) else 1,
-                        figsize=(9, 6.5 if zoom is not None else 4))
-    panels = [(axes[0], np.ones(len(data), bool), title)]
-    if len(axes) > 1:
-        panels.append((axes[1], _window(data, zoom), f"zoom {zoom[0]:g}-{zoom[1]:g} s"))
-        axes[0].axvspan(*zoom, color="0.85", zorder=0)
-    for a, sel, ttl in panels:
-        draw(a, sel)
-        a.set_xlabel("time (s)")
-        a.set_ylabel(ylabel)
-        a.set_title(ttl)
-        a.legend(loc="best", fontsize="small")
-        a.grid(True, alpha=0.3)
-    fig.tight_layout()
-    return fig
+def _time_rows(data, zoom, nrows, ax, head):
+    """Rows of ``(mask, axes)`` panels: the full record and, with ``zoom``, a zoom to its right.
+
+    With a zoom the figure title is ``head`` and the columns are titled; the
+    zoom panels share the rows' y axes, so they carry no label or legend.
+    """
+    if ax is not None:
+        ax.set_title(head, fontsize="medium")
+        return ax.figure, [[(np.ones(len(data), bool), ax)]]
+    ncols = 1 if zoom is None else 2
+    fig, axes = _new_figure(nrows, ncols, figsize=(_WIDTH if ncols == 1 else 12, 1.0 + _ROW_HEIGHT * max(nrows, 1.6)),
+                            sharey=True, sharex="col")
+    rows = [[(np.ones(len(data), bool), axes[r, 0])] for r in range(nrows)]
+    if zoom is None:
+        axes[0, 0].set_title(head, fontsize="medium")
+        return fig, rows
+    fig.suptitle(head)
+    axes[0, 0].set_title("full record", fontsize="medium")
+    axes[0, 1].set_title(f"zoom {zoom[0]:g}-{zoom[1]:g} s", fontsize="medium")
+    for r in range(nrows):
+        rows[r].append((_window(data, zoom), axes[r, 1]))
+        axes[r, 0].axvspan(*zoom, color="0.88", zorder=0)
+    return fig, rows
 
 
-def time_response(data, models, *, zoom=None, title=None, ax=None):
-    """Measured output and model outputs over time (Figs. 8, 16), optionally with a zoom (Figs. 9, 17).
+def time_response(data, models=None, *, zoom=None, title=None, ax=None):
+    """Measured output and model outputs over time (Figs. 8, 16), with an optional zoom (Figs. 9, 17).
 
     Parameters
     ----------
-    data : IOData
-    models : dict
-        ``{label: HammersteinModel or simulated output}``.
+    data : IOData or benchmark record
+    models : model, list, dict or IdentificationResult, optional
+        Models (or simulated output arrays in a dict) to overlay on the measurement.
     zoom : (float, float), optional
-        Time window (s) shown in a second panel below the full record.
+        Time window (s) shown in a panel to the right of the full record.
     title : str, optional
     ax : matplotlib Axes, optional
         Draw the full record there (no zoom panel).
     """
-    ys = _outputs(data, models)
-
-    def draw(a, sel):
-        a.plot(data.t[sel], data.y[sel], color="k", lw=1.6, label="measured")
+    data = as_iodata(data)
+    models = as_models(models, arrays=True, allow_empty=True)
+    if zoom is not None:
+        _window(data, zoom)
+    ys, bad = _outputs(data, models)
+    fig, rows = _time_rows(data, zoom, 1, ax, title or f"{data.name}: measured and simulated output")
+    for j, (sel, a) in enumerate(rows[0]):
+        a.plot(data.t[sel], data.y[sel], label="measured", **_MEASURED)
         for label, y in ys.items():
             a.plot(data.t[sel], y[sel], lw=1.0, label=label)
+        if j == 0:
+            _mark_unusable(a, bad)
+        _finish(a, xlabel="time (s)", ylabel=_label(data.output_name, data.output_unit) if j == 0 else None,
+                legend=j == 0)
+    return fig
 
-    return _time_panels(data, zoom, ax, title or f"{data.name}: measured and identified output",
-                        _label(data.output_name, data.output_unit), draw)
+
+def _rms(e):
+    return float(np.sqrt(np.mean(np.square(e))))
 
 
 def error_response(data, models, *, zoom=None, title=None, ax=None):
-    """Output error ``y - yhat`` of each model over time (Figs. 10-11, 18)."""
-    ys = _outputs(data, models)
+    """Output error ``y - yhat`` of each model (Figs. 10-11, 18): one row of panels per model.
 
-    def draw(a, sel):
-        for label, y in ys.items():
-            a.plot(data.t[sel], (data.y - y)[sel], lw=0.9, label=label)
-        a.axhline(0.0, color="k", lw=0.6)
+    The rows share the y axis so the error sizes compare at a glance.  With
+    ``ax`` every model is drawn into that one axes, largest RMS error first
+    and semi-transparent, so the smaller errors stay visible on top.
+    """
+    data = as_iodata(data)
+    models = as_models(models, arrays=True)
+    if zoom is not None:
+        _window(data, zoom)
+    ys, bad = _outputs(data, models)
+    errors = {label: data.y - y for label, y in ys.items()}
+    unit = f" {data.output_unit}" if data.output_unit else ""
+    ylabel = _label(f"error in {data.output_name}", data.output_unit)
+    head = title or f"{data.name}: output error y - yhat"
+    if ax is not None:
+        for label, e in sorted(errors.items(), key=lambda kv: -_rms(kv[1])):
+            ax.plot(data.t, e, lw=0.8, alpha=0.7, label=f"{label} (RMS {_rms(e):.3g}{unit})")
+        _mark_unusable(ax, bad)
+        ax.axhline(0.0, color="k", lw=0.6)
+        _finish(ax, xlabel="time (s)", ylabel=ylabel, title=head)
+        return ax.figure
+    fig, rows = _time_rows(data, zoom, max(len(errors), 1), None, head)
+    colors = _colors()
+    for i, (row, (label, e)) in enumerate(zip(rows, errors.items())):
+        for j, (sel, a) in enumerate(row):
+            a.plot(data.t[sel], e[sel], lw=0.8, color=colors[i % len(colors)],
+                   label=f"{label} (RMS {_rms(e):.3g}{unit})")
+            a.axhline(0.0, color="k", lw=0.6)
+            _finish(a, ylabel=ylabel if j == 0 else None, legend=j == 0)
+    first = rows[0][0][1]
+    if not errors:
+        first.text(0.5, 0.5, "no model with a finite output", transform=first.transAxes, ha="center")
+    _mark_unusable(first, bad)
+    for _, a in rows[-1]:
+        a.set_xlabel("time (s)")
+    _finish(first, ylabel=ylabel)
+    return fig
 
-    return _time_panels(data, zoom, ax, title or f"{data.name}: output error y - yhat",
-                        _label(f"error in {data.output_name}", data.output_unit), draw)
+
+def _colors():
+    import matplotlib
+
+    return matplotlib.rcParams["axes.prop_cycle"].by_key()["color"]
 
 
+# -- spectra -------------------------------------------------------------------
 def _welch(y, dt, nperseg):
     from scipy.signal import welch
 
     return welch(y, fs=1.0 / dt, nperseg=min(nperseg, y.size))
 
 
-def dominant_frequency(data, models=None, *, nperseg: int = 1024, fmin: float = 0.0) -> dict:
-    """Frequency (Hz) of the largest Welch PSD value of each output above ``fmin``.
+def spectral_peak(f, p, *, fmin: float, prominence: float = PEAK_PROMINENCE) -> float:
+    """Frequency of the highest local maximum of a PSD above ``fmin``, or NaN if there is none.
 
-    Returns ``{"measured": f, label: f, ..., "resolution": bin width in Hz}``.
+    The search runs on ``log10 p`` smoothed over :data:`SMOOTH_BINS` bins, and a
+    maximum counts only when it stands ``prominence`` decades above the valleys
+    around it (scipy's peak prominence), so the ripple of a Welch estimate, a
+    falling spectrum and the DC end are not reported as peaks.  The frequency
+    returned is the raw spectrum's largest bin within the smoothing window.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> f = np.linspace(0, 5, 501)
+    >>> p = 1 / ((1 - (f / 2) ** 2) ** 2 + (0.05 * f) ** 2) + 1 / (f + 0.01)
+    >>> float(spectral_peak(f, p, fmin=0.1))   # resonance at 1.995 Hz, bins 0.01 Hz apart
+    1.99
     """
-    series = {"measured": data.y, **_outputs(data, models)}
+    from scipy.ndimage import uniform_filter1d
+    from scipy.signal import find_peaks
+
+    f, p = np.asarray(f, float), np.asarray(p, float)
+    keep = np.flatnonzero(f >= fmin)
+    if keep.size < SMOOTH_BINS:
+        return float("nan")
+    logp = np.log10(np.maximum(p[keep], np.finfo(float).tiny))
+    smooth = uniform_filter1d(logp, SMOOTH_BINS, mode="nearest")
+    idx, _ = find_peaks(smooth, prominence=prominence)
+    if idx.size == 0:
+        return float("nan")
+    best = idx[np.argmax(smooth[idx])]
+    lo, hi = max(best - SMOOTH_BINS // 2, 0), best + SMOOTH_BINS // 2 + 1
+    return float(f[keep][lo + np.argmax(logp[lo:hi])])
+
+
+def _resolution(data, nperseg) -> float:
+    return 1.0 / (min(nperseg, len(data)) * data.dt)
+
+
+def dominant_frequency(data, models=None, *, nperseg: int = NPERSEG, fmin: float | None = None,
+                       prominence: float = PEAK_PROMINENCE) -> dict:
+    """PSD peak (Hz) of the measured and each model's output, searched away from the DC end.
+
+    Parameters
+    ----------
+    data : IOData or benchmark record
+    models : model, list, dict or IdentificationResult, optional
+    nperseg : int
+        Welch segment length; the frequency resolution is ``1/(nperseg dt)``.
+    fmin : float, optional
+        Lowest frequency searched; default :data:`MIN_PEAK_BINS` resolution widths.
+    prominence : float
+        See :func:`spectral_peak`.
+
+    Returns
+    -------
+    dict
+        ``{"measured": f, label: f, ..., "resolution": Hz, "fmin": Hz}``; NaN
+        where a spectrum has no peak above ``fmin``.
+    """
+    data = as_iodata(data)
+    ys, _ = _outputs(data, as_models(models, arrays=True, allow_empty=True))
+    df = _resolution(data, nperseg)
+    fmin = MIN_PEAK_BINS * df if fmin is None else float(fmin)
     out = {}
-    for label, y in series.items():
+    for label, y in {"measured": data.y, **ys}.items():
         f, p = _welch(y, data.dt, nperseg)
-        keep = f > fmin if fmin > 0 else np.ones(f.size, bool)
-        out[label] = float(f[keep][np.argmax(p[keep])])
-    out["resolution"] = float(1.0 / (min(nperseg, len(data)) * data.dt))
+        out[label] = spectral_peak(f, p, fmin=fmin, prominence=prominence)
+    out.update(resolution=df, fmin=fmin)
     return out
 
 
-def psd(data, models, *, nperseg: int = 1024, fmin: float = 0.0, title=None, ax=None):
-    """Welch power spectral density of measured and simulated outputs (Fig. 12).
+def _peak_text(f_peak, fmin):
+    return f"peak {f_peak:.3g} Hz" if np.isfinite(f_peak) else f"no peak above {fmin:.2g} Hz"
 
-    The legend reports each curve's dominant peak in Hz (see :func:`dominant_frequency`).
+
+def psd(data, models=None, *, nperseg: int = NPERSEG, fmin: float | None = None, logx: bool = False,
+        title=None, ax=None):
+    """Welch power spectral density of the measured and simulated outputs (Fig. 12).
+
+    Each curve's peak (:func:`dominant_frequency`, searched above ``fmin``) is
+    marked and given in the legend; the title states the frequency resolution.
+    ``logx`` puts frequency on a log axis (for spectra spanning decades).
     """
-    ys = {"measured": data.y, **_outputs(data, models)}
-    peaks = dominant_frequency(data, models, nperseg=nperseg, fmin=fmin)
-    fig, (a,) = _figure(ax)
-    unit = f"{data.output_unit}²/Hz" if data.output_unit else "1/Hz"
-    for label, y in ys.items():
+    data = as_iodata(data)
+    ys, bad = _outputs(data, as_models(models, arrays=True, allow_empty=True))
+    peaks = dominant_frequency(data, ys, nperseg=nperseg, fmin=fmin)
+    fig, a = _single_axes(ax)
+    for label, y in {"measured": data.y, **ys}.items():
         f, p = _welch(y, data.dt, nperseg)
-        style = dict(color="k", lw=1.6) if label == "measured" else dict(lw=1.0)
-        a.semilogy(f[1:], p[1:], label=f"{label} (peak {peaks[label]:.3g} Hz)", **style)
-    a.set_xlabel("frequency (Hz)")
-    a.set_ylabel(f"PSD of {data.output_name} ({unit})")
-    a.set_title(title or f"{data.name}: output power spectral density (Welch, {min(nperseg, len(data))}-sample segments)")
-    a.legend(loc="best", fontsize="small")
-    a.grid(True, which="both", alpha=0.3)
-    fig.tight_layout()
+        style = _MEASURED if label == "measured" else dict(lw=1.0)
+        (line,) = a.semilogy(f[1:], p[1:], label=f"{label} ({_peak_text(peaks[label], peaks['fmin'])})", **style)
+        if np.isfinite(peaks[label]):
+            a.plot(peaks[label], p[np.argmin(abs(f - peaks[label]))], "v", color=line.get_color(), ms=7)
+    _mark_unusable(a, bad)
+    a.axvspan(peaks["resolution"] if logx else 0.0, peaks["fmin"], color="0.9", zorder=0,
+              label=f"below {peaks['fmin']:.2g} Hz: not searched")
+    if logx:
+        a.set_xscale("log")
+    unit = f"{data.output_unit}²/Hz" if data.output_unit else "1/Hz"
+    n = min(nperseg, len(data))
+    _finish(a, xlabel="frequency (Hz)", ylabel=f"PSD of {data.output_name} ({unit})", grid="both",
+            title=(title or f"{data.name}: output PSD")
+            + f"\nWelch, {n}-sample segments, resolution {peaks['resolution']:.3g} Hz")
     return fig
 
 
-def bode(models, *, omega=None, title=None):
+def input_signal(data, *, zoom=None, nperseg: int = NPERSEG, bins: int = 40, title=None):
+    """The excitation (like the paper's Figs. 6 and 14): ``u(t)`` (and a zoom), its histogram and Welch PSD."""
+    data = as_iodata(data)
+    if int(bins) != bins or bins < 2:
+        raise ParameterError(f"bins must be an integer >= 2, got {bins!r}")
+    fig, axes = _new_figure(2, 2, figsize=(_WIDTH + 2, 6.5))
+    ulabel = _label(data.input_name, data.input_unit)
+    if zoom is None:
+        grid = axes[0, 0].get_gridspec()
+        for a in axes[0]:
+            a.remove()
+        panels = [(fig.add_subplot(grid[0, :]), np.ones(len(data), bool), "full record")]
+    else:
+        panels = [(axes[0, 0], np.ones(len(data), bool), "full record"),
+                  (axes[0, 1], _window(data, zoom), f"zoom {zoom[0]:g}-{zoom[1]:g} s")]
+        axes[0, 0].axvspan(*zoom, color="0.88", zorder=0)
+    for a, sel, what in panels:
+        a.plot(data.t[sel], data.u[sel], lw=0.7, color="C0", label=f"{data.input_name}: {sel.sum()} samples")
+        _finish(a, xlabel="time (s)", ylabel=ulabel, title=what)
+    fig.suptitle(title or f"{data.name}: input signal (dt = {data.dt:g} s, {len(data)} samples)")
+    ah, ap = axes[1]
+    ah.hist(data.u, bins=int(bins), color="C0", alpha=0.8, label=f"{int(bins)} bins")
+    _finish(ah, xlabel=ulabel, ylabel="samples (count)", title="amplitude distribution")
+    f, p = _welch(data.u, data.dt, nperseg)
+    unit = f"{data.input_unit}²/Hz" if data.input_unit else "1/Hz"
+    ap.semilogy(f[1:], p[1:], color="C0", lw=1.0, label=f"resolution {_resolution(data, nperseg):.3g} Hz")
+    _finish(ap, xlabel="frequency (Hz)", ylabel=f"PSD ({unit})", title="power spectral density (Welch)",
+            grid="both")
+    return fig
+
+
+# -- linear blocks and nonlinearities ------------------------------------------
+def bode(models, *, omega=None, u0: float | None = None, title=None):
     """Bode plot of the identified linear blocks, overlaid (``control.bode_plot``).
 
     Parameters
     ----------
-    models : dict
-        ``{label: HammersteinModel or control.TransferFunction}``.
+    models : model, list, dict, IdentificationResult or control.TransferFunction
     omega : array_like, optional
         Frequencies (rad/s).
+    u0 : float, optional
+        Plot the plant's small-signal transfer function ``g'(u0) H(p)``
+        (:meth:`HammersteinModel.linearize`) instead of ``H(p)``, whose gain
+        is only defined up to the scale carried by ``g``.
     """
     import control
 
-    labels = list(models)
-    systems = [m.linear if hasattr(m, "linear") else m for m in models.values()]
-    cplt = control.bode_plot(systems, omega, label=labels, dB=True,
-                             title=title or "Bode plot of the identified linear blocks H(p)")
-    mag, phase = cplt.axes[0, 0], cplt.axes[1, 0]
+    models = as_models(models, systems=True, need=("linear",))
+    systems, labels = [], []
+    for label, m in models.items():
+        if u0 is not None and hasattr(m, "linearize"):
+            systems.append(m.linearize(float(u0)))
+            labels.append(f"{label}: g'({float(u0):.3g})·H(p)")
+        else:
+            systems.append(m.linear if hasattr(m, "linear") else m)
+            labels.append(label)
+    default = ("Bode plot of the identified linear blocks H(p)" if u0 is None else
+               f"Small-signal plant g'(u0)·H(p) at u0 = {float(u0):.3g}")
+    fig, axes = _new_figure(2, 1, figsize=(_WIDTH, 6), sharex=True)
+    control.bode_plot(systems, omega, ax=axes, label=labels, dB=True, title=False)
+    fig.suptitle(title or default)
+    mag, phase = axes[0, 0], axes[1, 0]
     mag.set_ylabel("magnitude (dB)")
     phase.set_ylabel("phase (deg)")
     phase.set_xlabel("frequency (rad/s)")
     if mag.get_legend() is None:
         mag.legend(loc="best", fontsize="small")
-    return cplt.figure
+    return fig
 
 
-def _curves_from(source, quantity: str):
-    """``{label: [(nfev, values), ...]}`` from a StudyResult or a mapping of runs."""
-    def pick(nfev, values):
-        nfev, values = np.asarray(nfev, float), np.asarray([float(v) for v in values])
-        keep = ~np.isnan(values)
-        return nfev[keep], values[keep]
-
-    out = {}
-    if hasattr(source, "records"):
-        from .report import METHOD_LABELS
-
-        for r in source.records:
-            c = r["curve"]
-            out.setdefault(METHOD_LABELS.get(r["method"], r["method"]), []).append(pick(c["nfev"], c[quantity]))
-        return out
-    for label, runs in source.items():
-        runs = runs if isinstance(runs, (list, tuple)) else [runs]
-        out[label] = [pick(r.history["nfev"], r.history[quantity]) for r in runs]
-    return out
+#: Per static block: evaluating method, x-axis name, y-axis label.
+_BLOCKS = {"input": ("g", "input u", "g(u) (input of H)"),
+           "output": ("h", "output of H, z", "h(z) (model output before the offset)")}
 
 
-def convergence(source, *, quantity: str = "estimate", title=None, ax=None, band: bool = True,
-                ylabel=None):
-    """Objective versus NFE: median and inter-quartile band over runs (Figs. 2-3).
+def _has_block(model, block: str) -> bool:
+    """Whether ``model`` has that static block (models without the attribute are Hammerstein-like)."""
+    return getattr(model, f"{block}_nonlinearity", block == "input") is not None
+
+
+def _linear_output(model, data) -> np.ndarray:
+    """``z = H(p) g(u)`` on the record: the signal entering the output nonlinearity."""
+    from .model import BlockModel
+
+    inner = BlockModel.build(model.linear, input_nonlinearity=model.input_nonlinearity,
+                             input_params=model.input_params, initial_state=model.initial_state,
+                             intersample=model.intersample)
+    with np.errstate(all="ignore"):
+        return inner.simulate(data)
+
+
+def _block_range(models, u_range, block):
+    if u_range is None:
+        ranges = []
+        for r in _results(models):
+            x = r.data.u if block == "input" else _linear_output(r.model, r.data)
+            ranges.append((float(np.nanmin(x)), float(np.nanmax(x))))
+        if not ranges:
+            raise ParameterError("give u_range=(low, high) (it defaults to the record of an IdentificationResult)")
+        return min(r[0] for r in ranges), max(r[1] for r in ranges)
+    try:
+        lo, hi = (float(v) for v in u_range)
+    except (TypeError, ValueError):
+        raise ParameterError(f"u_range must be a (low, high) pair, got {u_range!r}") from None
+    if not (np.isfinite(lo) and np.isfinite(hi) and lo < hi):
+        raise ParameterError(f"u_range must be finite with low < high, got {u_range!r}")
+    return lo, hi
+
+
+def _results(models):
+    from .identify import IdentificationResult
+
+    if isinstance(models, IdentificationResult):
+        return [models]
+    items = models.values() if isinstance(models, dict) else models if isinstance(models, (list, tuple)) else []
+    return [m for m in items if isinstance(m, IdentificationResult)]
+
+
+def nonlinearity(models, u_range=None, *, block: str = "input", unit_in: str = "", title=None, ax=None,
+                 n: int = 400):
+    """The identified static nonlinearities over a range of their input.
 
     Parameters
     ----------
-    source : StudyResult or dict
-        A study, or ``{label: OptimizeResult or list of them}``.
-    quantity : {"estimate", "best", "fun"}
-        ``"estimate"`` (default): J at each method's current estimate -- the
-        iterate theta(k) for the SPSA family (run with ``monitor``), the best
-        point for population and least-squares methods.  ``"best"``: the best
-        value evaluated so far; for the SPSA family that is a perturbed point
-        theta ± c(k) Delta, which can be far worse than theta(k).
-        ``"fun"``: each iteration's own value.
-    band : bool, default True
-        Shade the inter-quartile range.
+    models : model, list, dict or IdentificationResult
+    u_range : (float, float), optional
+        Range of the block's input; defaults to the range seen on the records
+        of the IdentificationResults passed.
+    block : {"input", "output"}
+        ``g(u)`` before the linear block (Hammerstein) or ``h(z)`` after it (Wiener).
     """
-    curves = _curves_from(source, quantity)
-    if ylabel is None:
-        ylabel = {"estimate": "J at the current estimate", "best": "best J evaluated so far",
-                  "fun": "J of the iteration"}.get(quantity, quantity)
-    fig, (a,) = _figure(ax)
-    for label, runs in curves.items():
-        runs = [(n, v) for n, v in runs if n.size and np.isfinite(v).any()]
-        if not runs:
-            a.plot([], [], " ", label=f"{label}: no finite value (diverged)")
-            continue
-        grid = np.unique(np.concatenate([n for n, _ in runs]))
-        stack = np.array([_step_interp(grid, n, b) for n, b in runs])
-        with np.errstate(all="ignore"):
-            med = np.nanmedian(stack, axis=0)
-        (line,) = a.plot(grid, med, lw=1.4, label=f"{label} (median of {len(runs)})" if len(runs) > 1 else label)
-        if band and len(runs) > 1:
-            with np.errstate(all="ignore"):
-                lo, hi = np.nanpercentile(stack, [25, 75], axis=0)
-            a.fill_between(grid, lo, hi, color=line.get_color(), alpha=0.2, lw=0)
-    a.set_yscale("log")
-    a.set_xlabel("function evaluations (NFE)")
-    a.set_ylabel(ylabel)
-    a.set_title(title or "Convergence: median and inter-quartile range over trials")
-    a.legend(loc="best", fontsize="small")
-    a.grid(True, which="both", alpha=0.3)
-    fig.tight_layout()
+    if block not in _BLOCKS:
+        raise ParameterError(f"block must be one of {sorted(_BLOCKS)}, got {block!r}")
+    method, xname, ylabel = _BLOCKS[block]
+    lo, hi = _block_range(models, u_range, block)
+    models = as_models(models, need=(method,))
+    for label, m in models.items():
+        if not _has_block(m, block):
+            raise ParameterError(f"model {label!r} has no {block} nonlinearity")
+    x = np.linspace(lo, hi, int(n))
+    fig, a = _single_axes(ax)
+    for label, m in models.items():
+        a.plot(x, getattr(m, method)(x), lw=1.2, label=label)
+    _finish(a, xlabel=_label(xname, unit_in), ylabel=ylabel, title=title or "Identified static nonlinearities")
     return fig
+
+
+# -- optimisation runs ---------------------------------------------------------
+_QUANTITIES = {"estimate": "J at the current estimate", "best": "best J evaluated so far",
+               "fun": "J of the iteration"}
+
+
+def _run_curves(source, quantity: str) -> dict:
+    """``{label: [(nfev, values, diverged), ...]}`` from a StudyResult, results or a mapping of runs."""
+    from .optimize import DIVERGED
+
+    def pick(nfev, values, diverged):
+        nfev, values = np.asarray(nfev, float), np.asarray([float(v) for v in values])
+        keep = ~np.isnan(values)
+        return nfev[keep], values[keep], bool(diverged)
+
+    if hasattr(source, "records"):
+        out = {}
+        for r in source.records:
+            c = r["curve"]
+            out.setdefault(method_label(r["method"]), []).append(pick(c["nfev"], c[quantity], r["diverged"]))
+        return out
+    if not isinstance(source, dict):
+        runs = list(source) if isinstance(source, (list, tuple)) else [source]
+        if all(hasattr(r, "optimize_result") for r in runs):  # IdentificationResults: grouped by method
+            source = {}
+            for r in runs:
+                source.setdefault(method_label(r.method), []).append(r)
+        else:
+            source = {"runs": runs}
+    out = {}
+    for label, runs in source.items():
+        runs = list(runs) if isinstance(runs, (list, tuple)) else [runs]
+        runs = [getattr(r, "optimize_result", r) for r in runs]
+        if not all(hasattr(r, "history") for r in runs):
+            raise ParameterError(f"convergence needs OptimizeResults with a history (or a StudyResult); "
+                                 f"{label!r} holds {type(runs[0]).__name__}")
+        out[label] = [pick(r.history["nfev"], r.history[quantity], r.status == DIVERGED) for r in runs]
+    return out
 
 
 def _step_interp(grid, nfev, values):
@@ -269,49 +537,244 @@ def _step_interp(grid, nfev, values):
     return np.where(idx >= 0, values[np.clip(idx, 0, None)], np.nan)
 
 
-def nonlinearity(models, u_range, *, unit_in: str = "", title=None, ax=None, n: int = 400):
-    """The identified static nonlinearities ``g(u)`` over an input range."""
-    lo, hi = u_range
-    u = np.linspace(lo, hi, n)
-    fig, (a,) = _figure(ax)
-    for label, m in models.items():
-        a.plot(u, m.g(u), lw=1.2, label=label)
-    a.set_xlabel(_label("input u", unit_in))
-    a.set_ylabel("g(u) (input of H)")
-    a.set_title(title or "Identified static nonlinearities")
-    a.legend(loc="best", fontsize="small")
-    a.grid(True, alpha=0.3)
-    fig.tight_layout()
+def _median_band(a, label, runs, band, color):
+    grid = np.unique(np.concatenate([n for n, _ in runs]))
+    stack = np.array([_step_interp(grid, n, v) for n, v in runs])
+    with np.errstate(all="ignore"), warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # all-NaN columns before a run's first value
+        med = np.nanmedian(stack, axis=0)
+        a.plot(grid, med, lw=1.4, color=color, label=label)
+        if band and len(runs) > 1:
+            lo, hi = np.nanpercentile(stack, [25, 75], axis=0)
+            a.fill_between(grid, lo, hi, color=color, alpha=0.2, lw=0)
+
+
+def convergence(source, *, quantity: str = "estimate", title=None, ax=None, band: bool = True, ylabel=None):
+    """Objective versus NFE: median and inter-quartile band over runs (Figs. 2-3).
+
+    Diverged runs are left out of the medians and of the axis scaling; they are
+    counted in the legend and drawn, each on its own, in a lower panel.
+
+    Parameters
+    ----------
+    source : StudyResult, dict, list or IdentificationResult
+        A study, ``{label: OptimizeResult or IdentificationResult, or a list of them}``,
+        or a list of runs.
+    quantity : {"estimate", "best", "fun"}
+        ``"estimate"`` (default): J at each method's current estimate -- the
+        iterate theta(k) for the SPSA family (run with ``monitor``), the best
+        point for population and least-squares methods.  ``"best"``: the best
+        value evaluated so far; for the SPSA family that is a perturbed point
+        theta ± c(k) Delta, which can be far worse than theta(k).
+        ``"fun"``: each iteration's own value.
+    band : bool, default True
+        Shade the inter-quartile range.
+    ax : matplotlib Axes, optional
+        Draw the non-diverged runs there (no lower panel).
+    """
+    if quantity not in _QUANTITIES:
+        raise ParameterError(f"quantity must be one of {sorted(_QUANTITIES)}, got {quantity!r}")
+    curves = _run_curves(source, quantity)
+    ok = {k: [(n, v) for n, v, d in runs if not d and _usable(v)] for k, runs in curves.items()}
+    diverged = {k: [(n, v) for n, v, d in runs if d and _usable(v)] for k, runs in curves.items()}
+    n_div = {k: sum(d for _, _, d in runs) for k, runs in curves.items()}
+    # diverged runs get their own panel when there is a scale to protect; if nothing else is drawn, the main one
+    where = "none" if not any(diverged.values()) else "main" if not any(ok.values()) else \
+        "lower" if ax is None else "none"
+    if ax is None:
+        fig, axes = _new_figure(2 if where == "lower" else 1, 1, figsize=(_WIDTH, 6.5 if where == "lower" else 4.5),
+                                sharex=True, **({"height_ratios": [3, 1.4]} if where == "lower" else {}))
+        a = axes[0, 0]
+    else:
+        fig, a = ax.figure, ax
+    target = {"main": a, "lower": axes[-1, 0] if ax is None else None}.get(where)
+    for i, (label, runs) in enumerate(curves.items()):
+        color = _colors()[i % len(_colors())]
+        text = _convergence_label(label, len(ok[label]), n_div[label], len(runs), where == "lower")
+        if ok[label]:
+            _median_band(a, text, ok[label], band, color)
+        elif where != "main":
+            a.plot([], [], " ", label=text)
+        if target is not None and diverged[label]:
+            _draw_diverged(target, diverged[label], color, f"{label}: {n_div[label]} diverged runs"
+                           + (f" ({len(diverged[label])} with a finite J to draw)"
+                              if len(diverged[label]) < n_div[label] else ""))
+    _log_or_note(a, "no finite value to show")
+    _finish(a, xlabel=None if where == "lower" else "function evaluations (NFE)",
+            ylabel=ylabel or _QUANTITIES[quantity], grid="both",
+            title=title or ("Convergence: median (line) and inter-quartile range (band) over trials"
+                            if where != "main" else "Diverged runs, each drawn (x: last finite value)"))
+    if where == "lower":
+        b = axes[1, 0]
+        b.set_yscale("log")
+        _finish(b, xlabel="function evaluations (NFE)", ylabel="J (diverged runs)", grid="both",
+                title="diverged runs, each on its own (x: last finite value); not in the medians or scale")
     return fig
+
+
+def _usable(values) -> bool:
+    return bool(values.size and np.isfinite(values).any())
+
+
+def _log_or_note(a, note):
+    """Log y scale when the axes holds data, else the note in its middle (a log axis needs data)."""
+    if any(len(line.get_xdata()) for line in a.lines if line.get_transform() == a.transData) or a.collections:
+        a.set_yscale("log")
+    else:
+        a.text(0.5, 0.5, note, ha="center", va="center", transform=a.transAxes)
+
+
+def _convergence_label(label, n_ok, n_div, n, lower):
+    if n_ok == 0:
+        return f"{label}: all {n} runs diverged" + (" (lower panel)" if lower else "")
+    if n == 1:
+        return label
+    text = f"{label}: median of {n_ok} " + ("non-diverged runs" if n_div else "runs")
+    return text + (f"; {n_div} of {n} diverged" if n_div else "")
+
+
+def _draw_diverged(b, runs, color, text):
+    for j, (n, v) in enumerate(runs):
+        fin = np.isfinite(v) & (v > 0)
+        b.plot(n[fin], v[fin], lw=0.7, alpha=0.6, color=color, label=text if j == 0 else None)
+        if fin.any():
+            b.plot(n[fin][-1], v[fin][-1], "x", color=color, ms=6)
 
 
 def final_cost(study, *, title=None, ax=None):
-    """Box plot with the individual trials of the final J per method."""
-    from .report import METHOD_LABELS
+    """Box plot with the individual trials of the final J per method.
 
-    fig, (a,) = _figure(ax)
+    Diverged trials are not in the boxes or the axis scaling: each method's
+    tick label counts them, and ``^`` marks at the top edge show them.  The
+    y axis is logarithmic when the values span more than :data:`LOG_SPAN`.
+    """
+    if not hasattr(study, "records"):
+        raise ParameterError(f"final_cost needs a StudyResult, got {type(study).__name__}")
+    fig, a = _single_axes(ax)
     rng = np.random.default_rng(0)
-    labels, data = [], []
-    for m in study.methods:
-        J = study.values(m)
-        J = J[np.isfinite(J)]
-        if J.size:
-            labels.append(METHOD_LABELS.get(m, m))
-            data.append(J)
-    a.boxplot(data, showfliers=False)
-    a.set_xticks(range(1, len(labels) + 1), labels)
-    for i, J in enumerate(data, start=1):
-        a.plot(i + rng.uniform(-0.12, 0.12, J.size), J, "o", ms=3, alpha=0.6, label="trials" if i == 1 else None)
-    a.set_yscale("log")
-    a.set_ylabel("final J (sum of squared output errors)")
-    a.set_xlabel("method")
-    a.set_title(title or f"{study.case.name.upper()}: final J over {len(study.records) // max(len(study.methods), 1)} trials")
-    a.legend(loc="best", fontsize="small")
-    a.grid(True, axis="y", which="both", alpha=0.3)
-    fig.tight_layout()
+    ticks, n_trials, finite = [], 0, []
+    for i, m in enumerate(study.methods, start=1):
+        recs = [r for r in study.records if r["method"] == m]
+        n_trials = max(n_trials, len(recs))
+        J = np.array([float(r["fun"]) for r in recs])
+        div = np.array([bool(r["diverged"]) for r in recs]) | ~np.isfinite(J)
+        ok = J[~div]
+        finite.extend(ok.tolist())
+        if ok.size:
+            a.boxplot([ok], positions=[i], showfliers=False, widths=0.5)
+            a.plot(i + rng.uniform(-0.12, 0.12, ok.size), ok, "o", ms=3, alpha=0.6, color="C0",
+                   label=None if "trials" in a.get_legend_handles_labels()[1] else "trials")
+        if div.any():
+            a.plot(i + rng.uniform(-0.12, 0.12, div.sum()), np.full(div.sum(), 0.97), "^", color="firebrick",
+                   ms=5, transform=a.get_xaxis_transform(), clip_on=False,
+                   label=None if "diverged (off scale)" in a.get_legend_handles_labels()[1] else "diverged (off scale)")
+        ticks.append(f"{method_label(m)}\n{int(div.sum())}/{len(recs)} diverged" if div.any() else method_label(m))
+    a.set_xticks(range(1, len(ticks) + 1), ticks)
+    a.set_xlim(0.4, len(ticks) + 0.6)
+    if finite and max(finite) > LOG_SPAN * min(finite):
+        a.set_yscale("log")
+    elif not finite:
+        a.text(0.5, 0.5, "every trial diverged: no final J to show", ha="center", va="center", transform=a.transAxes)
+    _finish(a, ylabel="final J (sum of squared output errors)", xlabel="method", grid="both",
+            title=title or f"{study.case.name.upper()}: final J over {n_trials} trials per method")
     return fig
 
 
+# -- one result, several records -----------------------------------------------
+def _records(records):
+    if records is None:
+        raise ParameterError("give at least one record")
+    items = list(records) if isinstance(records, (list, tuple)) else [records]
+    if not items:
+        raise ParameterError("give at least one record")
+    return [as_iodata(r) for r in items]
+
+
+def compare_fits(records, models) -> dict:
+    """Fit % (``100 (1 - ||y - yhat|| / ||y - mean y||)``) of each model on each record.
+
+    Returns ``{record name: {label: fit %}}`` (``-inf`` for a non-finite simulation).
+    """
+    from .metrics import fit_percent
+
+    models = as_models(models)
+    out = {}
+    for data in _records(records):
+        ys, bad = _outputs(data, models)
+        out[data.name] = {label: (fit_percent(data.y, ys[label]) if label in ys else -np.inf)
+                          for label in models}
+    return out
+
+
+def compare(records, models, *, title=None):
+    """Measured against simulated output on each record, with fit % per model (MATLAB's ``compare``).
+
+    Parameters
+    ----------
+    records : IOData, benchmark record or a list of them
+        One row of the figure per record.
+    models : model, list, dict or IdentificationResult
+    """
+    records = _records(records)
+    models = as_models(models)
+    fits = compare_fits(records, models)
+    fig, axes = _new_figure(len(records), 1, figsize=(_WIDTH, 1.2 + 2.6 * len(records)))
+    for a, data in zip(axes[:, 0], records):
+        ys, bad = _outputs(data, models)
+        a.plot(data.t, data.y, label="measured", **_MEASURED)
+        for label in models:
+            if label in ys:
+                a.plot(data.t, ys[label], lw=1.0, label=f"{label}: fit {fits[data.name][label]:.1f} %")
+        _mark_unusable(a, bad)
+        _finish(a, xlabel="time (s)", ylabel=_label(data.output_name, data.output_unit),
+                title=f"{data.name}" if len(records) > 1 or title is None else None)
+    if title:
+        fig.suptitle(title)
+    return fig
+
+
+def result_figure(result, *, zoom=None):
+    """Overview of one IdentificationResult: measured vs simulated, the residual, and ``g(u)`` / ``h(z)``."""
+    from .identify import IdentificationResult
+
+    if not isinstance(result, IdentificationResult):
+        raise ParameterError(f"result_figure needs an IdentificationResult, got {type(result).__name__}")
+    data, model, label = result.data, result.model, method_label(result.method)
+    with np.errstate(all="ignore"):
+        yhat = np.asarray(model.simulate(data), dtype=float)
+    blocks = [b for b in ("input", "output") if _has_block(model, b)]
+    fig, axes = _new_figure(2 + len(blocks), 1, figsize=(_WIDTH, 3.0 + 2.8 * (len(blocks) + 1)))
+    (a, b), static = axes[:2, 0], axes[2:, 0]
+    sel = np.ones(len(data), bool) if zoom is None else _window(data, zoom)
+    ylabel = _label(data.output_name, data.output_unit)
+    a.plot(data.t[sel], data.y[sel], label="measured", **_MEASURED)
+    if np.all(np.isfinite(yhat)):
+        a.plot(data.t[sel], yhat[sel], lw=1.0, label=f"{label}: fit {result.fit_percent:.1f} %")
+        unit = f" {data.output_unit}" if data.output_unit else ""
+        b.plot(data.t[sel], (data.y - yhat)[sel], lw=0.8, color="C1", label=f"RMS {_rms(data.y - yhat):.3g}{unit}")
+    else:
+        _mark_unusable(a, [label])
+    b.axhline(0.0, color="k", lw=0.6)
+    _finish(a, xlabel="time (s)", ylabel=ylabel,
+            title=f"{label} on {data.name}: J = {result.fun:.6g}, NFE = {result.nfev}"
+                  + ("" if result.success else " [FAILED]"))
+    _finish(b, xlabel="time (s)", ylabel=_label(f"residual in {data.output_name}", data.output_unit),
+            title="residual y - yhat")
+    for c, block in zip(static, blocks):
+        nonlinearity(result, block=block, ax=c, unit_in=data.input_unit if block == "input" else "",
+                     title=f"static {block} nonlinearity over the range seen on the record")
+        c.get_lines()[-1].set_label(_describe_block(model, block))
+        c.legend(loc="best", fontsize="small")
+    return fig
+
+
+def _describe_block(model, block: str) -> str:
+    nl = getattr(model, f"{block}_nonlinearity", None) or model.nonlinearity
+    params = getattr(model, f"{block}_params", None)
+    return nl.describe(model.params if params is None else params)
+
+
+# -- study reports -------------------------------------------------------------
 def _zoom_window(data) -> tuple[float, float]:
     """A tenth of the record, a quarter of the way in, on round numbers."""
     width = float(f"{0.1 * data.duration:.2g}")
@@ -319,52 +782,82 @@ def _zoom_window(data) -> tuple[float, float]:
     return (start, start + width)
 
 
-def study_figure_set(study, *, validation=None) -> dict:
-    """The paper's figures for a study's best models, as ``{name: Figure}``.
+def _placeholder(title, message):
+    fig, axes = _new_figure(figsize=(_WIDTH, 3))
+    a = axes[0, 0]
+    a.text(0.5, 0.5, message, ha="center", va="center", transform=a.transAxes)
+    a.set_axis_off()
+    a.set_title(title)
+    return fig
 
-    Methods whose every trial diverged are left out of the model figures (their
-    outputs would swamp the scale) and named in the titles.
-    """
-    from .report import METHOD_LABELS
 
-    case, data = study.case, study.case.data
+def _study_models(study):
     summary = study.summary()
     shown, dropped = {}, []
     for m in study.methods:
         if summary[m]["diverged"] == summary[m]["n"]:
-            dropped.append(METHOD_LABELS.get(m, m))
+            dropped.append(method_label(m))
         else:
-            shown[METHOD_LABELS.get(m, m)] = study.best_model(m)
+            shown[method_label(m)] = study.best_model(m)
     note = f" ({', '.join(dropped)} diverged: not shown)" if dropped else ""
+    return shown, note
+
+
+def _model_figures(study, shown, note, validation, u0):
+    """Figures of the best models; with none (every method diverged) the measurement alone, no Bode plot."""
+    case, data = study.case, study.case.data
     zoom = _zoom_window(data)
+    none = f"every trial of every method diverged{note}: no model to show"
     figures = {
         "time_response": time_response(data, shown, zoom=zoom,
                                        title=f"{data.name}: measured and best identified outputs{note}"),
-        "error": error_response(data, shown, zoom=zoom, title=f"{data.name}: output error{note}"),
-        "psd": psd(data, shown, title=f"{data.name}: output PSD{note}"),
-        "nonlinearity": nonlinearity(shown, (float(data.u.min()), float(data.u.max())), unit_in=data.input_unit,
-                                     title=f"{case.name.upper()}: identified static nonlinearities{note}"),
-        "convergence": convergence(study, title=f"{case.name.upper()}: convergence over trials"),
-        "final_cost": final_cost(study),
+        "psd": psd(data, shown, logx=True, title=f"{data.name}: output PSD{note}"),
     }
-    if shown:  # with every method diverged there is no linear block to draw (control.bode_plot needs one)
-        figures["bode"] = bode(shown, title=f"{case.name.upper()}: identified linear blocks{note}")
+    if shown:
+        figures["error"] = error_response(data, shown, zoom=zoom,
+                                          title=f"{data.name}: output error of each best model{note}")
+        figures["bode"] = bode(shown, u0=u0, title=f"{case.name.upper()}: small-signal plant g'(u0)·H(p) "
+                                                   f"at u0 = {u0:.3g} {data.input_unit}{note}")
+        figures["nonlinearity"] = nonlinearity(shown, (float(data.u.min()), float(data.u.max())),
+                                               unit_in=data.input_unit,
+                                               title=f"{case.name.upper()}: identified static nonlinearities{note}")
+    else:
+        figures["error"] = _placeholder(f"{data.name}: output error", none)
+        figures["nonlinearity"] = _placeholder(f"{case.name.upper()}: identified static nonlinearities", none)
     if validation is not None:
         figures["validation"] = time_response(validation, shown, zoom=_zoom_window(validation),
                                               title=f"{validation.name}: best models on the validation record{note}")
     return figures
 
 
-def study_figures(study, out_dir, *, formats=("png",), validation=None) -> list[Path]:
+def study_figure_set(study, *, validation=None, u0: float | None = None) -> dict:
+    """The paper's figures for a study's best models, as ``{name: Figure}``.
+
+    Methods whose every trial diverged are left out of the model figures (their
+    outputs would swamp the scale) and named in the titles; if every method
+    diverged, the time response and PSD show the measurement alone, the error
+    and nonlinearity figures say so, and there is no Bode plot.  ``u0``
+    (default: the median input) is the operating point of the small-signal Bode plot.
+    """
+    data = study.case.data
+    shown, note = _study_models(study)
+    u0 = float(np.median(data.u)) if u0 is None else float(u0)
+    figures = _model_figures(study, shown, note, as_iodata(validation) if validation is not None else None, u0)
+    start = _zoom_window(data)[0]
+    figures["input"] = input_signal(data, zoom=(start, float(f"{start + INPUT_ZOOM_SAMPLES * data.dt:.3g}")))
+    figures["convergence"] = convergence(study, title=f"{study.case.name.upper()}: convergence over trials")
+    figures["final_cost"] = final_cost(study)
+    return figures
+
+
+def study_figures(study, out_dir, *, formats=("png",), validation=None, dpi: int = FIGURE_DPI) -> list[Path]:
     """Write :func:`study_figure_set` into ``out_dir`` (one file per figure and format); return the paths."""
-    plt = _pyplot()
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     paths = []
     for name, fig in study_figure_set(study, validation=validation).items():
         for fmt in formats:
             path = out_dir / f"{name}.{fmt}"
-            fig.savefig(path, dpi=120)
+            fig.savefig(path, dpi=dpi)
             paths.append(path)
-        plt.close(fig)
     return paths

@@ -606,3 +606,13 @@ class StudyResult:
 
     def __repr__(self):
         return f"StudyResult({self.case.name!r}, methods={self.methods}, trials={len(self.records)})"
+
+    # -- notebook display (logic in display.py) -----------------------------------
+    def _repr_html_(self) -> str:
+        from .display import study_html
+        return study_html(self)
+
+    def to_frame(self, trials: bool = False):
+        """Summary per method, or one row per trial, as a DataFrame (:func:`hammerstein_ctrl.display.study_frame`)."""
+        from .display import study_frame
+        return study_frame(self, trials=trials)

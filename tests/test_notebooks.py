@@ -1,4 +1,5 @@
-"""Every notebook runs top to bottom (issue 5); the EMPS one reads the data through the normal loader."""
+"""Every notebook runs top to bottom (issue 5) and is committed with its outputs (issue 12);
+the EMPS one reads the data through the normal loader."""
 
 from pathlib import Path
 
@@ -16,6 +17,30 @@ def test_all_notebooks_are_present():
         "01_quickstart.ipynb", "02_trs_reproduction.ipynb", "03_emps_reproduction.ipynb",
         "04_numerical_example.ipynb", "05_pid_tuning.ipynb", "06_block_structures.ipynb",
     ]
+
+
+#: Upper bound on the committed notebooks' total size (outputs included).
+MAX_TOTAL_BYTES = 3_000_000
+
+
+@pytest.mark.parametrize("path", NOTEBOOKS, ids=lambda p: p.stem)
+def test_committed_notebook_carries_its_outputs(path):
+    """Committed with outputs (``make notebooks``), so a code host shows the figures; each shown once."""
+    nbformat = pytest.importorskip("nbformat")
+    nb = nbformat.read(path, as_version=4)
+    code = [c for c in nb.cells if c.cell_type == "code"]
+    assert [c.execution_count for c in code] == list(range(1, len(code) + 1)), \
+        f"{path.name} was not executed top to bottom in one run: `make notebooks`"
+    outputs = [o for c in code for o in c.outputs]
+    assert not [o for o in outputs if o.output_type == "error"]
+    assert not [o for o in outputs if "application/vnd.jupyter.widget-view+json" in o.get("data", {})]
+    images = [sum("image/png" in o.get("data", {}) for o in c.outputs) for c in code]
+    assert sum(images) >= 1, f"{path.name} has no figures saved"
+    assert max(images) == 1, f"{path.name}: a cell shows a figure twice"
+
+
+def test_committed_notebooks_stay_small():
+    assert sum(p.stat().st_size for p in NOTEBOOKS) < MAX_TOTAL_BYTES
 
 
 @pytest.mark.slow
