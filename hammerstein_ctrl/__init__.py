@@ -31,7 +31,7 @@ __version__ = "0.1.0"
 
 #: Sub-modules exposed as attributes of the package.
 _SUBMODULES = ("datasets", "iodata", "metrics", "nonlinearities", "optimize", "plots", "presets", "records",
-               "simulate", "study", "control_design", "exact_export", "persistence")
+               "simulate", "study", "control_design", "exact_export", "persistence", "display")
 
 #: Public name -> the sub-module that defines it.
 _LAZY_NAMES = {
@@ -54,7 +54,7 @@ _LAZY_NAMES = {
 
 __all__ = [
     "datasets", "iodata", "metrics", "nonlinearities", "optimize", "plots", "presets", "records", "simulate",
-    "study", "control_design", "exact_export", "persistence", "load_model", "save_model", "load_result",
+    "study", "control_design", "exact_export", "persistence", "display", "load_model", "save_model", "load_result",
     "save_result",
     "IOData", "load_emps", "load_trs", "make_trs_reconstruction", "read_record",
     "DataError", "HammersteinError", "ParameterError", "UnknownNameError",

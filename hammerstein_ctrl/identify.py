@@ -114,10 +114,10 @@ class IdentificationResult:
             ``data`` by least squares (as MATLAB's ``compare`` does).  Default:
             ``"estimate"`` if the identification estimated it, else ``"zero"``.
         """
+        from .display import as_iodata
         from .initialize import estimate_initial_state
 
-        if not isinstance(data, IOData):
-            raise ParameterError(f"validate() needs an IOData record, got {type(data).__name__}")
+        data = as_iodata(data)
         mode = initial_state or self.structure.initial_state
         if mode not in ("zero", "estimate"):
             raise ParameterError(f"initial_state must be 'zero' or 'estimate', got {initial_state!r}")
@@ -200,7 +200,8 @@ def identify(
     Parameters
     ----------
     data : IOData
-        Estimation record; its ``intersample`` ("foh"/"zoh") is honoured.
+        Estimation record; its ``intersample`` ("foh"/"zoh") is honoured.  A
+        ``nonlinear_benchmarks`` record (``u``, ``y``, ``sampling_time``) works too.
     structure : HammersteinStructure, WienerStructure, HammersteinWienerStructure or {"trs", "emps"}
         The model structure (a preset name uses that case's structure and,
         for the paper's methods when ``x0`` is omitted, its initial point).
@@ -235,6 +236,7 @@ def identify(
         On a bad structure, method, initial point or record.
     """
     started = time.perf_counter()
+    data = _as_record(data)
     structure, x0 = _resolve_structure(data, structure, method, x0)
     if offset is not None or initial_state is not None:
         structure = structure.with_options(offset=offset, initial_state=initial_state)
@@ -251,9 +253,18 @@ def identify(
         return _result(cost, res, key, x0, allow_unstable, started)
 
 
+def _as_record(data) -> IOData:
+    """An IOData from an IOData or a ``nonlinear_benchmarks``-style record (``u, y, sampling_time``)."""
+    from .display import as_iodata
+
+    try:
+        return as_iodata(data)
+    except ParameterError:
+        raise ParameterError(f"data must be an IOData record (or an object with u, y and sampling_time), "
+                             f"got {type(data).__name__}") from None
+
+
 def _resolve_structure(data, structure, method, x0):
-    if not isinstance(data, IOData):
-        raise ParameterError(f"data must be an IOData record, got {type(data).__name__}")
     if isinstance(structure, str):
         from . import presets
 

@@ -61,3 +61,13 @@ def test_identify_input_errors(trs_case):
     res = identify(trs_case.data, s, method="amvo-sca", bounds=[(0, 5), (0, 1), (-1, 1), (-1, 1)],
                    maxfev=200, seed=0)
     assert res.nfev == 200  # x0 defaulted to the centre of the box
+
+
+def test_identify_accepts_a_nonlinear_benchmarks_style_record(trs_case):
+    from types import SimpleNamespace
+
+    d = trs_case.data
+    record = SimpleNamespace(u=np.asarray(d.u), y=np.asarray(d.y), sampling_time=d.dt, name="bench")
+    res = identify(record, trs_case.structure, maxfev=1500)
+    assert res.data.name == "bench" and res.fun == pytest.approx(identify(d, trs_case.structure, maxfev=1500).fun)
+    assert res.validate(record)["fit_percent"] == pytest.approx(res.fit_percent)
