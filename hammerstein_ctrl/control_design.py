@@ -44,6 +44,7 @@ import numpy as np
 
 from ._checks import as_signal
 from .exceptions import DataError, ParameterError, UnknownNameError
+from .model import HammersteinModel
 from .loop_sim import (
     back_calculation_gain,
     check_limits,
@@ -84,10 +85,10 @@ INTEGRATOR_TOL = 1e-9
 # the small-signal model and the half rule
 # ---------------------------------------------------------------------------
 def _slope(model, u0: float) -> float:
-    if getattr(model, "output_nonlinearity", None) is not None or getattr(model, "input_nonlinearity", 1) is None:
+    if not isinstance(model, HammersteinModel):
         raise ParameterError(
-            f"PID tuning supports Hammerstein models (y = H g(u)); this {getattr(model, 'kind', 'block')} model "
-            "has an output nonlinearity, which the compiled loop does not simulate")
+            f"PID tuning supports Hammerstein models (y = H g(u)), not a {getattr(model, 'kind', type(model).__name__)} "
+            "model: the compiled loop simulates no output nonlinearity")
     try:
         u0 = float(u0)
     except (TypeError, ValueError):

@@ -52,17 +52,11 @@ from ._checks import check_intersample
 from .exceptions import DataError, ParameterError
 from .simulate import companion_realization, discretize
 
-__all__ = ["linear_ss", "sampled_matrices", "sampled_iosys", "model_settings", "INTERSAMPLE"]
+__all__ = ["linear_ss", "sampled_matrices", "sampled_iosys", "model_settings"]
 
 #: Intersample behaviours of the model's input.
-INTERSAMPLE = ("foh", "zoh")
-
-
 def model_settings(model) -> dict:
-    """The model's ``offset``, ``initial_state`` and ``intersample``, with defaults.
-
-    Works on models that predate these attributes (offset 0, zero initial
-    state, first-order hold).
+    """The model's ``offset``, ``initial_state`` (zeros when at rest) and ``intersample``.
 
     Examples
     --------
@@ -73,16 +67,7 @@ def model_settings(model) -> dict:
     >>> s["offset"], s["initial_state"].tolist(), s["intersample"]
     (0.0, [0.0, 0.0], 'foh')
     """
-    n = len(np.trim_zeros(np.asarray(model.linear.den[0][0], dtype=float), "f")) - 1
-    x0 = getattr(model, "initial_state", None)
-    x0 = np.zeros(n) if x0 is None else np.asarray(x0, dtype=float).reshape(-1)
-    if x0.size != n:
-        raise ParameterError(f"initial_state has {x0.size} entries, the linear block has {n} states")
-    intersample = str(getattr(model, "intersample", "foh") or "foh").lower()
-    if intersample not in INTERSAMPLE:
-        raise ParameterError(f"intersample must be one of {INTERSAMPLE}, got {intersample!r}")
-    return {"offset": float(getattr(model, "offset", 0.0) or 0.0), "initial_state": x0,
-            "intersample": intersample}
+    return {"offset": model.offset, "initial_state": model.state0(), "intersample": model.intersample}
 
 
 def _num_den(model):

@@ -40,7 +40,7 @@ from .initialize import static_affine_sse
 from .metrics import fit_report
 from .model import BlockModel
 from .objective import HammersteinCost
-from .optimize import DIVERGED, canonical_method, minimize
+from .optimize import DIVERGED, SCIPY_METHODS, canonical_method, minimize
 from .simulate import unstable
 from .structure import BlockStructure
 
@@ -49,7 +49,7 @@ __all__ = ["identify", "IdentificationResult", "AUTO"]
 #: Name of the default method (see :mod:`hammerstein_ctrl.auto`).
 AUTO = "auto"
 #: Methods that stop on a convergence test (running out of budget is then a failure).
-_CONVERGING = ("lm", "nelder-mead", "powell", "l-bfgs-b", "bfgs", "tnc", "slsqp", "cobyla", "trust-constr")
+_CONVERGING = ("lm",) + SCIPY_METHODS
 
 
 @dataclass

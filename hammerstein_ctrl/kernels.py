@@ -298,6 +298,6 @@ def _sse_generic(E, C, D, X0, Y0, V, y, out, zoh):  # pragma: no cover - compile
                 _step_generic(E, b, n, x, xn, V[b, i - 1], V[b, i], zoh)
             e = y[i] - (np.dot(C[b], x) + D[b] * V[b, i] + Y0[b])
             J += e * e
-            if (i & 1023) == 0 and not J <= 1.7e308:
+            if (i & _CHECK_MASK) == 0 and not J <= _OVERFLOW:
                 break
-        out[b] = J if J <= 1.7e308 else np.inf
+        out[b] = J if J <= _OVERFLOW else np.inf

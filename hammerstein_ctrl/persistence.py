@@ -53,7 +53,8 @@ from pathlib import Path
 import numpy as np
 
 from .exceptions import ParameterError, UnknownNameError
-from .exact_export import INTERSAMPLE, model_settings
+from ._checks import INTERSAMPLE
+from .exact_export import model_settings
 from .nonlinearities import NONLINEARITIES, PiecewiseLinear, Polynomial
 
 __all__ = [
