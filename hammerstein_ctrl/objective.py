@@ -35,7 +35,9 @@ import numba
 import numpy as np
 
 from .exceptions import ParameterError
-from .simulate import simulate_batch, sse_batch
+from .kernels import MAX_NORMAL_LANES
+from .normal_equations import NONFINITE_RESIDUAL, NormalEquations, forward_steps, from_residuals
+from .simulate import normal_pass, simulate_batch, sse_batch
 from .structure import BlockStructure
 
 __all__ = ["HammersteinCost", "CHUNK_BYTES", "BASIS_MAX_BYTES", "BASIS_BLOCK", "NONFINITE_RESIDUAL"]
@@ -47,9 +49,6 @@ __all__ = ["HammersteinCost", "CHUNK_BYTES", "BASIS_MAX_BYTES", "BASIS_BLOCK", "
 #: bounded on long records (one candidate at a time from 2 million samples up);
 #: records of ordinary length take the whole batch in one chunk.
 CHUNK_BYTES = 1 << 24
-
-#: Value given to non-finite residuals, so that trust-region solvers back off instead of failing.
-NONFINITE_RESIDUAL = 1e150
 
 
 #: Largest basis of ``g`` (``p x N`` regressors) kept in memory.  Longer records
@@ -249,6 +248,76 @@ class HammersteinCost:
                 if not np.isfinite(r.sum()):
                     r[~np.isfinite(r)] = NONFINITE_RESIDUAL
         return R
+
+    def normal_equations(self, beta, steps=None) -> NormalEquations:
+        """``r @ r``, ``J.T @ r`` and ``J.T @ J`` at ``beta``, ``J`` the forward-difference Jacobian of the residuals.
+
+        For a Hammerstein structure whose nonlinearity is linear in its
+        parameters (or absent) the point and its neighbours are simulated side
+        by side in one compiled pass that accumulates the sums, with no
+        ``N x p`` Jacobian in memory; otherwise the sums are formed from
+        :meth:`residuals_batch`.  Either way the ``p + 1`` residual vectors
+        are those of ``beta`` and ``beta + steps[j] e_j``.
+
+        Parameters
+        ----------
+        beta : array_like, shape (n_params,)
+        steps : array_like, shape (n_params,), optional
+            Forward-difference steps; default scipy's ``"2-point"`` steps
+            (:func:`~hammerstein_ctrl.normal_equations.forward_steps`).
+
+        Returns
+        -------
+        NormalEquations
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from hammerstein_ctrl import presets
+        >>> from hammerstein_ctrl.normal_equations import from_residuals
+        >>> p = presets.emps()
+        >>> x = np.asarray(p.paper["nspsa"]["beta"])
+        >>> ne = p.cost.normal_equations(x)
+        >>> X = x + np.vstack([np.zeros(4), np.diag(ne.steps)])
+        >>> slow = from_residuals(p.cost.residuals_batch(X), ne.steps)    # the N x p Jacobian, stored
+        >>> bool(np.allclose(ne.gram, slow.gram, rtol=1e-6)), round(ne.fun, 6) == round(p.cost(x), 6)
+        (True, True)
+        """
+        b = self.structure.check_beta(beta)
+        if b.ndim != 1:
+            raise ParameterError("normal_equations(beta) takes one vector")
+        h = forward_steps(b) if steps is None else np.asarray(steps, dtype=float).reshape(b.shape)
+        X = b + np.vstack([np.zeros(b.size), np.diag(h)])
+        ne = self._fused_normal_equations(X, h)
+        if ne is not None and ne.finite:
+            return ne
+        return from_residuals(self.residuals_batch(X), h)
+
+    def _fused_normal_equations(self, X, h):
+        """The compiled pass of :func:`~hammerstein_ctrl.simulate.normal_pass`, or ``None`` where it does not apply."""
+        s = self.structure
+        if s.output_nonlinearity is not None or X.shape[0] > MAX_NORMAL_LANES:
+            return None
+        g_params = s.input_params(X)
+        if g_params is None:
+            P, blocks = np.ones((X.shape[0], 1)), [self._u[None, :]]
+        elif self._linear_in_params:
+            P, blocks = g_params, self._basis_blocks()
+        else:
+            return None
+        num, den = s.linear._coefficients(X[:, :self._n_linear])
+        offset, x0 = s.nuisance(X)
+        return normal_pass(num, den, self.data.dt, self._y, P, blocks, h, x0=x0, offset=offset,
+                           intersample=self.data.intersample)
+
+    def _basis_blocks(self):
+        """The basis of ``g`` as blocks of samples: the stored one whole, or recomputed a block at a time."""
+        if self._basis is not None:
+            yield self._basis
+            return
+        g = self.structure.input_nonlinearity
+        for start in range(0, self._u.size, BASIS_BLOCK):
+            yield g.basis(self._u[start:start + BASIS_BLOCK])
 
     def __repr__(self):
         return f"HammersteinCost({self.data.name!r}, {self.structure.describe()})"

@@ -48,7 +48,8 @@ import numpy as np
 from ._checks import as_signal, check_intersample, check_transfer_function, uniform_grid
 from ._linalg import expm_batch, single_threaded_blas
 from .exceptions import DataError, ParameterError
-from .kernels import MAX_UNROLLED_STATES, get_kernel, has_output_maps
+from .kernels import MAX_NORMAL_LANES, MAX_UNROLLED_STATES, get_kernel, get_normal_kernel, has_output_maps
+from .normal_equations import NormalEquations
 
 __all__ = [
     "companion_realization",
@@ -59,6 +60,7 @@ __all__ = [
     "simulate_batch",
     "sse_batch",
     "free_response",
+    "normal_pass",
     "MAX_UNROLLED_STATES",
 ]
 
@@ -516,6 +518,64 @@ def sse_batch(num, den, V, dt: float, y, *, x0=None, offset=None, intersample: s
                                            *map_args, y, J)
     J[~ok] = np.inf
     return J
+
+
+def normal_pass(num, den, dt: float, y, P, blocks, steps, *, x0=None, offset=None,
+                intersample: str = "foh") -> NormalEquations | None:
+    """Normal equations of a point and its forward-difference neighbours, in one compiled pass.
+
+    Row 0 of the candidates is the point, row ``j + 1`` the point with
+    parameter ``j`` moved by ``steps[j]``; candidate ``g``'s intermediate
+    signal is ``P[g] @ Phi``, with the basis ``Phi`` (``K x N``) given as
+    consecutive blocks of samples, so a long record's basis never has to be
+    held whole.  No ``p x N`` Jacobian is formed.
+
+    Parameters
+    ----------
+    num, den : array_like, shape (p+1, l+1) and (p+1, n+1)
+    dt : float
+    y : ndarray, shape (N,)
+        Measured output.
+    P : array_like, shape (p+1, K)
+        Each candidate's coefficients of the basis.
+    blocks : iterable of ndarray, shape (K, L_i)
+        The basis, in blocks of samples that together span the record.
+    steps : array_like, shape (p,)
+        The forward-difference steps.
+    x0, offset, intersample
+        As for :func:`simulate_batch`.
+
+    Returns
+    -------
+    NormalEquations or None
+        ``None`` if the pass does not apply (more than
+        :data:`~hammerstein_ctrl.kernels.MAX_NORMAL_LANES` candidates, more than
+        :data:`MAX_UNROLLED_STATES` states, or a candidate whose coefficients
+        cannot be discretised); the sums may be non-finite if a simulation overflows.
+    """
+    hold = check_intersample(intersample)
+    steps = np.asarray(steps, dtype=float)
+    lanes = steps.size + 1
+    E, C, D, ok = _tf_system(num, den, dt)
+    n = E.shape[1] - 2
+    if lanes > MAX_NORMAL_LANES or not 1 <= n <= MAX_UNROLLED_STATES or not ok.all() or E.shape[0] != lanes:
+        return None
+    kernel = get_normal_kernel(n, hold, lanes)
+    X, Y0 = _state_rows(x0, lanes, n), _offset_rows(offset, lanes)
+    P = np.ascontiguousarray(P, dtype=float)
+    VP, acc = np.zeros(lanes), np.zeros(1 + steps.size * (steps.size + 1))
+    y = np.ascontiguousarray(y, dtype=float)
+    begin = 0
+    with np.errstate(all="ignore"):
+        for Phi in blocks:
+            Phi = np.ascontiguousarray(Phi, dtype=float)
+            stop = begin + Phi.shape[1]
+            kernel(E, C, D, X, Y0, VP, P, Phi, y[begin:stop], begin, 1.0 / steps, acc)
+            begin = stop
+    p = steps.size
+    gram = acc[1 + p:].reshape(p, p)
+    gram = np.tril(gram) + np.tril(gram, -1).T
+    return NormalEquations(float(acc[0]), acc[1:1 + p].copy(), gram, steps)
 
 
 def free_response(num, den, dt: float, n_samples: int) -> np.ndarray:

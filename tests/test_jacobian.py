@@ -62,7 +62,12 @@ def test_jacobian_steps_inward_at_an_upper_bound(trs_case):
 
 @pytest.mark.parametrize("case", ["trs_case", "emps_case"])
 def test_lm_iterates_exactly_as_scipy_least_squares(case, request):
-    """The same MINPACK run as scipy.optimize.least_squares(method="lm") with its own 2-point Jacobian."""
+    """From the paper's (ill-conditioned) starts: the same MINPACK run as scipy's least_squares(method="lm").
+
+    The normal-equation solver's first pass finds the scaled Gram matrix too
+    ill-conditioned and hands the start over to lmder: that pass (n + 1
+    evaluations) is the only difference.
+    """
     case = request.getfixturevalue(case)
     calls = []
 
@@ -77,7 +82,7 @@ def test_lm_iterates_exactly_as_scipy_least_squares(case, request):
     # scipy evaluates one Jacobian more, at the solution, for its report (and the point itself if
     # it was not the last one evaluated)
     n = case.x0.size
-    assert len(calls) - n - 1 <= ours.nfev <= len(calls) - n
+    assert len(calls) - n - 1 + (n + 1) <= ours.nfev <= len(calls) - n + (n + 1)
 
 
 @pytest.mark.parametrize("maxfev", [None, 7, 23, 60])

@@ -6,14 +6,17 @@ evaluation than the SPSA family.  From the paper's EMPS initial point it reaches
 the least-squares optimum J = 0.208517 in a few hundred evaluations, below every
 value in the paper's Table 7.
 
-This runs MINPACK's Levenberg-Marquardt (:func:`scipy.optimize.leastsq`, the
-same lmder that ``least_squares(method="lm")`` calls, with the same settings
-and messages), or :func:`scipy.optimize.least_squares`'s ``"trf"`` when bounds
-are given, with exact evaluation counting: every residual vector computed,
-including those for the finite-difference Jacobian, is one evaluation, and
-``maxfev`` is never exceeded.  The Jacobian's columns (scipy's ``"2-point"``
-steps) are evaluated in one batched call when the objective has
-``residuals_batch``.  It is deterministic (``seed`` is accepted and ignored).
+Without bounds this runs :func:`~hammerstein_ctrl.optimize.normal_lm.normal_equations_lm`:
+Levenberg-Marquardt on the normal equations ``J.T J``, ``J.T r`` of the
+forward-difference Jacobian (scipy's ``"2-point"`` steps), which
+:meth:`HammersteinCost.normal_equations
+<hammerstein_ctrl.objective.HammersteinCost.normal_equations>` forms in one
+compiled pass together with the trial point, with MINPACK's termination tests
+and messages.  With bounds it runs scipy's trust-region reflective method
+(:func:`scipy.optimize.least_squares`, ``method="trf"``) with the batched
+Jacobian.  Evaluation counting is exact: every residual vector computed,
+including the Jacobian's, is one evaluation, and ``maxfev`` is never
+exceeded.  It is deterministic (``seed`` is accepted and ignored).
 """
 
 from __future__ import annotations
@@ -25,6 +28,7 @@ import scipy.optimize
 
 from .._linalg import single_threaded_blas
 from ..exceptions import ParameterError
+from ..normal_equations import forward_steps
 from ._common import (
     COMPLETED,
     SOLVER_FAILED,
@@ -36,12 +40,9 @@ from ._common import (
     check_budget,
     make_result,
 )
+from .normal_lm import CONVERGED, ILL_CONDITIONED_CODE, MESSAGES, normal_equations_lm
 
 __all__ = ["levenberg_marquardt"]
-
-
-#: Relative step of the forward-difference Jacobian (scipy's "2-point" default, sqrt(eps)).
-FD_REL_STEP = float(np.sqrt(np.finfo(float).eps))
 
 #: MINPACK's exit codes that mean convergence, and the messages scipy's least_squares gives for them.
 _MINPACK_CONVERGED = (1, 2, 3, 4)
@@ -55,6 +56,8 @@ _MINPACK_MESSAGES = {
 }
 #: MINPACK's own cap on residual evaluations per parameter (scipy's default for method "lm").
 _MINPACK_MAXFEV_PER_PARAM = 100
+#: Steps of the normal-equation solver per parameter before it gives up (MINPACK's cap, in steps).
+_MAX_STEPS_PER_PARAM = 100
 
 
 class _CountedResiduals(CountedObjective):
@@ -71,8 +74,11 @@ class _CountedResiduals(CountedObjective):
         self._last = (None, None)
 
     def record(self, x, r):
-        """Book one charged evaluation: best point (NaN never wins) and history row."""
-        f = float(r @ r)
+        """Book one charged evaluation of the residual vector ``r``."""
+        self.record_value(x, float(r @ r))
+
+    def record_value(self, x, f: float):
+        """Book one charged evaluation with sum of squares ``f``: best point (NaN never wins) and history row."""
         if f < self.best_fun:
             self.best_fun, self.best_x = f, np.array(x, dtype=float)
         self.history.append(self.nfev, self.nfev, f, self.best_fun, self.best_fun)
@@ -110,10 +116,7 @@ class _BatchedJacobian:
         self._formed = 0
 
     def steps(self, x):
-        h = FD_REL_STEP * np.where(x >= 0, 1.0, -1.0) * np.maximum(1.0, np.abs(x))
-        if self.upper is not None:
-            h = np.where(x + h > self.upper, -h, h)
-        return (x + h) - x
+        return forward_steps(x, self.upper)
 
     def columns(self, x):
         """The Jacobian's columns as the rows of an ``(n, N)`` array.
@@ -149,11 +152,19 @@ class _BatchedJacobian:
         return self.columns(x).T
 
 
-def _solve(counted, jac, x0, box, tolerances):
-    """Run MINPACK's lmder (no bounds) or scipy's trust-region reflective method; ``(x, J, success, message)``."""
+def _solve(fun, counted, jac, x0, box, tolerances):
+    """Run the normal-equation solver (no bounds) or scipy's trust-region reflective method.
+
+    Returns ``(x, J, success, message, iterations)``.
+    """
     if box is not None:
         res = scipy.optimize.least_squares(counted, x0, jac=jac, method="trf", bounds=box, **tolerances)
-        return res.x, float(2.0 * res.cost), bool(res.success), str(res.message)
+        return res.x, float(2.0 * res.cost), bool(res.success), str(res.message), int(res.nfev)
+    x, f, code, iterations = normal_equations_lm(fun, counted, x0, max_steps=_MAX_STEPS_PER_PARAM * x0.size,
+                                                 **tolerances)
+    if code != ILL_CONDITIONED_CODE:
+        return x, f, code in CONVERGED, MESSAGES[code], iterations
+    x0 = x
     # lmder through leastsq: the Jacobian goes in as rows (col_deriv), copied once into MINPACK's own
     # array, and no extra Jacobian is formed at the solution (least_squares does both, at n evaluations
     # and two more Jacobian-sized copies)
@@ -161,7 +172,8 @@ def _solve(counted, jac, x0, box, tolerances):
         counted, x0, Dfun=jac.columns, full_output=True, col_deriv=True,
         maxfev=_MINPACK_MAXFEV_PER_PARAM * x0.size, **tolerances)
     f = info["fvec"]
-    return x, float(f @ f), ier in _MINPACK_CONVERGED, _MINPACK_MESSAGES.get(ier, f"MINPACK exit code {ier}")
+    message = _MINPACK_MESSAGES.get(ier, f"MINPACK exit code {ier}")
+    return x, float(f @ f), ier in _MINPACK_CONVERGED, message, iterations + int(info["nfev"])
 
 
 def _trf_box(bounds, x0):
@@ -191,14 +203,12 @@ def levenberg_marquardt(fun, x0, *, maxfev: int | None = None, maxiter=None, see
     ----------
     fun : object with a ``residuals(x)`` method
         Such as :class:`~hammerstein_ctrl.objective.HammersteinCost`.  If it
-        also has ``residuals_batch(X)`` (rows of ``X`` to residual vectors),
-        the forward-difference Jacobian is evaluated in one batched call.
+        has ``normal_equations(x, steps)``, each step's point and its
+        forward-difference Jacobian come from that one call; else, if it has
+        ``residuals_batch(X)`` (rows of ``X`` to residual vectors), the
+        Jacobian's columns are evaluated in one batched call.
     x0 : array_like
 
-    Notes
-    -----
-    ``nit`` reports the number of residual evaluations (scipy does not expose
-    the iteration count) and ``history`` has one row per evaluation.
     maxfev : int, optional
         Budget of residual evaluations (Jacobian columns included).
     bounds : optional
@@ -207,12 +217,23 @@ def levenberg_marquardt(fun, x0, *, maxfev: int | None = None, maxiter=None, see
         Accepted for a uniform interface; ``maxiter`` and ``callback`` are not
         supported by scipy's least-squares solvers and must be None.
     ftol, xtol, gtol : float
-        Termination tolerances passed to :func:`scipy.optimize.least_squares`.
+        Termination tolerances, with MINPACK's meaning (see
+        :mod:`~hammerstein_ctrl.optimize.normal_lm`).
 
     Returns
     -------
     scipy.optimize.OptimizeResult
-        ``fun`` is J at ``x`` (the sum of squared residuals).
+        ``fun`` is J at ``x`` (the sum of squared residuals); ``nit`` counts
+        the steps tried (for ``"trf"``, scipy's evaluation count) and
+        ``history`` has one row per evaluation.
+
+    Examples
+    --------
+    >>> from hammerstein_ctrl import presets
+    >>> p = presets.emps()
+    >>> r = levenberg_marquardt(p.cost, p.x0, maxfev=2500)
+    >>> r.success, round(r.fun, 6)
+    (True, 0.208517)
     """
     started = time.perf_counter()
     residuals = getattr(fun, "residuals", None)
@@ -235,12 +256,13 @@ def levenberg_marquardt(fun, x0, *, maxfev: int | None = None, maxiter=None, see
         # products; handing off to those threads between compiled simulations
         # made each evaluation ~50x slower on a 2-core machine.
         with single_threaded_blas():
-            x, fun_x, success, message = _solve(counted, jac, x0, box, dict(ftol=ftol, xtol=xtol, gtol=gtol))
+            x, fun_x, success, message, nit = _solve(fun, counted, jac, x0, box,
+                                                     dict(ftol=ftol, xtol=xtol, gtol=gtol))
         status = COMPLETED if success else SOLVER_FAILED
     except BudgetExhausted:
-        x, fun_x = counted.best_x, counted.best_fun
+        x, fun_x, nit = counted.best_x, counted.best_fun, counted.nfev
         status, message = COMPLETED, f"evaluation budget of {maxfev} exhausted"
     if x is None:
         x, fun_x = x0, np.nan
-    return make_result(x=x, fun=fun_x, obj=counted, nit=counted.nfev, status=status,
+    return make_result(x=x, fun=fun_x, obj=counted, nit=nit, status=status,
                        message=message, history=counted.history, method="lm", started=started)

@@ -1,0 +1,90 @@
+"""Gauss-Newton normal equations of a least-squares objective, formed without storing the Jacobian.
+
+For residuals ``r(beta)`` (length N) and their Jacobian ``J = dr/dbeta``
+(N x p), a Levenberg-Marquardt step needs only ``f = r @ r``, the gradient
+half ``g = J.T @ r`` and the Gram matrix ``G = J.T @ J``: p(p+3)/2 + 1 numbers
+instead of N(p+1).  :class:`NormalEquations` carries them together with the
+forward-difference steps they were formed with.
+:meth:`HammersteinCost.normal_equations
+<hammerstein_ctrl.objective.HammersteinCost.normal_equations>` forms them in
+one compiled pass over the record (the point and its p neighbours simulated
+side by side); :func:`from_residuals` forms them from residual vectors, for
+any other objective.
+
+Examples
+--------
+>>> import numpy as np
+>>> x = np.array([1.0, 2.0])
+>>> t = np.linspace(0.0, 1.0, 5)
+>>> residuals = lambda b: np.exp(-b[0] * t) - b[1] * t        # any residual function
+>>> h = forward_steps(x)
+>>> ne = from_residuals(np.array([residuals(b) for b in x + np.vstack([np.zeros(2), np.diag(h)])]), h)
+>>> J = np.column_stack([-t * np.exp(-t), -t])                 # its exact Jacobian at x
+>>> bool(np.allclose(ne.gram, J.T @ J, rtol=1e-6)), bool(np.allclose(ne.gradient, J.T @ residuals(x), rtol=1e-6))
+(True, True)
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+
+__all__ = ["NormalEquations", "from_residuals", "forward_steps", "FD_REL_STEP", "NONFINITE_RESIDUAL"]
+
+#: Relative step of the forward-difference Jacobian (scipy's "2-point" default, sqrt(eps)).
+FD_REL_STEP = float(np.sqrt(np.finfo(float).eps))
+
+#: Value given to non-finite residuals, so that least-squares solvers back off instead of failing.
+NONFINITE_RESIDUAL = 1e150
+
+
+class NormalEquations(NamedTuple):
+    """``f = r @ r``, ``gradient = J.T @ r`` and ``gram = J.T @ J`` at a point.
+
+    ``steps`` are the forward-difference steps ``h`` of the Jacobian's columns.
+    """
+
+    fun: float
+    gradient: np.ndarray
+    gram: np.ndarray
+    steps: np.ndarray
+
+    def neighbour_values(self) -> np.ndarray:
+        """Sum of squares at each neighbour ``x + h_j e_j``: ``f + 2 h_j g_j + h_j**2 G_jj``.
+
+        Exact up to rounding for forward differences, since the neighbour's
+        residual is ``r + h_j J[:, j]``.
+        """
+        h = self.steps
+        return self.fun + 2.0 * h * self.gradient + h * h * np.diag(self.gram)
+
+    @property
+    def finite(self) -> bool:
+        """Whether every sum is finite."""
+        return bool(np.isfinite(self.fun) and np.isfinite(self.gradient).all() and np.isfinite(self.gram).all())
+
+
+def forward_steps(x, upper=None) -> np.ndarray:
+    """scipy's ``"2-point"`` steps: ``sqrt(eps) max(1, |x|)`` with the sign of ``x``, flipped to stay below ``upper``.
+
+    Returned as ``(x + h) - x`` so that the step is exactly representable.
+    """
+    x = np.asarray(x, dtype=float)
+    h = FD_REL_STEP * np.where(x >= 0, 1.0, -1.0) * np.maximum(1.0, np.abs(x))
+    if upper is not None:
+        h = np.where(x + h > upper, -h, h)
+    return (x + h) - x
+
+
+def from_residuals(R, steps) -> NormalEquations:
+    """Normal equations from residual vectors at a point (row 0) and its neighbours ``x + h_j e_j`` (row j+1).
+
+    Non-finite residuals are replaced by :data:`NONFINITE_RESIDUAL` first.
+    """
+    R = np.array(R, dtype=float)
+    with np.errstate(all="ignore"):
+        R[~np.isfinite(R)] = NONFINITE_RESIDUAL
+        r = R[0]
+        J = (R[1:] - r) / np.asarray(steps, dtype=float)[:, None]
+        return NormalEquations(float(r @ r), J @ r, J @ J.T, np.asarray(steps, dtype=float))

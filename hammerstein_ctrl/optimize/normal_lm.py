@@ -1,0 +1,228 @@
+"""Levenberg-Marquardt on the normal equations, with the Jacobian formed in the same pass as the trial point.
+
+Each step solves ``(G + lam D) delta = -g`` with ``G = J.T J`` and
+``g = J.T r`` (:class:`~hammerstein_ctrl.normal_equations.NormalEquations`),
+``D`` the squared column norms of ``J`` (the largest seen so far, as
+MINPACK scales), and the damping ``lam`` updated by the gain ratio (Nielsen's
+rule).  A trial point is evaluated together with its forward-difference
+neighbours in one pass (``p + 1`` residual vectors): when the step is
+accepted, as it mostly is, its Jacobian is already there, so an iteration
+costs one pass.  After a rejected step the next trials are evaluated alone
+(one residual vector) until one is accepted.
+
+The normal equations square the Jacobian's condition number.  Where the
+scaled Gram matrix is too ill-conditioned for them (:data:`ILL_CONDITIONED`;
+typically far from the optimum, e.g. at an unstable start, or in a structure
+with a nearly flat direction) the solver stops with code 8 and
+:func:`~hammerstein_ctrl.optimize.levenberg_marquardt` continues from that
+point with MINPACK's QR-based lmder.
+
+Termination follows MINPACK's tests and messages: ``ftol`` (actual and
+predicted relative reductions of the sum of squares), ``xtol`` (scaled step
+relative to the scaled point), ``gtol`` (largest cosine between the residual
+and a Jacobian column).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..normal_equations import NormalEquations, forward_steps, from_residuals
+from ._common import BudgetExhausted
+
+__all__ = ["normal_equations_lm", "INITIAL_DAMPING", "MAX_DAMPING", "ILL_CONDITIONED", "MESSAGES", "CONVERGED",
+           "ILL_CONDITIONED_CODE"]
+
+#: First damping, relative to the largest diagonal entry of the scaled Gram matrix (Nielsen's tau).
+INITIAL_DAMPING = 1e-3
+#: Damping past which no step can lower the sum of squares any more.
+MAX_DAMPING = 1e20
+#: Condition number of the scaled Gram matrix past which the solver hands over to a QR-based one.
+ILL_CONDITIONED = 1e10
+#: Smallest fraction by which an accepted step lowers the damping (Nielsen's rule).
+DAMPING_DECREASE_LIMIT = 1.0 / 3.0
+
+#: Termination codes: MINPACK's (scipy's ``leastsq``) messages, and one for a damping that ran away.
+MESSAGES = {
+    1: "`ftol` termination condition is satisfied.",
+    2: "`xtol` termination condition is satisfied.",
+    3: "Both `ftol` and `xtol` termination conditions are satisfied.",
+    4: "`gtol` termination condition is satisfied.",
+    5: "the step limit was reached before convergence",
+    6: "no step lowers the sum of squares any more (the damping exceeded 1e20)",
+    7: "the residuals are not finite at the starting point",
+    8: "the normal equations are too ill-conditioned here",
+}
+#: Codes that mean convergence.
+CONVERGED = (1, 2, 3, 4)
+#: The code for a point too ill-conditioned for the normal equations.
+ILL_CONDITIONED_CODE = 8
+
+
+class _Passes:
+    """Counted evaluations for the solver: a point with its neighbours, or a point alone.
+
+    ``counted`` is a :class:`~hammerstein_ctrl.optimize.least_squares._CountedResiduals`-like
+    object (``charge``, ``record_value``, ``remaining``); ``fun`` supplies
+    ``normal_equations(x, steps)``, or residuals from which they are formed.
+    """
+
+    def __init__(self, fun, counted):
+        self.counted = counted
+        self._normal = getattr(fun, "normal_equations", None)
+        self._batch = getattr(fun, "residuals_batch", None)
+        self._residuals = fun.residuals
+        self._value = getattr(fun, "__call__", None) if self._normal is not None else None
+
+    def value(self, x) -> float:
+        """Sum of squares at ``x`` alone (one evaluation)."""
+        self.counted.charge(1)
+        with np.errstate(all="ignore"):
+            if self._value is not None:
+                f = float(self._value(x))
+            else:
+                r = np.asarray(self._residuals(x), dtype=float)
+                f = float(r @ r)
+        f = f if np.isfinite(f) else np.inf
+        self.counted.record_value(x, f)
+        return f
+
+    def full(self, x) -> NormalEquations:
+        """Normal equations at ``x`` (``p + 1`` evaluations); a partial budget is spent on ``x`` alone."""
+        lanes = x.size + 1
+        h = forward_steps(x)
+        if self.counted.remaining < lanes:
+            # spend what is left on the point and the neighbours that fit, as separate differences would
+            for j in range(int(self.counted.remaining)):
+                self.value(x if j == 0 else x + h[j - 1] * np.eye(x.size)[j - 1])
+            raise BudgetExhausted("evaluation budget exhausted")
+        self.counted.charge(lanes)
+        with np.errstate(all="ignore"):
+            if self._normal is not None:
+                ne = self._normal(x, h)
+            else:
+                X = x + np.vstack([np.zeros(x.size), np.diag(h)])
+                R = self._batch(X) if self._batch is not None else [self._residuals(row) for row in X]
+                ne = from_residuals(R, h)
+        f = ne.fun if np.isfinite(ne.fun) else np.inf
+        self.counted.record_value(x, f)
+        for j, fj in enumerate(ne.neighbour_values()):
+            xj = x.copy()
+            xj[j] += h[j]
+            self.counted.record_value(xj, fj if np.isfinite(fj) else np.inf)
+        return ne._replace(fun=f)
+
+
+def _ill_conditioned(ne: NormalEquations, scale) -> bool:
+    """Whether the scaled Gram matrix is too ill-conditioned to solve the normal equations accurately."""
+    with np.errstate(all="ignore"):
+        w = np.linalg.eigvalsh(ne.gram / np.outer(scale, scale))
+    return not (np.isfinite(w).all() and w[0] > w[-1] / ILL_CONDITIONED)
+
+
+def _step(ne: NormalEquations, scale, lam):
+    """The damped Gauss-Newton step ``-(G + mu diag(scale**2))^-1 g`` (``None`` if it cannot be solved)."""
+    A = ne.gram / np.outer(scale, scale)
+    mu = lam * max(float(np.max(np.diag(A))), np.finfo(float).tiny)  # relative to the current curvature
+    A[np.diag_indices_from(A)] += mu
+    with np.errstate(all="ignore"):
+        try:
+            z = np.linalg.solve(A, -ne.gradient / scale)
+        except np.linalg.LinAlgError:
+            return None
+    delta = z / scale
+    return delta if np.isfinite(delta).all() else None
+
+
+def _column_norms(gram, previous=None):
+    """Column norms of J from the Gram matrix (1 for a zero column), never below ``previous``."""
+    norms = np.sqrt(np.maximum(np.diag(gram), 0.0))
+    norms[~(norms > 0) | ~np.isfinite(norms)] = 1.0
+    return norms if previous is None else np.maximum(norms, previous)
+
+
+def _gradient_cosine(ne: NormalEquations) -> float:
+    """Largest cosine between the residual vector and a Jacobian column (MINPACK's ``gtol`` measure)."""
+    norms = np.sqrt(np.maximum(np.diag(ne.gram), 0.0))
+    live = norms > 0
+    if ne.fun <= 0 or not live.any():
+        return 0.0
+    return float(np.max(np.abs(ne.gradient[live]) / (norms[live] * np.sqrt(ne.fun))))
+
+
+class _Damping:
+    """Nielsen's damping: lowered after a good step by the gain ratio, raised geometrically after a bad one.
+
+    ``lam`` is relative to the largest diagonal entry of the scaled Gram
+    matrix, so a Jacobian that shrinks by orders of magnitude on the way in
+    from a poor start does not leave the steps over-damped.
+    """
+
+    def __init__(self):
+        self.lam = INITIAL_DAMPING
+        self.nu = 2.0
+
+    def accept(self, rho):
+        self.lam *= max(DAMPING_DECREASE_LIMIT, 1.0 - (2.0 * rho - 1.0) ** 3)
+        self.nu = 2.0
+
+    def reject(self):
+        self.lam *= self.nu
+        self.nu *= 2.0
+
+
+def normal_equations_lm(fun, counted, x0, *, ftol, xtol, gtol, max_steps: int):
+    """Run the solver from ``x0``; ``(x, f, code, iterations)`` with ``code`` a key of :data:`MESSAGES`.
+
+    Code 8 (:data:`ILL_CONDITIONED_CODE`) returns the current point as soon
+    as the scaled Gram matrix is :data:`ILL_CONDITIONED`, for the caller to
+    continue from it with a QR-based solver.
+
+    Raises :class:`~hammerstein_ctrl.optimize._common.BudgetExhausted` when
+    the budget ends first (the counted object then holds the best point).
+    """
+    passes = _Passes(fun, counted)
+    x = np.array(x0, dtype=float)
+    ne = passes.full(x)
+    if not np.isfinite(ne.fun):
+        return x, ne.fun, 7, 0
+    scale = _column_norms(ne.gram)
+    damping = _Damping()
+    iterations, alone = 0, False
+    while True:
+        if ne.fun == 0.0:
+            return x, ne.fun, 1, iterations
+        if _gradient_cosine(ne) <= gtol:
+            return x, ne.fun, 4, iterations
+        if not alone and _ill_conditioned(ne, scale):
+            return x, ne.fun, ILL_CONDITIONED_CODE, iterations
+        delta = _step(ne, scale, damping.lam)
+        if delta is None:
+            damping.reject()
+            if damping.lam > MAX_DAMPING:
+                return x, ne.fun, 6, iterations
+            continue
+        if iterations >= max_steps:
+            return x, ne.fun, 5, iterations
+        iterations += 1
+        small = np.linalg.norm(scale * delta) <= xtol * np.linalg.norm(scale * x)
+        predicted = -(2.0 * delta @ ne.gradient + delta @ ne.gram @ delta)
+        trial = x + delta
+        trial_ne = None if alone else passes.full(trial)
+        f_trial = passes.value(trial) if alone else trial_ne.fun
+        if f_trial < ne.fun and predicted > 0:
+            actual, f_old = ne.fun - f_trial, ne.fun
+            damping.accept(actual / predicted)
+            ne = trial_ne if trial_ne is not None else passes.full(trial)
+            x, alone = trial, False
+            scale = _column_norms(ne.gram, scale)
+            converged_f = actual <= ftol * f_old and predicted <= ftol * f_old
+            if converged_f or small:
+                return x, ne.fun, 3 if converged_f and small else (1 if converged_f else 2), iterations
+        else:
+            damping.reject()
+            alone = True
+            if small:
+                return x, ne.fun, 2, iterations
+            if damping.lam > MAX_DAMPING:
+                return x, ne.fun, 6, iterations

@@ -1,0 +1,131 @@
+"""The fused normal-equation pass and the Levenberg-Marquardt solver built on it.
+
+Oracles: the same sums formed from the stored N x p forward-difference
+Jacobian (``residuals_batch``), scipy's own 2-point Jacobian, and
+``scipy.optimize.least_squares(method="lm")`` (MINPACK) for the optimum.
+"""
+
+import numpy as np
+import pytest
+from scipy.optimize import least_squares
+from scipy.optimize._numdiff import approx_derivative
+
+import hammerstein_ctrl as hc
+from hammerstein_ctrl import objective
+from hammerstein_ctrl.normal_equations import forward_steps, from_residuals
+from hammerstein_ctrl.objective import HammersteinCost
+from hammerstein_ctrl.optimize import levenberg_marquardt, normal_lm
+
+
+def _stored(cost, x):
+    """The oracle: the same sums from the stored Jacobian, through scipy's 2-point differences."""
+    x = np.asarray(x, dtype=float)
+    r = cost.residuals(x)
+    J = approx_derivative(cost.residuals, x, method="2-point")
+    return float(r @ r), J.T @ r, J.T @ J
+
+
+def _check(cost, x, rtol=1e-6):
+    ne = cost.normal_equations(x)
+    f, g, G = _stored(cost, x)
+    assert abs(ne.fun - f) <= 1e-12 * f
+    np.testing.assert_allclose(ne.gram, G, rtol=rtol, atol=rtol * np.abs(G).max())
+    np.testing.assert_allclose(ne.gradient, g, rtol=rtol, atol=rtol * np.abs(g).max())
+    return ne
+
+
+def test_emps_fused_pass_matches_the_stored_jacobian(emps_case):
+    x = np.asarray(emps_case.paper["nspsa"]["beta"])
+    assert emps_case.cost._fused_normal_equations(
+        x + np.vstack([np.zeros(4), np.diag(forward_steps(x))]), forward_steps(x)) is not None
+    ne = _check(emps_case.cost, x)
+    # the neighbours' sums of squares follow from the sums exactly (r_j = r + h_j J_j)
+    X = x + np.vstack([np.zeros(4), np.diag(ne.steps)])
+    np.testing.assert_allclose(ne.neighbour_values(), emps_case.cost.batch(X)[1:], rtol=1e-9)
+
+
+def _synthetic(hold, n=3, N=3000, seed=0):
+    rng = np.random.default_rng(seed)
+    u = np.repeat(rng.uniform(-2, 2, N // 30), 30)
+    t = np.arange(N) * 0.01
+    return hc.IOData(u, np.sin(t) + 0.1 * rng.normal(size=N), dt=0.01, intersample=hold, name="syn")
+
+
+@pytest.mark.parametrize("hold", ["foh", "zoh"])
+def test_offset_initial_state_and_hold_in_the_fused_pass(hold):
+    data = _synthetic(hold)
+    structure = hc.HammersteinStructure(hc.LinearStructure(1, 3), hc.Polynomial(2), offset=True,
+                                        initial_state="estimate")
+    cost = HammersteinCost(data, structure)
+    x = np.random.default_rng(1).uniform(0.5, 2.0, structure.n_params)
+    x[:5] = [1.0, 0.5, 3.0, 3.0, 1.0]  # b1, b0, a2, a1, a0: a stable block
+    _check(cost, x)
+
+
+def test_blocks_of_a_recomputed_basis_give_the_same_sums(emps_case, monkeypatch):
+    x = np.asarray(emps_case.paper["nspsa"]["beta"])
+    whole = emps_case.cost.normal_equations(x)
+    monkeypatch.setattr(objective, "BASIS_MAX_BYTES", 0)
+    monkeypatch.setattr(objective, "BASIS_BLOCK", 7919)  # a prime: blocks end mid-level
+    streamed = HammersteinCost(emps_case.data, emps_case.structure)
+    assert streamed._basis is None
+    ne = streamed.normal_equations(x)
+    assert abs(ne.fun - whole.fun) <= 1e-12 * whole.fun
+    np.testing.assert_allclose(ne.gram, whole.gram, rtol=1e-9)
+
+
+def test_structures_without_a_fused_pass_use_the_residuals(trs_case):
+    """TRS (tanh, not linear in its parameters) and a Wiener model: the sums from residuals_batch."""
+    x = np.asarray(trs_case.paper["nspsa"]["beta"])
+    h = forward_steps(x)
+    assert trs_case.cost._fused_normal_equations(x + np.vstack([np.zeros(x.size), np.diag(h)]), h) is None
+    _check(trs_case.cost, x)
+    wiener = HammersteinCost(_synthetic("foh", N=1500), hc.WienerStructure(hc.LinearStructure(0, 2), hc.Tanh()))
+    _check(wiener, np.array([2.0, 3.0, 1.5, 0.7]))
+
+
+def test_from_residuals_replaces_nonfinite_residuals():
+    R = np.array([[1.0, np.nan], [2.0, 1.0]])
+    ne = from_residuals(R, [0.5])
+    assert np.isfinite(ne.fun) and ne.finite
+
+
+@pytest.mark.parametrize("case", ["emps_case", "trs_case"])
+def test_lm_reaches_minpacks_optimum_from_perturbed_starts(case, request):
+    case = request.getfixturevalue(case)
+    rng = np.random.default_rng(7)
+    best = levenberg_marquardt(case.cost, case.x0).fun
+    x_opt = levenberg_marquardt(case.cost, case.x0).x
+    for _ in range(3):
+        x0 = x_opt * (1 + rng.uniform(-0.3, 0.3, x_opt.size))
+        ours = levenberg_marquardt(case.cost, x0)
+        ref = least_squares(case.cost.residuals, x0, method="lm", ftol=1e-10, xtol=1e-10, gtol=1e-10)
+        assert ours.success
+        assert ours.fun <= 2 * ref.cost * (1 + 1e-8) and ours.fun <= best * (1 + 1e-7)
+        # scipy counts the residual calls outside its Jacobians; each of our steps is one pass of p + 1
+        assert ours.nfev <= (x0.size + 1) * (ref.nfev + 2)
+
+
+def test_emps_from_the_nspsa_vector_stays_on_the_normal_equations(emps_case, monkeypatch):
+    """A stable start: every step from the fused pass (no hand-over to MINPACK), to the optimum."""
+    import scipy.optimize
+
+    def refuse(*args, **kwargs):
+        raise AssertionError("handed over to MINPACK")
+
+    monkeypatch.setattr(scipy.optimize, "leastsq", refuse)
+    r = levenberg_marquardt(emps_case.cost, np.asarray(emps_case.paper["nspsa"]["beta"]))
+    assert r.success and abs(r.fun - 0.208517) < 1e-6 and r.nit < 20
+    assert r.nfev % 5 == 0  # passes of p + 1 = 5 evaluations only (no trial was rejected)
+
+
+def test_ill_conditioning_hands_over_to_minpack(emps_case):
+    ne = emps_case.cost.normal_equations(emps_case.x0)  # the paper's unstable start
+    assert normal_lm._ill_conditioned(ne, normal_lm._column_norms(ne.gram))
+
+
+@pytest.mark.parametrize("maxfev", [3, 5, 12, 23])
+def test_budget_is_exact_on_the_normal_equations(emps_case, maxfev):
+    r = levenberg_marquardt(emps_case.cost, np.asarray(emps_case.paper["nspsa"]["beta"]), maxfev=maxfev)
+    assert r.nfev == maxfev and len(r.history["fun"]) == maxfev
+    assert r.fun == min(r.history["fun"]) and "budget" in r.message
