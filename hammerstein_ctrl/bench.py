@@ -529,11 +529,12 @@ def lm_speed(case, *, repeat: int = 5) -> dict:
     """
     import scipy.optimize
 
+    from .normal_equations import forward_steps, neighbours
     from .optimize import minimize
 
     x = np.asarray(case.paper["nspsa"]["beta"], dtype=float)
-    steps = np.sqrt(np.finfo(float).eps) * np.maximum(1.0, np.abs(x))
-    X = x + np.vstack([np.zeros(x.size), np.diag(steps)])
+    steps = forward_steps(x)
+    X = neighbours(x, steps)
     single = time_call(lambda: case.cost.residuals(x), repeat=7, number=20)
     value = time_call(lambda: case.cost(x), repeat=7, number=20)
     normal = time_call(lambda: case.cost.normal_equations(x, steps), repeat=7, number=10)

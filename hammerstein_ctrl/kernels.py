@@ -97,9 +97,8 @@ def _output(n: int, g: int, v: str, outmap) -> str:
     return f"h({z}, hp{g}, HX) + o{g}" if outmap else f"{z} + o{g}"
 
 
-def _setup(n: int, g: int, hold: str, mode: str, ind: str, outmap=None) -> list:
-    """Load candidate ``b0 + g``'s coefficients and initial state into scalars."""
-    row = f"b0 + {g}"
+def _load_lane(n: int, g: int, hold: str, ind: str, row: str, states: str) -> list:
+    """Load the coefficients of row ``row`` (of ``E``, ``C``, ``D``, ``Y0``) and its state (of ``states``) as lane ``g``'s scalars."""
     lines = [f"{ind}a{g}_{r}_{c} = E[{row}, {r}, {c}]" for r in range(n) for c in range(n)]
     for r in range(n):
         if hold == "foh":
@@ -107,8 +106,24 @@ def _setup(n: int, g: int, hold: str, mode: str, ind: str, outmap=None) -> list:
                       f"{ind}p{g}_{r} = E[{row}, {r}, {n}] - q{g}_{r}"]
         else:
             lines.append(f"{ind}p{g}_{r} = E[{row}, {r}, {n}]")
-        lines += [f"{ind}c{g}_{r} = C[{row}, {r}]", f"{ind}x{g}_{r} = X0[{row}, {r}]"]
-    lines += [f"{ind}d{g} = D[{row}]", f"{ind}o{g} = Y0[{row}]", f"{ind}vp{g} = V[{row}, 0]"]
+        lines += [f"{ind}c{g}_{r} = C[{row}, {r}]", f"{ind}x{g}_{r} = {states}[{row}, {r}]"]
+    return lines + [f"{ind}d{g} = D[{row}]", f"{ind}o{g} = Y0[{row}]"]
+
+
+def _advance(n: int, g: int, hold: str, ind: str) -> list:
+    """Lane ``g``'s state from the previous sample to this one (signal ``vp{g}`` before, ``vi{g}`` now)."""
+    lines = []
+    for r in range(n):
+        dyn = " + ".join(f"a{g}_{r}_{c} * x{g}_{c}" for c in range(n))
+        drive = f"(p{g}_{r} * vp{g} + q{g}_{r} * vi{g})" if hold == "foh" else f"p{g}_{r} * vp{g}"
+        lines.append(f"{ind}n{g}_{r} = ({dyn}) + {drive}")
+    return lines + [f"{ind}x{g}_{r} = n{g}_{r}" for r in range(n)]
+
+
+def _setup(n: int, g: int, hold: str, mode: str, ind: str, outmap=None) -> list:
+    """Load candidate ``b0 + g``'s coefficients and initial state into scalars."""
+    row = f"b0 + {g}"
+    lines = _load_lane(n, g, hold, ind, row, "X0") + [f"{ind}vp{g} = V[{row}, 0]"]
     if outmap:
         lines.append(f"{ind}hp{g} = HP[{row}]")
     lines.append(f"{ind}yh{g} = {_output(n, g, f'vp{g}', outmap)}")
@@ -121,12 +136,7 @@ def _setup(n: int, g: int, hold: str, mode: str, ind: str, outmap=None) -> list:
 
 def _step(n: int, g: int, hold: str, mode: str, ind: str, outmap=None) -> list:
     """One sample of candidate ``b0 + g``'s recursion."""
-    lines = [f"{ind}vi{g} = V[b0 + {g}, i]"]
-    for r in range(n):
-        dyn = " + ".join(f"a{g}_{r}_{c} * x{g}_{c}" for c in range(n))
-        drive = f"(p{g}_{r} * vp{g} + q{g}_{r} * vi{g})" if hold == "foh" else f"p{g}_{r} * vp{g}"
-        lines.append(f"{ind}n{g}_{r} = ({dyn}) + {drive}")
-    lines += [f"{ind}x{g}_{r} = n{g}_{r}" for r in range(n)]
+    lines = [f"{ind}vi{g} = V[b0 + {g}, i]"] + _advance(n, g, hold, ind)
     lines.append(f"{ind}yh{g} = {_output(n, g, f'vi{g}', outmap)}")
     if mode == "sse":
         lines += [f"{ind}e{g} = yi - yh{g}", f"{ind}J{g} += e{g} * e{g}"]
@@ -201,14 +211,7 @@ def _normal_setup(n: int, lanes: int, hold: str, ind: str) -> list:
     """Load every lane's coefficients, state and previous signal, and the running sums, into scalars."""
     lines = []
     for g in range(lanes):
-        lines += [f"{ind}a{g}_{r}_{c} = E[{g}, {r}, {c}]" for r in range(n) for c in range(n)]
-        for r in range(n):
-            if hold == "foh":
-                lines += [f"{ind}q{g}_{r} = E[{g}, {r}, {n + 1}]", f"{ind}p{g}_{r} = E[{g}, {r}, {n}] - q{g}_{r}"]
-            else:
-                lines.append(f"{ind}p{g}_{r} = E[{g}, {r}, {n}]")
-            lines += [f"{ind}c{g}_{r} = C[{g}, {r}]", f"{ind}x{g}_{r} = X[{g}, {r}]"]
-        lines += [f"{ind}d{g} = D[{g}]", f"{ind}o{g} = Y0[{g}]", f"{ind}vp{g} = VP[{g}]"]
+        lines += _load_lane(n, g, hold, ind, str(g), "X") + [f"{ind}vp{g} = VP[{g}]"]
     p = lanes - 1
     lines += [f"{ind}ih{j} = invh[{j}]" for j in range(p)]
     lines.append(f"{ind}f = acc[0]")
@@ -223,11 +226,7 @@ def _normal_step(n: int, lanes: int, hold: str, ind: str) -> list:
     lines = [f"{ind}vi{g} = S[{g}, l]" for g in range(lanes)]
     lines.append(f"{ind}if not first:")
     for g in range(lanes):
-        for r in range(n):
-            dyn = " + ".join(f"a{g}_{r}_{c} * x{g}_{c}" for c in range(n))
-            drive = f"(p{g}_{r} * vp{g} + q{g}_{r} * vi{g})" if hold == "foh" else f"p{g}_{r} * vp{g}"
-            lines.append(f"{ind}    n{g}_{r} = ({dyn}) + {drive}")
-        lines += [f"{ind}    x{g}_{r} = n{g}_{r}" for r in range(n)]
+        lines += _advance(n, g, hold, ind + "    ")
     lines.append(f"{ind}first = False")
     for g in range(lanes):
         linear = " + ".join(f"c{g}_{r} * x{g}_{r}" for r in range(n))

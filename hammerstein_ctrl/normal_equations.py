@@ -18,7 +18,7 @@ Examples
 >>> t = np.linspace(0.0, 1.0, 5)
 >>> residuals = lambda b: np.exp(-b[0] * t) - b[1] * t        # any residual function
 >>> h = forward_steps(x)
->>> ne = from_residuals(np.array([residuals(b) for b in x + np.vstack([np.zeros(2), np.diag(h)])]), h)
+>>> ne = from_residuals(np.array([residuals(b) for b in neighbours(x, h)]), h)
 >>> J = np.column_stack([-t * np.exp(-t), -t])                 # its exact Jacobian at x
 >>> bool(np.allclose(ne.gram, J.T @ J, rtol=1e-6)), bool(np.allclose(ne.gradient, J.T @ residuals(x), rtol=1e-6))
 (True, True)
@@ -30,7 +30,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-__all__ = ["NormalEquations", "from_residuals", "forward_steps", "FD_REL_STEP", "NONFINITE_RESIDUAL"]
+__all__ = ["NormalEquations", "from_residuals", "forward_steps", "neighbours", "FD_REL_STEP", "NONFINITE_RESIDUAL"]
 
 #: Relative step of the forward-difference Jacobian (scipy's "2-point" default, sqrt(eps)).
 FD_REL_STEP = float(np.sqrt(np.finfo(float).eps))
@@ -75,6 +75,20 @@ def forward_steps(x, upper=None) -> np.ndarray:
     if upper is not None:
         h = np.where(x + h > upper, -h, h)
     return (x + h) - x
+
+
+def neighbours(x, steps) -> np.ndarray:
+    """The point ``x`` (row 0) and its forward-difference neighbours ``x + steps[j] e_j`` (row j+1).
+
+    Examples
+    --------
+    >>> neighbours([1.0, 2.0], [0.5, 0.25])
+    array([[1.  , 2.  ],
+           [1.5 , 2.  ],
+           [1.  , 2.25]])
+    """
+    x = np.asarray(x, dtype=float)
+    return x + np.vstack([np.zeros(x.size), np.diag(np.asarray(steps, dtype=float))])
 
 
 def from_residuals(R, steps) -> NormalEquations:

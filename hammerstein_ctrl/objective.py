@@ -36,7 +36,7 @@ import numpy as np
 
 from .exceptions import ParameterError
 from .kernels import MAX_NORMAL_LANES
-from .normal_equations import NONFINITE_RESIDUAL, NormalEquations, forward_steps, from_residuals
+from .normal_equations import NONFINITE_RESIDUAL, NormalEquations, forward_steps, from_residuals, neighbours
 from .simulate import normal_pass, simulate_batch, sse_batch
 from .structure import BlockStructure
 
@@ -274,12 +274,11 @@ class HammersteinCost:
         --------
         >>> import numpy as np
         >>> from hammerstein_ctrl import presets
-        >>> from hammerstein_ctrl.normal_equations import from_residuals
+        >>> from hammerstein_ctrl.normal_equations import from_residuals, neighbours
         >>> p = presets.emps()
         >>> x = np.asarray(p.paper["nspsa"]["beta"])
         >>> ne = p.cost.normal_equations(x)
-        >>> X = x + np.vstack([np.zeros(4), np.diag(ne.steps)])
-        >>> slow = from_residuals(p.cost.residuals_batch(X), ne.steps)    # the N x p Jacobian, stored
+        >>> slow = from_residuals(p.cost.residuals_batch(neighbours(x, ne.steps)), ne.steps)    # the N x p Jacobian, stored
         >>> bool(np.allclose(ne.gram, slow.gram, rtol=1e-6)), round(ne.fun, 6) == round(p.cost(x), 6)
         (True, True)
         """
@@ -287,7 +286,7 @@ class HammersteinCost:
         if b.ndim != 1:
             raise ParameterError("normal_equations(beta) takes one vector")
         h = forward_steps(b) if steps is None else np.asarray(steps, dtype=float).reshape(b.shape)
-        X = b + np.vstack([np.zeros(b.size), np.diag(h)])
+        X = neighbours(b, h)
         ne = self._fused_normal_equations(X, h)
         if ne is not None and ne.finite:
             return ne

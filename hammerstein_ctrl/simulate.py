@@ -556,9 +556,11 @@ def normal_pass(num, den, dt: float, y, P, blocks, steps, *, x0=None, offset=Non
     hold = check_intersample(intersample)
     steps = np.asarray(steps, dtype=float)
     lanes = steps.size + 1
+    n = np.shape(den)[-1] - 1
+    if lanes > MAX_NORMAL_LANES or not 1 <= n <= MAX_UNROLLED_STATES or np.shape(den)[0] != lanes:
+        return None
     E, C, D, ok = _tf_system(num, den, dt)
-    n = E.shape[1] - 2
-    if lanes > MAX_NORMAL_LANES or not 1 <= n <= MAX_UNROLLED_STATES or not ok.all() or E.shape[0] != lanes:
+    if not ok.all():
         return None
     kernel = get_normal_kernel(n, hold, lanes)
     X, Y0 = _state_rows(x0, lanes, n), _offset_rows(offset, lanes)

@@ -27,7 +27,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..normal_equations import NormalEquations, forward_steps, from_residuals
+from ..normal_equations import NormalEquations, forward_steps, from_residuals, neighbours
 from ._common import BudgetExhausted
 
 __all__ = ["normal_equations_lm", "INITIAL_DAMPING", "MAX_DAMPING", "ILL_CONDITIONED", "MESSAGES", "CONVERGED",
@@ -88,28 +88,26 @@ class _Passes:
         return f
 
     def full(self, x) -> NormalEquations:
-        """Normal equations at ``x`` (``p + 1`` evaluations); a partial budget is spent on ``x`` alone."""
-        lanes = x.size + 1
+        """Normal equations at ``x`` (``p + 1`` evaluations); a partial budget is spent on ``x`` and the neighbours that fit."""
         h = forward_steps(x)
-        if self.counted.remaining < lanes:
+        X = neighbours(x, h)
+        if self.counted.remaining < X.shape[0]:
             # spend what is left on the point and the neighbours that fit, as separate differences would
-            for j in range(int(self.counted.remaining)):
-                self.value(x if j == 0 else x + h[j - 1] * np.eye(x.size)[j - 1])
+            for row in X[:int(self.counted.remaining)]:
+                self.value(row)
             raise BudgetExhausted("evaluation budget exhausted")
-        self.counted.charge(lanes)
+        self.counted.charge(X.shape[0])
         with np.errstate(all="ignore"):
             if self._normal is not None:
                 ne = self._normal(x, h)
             else:
-                X = x + np.vstack([np.zeros(x.size), np.diag(h)])
                 R = self._batch(X) if self._batch is not None else [self._residuals(row) for row in X]
                 ne = from_residuals(R, h)
-        f = ne.fun if np.isfinite(ne.fun) else np.inf
-        self.counted.record_value(x, f)
-        for j, fj in enumerate(ne.neighbour_values()):
-            xj = x.copy()
-            xj[j] += h[j]
-            self.counted.record_value(xj, fj if np.isfinite(fj) else np.inf)
+        values = np.concatenate([[ne.fun], ne.neighbour_values()])
+        values[~np.isfinite(values)] = np.inf
+        for row, f in zip(X, values):
+            self.counted.record_value(row, float(f))
+        f = float(values[0])
         return ne._replace(fun=f)
 
 
