@@ -24,7 +24,7 @@ import functools
 import numba
 import numpy as np
 
-__all__ = ["expm_batch", "single_threaded_blas", "PADE13_THETA"]
+__all__ = ["expm_batch", "expm_into", "single_threaded_blas", "PADE13_THETA"]
 
 #: Largest 1-norm for which the degree-13 Pade approximant is accurate to unit
 #: roundoff without scaling (Higham 2005, Table 2.3).
@@ -130,6 +130,12 @@ def _expm_batch(M, b):  # pragma: no cover - compiled
     for k in range(M.shape[0]):
         _expm_one(M[k], E[k], b)
     return E
+
+
+@numba.njit(cache=True, nogil=True)
+def expm_into(M, out):  # pragma: no cover - compiled
+    """``out[:, :] = expm(M)`` for one square matrix, callable from compiled code (NaN if ``M`` is not finite)."""
+    _expm_one(M, out, _B13)
 
 
 def expm_batch(M) -> np.ndarray:

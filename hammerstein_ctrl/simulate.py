@@ -46,9 +46,10 @@ import numba
 import numpy as np
 
 from ._checks import as_signal, check_intersample, check_transfer_function, uniform_grid
-from ._linalg import expm_batch, single_threaded_blas
+from ._linalg import expm_batch, expm_into, single_threaded_blas
 from .exceptions import DataError, ParameterError
-from .kernels import MAX_NORMAL_LANES, MAX_UNROLLED_STATES, get_kernel, get_normal_kernel, has_output_maps
+from .kernels import (LANE_MIN, MAX_LANE_BASIS, MAX_NORMAL_LANES, MAX_UNROLLED_STATES, get_kernel, get_lane_kernel,
+                      get_normal_kernel, has_output_maps)
 from .normal_equations import NormalEquations
 
 __all__ = [
@@ -59,6 +60,7 @@ __all__ = [
     "simulate_blocks",
     "simulate_batch",
     "sse_batch",
+    "sse_basis_batch",
     "free_response",
     "normal_pass",
     "MAX_UNROLLED_STATES",
@@ -375,14 +377,67 @@ def _tf_system(num, den, dt: float):
     are replaced by a harmless system (their results are overwritten by the
     caller), so the matrix exponential never sees inf or NaN.
     """
+    num, den = _coefficient_rows(num, den)
+    E, C, D, ok, big, clean = _tf_discrete(num, den, float(dt), COMPILED_EXPM_MAX_NORM)
+    if not clean and big.any():
+        import scipy.linalg
+
+        M = _tf_augmented(num[big], den[big], float(dt))[0]
+        with single_threaded_blas():
+            E[big] = scipy.linalg.expm(M)
+    return E, C, D, ok
+
+
+@numba.njit(cache=True, nogil=True)
+def _tf_discrete(num, den, dt, max_norm):  # pragma: no cover - compiled
+    """:func:`_tf_augmented` and the compiled exponential in one call.
+
+    Returns ``(E, C, D, ok, big, clean)``: unusable rows (``~ok``) are
+    replaced by ``1/p`` before the exponential; rows whose augmented matrix
+    has a 1-norm above ``max_norm`` (``big``) are left for scipy's expm;
+    ``clean`` says that every row is usable and done.
+    """
+    batch, n = den.shape[0], den.shape[1] - 1
+    ok = np.ones(batch, dtype=np.bool_)
+    for b in range(batch):
+        good = den[b, 0] != 0
+        for j in range(num.shape[1]):
+            good = good and np.isfinite(num[b, j])
+        for j in range(n + 1):
+            good = good and np.isfinite(den[b, j])
+        ok[b] = good
+    if not ok.all():
+        num, den = num.copy(), den.copy()
+        for b in range(batch):
+            if not ok[b]:
+                num[b, :] = 0.0
+                den[b, :] = 0.0
+                den[b, 0] = 1.0
+    M, C, D = _tf_augmented(num, den, dt)
+    E = np.empty_like(M)
+    big = np.zeros(batch, dtype=np.bool_)
+    for b in range(batch):
+        norm = 0.0
+        for j in range(n + 2):
+            s = 0.0
+            for i in range(n + 2):
+                s += abs(M[b, i, j])
+            norm = max(norm, s)
+        big[b] = norm > max_norm
+        if not big[b]:
+            expm_into(M[b], E[b])
+    return E, C, D, ok, big, ok.all() and not big.any()
+
+
+def _coefficient_rows(num, den):
+    """``num``, ``den`` as C-contiguous float rows, as many of each (checked for properness)."""
+    if (type(num) is np.ndarray and type(den) is np.ndarray and num.ndim == 2 and den.ndim == 2
+            and num.dtype == np.float64 and den.dtype == np.float64 and num.shape[0] == den.shape[0]
+            and num.shape[1] <= den.shape[1] and num.flags.c_contiguous and den.flags.c_contiguous):
+        return num, den
     num, den = _broadcast_rows(np.atleast_2d(np.asarray(num, dtype=float)),
                                np.atleast_2d(np.asarray(den, dtype=float)))
-    ok = np.isfinite(num).all(axis=1) & np.isfinite(den).all(axis=1) & (den[:, 0] != 0)
-    if not ok.all():
-        num = np.where(ok[:, None], num, 0.0)
-        den = np.where(ok[:, None], den, np.eye(1, den.shape[1]))
-    M, C, D = _tf_augmented(np.ascontiguousarray(num), np.ascontiguousarray(den), float(dt))
-    return _expm(M), C, D, ok
+    return np.ascontiguousarray(num), np.ascontiguousarray(den)
 
 
 def unstable(den) -> np.ndarray:
@@ -517,6 +572,64 @@ def sse_batch(num, den, V, dt: float, y, *, x0=None, offset=None, intersample: s
         get_kernel(n, "sse", hold, outmap)(E, C, D, _state_rows(x0, batch, n), _offset_rows(offset, batch), V,
                                            *map_args, y, J)
     J[~ok] = np.inf
+    return J
+
+
+def sse_basis_batch(num, den, P, basis, dt: float, y, *, x0=None, offset=None, intersample: str = "foh",
+                    reject_unstable: bool = False) -> np.ndarray | None:
+    """:func:`sse_batch` for candidates whose intermediate signal is ``P[b] @ basis``, across SIMD lanes.
+
+    The signals are formed sample by sample inside the compiled pass (from
+    :data:`~hammerstein_ctrl.kernels.LANE_MIN` candidates on in the lanes
+    kernel, :func:`~hammerstein_ctrl.kernels.get_lane_kernel`), so no
+    ``B x N`` array is made, and the sums are bit-identical to
+    :func:`sse_batch` on the signals ``P @ basis`` (summed basis row by basis row).
+
+    Parameters
+    ----------
+    num, den : array_like, shape (B, l+1) and (B, n+1)
+    P : array_like, shape (B, K)
+        Each candidate's coefficients of the basis.
+    basis : ndarray, shape (K, N)
+    dt, y, x0, offset, intersample, reject_unstable
+        As for :func:`sse_batch`.
+
+    Returns
+    -------
+    ndarray, shape (B,) or None
+        ``None`` where no lanes kernel applies (more than
+        :data:`MAX_UNROLLED_STATES` states or
+        :data:`~hammerstein_ctrl.kernels.MAX_LANE_BASIS` basis signals).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> t = np.arange(0, 2, 0.01); u = np.sin(3 * t); y = np.cos(t)
+    >>> basis = np.vstack([u, u ** 3]); P = np.array([[1.0, 0.5], [2.0, -1.0], [0.0, 1.0]])
+    >>> num, den = np.ones((3, 1)), np.tile([1.0, 2.0], (3, 1))
+    >>> J = sse_basis_batch(num, den, P, basis, 0.01, y)
+    >>> bool(np.array_equal(J, sse_batch(num, den, P @ basis, 0.01, y)))
+    True
+    """
+    hold = check_intersample(intersample)
+    P = np.ascontiguousarray(P, dtype=float)
+    n = np.shape(den)[-1] - 1
+    if not (1 <= n <= MAX_UNROLLED_STATES and 1 <= P.shape[1] <= MAX_LANE_BASIS):
+        return None
+    E, C, D, ok = _tf_system(num, den, dt)
+    if reject_unstable:
+        ok &= ~unstable(den)
+    batch = E.shape[0]
+    J = np.empty(batch)
+    Y0 = _offset_rows(offset, batch)
+    if batch < LANE_MIN:
+        kernel = get_kernel(n, "sse", hold, None, P.shape[1])     # positional: the cached lookup is quicker
+    else:
+        kernel = get_lane_kernel(n, hold, P.shape[1], direct=bool(D.any()), offset=bool(Y0.any()))
+    kernel(E, C, D, _state_rows(x0, batch, n), Y0, P, np.ascontiguousarray(basis, dtype=float),
+           np.ascontiguousarray(y, dtype=float), J)
+    if not ok.all():
+        J[~ok] = np.inf
     return J
 
 

@@ -24,6 +24,7 @@ from __future__ import annotations
 
 from typing import Mapping
 
+import numba
 import numpy as np
 
 from ._checks import MAX_ORDER
@@ -32,6 +33,22 @@ from .nonlinearities import Nonlinearity
 
 __all__ = ["LinearStructure", "BlockStructure", "HammersteinStructure", "WienerStructure",
            "HammersteinWienerStructure", "INITIAL_STATES"]
+
+
+@numba.njit(cache=True, nogil=True)
+def _fill_coefficients(theta, num0, den0, num_pos, den_pos):  # pragma: no cover - compiled
+    """Rows of ``num0``/``den0`` with the free coefficients of each row of ``theta`` written in (one call per batch)."""
+    batch, k = theta.shape[0], num_pos.size
+    num = np.empty((batch, num0.size))
+    den = np.empty((batch, den0.size))
+    for b in range(batch):
+        num[b] = num0
+        den[b] = den0
+        for j in range(k):
+            num[b, num_pos[j]] = theta[b, j]
+        for j in range(den_pos.size):
+            den[b, den_pos[j]] = theta[b, k + j]
+    return num, den
 
 
 class LinearStructure:
@@ -149,12 +166,7 @@ class LinearStructure:
     def _coefficients(self, theta: np.ndarray):
         """:meth:`coefficients` for a validated ``(B, n_params)`` float array."""
         batch = theta.shape[0]
-        num = np.repeat(self._num0[None, :], batch, axis=0)
-        den = np.repeat(self._den0[None, :], batch, axis=0)
-        k = self._num_pos.size
-        num[:, self._num_pos] = theta[:, :k]
-        den[:, self._den_pos] = theta[:, k:]
-        return num, den
+        return _fill_coefficients(np.ascontiguousarray(theta), self._num0, self._den0, self._num_pos, self._den_pos)
 
     def free_parameters(self, num, den) -> np.ndarray:
         """The free coefficients of ``num/den`` (descending powers), fixed ones ignored.

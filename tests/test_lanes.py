@@ -1,0 +1,91 @@
+"""The lanes kernel (candidates across SIMD lanes, basis formed in the pass) against the interleaved kernel and python-control."""
+
+import control
+import numpy as np
+import pytest
+
+from hammerstein_ctrl import presets
+from hammerstein_ctrl.kernels import LANE_MIN, LANE_WIDTHS, lane_source
+from hammerstein_ctrl.simulate import sse_basis_batch, sse_batch
+
+
+def _stable_batch(rng, batch, n, proper):
+    """Random stable transfer functions: poles in the left half-plane, numerator degree n (or n-1)."""
+    poles = -rng.uniform(0.5, 20.0, size=(batch, n))
+    den = np.array([np.poly(p) for p in poles])
+    num = rng.normal(size=(batch, n + 1 if proper else n))
+    return num, den
+
+
+@pytest.mark.parametrize("n, hold", [(1, "zoh"), (2, "foh"), (3, "foh"), (3, "zoh")])
+def test_bit_identical_to_interleaved_kernel(n, hold):
+    rng = np.random.default_rng(n)
+    N, K = 500, 3
+    for batch in (LANE_MIN, 8, 17, 35):    # padded groups, one narrow group, wide groups and a rest
+        num, den = _stable_batch(rng, batch, n, proper=bool(n % 2))
+        basis = rng.normal(size=(K, N))
+        P = rng.normal(size=(batch, K))
+        y = rng.normal(size=N)
+        x0, offset = rng.normal(size=(batch, n)), rng.normal(size=batch)
+        for kwargs in ({}, {"x0": x0, "offset": offset}):
+            J = sse_basis_batch(num, den, P, basis, 0.01, y, intersample=hold, **kwargs)
+            ref = sse_batch(num, den, _combined(P, basis), 0.01, y, intersample=hold, **kwargs)
+            np.testing.assert_array_equal(J, ref)
+
+
+def _combined(P, basis):
+    """``P @ basis`` summed basis row by basis row (the cost's order), independent of BLAS."""
+    V = P[:, :1] * basis[0]
+    for k in range(1, basis.shape[0]):
+        V = V + P[:, k:k + 1] * basis[k]
+    return V
+
+
+def test_against_forced_response():
+    rng = np.random.default_rng(7)
+    t = np.arange(0, 3, 0.005)
+    u = np.sin(2 * t) + 0.3 * rng.normal(size=t.size)
+    basis = np.vstack([u, np.abs(u), u ** 3])
+    num, den = _stable_batch(rng, 9, 2, proper=False)
+    P = rng.normal(size=(9, 3))
+    y = np.cos(t)
+    J = sse_basis_batch(num, den, P, basis, 0.005, y)
+    for b in range(9):
+        yhat = control.forced_response(control.tf(num[b], den[b]), t, P[b] @ basis).outputs
+        assert J[b] == pytest.approx(np.sum((y - yhat) ** 2), rel=1e-10)
+
+
+def test_overflow_and_unstable_candidates():
+    rng = np.random.default_rng(3)
+    N = 3000
+    basis, y = rng.normal(size=(1, N)), rng.normal(size=N)
+    num = np.ones((LANE_WIDTHS[-1] + 1, 1))
+    den = np.tile([1.0, 1.0], (num.shape[0], 1))
+    den[2] = [1.0, -2000.0]                   # grows like exp(2000 t): overflows within the record
+    den[5] = [1.0, -0.5]                      # unstable but finite
+    P = np.ones((num.shape[0], 1))
+    J = sse_basis_batch(num, den, P, basis, 0.01, y)
+    assert np.isinf(J[2]) and np.isfinite(np.delete(J, 2)).all()
+    ref = sse_batch(num, den, basis[0], 0.01, y)
+    np.testing.assert_array_equal(J, ref)
+    rejected = sse_basis_batch(num, den, P, basis, 0.01, y, reject_unstable=True)
+    assert np.isinf(rejected[[2, 5]]).all() and np.isfinite(np.delete(rejected, [2, 5])).all()
+
+
+def test_cost_batch_matches_single_evaluations():
+    case = presets.emps()
+    x = np.asarray(case.paper["nspsa"]["beta"], float)
+    betas = x * (1 + 0.05 * np.random.default_rng(0).normal(size=(50, x.size)))
+    J = case.cost.batch(betas)
+    np.testing.assert_array_equal(J, [case.cost(b) for b in betas])
+
+
+def test_source_leaves_out_zero_terms():
+    full, lean = lane_source(2, "foh", 3), lane_source(2, "foh", 3, direct=False, offset=False)
+    assert "D[b]" in full and "Y0[b]" in full
+    assert "D[b]" not in lean and "Y0[b]" not in lean
+
+
+def test_inapplicable_sizes_return_none():
+    basis = np.ones((9, 10))
+    assert sse_basis_batch(np.ones((3, 1)), np.tile([1.0, 1.0], (3, 1)), np.ones((3, 9)), basis, 0.1, np.ones(10)) is None
