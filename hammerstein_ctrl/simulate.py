@@ -670,12 +670,14 @@ def normal_pass(num, den, dt: float, y, P, blocks, steps, *, x0=None, offset=Non
     steps = np.asarray(steps, dtype=float)
     lanes = steps.size + 1
     n = np.shape(den)[-1] - 1
-    if lanes > MAX_NORMAL_LANES or not 1 <= n <= MAX_UNROLLED_STATES or np.shape(den)[0] != lanes:
+    K = np.shape(P)[-1]
+    if (lanes > MAX_NORMAL_LANES or not 1 <= n <= MAX_UNROLLED_STATES or np.shape(den)[0] != lanes
+            or not 1 <= K <= MAX_LANE_BASIS):
         return None
     E, C, D, ok = _tf_system(num, den, dt)
     if not ok.all():
         return None
-    kernel = get_normal_kernel(n, hold, lanes)
+    kernel = get_normal_kernel(n, hold, lanes, K)
     X, Y0 = _state_rows(x0, lanes, n), _offset_rows(offset, lanes)
     P = np.ascontiguousarray(P, dtype=float)
     VP, acc = np.zeros(lanes), np.zeros(1 + steps.size * (steps.size + 1))
