@@ -24,7 +24,7 @@ import functools
 import numba
 import numpy as np
 
-__all__ = ["expm_batch", "expm_into", "single_threaded_blas", "PADE13_THETA"]
+__all__ = ["expm_batch", "expm_into", "tf_augmented", "tf_discrete", "single_threaded_blas", "PADE13_THETA"]
 
 #: Largest 1-norm for which the degree-13 Pade approximant is accurate to unit
 #: roundoff without scaling (Higham 2005, Table 2.3).
@@ -136,6 +136,73 @@ def _expm_batch(M, b):  # pragma: no cover - compiled
 def expm_into(M, out):  # pragma: no cover - compiled
     """``out[:, :] = expm(M)`` for one square matrix, callable from compiled code (NaN if ``M`` is not finite)."""
     _expm_one(M, out, _B13)
+
+
+@numba.njit(cache=True, nogil=True)
+def tf_augmented(num, den, dt):  # pragma: no cover - compiled
+    """Augmented FOH matrices of the companion realisations of a batch of num/den."""
+    batch = den.shape[0]
+    n = den.shape[1] - 1
+    shift = n - (num.shape[1] - 1)
+    M = np.zeros((batch, n + 2, n + 2))
+    C = np.zeros((batch, n))
+    D = np.zeros(batch)
+    for b in range(batch):
+        lead = den[b, 0]
+        d = num[b, 0] / lead if shift == 0 else 0.0
+        D[b] = d
+        for r in range(n):
+            a = den[b, r + 1] / lead
+            M[b, 0, r] = -a * dt
+            if r > 0:
+                M[b, r, r - 1] = dt
+            j = r + 1 - shift
+            C[b, r] = (num[b, j] / lead if j >= 0 else 0.0) - d * a
+        if n > 0:
+            M[b, 0, n] = dt
+        M[b, n, n + 1] = 1.0
+    return M, C, D
+
+
+@numba.njit(cache=True, nogil=True)
+def tf_discrete(num, den, dt, max_norm):  # pragma: no cover - compiled
+    """:func:`tf_augmented` and the compiled exponential in one call.
+
+    Returns ``(E, C, D, ok, big, clean)``: unusable rows (``~ok``) are
+    replaced by ``1/p`` before the exponential; rows whose augmented matrix
+    has a 1-norm above ``max_norm`` (``big``) are left for scipy's expm;
+    ``clean`` says that every row is usable and done.
+    """
+    batch, n = den.shape[0], den.shape[1] - 1
+    ok = np.ones(batch, dtype=np.bool_)
+    for b in range(batch):
+        good = den[b, 0] != 0
+        for j in range(num.shape[1]):
+            good = good and np.isfinite(num[b, j])
+        for j in range(n + 1):
+            good = good and np.isfinite(den[b, j])
+        ok[b] = good
+    if not ok.all():
+        num, den = num.copy(), den.copy()
+        for b in range(batch):
+            if not ok[b]:
+                num[b, :] = 0.0
+                den[b, :] = 0.0
+                den[b, 0] = 1.0
+    M, C, D = tf_augmented(num, den, dt)
+    E = np.empty_like(M)
+    big = np.zeros(batch, dtype=np.bool_)
+    for b in range(batch):
+        norm = 0.0
+        for j in range(n + 2):
+            s = 0.0
+            for i in range(n + 2):
+                s += abs(M[b, i, j])
+            norm = max(norm, s)
+        big[b] = norm > max_norm
+        if not big[b]:
+            expm_into(M[b], E[b])
+    return E, C, D, ok, big, ok.all() and not big.any()
 
 
 def expm_batch(M) -> np.ndarray:

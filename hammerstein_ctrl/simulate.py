@@ -46,10 +46,10 @@ import numba
 import numpy as np
 
 from ._checks import as_signal, check_intersample, check_transfer_function, uniform_grid
-from ._linalg import expm_batch, expm_into, single_threaded_blas
+from ._linalg import expm_batch, single_threaded_blas, tf_augmented, tf_discrete
 from .exceptions import DataError, ParameterError
-from .kernels import (LANE_MIN, MAX_LANE_BASIS, MAX_NORMAL_LANES, MAX_UNROLLED_STATES, get_kernel, get_lane_kernel,
-                      get_normal_kernel, has_output_maps)
+from .kernels import (LANE_MIN, MAX_LANE_BASIS, MAX_NORMAL_LANES, MAX_UNROLLED_STATES, get_coefficient_kernel,
+                      get_kernel, get_lane_kernel, get_normal_kernel, has_output_maps)
 from .normal_equations import NormalEquations
 
 __all__ = [
@@ -99,7 +99,7 @@ def companion_realization(num, den):
     den = np.atleast_2d(np.asarray(den, dtype=float))
     num, den = _broadcast_rows(num, den)
     n = den.shape[1] - 1
-    M, C, D = _tf_augmented(np.ascontiguousarray(num), np.ascontiguousarray(den), 1.0)
+    M, C, D = tf_augmented(np.ascontiguousarray(num), np.ascontiguousarray(den), 1.0)
     return M[:, :n, :n].copy(), M[:, :n, n].copy(), C, D
 
 
@@ -183,32 +183,6 @@ def discretize(A, B, dt: float, intersample: str = "foh"):
         return E[:, :n, :n].copy(), E[:, :n, n].copy(), np.zeros((E.shape[0], n))
     Bd1 = E[:, :n, n + 1]
     return E[:, :n, :n].copy(), E[:, :n, n] - Bd1, Bd1.copy()
-
-
-@numba.njit(cache=True, nogil=True)
-def _tf_augmented(num, den, dt):  # pragma: no cover - compiled
-    """Augmented FOH matrices of the companion realisations of a batch of num/den."""
-    batch = den.shape[0]
-    n = den.shape[1] - 1
-    shift = n - (num.shape[1] - 1)
-    M = np.zeros((batch, n + 2, n + 2))
-    C = np.zeros((batch, n))
-    D = np.zeros(batch)
-    for b in range(batch):
-        lead = den[b, 0]
-        d = num[b, 0] / lead if shift == 0 else 0.0
-        D[b] = d
-        for r in range(n):
-            a = den[b, r + 1] / lead
-            M[b, 0, r] = -a * dt
-            if r > 0:
-                M[b, r, r - 1] = dt
-            j = r + 1 - shift
-            C[b, r] = (num[b, j] / lead if j >= 0 else 0.0) - d * a
-        if n > 0:
-            M[b, 0, n] = dt
-        M[b, n, n + 1] = 1.0
-    return M, C, D
 
 
 # ---------------------------------------------------------------------------
@@ -378,55 +352,14 @@ def _tf_system(num, den, dt: float):
     caller), so the matrix exponential never sees inf or NaN.
     """
     num, den = _coefficient_rows(num, den)
-    E, C, D, ok, big, clean = _tf_discrete(num, den, float(dt), COMPILED_EXPM_MAX_NORM)
+    E, C, D, ok, big, clean = tf_discrete(num, den, float(dt), COMPILED_EXPM_MAX_NORM)
     if not clean and big.any():
         import scipy.linalg
 
-        M = _tf_augmented(num[big], den[big], float(dt))[0]
+        M = tf_augmented(num[big], den[big], float(dt))[0]
         with single_threaded_blas():
             E[big] = scipy.linalg.expm(M)
     return E, C, D, ok
-
-
-@numba.njit(cache=True, nogil=True)
-def _tf_discrete(num, den, dt, max_norm):  # pragma: no cover - compiled
-    """:func:`_tf_augmented` and the compiled exponential in one call.
-
-    Returns ``(E, C, D, ok, big, clean)``: unusable rows (``~ok``) are
-    replaced by ``1/p`` before the exponential; rows whose augmented matrix
-    has a 1-norm above ``max_norm`` (``big``) are left for scipy's expm;
-    ``clean`` says that every row is usable and done.
-    """
-    batch, n = den.shape[0], den.shape[1] - 1
-    ok = np.ones(batch, dtype=np.bool_)
-    for b in range(batch):
-        good = den[b, 0] != 0
-        for j in range(num.shape[1]):
-            good = good and np.isfinite(num[b, j])
-        for j in range(n + 1):
-            good = good and np.isfinite(den[b, j])
-        ok[b] = good
-    if not ok.all():
-        num, den = num.copy(), den.copy()
-        for b in range(batch):
-            if not ok[b]:
-                num[b, :] = 0.0
-                den[b, :] = 0.0
-                den[b, 0] = 1.0
-    M, C, D = _tf_augmented(num, den, dt)
-    E = np.empty_like(M)
-    big = np.zeros(batch, dtype=np.bool_)
-    for b in range(batch):
-        norm = 0.0
-        for j in range(n + 2):
-            s = 0.0
-            for i in range(n + 2):
-                s += abs(M[b, i, j])
-            norm = max(norm, s)
-        big[b] = norm > max_norm
-        if not big[b]:
-            expm_into(M[b], E[b])
-    return E, C, D, ok, big, ok.all() and not big.any()
 
 
 def _coefficient_rows(num, den):
@@ -613,9 +546,18 @@ def sse_basis_batch(num, den, P, basis, dt: float, y, *, x0=None, offset=None, i
     """
     hold = check_intersample(intersample)
     P = np.ascontiguousarray(P, dtype=float)
-    n = np.shape(den)[-1] - 1
-    if not (1 <= n <= MAX_UNROLLED_STATES and 1 <= P.shape[1] <= MAX_LANE_BASIS):
+    num, den = _coefficient_rows(num, den)
+    batch, n, K = den.shape[0], den.shape[1] - 1, P.shape[1]
+    if not (1 <= n <= MAX_UNROLLED_STATES and 1 <= K <= MAX_LANE_BASIS):
         return None
+    basis, y = np.ascontiguousarray(basis, dtype=float), np.ascontiguousarray(y, dtype=float)
+    if batch < LANE_MIN:
+        J = np.empty(batch)
+        if get_coefficient_kernel(n, hold, K)(num, den, float(dt), COMPILED_EXPM_MAX_NORM, _state_rows(x0, batch, n),
+                                              _offset_rows(offset, batch), P, basis, y, J):
+            if reject_unstable:
+                J[unstable(den)] = np.inf
+            return J
     E, C, D, ok = _tf_system(num, den, dt)
     if reject_unstable:
         ok &= ~unstable(den)
@@ -623,11 +565,10 @@ def sse_basis_batch(num, den, P, basis, dt: float, y, *, x0=None, offset=None, i
     J = np.empty(batch)
     Y0 = _offset_rows(offset, batch)
     if batch < LANE_MIN:
-        kernel = get_kernel(n, "sse", hold, None, P.shape[1])     # positional: the cached lookup is quicker
+        kernel = get_kernel(n, "sse", hold, None, K)     # positional: the cached lookup is quicker
     else:
-        kernel = get_lane_kernel(n, hold, P.shape[1], direct=bool(D.any()), offset=bool(Y0.any()))
-    kernel(E, C, D, _state_rows(x0, batch, n), Y0, P, np.ascontiguousarray(basis, dtype=float),
-           np.ascontiguousarray(y, dtype=float), J)
+        kernel = get_lane_kernel(n, hold, K, direct=bool(D.any()), offset=bool(Y0.any()))
+    kernel(E, C, D, _state_rows(x0, batch, n), Y0, P, basis, y, J)
     if not ok.all():
         J[~ok] = np.inf
     return J

@@ -89,3 +89,20 @@ def test_source_leaves_out_zero_terms():
 def test_inapplicable_sizes_return_none():
     basis = np.ones((9, 10))
     assert sse_basis_batch(np.ones((3, 1)), np.tile([1.0, 1.0], (3, 1)), np.ones((3, 9)), basis, 0.1, np.ones(10)) is None
+
+
+@pytest.mark.parametrize("batch", [1, LANE_MIN - 1])
+def test_small_batches_in_one_compiled_call_and_their_fallbacks(batch):
+    """Below LANE_MIN the discretisation and the pass are one call; rows it cannot take go the general way."""
+    rng = np.random.default_rng(11)
+    N = 400
+    basis, y = rng.normal(size=(2, N)), rng.normal(size=N)
+    P = rng.normal(size=(batch, 2))
+    for den_row in ([1.0, 3.0], [1.0, 1e5], [1.0, -0.5], [0.0, 1.0], [1.0, np.nan]):
+        # stable, too fast for the compiled Pade (scipy's expm takes it), unstable, improper, non-finite
+        num, den = np.ones((batch, 1)), np.tile(den_row, (batch, 1))
+        for reject in (False, True):
+            J = sse_basis_batch(num, den, P, basis, 1e-3, y, reject_unstable=reject)
+            ref = sse_batch(num, den, _combined(P, basis), 1e-3, y, reject_unstable=reject)
+            np.testing.assert_array_equal(J, ref)
+    assert np.isinf(sse_basis_batch(num, den, P, basis, 1e-3, y)).all()
