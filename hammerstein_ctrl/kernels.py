@@ -395,8 +395,8 @@ import numba
 import numpy as np
 
 
-@numba.njit(cache=True, nogil=True, fastmath={{"contract"}})
-def kernel(E, C, D, X, Y0, VP, P, Phi, y, begin, invh, acc):
+@numba.njit(cache=True, nogil=True, fastmath={{"contract"}}, error_model="numpy")
+def kernel(E, C, D, X, Y0, VP, P, Phi, y, begin, steps, acc):
     N = Phi.shape[1]
     W = {width}
     Z = np.zeros(({rows}, W))
@@ -426,7 +426,7 @@ def _normal_setup(n: int, hold: str, K: int, lanes: int, ind: str) -> list:
     lines += _lane_coefficients(n, hold, K, z, ind + "    ", "X")
     lines.append(f"{ind}    {z['vp']} = VP[b]")
     p = lanes - 1
-    lines += [f"{ind}ih{j} = invh[{j}]" for j in range(p)]
+    lines += [f"{ind}ih{j} = 1.0 / steps[{j}]" for j in range(p)]
     lines.append(f"{ind}f = acc[0]")
     lines += [f"{ind}g{j} = acc[{1 + j}]" for j in range(p)]
     lines += [f"{ind}H{j}_{k} = acc[{1 + p + j * p + k}]" for j in range(p) for k in range(j + 1)]
@@ -450,7 +450,8 @@ def _normal_store(n: int, lanes: int, z: _LaneRows, ind: str) -> list:
     p = lanes - 1
     lines.append(f"{ind}acc[0] = f")
     lines += [f"{ind}acc[{1 + j}] = g{j}" for j in range(p)]
-    lines += [f"{ind}acc[{1 + p + j * p + k}] = H{j}_{k}" for j in range(p) for k in range(j + 1)]
+    lines += [f"{ind}acc[{1 + p + j * p + k}] = acc[{1 + p + k * p + j}] = H{j}_{k}"
+              for j in range(p) for k in range(j + 1)]
     return lines
 
 
@@ -498,11 +499,12 @@ def get_normal_kernel(n: int, hold: str, lanes: int, K: int):
     Returns
     -------
     callable
-        ``kernel(E, C, D, X, Y0, VP, P, Phi, y, begin, invh, acc)``.  ``X``
+        ``kernel(E, C, D, X, Y0, VP, P, Phi, y, begin, steps, acc)``.  ``X``
         (lanes' states), ``VP`` (previous signal samples) and ``acc``
-        (``[f, g (p), H (p x p, lower triangle)]``) are read and updated, so
-        a long record can be passed a block of samples at a time; ``begin``
-        is the index of the block's first sample in the record.
+        (``[f, g (p), H (p x p)]``; the lower triangle of ``H`` is read, all
+        of it written) are read and updated, so a long record can be passed a
+        block of samples at a time; ``begin`` is the index of the block's
+        first sample in the record and ``steps`` the ``h_j``.
 
     Examples
     --------
@@ -512,7 +514,7 @@ def get_normal_kernel(n: int, hold: str, lanes: int, K: int):
     >>> C, D, X, VP = np.ones((2, 1)), np.zeros(2), np.zeros((2, 1)), np.zeros(2)
     >>> P = np.array([[2.0], [2.5]])                # theta = 1 and theta + h with h = 0.25
     >>> acc = np.zeros(3)
-    >>> k(E, C, D, X, np.zeros(2), VP, P, np.ones((1, 3)), np.zeros(3), 0, np.array([4.0]), acc)
+    >>> k(E, C, D, X, np.zeros(2), VP, P, np.ones((1, 3)), np.zeros(3), 0, np.array([0.25]), acc)
     >>> acc                                          # y = 0: r = -(0, 2, 3) theta, dr/dtheta = -(0, 2, 3)
     array([13., 13., 13.])
     """

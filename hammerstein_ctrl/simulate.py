@@ -608,7 +608,7 @@ def normal_pass(num, den, dt: float, y, P, blocks, steps, *, x0=None, offset=Non
         cannot be discretised); the sums may be non-finite if a simulation overflows.
     """
     hold = check_intersample(intersample)
-    steps = np.asarray(steps, dtype=float)
+    steps = np.ascontiguousarray(steps, dtype=float).reshape(-1)
     lanes = steps.size + 1
     n = np.shape(den)[-1] - 1
     K = np.shape(P)[-1]
@@ -621,19 +621,16 @@ def normal_pass(num, den, dt: float, y, P, blocks, steps, *, x0=None, offset=Non
     kernel = get_normal_kernel(n, hold, lanes, K)
     X, Y0 = _state_rows(x0, lanes, n), _offset_rows(offset, lanes)
     P = np.ascontiguousarray(P, dtype=float)
-    VP, acc = np.zeros(lanes), np.zeros(1 + steps.size * (steps.size + 1))
+    p = steps.size
+    VP, acc = np.zeros(lanes), np.zeros(1 + p * (p + 1))
     y = np.ascontiguousarray(y, dtype=float)
     begin = 0
-    with np.errstate(all="ignore"):
-        for Phi in blocks:
-            Phi = np.ascontiguousarray(Phi, dtype=float)
-            stop = begin + Phi.shape[1]
-            kernel(E, C, D, X, Y0, VP, P, Phi, y[begin:stop], begin, 1.0 / steps, acc)
-            begin = stop
-    p = steps.size
-    gram = acc[1 + p:].reshape(p, p)
-    gram = np.tril(gram) + np.tril(gram, -1).T
-    return NormalEquations(float(acc[0]), acc[1:1 + p].copy(), gram, steps)
+    for Phi in blocks:
+        Phi = np.ascontiguousarray(Phi, dtype=float)
+        stop = begin + Phi.shape[1]
+        kernel(E, C, D, X, Y0, VP, P, Phi, y[begin:stop], begin, steps, acc)
+        begin = stop
+    return NormalEquations(float(acc[0]), acc[1:1 + p], acc[1 + p:].reshape(p, p), steps)
 
 
 def free_response(num, den, dt: float, n_samples: int) -> np.ndarray:

@@ -25,6 +25,9 @@ and a Jacobian column).
 
 from __future__ import annotations
 
+import math
+
+import numba
 import numpy as np
 
 from ..normal_equations import NormalEquations, forward_steps, from_residuals, neighbours
@@ -103,33 +106,94 @@ class _Passes:
             else:
                 R = self._batch(X) if self._batch is not None else [self._residuals(row) for row in X]
                 ne = from_residuals(R, h)
-        values = np.concatenate([[ne.fun], ne.neighbour_values()])
-        values[~np.isfinite(values)] = np.inf
+        values = [ne.fun] + ne.neighbour_values().tolist()
+        values = [f if math.isfinite(f) else math.inf for f in values]
         for row, f in zip(X, values):
-            self.counted.record_value(row, float(f))
-        f = float(values[0])
-        return ne._replace(fun=f)
+            self.counted.record_value(row, f)
+        return ne._replace(fun=values[0])
 
 
 def _ill_conditioned(ne: NormalEquations, scale) -> bool:
     """Whether the scaled Gram matrix is too ill-conditioned to solve the normal equations accurately."""
-    with np.errstate(all="ignore"):
-        w = np.linalg.eigvalsh(ne.gram / np.outer(scale, scale))
-    return not (np.isfinite(w).all() and w[0] > w[-1] / ILL_CONDITIONED)
+    return bool(_ill(_scaled(ne.gram, np.asarray(scale, dtype=float)), ILL_CONDITIONED))
 
 
-def _step(ne: NormalEquations, scale, lam):
-    """The damped Gauss-Newton step ``-(G + mu diag(scale**2))^-1 g`` (``None`` if it cannot be solved)."""
-    A = ne.gram / np.outer(scale, scale)
-    mu = lam * max(float(np.max(np.diag(A))), np.finfo(float).tiny)  # relative to the current curvature
-    A[np.diag_indices_from(A)] += mu
-    with np.errstate(all="ignore"):
+@numba.njit(cache=True, nogil=True)
+def _scaled(gram, scale):  # pragma: no cover - compiled
+    """``gram / outer(scale, scale)``."""
+    p = scale.size
+    A = np.empty((p, p))
+    for i in range(p):
+        for j in range(p):
+            A[i, j] = gram[i, j] / (scale[i] * scale[j])
+    return A
+
+
+@numba.njit(cache=True, nogil=True)
+def _ill(A, limit):  # pragma: no cover - compiled
+    """Whether the symmetric ``A`` has a non-finite entry or a condition number of ``limit`` or more."""
+    for v in A.ravel():
+        if not np.isfinite(v):
+            return True
+    w = np.linalg.eigvalsh(A)
+    return not (np.isfinite(w).all() and w[0] > w[-1] / limit)
+
+
+@numba.njit(cache=True, nogil=True)
+def _cosine(gram, gradient, fun):  # pragma: no cover - compiled
+    """Largest cosine between the residual vector and a Jacobian column (MINPACK's ``gtol`` measure)."""
+    best = 0.0
+    if not fun > 0:
+        return best
+    root = np.sqrt(fun)
+    for j in range(gradient.size):
+        norm = np.sqrt(max(gram[j, j], 0.0))
+        if norm > 0:
+            best = max(best, abs(gradient[j]) / (norm * root))
+    return best
+
+
+@numba.njit(cache=True, nogil=True)
+def _iteration(gram, gradient, fun, scale, lam, x, check, limit, xtol):  # pragma: no cover - compiled
+    """One iteration's linear algebra: ``(cosine, ill, solved, delta, small, predicted)``.
+
+    ``cosine`` is MINPACK's gtol measure; ``ill`` whether the scaled Gram
+    matrix is too ill-conditioned (only if ``check``); ``delta`` the damped
+    Gauss-Newton step ``-(G + mu diag(scale**2))^-1 g`` with ``mu`` relative to
+    the largest scaled curvature (``solved`` False if it cannot be formed);
+    ``small`` MINPACK's xtol test on it and ``predicted`` the reduction of
+    the sum of squares its linear model predicts.
+    """
+    p = scale.size
+    A = _scaled(gram, scale)
+    ill = _ill(A, limit) if check else False
+    top = np.finfo(np.float64).tiny
+    for i in range(p):
+        top = max(top, A[i, i])
+    for i in range(p):
+        A[i, i] += lam * top
+    delta = np.zeros(p)
+    solved = False
+    if np.isfinite(A).all():
+        b = np.empty(p)
+        for i in range(p):
+            b[i] = -gradient[i] / scale[i]
         try:
-            z = np.linalg.solve(A, -ne.gradient / scale)
-        except np.linalg.LinAlgError:
-            return None
-    delta = z / scale
-    return delta if np.isfinite(delta).all() else None
+            z = np.linalg.solve(A, b)
+            delta = z / scale
+            solved = np.isfinite(delta).all()
+        except Exception:  # a singular damped matrix: the caller raises the damping
+            solved = False
+    step, size, predicted = 0.0, 0.0, 0.0
+    for i in range(p):
+        step += (scale[i] * delta[i]) ** 2
+        size += (scale[i] * x[i]) ** 2
+        curvature = 0.0
+        for j in range(p):
+            curvature += gram[i, j] * delta[j]
+        predicted -= delta[i] * (2.0 * gradient[i] + curvature)
+    small = np.sqrt(step) <= xtol * np.sqrt(size)
+    return _cosine(gram, gradient, fun), ill, solved, delta, small, predicted
 
 
 def _column_norms(gram, previous=None):
@@ -137,15 +201,6 @@ def _column_norms(gram, previous=None):
     norms = np.sqrt(np.maximum(np.diag(gram), 0.0))
     norms[~(norms > 0) | ~np.isfinite(norms)] = 1.0
     return norms if previous is None else np.maximum(norms, previous)
-
-
-def _gradient_cosine(ne: NormalEquations) -> float:
-    """Largest cosine between the residual vector and a Jacobian column (MINPACK's ``gtol`` measure)."""
-    norms = np.sqrt(np.maximum(np.diag(ne.gram), 0.0))
-    live = norms > 0
-    if ne.fun <= 0 or not live.any():
-        return 0.0
-    return float(np.max(np.abs(ne.gradient[live]) / (norms[live] * np.sqrt(ne.fun))))
 
 
 class _Damping:
@@ -190,12 +245,13 @@ def normal_equations_lm(fun, counted, x0, *, ftol, xtol, gtol, max_steps: int):
     while True:
         if ne.fun == 0.0:
             return x, ne.fun, 1, iterations
-        if _gradient_cosine(ne) <= gtol:
+        cosine, ill, solved, delta, small, predicted = _iteration(
+            ne.gram, ne.gradient, ne.fun, scale, damping.lam, x, not alone, ILL_CONDITIONED, xtol)
+        if cosine <= gtol:
             return x, ne.fun, 4, iterations
-        if not alone and _ill_conditioned(ne, scale):
+        if ill:
             return x, ne.fun, ILL_CONDITIONED_CODE, iterations
-        delta = _step(ne, scale, damping.lam)
-        if delta is None:
+        if not solved:
             damping.reject()
             if damping.lam > MAX_DAMPING:
                 return x, ne.fun, 6, iterations
@@ -203,8 +259,6 @@ def normal_equations_lm(fun, counted, x0, *, ftol, xtol, gtol, max_steps: int):
         if iterations >= max_steps:
             return x, ne.fun, 5, iterations
         iterations += 1
-        small = np.linalg.norm(scale * delta) <= xtol * np.linalg.norm(scale * x)
-        predicted = -(2.0 * delta @ ne.gradient + delta @ ne.gram @ delta)
         trial = x + delta
         trial_ne = None if alone else passes.full(trial)
         f_trial = passes.value(trial) if alone else trial_ne.fun
