@@ -276,14 +276,18 @@ def _reduced_sse(reg: _Regression, theta, drives) -> float:
 def _refine_linear(reg: _Regression, theta, drives, limit: int = REFINE_EVALUATIONS) -> tuple[np.ndarray, float]:
     """Levenberg-Marquardt on the variable-projection residual over the linear coefficients.
 
-    At most :data:`REFINE_EVALUATIONS` residuals (finite-difference Jacobian
+    MINPACK's ``lmdif`` (through :func:`scipy.optimize.leastsq`) with its own
+    forward differences: it holds the residual, an ``N x p`` Jacobian and one
+    work vector, where ``least_squares`` kept several more residual and
+    Jacobian copies.  At most :data:`REFINE_EVALUATIONS` residuals (Jacobian
     columns included) are computed; the best point seen is returned.
     """
     big = np.sqrt(np.finfo(float).max) / max(reg.y.size, 1)
     best = [np.asarray(theta, dtype=float), np.inf]
     calls = [int(min(REFINE_EVALUATIONS, limit, reg.budget.remaining // reg.evaluations(drives)))]
+    repeat = [None]  # leastsq evaluates x0 in its input check, then lmdif again: the second comes from here
 
-    def reduced_residual(th):
+    def evaluate(th):
         if calls[0] <= 0:
             raise BudgetSpent("refinement budget spent")
         calls[0] -= 1
@@ -295,12 +299,22 @@ def _refine_linear(reg: _Regression, theta, drives, limit: int = REFINE_EVALUATI
             best[0], best[1] = np.array(th, dtype=float), sse
         return r
 
+    def reduced_residual(th):
+        if repeat and repeat[0] is not None:
+            seen, r = repeat.pop()
+            if np.array_equal(th, seen):
+                return r
+        r = evaluate(th)
+        if repeat:  # the first evaluation, kept for the repeat
+            repeat[0] = (np.array(th, dtype=float), r)
+        return r
+
     if theta.size == 0 or calls[0] <= theta.size + 1:
         return theta, _reduced_sse(reg, theta, drives)
     try:
-        res = scipy.optimize.least_squares(reduced_residual, theta, method="lm", xtol=REFINE_TOL, ftol=REFINE_TOL,
-                                           gtol=REFINE_TOL, x_scale="jac")
-        return res.x, float(res.fun @ res.fun)
+        x, _, info, _, _ = scipy.optimize.leastsq(reduced_residual, theta, full_output=True, xtol=REFINE_TOL,
+                                                  ftol=REFINE_TOL, gtol=REFINE_TOL)
+        return x, float(info["fvec"] @ info["fvec"])
     except BudgetSpent:
         return best[0], best[1]
 
