@@ -43,6 +43,8 @@ __all__ = ["BLOCK_SAMPLES", "triangular_factor", "rank_tolerance", "solve_scaled
 #: ``p + 1`` columns takes ``8 (p + 1) BLOCK_SAMPLES`` bytes).
 BLOCK_SAMPLES = 8192
 
+_GEQRF = scipy.linalg.get_lapack_funcs("geqrf", dtype=np.float64)
+
 
 def constant_column(n_samples: int) -> np.ndarray:
     """A column of ones that takes no memory (a broadcast view).
@@ -68,9 +70,23 @@ def _fill(rows, begin: int, stop: int, out: np.ndarray):
         j += a.shape[0]
 
 
-def _merge(upper: np.ndarray, lower: np.ndarray) -> np.ndarray:
+def _triangle(a: np.ndarray, below: np.ndarray) -> np.ndarray:
+    """The ``R`` of a QR factorisation of ``a`` (Fortran-ordered, at least as many rows as columns; overwritten).
+
+    LAPACK's ``dgeqrf`` directly: ``scipy.linalg.qr`` would also zero the
+    whole block below the triangle.  ``below`` masks the strict lower triangle.
+    """
+    qr, _, _, info = _GEQRF(a, overwrite_a=1)
+    if info != 0:  # pragma: no cover - only for invalid arguments
+        raise RuntimeError(f"dgeqrf failed (info = {info})")
+    R = qr[:a.shape[1]].copy()
+    R[below] = 0.0
+    return R
+
+
+def _merge(upper: np.ndarray, lower: np.ndarray, below: np.ndarray) -> np.ndarray:
     """``R`` of two stacked triangular factors."""
-    return np.triu(scipy.linalg.qr(np.vstack([upper, lower]), mode="r", check_finite=False)[0][:upper.shape[1]])
+    return _triangle(np.asfortranarray(np.vstack([upper, lower])), below)
 
 
 def triangular_factor(columns, y) -> np.ndarray:
@@ -97,6 +113,7 @@ def triangular_factor(columns, y) -> np.ndarray:
     y = np.asarray(y, dtype=float)
     p1 = sum(a.shape[0] for a in rows) + 1
     n = y.shape[0]
+    below = np.tri(p1, k=-1, dtype=bool)
     block = np.empty((max(min(BLOCK_SAMPLES, n), p1), p1), order="F")
     pending: list[tuple[int, np.ndarray]] = []  # (level, R) with strictly decreasing levels
     for begin in range(0, n, BLOCK_SAMPLES):
@@ -106,16 +123,15 @@ def triangular_factor(columns, y) -> np.ndarray:
         part[:, -1] = y[begin:stop]
         if not np.all(np.isfinite(part)):
             return np.full((p1, p1), np.nan)
-        if stop - begin < p1:
-            block[stop - begin:p1] = 0.0
-        level, R = 0, np.triu(scipy.linalg.qr(block[:max(stop - begin, p1)], mode="r", check_finite=False)[0][:p1])
+        block[stop - begin:p1] = 0.0  # a block shorter than the triangle: zero rows
+        level, R = 0, _triangle(block[:max(stop - begin, p1)], below)
         while pending and pending[-1][0] == level:
-            R = _merge(pending.pop()[1], R)
+            R = _merge(pending.pop()[1], R, below)
             level += 1
         pending.append((level, R))
-    R = np.zeros((p1, p1))
+    R = pending.pop()[1] if pending else np.zeros((p1, p1))
     while pending:
-        R = _merge(pending.pop()[1], R)
+        R = _merge(pending.pop()[1], R, below)
     return R
 
 
