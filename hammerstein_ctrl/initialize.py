@@ -25,6 +25,8 @@ once the linear block ``H`` is fixed:
 
 Every simulated signal (each column of a regression, each free response)
 counts as one evaluation against the caller's budget (:class:`Budget`).
+The regressions are solved block by block (:mod:`~hammerstein_ctrl.streamed_lstsq`):
+on a long record they hold the simulated responses, never an ``N x p`` matrix.
 
 Examples
 --------
@@ -42,11 +44,12 @@ Examples
 from __future__ import annotations
 
 import numpy as np
-import scipy.linalg
 import scipy.optimize
 
 from .exceptions import ParameterError
 from .simulate import free_response, simulate_batch, unstable
+from .streamed_lstsq import (constant_column, factor_sse, residual, solve_minimum_norm, solve_scaled,
+                             triangular_factor)
 
 __all__ = ["initial_points", "stabilize", "nuisance_estimate", "estimate_initial_state", "static_affine_sse",
            "Budget", "BudgetSpent", "POLE_PATTERNS"]
@@ -128,18 +131,21 @@ def _arx_poles(data, drives, m: int) -> np.ndarray | None:
     """Continuous-time poles of a discrete ARX fit of order ``m`` (stabilised), or ``None``.
 
     Equation error is biased by noise, but places the poles' time scales far
-    better than a scan when they are a decade or more apart.
+    better than a scan when they are a decade or more apart.  The lagged
+    columns are views of the record (streamed, never stacked).
     """
     y = np.asarray(data.y, dtype=float)
     N = y.size
     if N <= 4 * m + 2:
         return None
-    lagged = [-y[m - i:N - i] for i in range(1, m + 1)]
+    lagged = [y[m - i:N - i] for i in range(1, m + 1)]
     lagged += [d[m - i:N - i] for d in drives for i in range(1, m + 1)]
-    X = np.column_stack(lagged + [np.ones(N - m)])
-    coef, *_ = np.linalg.lstsq(X, y[m:], rcond=None)
+    R = triangular_factor(lagged + [constant_column(N - m)], y[m:])
+    if not np.all(np.isfinite(R)):
+        return None
+    coef = solve_minimum_norm(R, N - m)
     with np.errstate(all="ignore"):
-        s = np.log(np.roots(np.concatenate([[1.0], coef[:m]])).astype(complex)) / data.dt
+        s = np.log(np.roots(np.concatenate([[1.0], -coef[:m]])).astype(complex)) / data.dt
     if not np.all(np.isfinite(s)):
         return None
     return np.where(s.real > 0, -s.real + 1j * s.imag, s)
@@ -207,6 +213,8 @@ class _Regression:
 
     With ``affine_output`` (structures with an output nonlinearity, whose
     affine stand-in has a constant term) a constant column is always present.
+    Columns are lists of ``(k, N)`` row arrays (:mod:`~hammerstein_ctrl.streamed_lstsq`):
+    the regression matrix is never formed.
     """
 
     def __init__(self, structure, data, budget: Budget, *, affine_output: bool = False):
@@ -215,58 +223,71 @@ class _Regression:
         self.constant = structure.offset or affine_output
 
     def simulate(self, theta, drives) -> np.ndarray:
-        """Responses ``(N, k)`` of ``H(theta)`` to each drive (``k`` counted evaluations)."""
+        """Responses ``(k, N)`` of ``H(theta)`` to each drive (``k`` counted evaluations)."""
         self.budget.charge(drives.shape[0])
         num, den = self.structure.linear.coefficients(theta)
         k = drives.shape[0]
         return simulate_batch(np.repeat(num, k, 0), np.repeat(den, k, 0), drives, self.data.dt,
-                              intersample=self.data.intersample).T
+                              intersample=self.data.intersample)
 
-    def columns(self, theta, drives) -> np.ndarray:
+    @property
+    def free_columns(self) -> bool:
+        """Whether :meth:`columns` adds the free responses of an estimated initial state."""
+        return self.structure.initial_state == "estimate" and self.structure.output_nonlinearity is None
+
+    def evaluations(self, drives) -> int:
+        """Simulated signals (budget charged) of one :meth:`columns` call."""
+        return drives.shape[0] + (self.structure.linear.den_order if self.free_columns else 0)
+
+    def columns(self, theta, drives) -> list[np.ndarray]:
         """Responses of ``H(theta)`` to each drive, then constant and free-response columns."""
         parts = [self.simulate(theta, drives)]
         if self.constant:
-            parts.append(np.ones((self.y.size, 1)))
-        if self.structure.initial_state == "estimate" and self.structure.output_nonlinearity is None:
+            parts.append(constant_column(self.y.size))
+        if self.free_columns:
             num, den = self.structure.linear.coefficients(theta)
             self.budget.charge(self.structure.linear.den_order)
-            parts.append(free_response(num[0], den[0], self.data.dt, self.y.size))
-        return np.column_stack(parts)
+            parts.append(free_response(num[0], den[0], self.data.dt, self.y.size).T)
+        return parts
 
-    def static_columns(self, signals) -> np.ndarray:
-        """The signals themselves (``(k, N)``) as columns, then the offset column."""
-        parts = [np.asarray(signals, dtype=float).T]
+    def static_columns(self, signals) -> list[np.ndarray]:
+        """The signals themselves (``(k, N)``), then the offset column."""
+        parts = [np.asarray(signals, dtype=float)]
         if self.structure.offset:
-            parts.append(np.ones((self.y.size, 1)))
-        return np.column_stack(parts)
+            parts.append(constant_column(self.y.size))
+        return parts
 
-    def solve(self, Phi):
-        """Coefficients and residual of the least-squares fit (``None`` if not finite)."""
-        with np.errstate(all="ignore"):
-            scale = np.sqrt(np.sum(Phi * Phi, axis=0))
-        if not (np.all(np.isfinite(Phi)) and np.all(np.isfinite(scale))):
-            return None, None
-        scale[scale == 0] = 1.0
-        w = scipy.linalg.lstsq(Phi / scale, self.y, lapack_driver="gelsy", check_finite=False)[0] / scale
-        return w, self.y - Phi @ w
+    def fit(self, columns) -> tuple[np.ndarray | None, float]:
+        """Coefficients and sum of squared residuals of the least-squares fit (``(None, inf)`` if not finite)."""
+        R = triangular_factor(columns, self.y)
+        w = solve_scaled(R, self.y.size)
+        return (None, np.inf) if w is None else (w, factor_sse(R, w))
+
+    def solve(self, columns):
+        """Coefficients and residual vector of the least-squares fit (``None`` if not finite)."""
+        w, _ = self.fit(columns)
+        return (None, None) if w is None else (w, residual(columns, w, self.y))
 
 
 def _reduced_sse(reg: _Regression, theta, drives) -> float:
-    w, r = reg.solve(reg.columns(theta, drives))
-    return np.inf if r is None else float(r @ r)
+    return reg.fit(reg.columns(theta, drives))[1]
 
 
 def _refine_linear(reg: _Regression, theta, drives, limit: int = REFINE_EVALUATIONS) -> tuple[np.ndarray, float]:
     """Levenberg-Marquardt on the variable-projection residual over the linear coefficients.
 
-    At most :data:`REFINE_EVALUATIONS` residuals (finite-difference Jacobian
+    MINPACK's ``lmdif`` (through :func:`scipy.optimize.leastsq`) with its own
+    forward differences: it holds the residual, an ``N x p`` Jacobian and one
+    work vector, where ``least_squares`` kept several more residual and
+    Jacobian copies.  At most :data:`REFINE_EVALUATIONS` residuals (Jacobian
     columns included) are computed; the best point seen is returned.
     """
     big = np.sqrt(np.finfo(float).max) / max(reg.y.size, 1)
     best = [np.asarray(theta, dtype=float), np.inf]
-    calls = [int(min(REFINE_EVALUATIONS, limit, reg.budget.remaining // drives.shape[0]))]
+    calls = [int(min(REFINE_EVALUATIONS, limit, reg.budget.remaining // reg.evaluations(drives)))]
+    repeat = [None]  # leastsq evaluates x0 in its input check, then lmdif again: the second comes from here
 
-    def residual(th):
+    def evaluate(th):
         if calls[0] <= 0:
             raise BudgetSpent("refinement budget spent")
         calls[0] -= 1
@@ -278,12 +299,22 @@ def _refine_linear(reg: _Regression, theta, drives, limit: int = REFINE_EVALUATI
             best[0], best[1] = np.array(th, dtype=float), sse
         return r
 
+    def reduced_residual(th):
+        if repeat and repeat[0] is not None:
+            seen, r = repeat.pop()
+            if np.array_equal(th, seen):
+                return r
+        r = evaluate(th)
+        if repeat:  # the first evaluation, kept for the repeat
+            repeat[0] = (np.array(th, dtype=float), r)
+        return r
+
     if theta.size == 0 or calls[0] <= theta.size + 1:
         return theta, _reduced_sse(reg, theta, drives)
     try:
-        res = scipy.optimize.least_squares(residual, theta, method="lm", xtol=REFINE_TOL, ftol=REFINE_TOL,
-                                           gtol=REFINE_TOL, x_scale="jac")
-        return res.x, float(res.fun @ res.fun)
+        x, _, info, _, _ = scipy.optimize.leastsq(reduced_residual, theta, full_output=True, xtol=REFINE_TOL,
+                                                  ftol=REFINE_TOL, gtol=REFINE_TOL)
+        return x, float(info["fvec"] @ info["fvec"])
     except BudgetSpent:
         return best[0], best[1]
 
@@ -297,15 +328,15 @@ def _fit_static(reg: _Regression, nl, signal, columns) -> tuple[np.ndarray, np.n
     """
     basis = nl.basis(signal)
     if basis is not None:
-        w, _ = reg.solve(columns(np.asarray(basis, dtype=float)))
+        w, _ = reg.fit(columns(np.asarray(basis, dtype=float)))
         return None if w is None else (w[:nl.n_params], w[nl.n_params:])
     best = None
     for p in nl.shape_grid(signal):
-        w, r = reg.solve(columns(nl(signal, p)[None, :]))
-        if w is not None and (best is None or r @ r < best[0]):
+        w, sse = reg.fit(columns(nl(signal, p)[None, :]))
+        if w is not None and (best is None or sse < best[0]):
             q = p.copy()
             q[nl.scale_index] = w[0]
-            best = (float(r @ r), q, w[1:])
+            best = (sse, q, w[1:])
     return None if best is None else (best[1], best[2])
 
 
@@ -328,7 +359,7 @@ def _input_candidates(reg: _Regression, theta, u):
 
 def _output_fit(reg: _Regression, theta, v):
     """``(h parameters, offset coefficients, sse)`` of ``h`` fitted to ``z = H v``, or ``None``."""
-    z = reg.simulate(theta, np.asarray(v, dtype=float)[None, :])[:, 0]
+    z = reg.simulate(theta, np.asarray(v, dtype=float)[None, :])[0]
     fitted = _fit_static(reg, reg.structure.output_nonlinearity, z, reg.static_columns)
     if fitted is None:
         return None
@@ -350,8 +381,8 @@ def _static_blocks(reg: _Regression, theta, u):
     if s.output_nonlinearity is None:
         candidates = _input_candidates(reg, theta, u)
         return None if not candidates else (candidates[0][0], np.empty(0), candidates[0][1])
-    inputs = [(None, u)] if s.input_nonlinearity is None else [
-        (p, s.input_nonlinearity(u, p)) for p, _ in _input_candidates(reg, theta, u)]
+    inputs = [(None, u)] if s.input_nonlinearity is None else (  # one signal at a time
+        (p, s.input_nonlinearity(u, p)) for p, _ in _input_candidates(reg, theta, u))
     best = None
     for p, v in inputs:
         fitted = _output_fit(reg, theta, v)
@@ -411,15 +442,16 @@ def initial_points(data, structure, budget: Budget, *, count: int = REFINED_CAND
     try:
         starts = []
         groups = _candidate_linear(structure.linear, data, drives)
-        total = sum(len(rows) for rows in groups.values()) * drives.shape[0]
+        total = sum(len(rows) for rows in groups.values()) * reg.evaluations(drives)
         stride = max(1, int(np.ceil(total / max(own.remaining * SCAN_SHARE, 1.0))))
         for rows in groups.values():
             rows = rows[::stride]  # a small budget thins the scan rather than losing it
             scored = sorted(((_reduced_sse(reg, theta, drives), i) for i, theta in enumerate(rows)))
             starts += [rows[i] for _, i in scored[:count]]
-        share = REFINE_SHARE * own.remaining / (max(len(starts), 1) * drives.shape[0])
+        share = REFINE_SHARE * own.remaining / (max(len(starts), 1) * reg.evaluations(drives))
         per_start = int(min(share, REFINE_EVALUATIONS))
         refined = sorted((_refine_linear(reg, theta, drives, per_start) for theta in starts), key=lambda item: item[1])
+        del drives  # the static fits form their own basis
         reg.constant = structure.offset
         for theta, _ in refined[:count]:
             fitted = _static_blocks(reg, theta, u)
@@ -446,7 +478,7 @@ def nuisance_estimate(data, structure, core, budget: Budget) -> np.ndarray:
     k = structure.linear.n_params
     reg = _Regression(structure, data, budget)
     v = structure.input_nonlinearity(np.asarray(data.u, dtype=float), core[k:])
-    w, _ = reg.solve(reg.columns(core[:k], v[None, :]))
+    w, _ = reg.fit(reg.columns(core[:k], v[None, :]))
     return np.concatenate([core, extra if w is None else w[1:]])
 
 
@@ -463,10 +495,8 @@ def static_affine_sse(data) -> float:
     True
     """
     u, y = np.asarray(data.u, dtype=float), np.asarray(data.y, dtype=float)
-    X = np.column_stack([u, np.ones_like(u)])
-    w, *_ = np.linalg.lstsq(X, y, rcond=None)
-    r = y - X @ w
-    return float(r @ r)
+    R = triangular_factor([u, constant_column(u.size)], y)
+    return factor_sse(R, solve_minimum_norm(R, u.size))
 
 
 def estimate_initial_state(model, data) -> np.ndarray:
@@ -483,8 +513,9 @@ def estimate_initial_state(model, data) -> np.ndarray:
     """
     rest = model.simulate(data, initial_state=np.zeros(model.order))
     num, den = model.linear.num[0][0], model.linear.den[0][0]
-    Phi = free_response(num, den, data.dt, len(data))
-    if not (np.all(np.isfinite(Phi)) and np.all(np.isfinite(rest))):
+    free = free_response(num, den, data.dt, len(data)).T
+    with np.errstate(all="ignore"):
+        R = triangular_factor([free], np.asarray(data.y, dtype=float) - rest)
+    if not np.all(np.isfinite(R)):
         return np.zeros(model.order)
-    x0, *_ = np.linalg.lstsq(Phi, np.asarray(data.y, dtype=float) - rest, rcond=None)
-    return x0
+    return solve_minimum_norm(R, len(data))

@@ -95,3 +95,25 @@ def test_recomputed_basis_gives_the_same_numbers(record, cost, monkeypatch):
     np.testing.assert_array_equal(streamed.residuals(betas[0]), cost.residuals(betas[0]))
     per_sample, _ = peak_bytes_per_sample(lambda: streamed.batch(betas))
     assert per_sample < 8 * 3 + 4  # the 3 signals, the basis blocks are small
+
+
+def test_auto_in_bounded_memory(record):
+    """``identify(data, structure)`` (method "auto") on the 1e6-sample record, as at 1e7 samples.
+
+    The cost streams its basis here (as it does past BASIS_MAX_BYTES, e.g. at
+    1e7 samples); the starts hold the drives (24 B), one set of responses
+    (24 B) and MINPACK's residual, Jacobian column and work vector with ours
+    (32 B); their regressions are reduced block by block (streamed_lstsq),
+    never formed whole (they took 192 B/sample at 1e7 samples before).
+    """
+    from hammerstein_ctrl import identify, objective
+
+    structure = emps_structure()
+    budget = 300  # every stage runs: scan, reduced LM, static fits, LM refinements
+    identify(bench.synthetic_record(2000), structure, maxfev=budget, seed=0)  # compile outside the measurement
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(objective, "BASIS_MAX_BYTES", 0)
+        per_sample, r = peak_bytes_per_sample(lambda: identify(record, structure, maxfev=budget, seed=0))
+    assert r.nfev == budget and r.optimize_result.starts == 3
+    np.testing.assert_allclose(r.x, bench.SYNTHETIC_BETA, rtol=1e-6)
+    assert per_sample < 90

@@ -1,0 +1,162 @@
+"""Streamed least squares (blocks of samples, tree-merged QR) against dense solves of the whole regression.
+
+The oracle is always the regression formed whole (``numpy.column_stack``) and
+solved by ``numpy.linalg.lstsq`` / ``scipy.linalg.lstsq``; the streamed code
+runs with a block size (37, a prime) far below the record length, so blocks
+end at arbitrary samples and the merge tree has several levels.
+"""
+
+import numpy as np
+import pytest
+import scipy.linalg
+
+from hammerstein_ctrl import Coulomb, HammersteinStructure, IOData, LinearStructure, Polynomial, streamed_lstsq
+from hammerstein_ctrl import initialize
+from hammerstein_ctrl.streamed_lstsq import (constant_column, factor_sse, rank_tolerance, residual,
+                                             solve_minimum_norm, solve_scaled, triangular_factor)
+
+SMALL_BLOCK = 37
+
+
+@pytest.fixture
+def small_blocks(monkeypatch):
+    monkeypatch.setattr(streamed_lstsq, "BLOCK_SAMPLES", SMALL_BLOCK)
+
+
+def regression(n=1000, seed=0):
+    """Columns in the three accepted forms (2-D rows, 1-D, broadcast constant), the dense matrix and y."""
+    rng = np.random.default_rng(seed)
+    t = np.linspace(0.0, 10.0, n)
+    rows = np.stack([np.sin(1.3 * t), np.exp(-0.4 * t)])
+    ramp = t ** 1.5
+    columns = [rows, ramp, constant_column(n)]
+    X = np.column_stack([rows.T, ramp, np.ones(n)])
+    y = X @ np.array([1.5, -2.0, 0.25, 3.0]) + 0.1 * rng.standard_normal(n)
+    return columns, X, y
+
+
+@pytest.mark.parametrize("n", [1000, SMALL_BLOCK * 8, SMALL_BLOCK * 5 + 3])
+def test_streamed_fit_equals_dense_lstsq(small_blocks, n):
+    columns, X, y = regression(n)
+    R = triangular_factor(columns, y)
+    assert R.shape == (5, 5) and np.allclose(R, np.triu(R))
+    w = solve_scaled(R, n)
+    ref, res, *_ = np.linalg.lstsq(X, y, rcond=None)
+    np.testing.assert_allclose(w, ref, rtol=1e-11)
+    np.testing.assert_allclose(solve_minimum_norm(R, n), ref, rtol=1e-11)
+    r = residual(columns, w, y)
+    np.testing.assert_allclose(r, y - X @ ref, rtol=1e-9, atol=1e-12)
+    assert factor_sse(R, w) == pytest.approx(float(res[0]), rel=1e-10)
+    # R is the factor of [X y]: R^T R = [X y]^T [X y]
+    Xy = np.column_stack([X, y])
+    np.testing.assert_allclose(R.T @ R, Xy.T @ Xy, rtol=1e-11, atol=1e-9 * np.abs(Xy.T @ Xy).max())
+
+
+def test_block_size_does_not_change_the_result(monkeypatch):
+    columns, X, y = regression(2000, seed=3)
+    whole = solve_scaled(triangular_factor(columns, y), 2000)
+    for block in (SMALL_BLOCK, 1, 1999, 4096):
+        monkeypatch.setattr(streamed_lstsq, "BLOCK_SAMPLES", block)
+        np.testing.assert_allclose(solve_scaled(triangular_factor(columns, y), 2000), whole, rtol=1e-11)
+        np.testing.assert_allclose(residual(columns, whole, y), y - X @ whole, rtol=1e-9, atol=1e-12)
+
+
+def test_rank_deficient_regression_gives_the_dense_minimum_norm_solution(small_blocks):
+    """A repeated column: the dense solvers' minimum-norm answers (scaled for gelsy, as before)."""
+    columns, X, y = regression(800, seed=1)
+    X2 = np.column_stack([X, X[:, 1]])
+    columns2 = columns + [X[:, 1].copy()]
+    R = triangular_factor(columns2, y)
+    np.testing.assert_allclose(solve_minimum_norm(R, 800), np.linalg.lstsq(X2, y, rcond=None)[0], rtol=1e-9)
+    scale = np.linalg.norm(X2, axis=0)
+    dense = scipy.linalg.lstsq(X2 / scale, y, cond=rank_tolerance(800), lapack_driver="gelsy")[0] / scale
+    w = solve_scaled(R, 800)
+    np.testing.assert_allclose(w, dense, rtol=1e-8)
+    assert w[1] == pytest.approx(w[-1], rel=1e-8)  # the weight is split evenly between the copies
+    assert factor_sse(R, w) == pytest.approx(float(np.sum((y - X2 @ w) ** 2)), rel=1e-10)
+
+
+def test_fewer_samples_than_columns(small_blocks):
+    X = np.array([[1.0, 2.0, 0.5], [0.0, 1.0, 4.0]])
+    y = np.array([1.0, -1.0])
+    R = triangular_factor([X.T], y)
+    np.testing.assert_allclose(solve_minimum_norm(R, 2), np.linalg.lstsq(X, y, rcond=None)[0], rtol=1e-12)
+    assert factor_sse(R, solve_minimum_norm(R, 2)) == pytest.approx(0.0, abs=1e-24)
+
+
+def test_non_finite_column_gives_no_solution(small_blocks):
+    columns, X, y = regression(500)
+    bad = columns[1].copy()
+    bad[300] = np.inf
+    R = triangular_factor([columns[0], bad, columns[2]], y)
+    assert np.all(np.isnan(R)) and solve_scaled(R, 500) is None
+
+
+# ---------------------------------------------------------------------------
+# the automatic starts, streamed, against the dense regression they replaced
+# ---------------------------------------------------------------------------
+def hammerstein_case(n=3000, offset=False, initial_state="zero", seed=5):
+    """A noisy Coulomb-Hammerstein record (true offset 0.3) and the structure to fit."""
+    structure = HammersteinStructure(LinearStructure(0, 2), Coulomb(), offset=offset, initial_state=initial_state)
+    rng = np.random.default_rng(seed)
+    t = np.arange(n) * 0.01
+    u = np.repeat(rng.uniform(-1.0, 1.0, n // 50 + 1), 50)[:n]
+    truth = HammersteinStructure(LinearStructure(0, 2), Coulomb()).model([4.0, 1.2, 0.8, 0.2, 0.05])
+    y = truth.simulate(t, u) + 0.3 + 0.01 * rng.standard_normal(n)
+    return IOData(u, y, t), structure
+
+
+def dense_columns(reg, theta, drives):
+    return np.column_stack([np.broadcast_to(c[:, None] if c.ndim == 1 else c.T, (reg.y.size, 1 if c.ndim == 1
+                                                                                 else c.shape[0]))
+                            for c in reg.columns(theta, drives)])
+
+
+@pytest.mark.parametrize("offset, initial_state", [(False, "zero"), (True, "zero"), (False, "estimate")])
+def test_reduced_fit_equals_dense_lstsq(small_blocks, offset, initial_state):
+    data, s = hammerstein_case(offset=offset, initial_state=initial_state)
+    reg = initialize._Regression(s, data, initialize.Budget(None))
+    drives = initialize._drives(s.input_nonlinearity, np.asarray(data.u))
+    for theta in ([4.0, 1.2], [1.0, 3.0], [9.0, 0.5]):
+        Phi = dense_columns(reg, np.array(theta), drives)
+        assert Phi.shape == (3000, 3 + offset + 2 * (initial_state == "estimate"))
+        ref, res, rank, _ = np.linalg.lstsq(Phi, reg.y, rcond=None)
+        assert rank == Phi.shape[1]
+        w, sse = reg.fit(reg.columns(np.array(theta), drives))
+        np.testing.assert_allclose(w, ref, rtol=1e-9)
+        assert sse == pytest.approx(float(res[0]), rel=1e-9)
+        _, r = reg.solve(reg.columns(np.array(theta), drives))
+        np.testing.assert_allclose(r, reg.y - Phi @ ref, rtol=1e-7, atol=1e-10)
+
+
+def test_arx_poles_equal_dense_equation_error_fit(small_blocks):
+    data, s = hammerstein_case(n=2000)
+    drives = initialize._drives(s.input_nonlinearity, np.asarray(data.u))
+    y, m, N = np.asarray(data.y), 2, 2000
+    X = np.column_stack([-y[m - i:N - i] for i in (1, 2)] + [d[m - i:N - i] for d in drives for i in (1, 2)]
+                        + [np.ones(N - m)])
+    coef = np.linalg.lstsq(X, y[m:], rcond=None)[0]
+    ref = np.sort_complex(np.log(np.roots(np.r_[1.0, coef[:m]]).astype(complex)) / data.dt)
+    got = np.sort_complex(initialize._arx_poles(data, drives, m))
+    np.testing.assert_allclose(got, ref, rtol=1e-7)
+    assert np.all(got.real < 0)
+
+
+def test_static_affine_sse_equals_dense(small_blocks):
+    data, _ = hammerstein_case(n=1234)
+    u, y = np.asarray(data.u), np.asarray(data.y)
+    X = np.column_stack([u, np.ones_like(u)])
+    res = np.linalg.lstsq(X, y, rcond=None)[1]
+    assert initialize.static_affine_sse(data) == pytest.approx(float(res[0]), rel=1e-10)
+
+
+def test_initial_points_do_not_depend_on_the_block_size(monkeypatch):
+    """The whole start pipeline (scan, ARX poles, reduced LM, static fit), blocks of 37 vs one block."""
+    data, s = hammerstein_case(n=2000, offset=True)
+    s = HammersteinStructure(LinearStructure(0, 2), Polynomial(2), offset=True)
+    whole = initialize.initial_points(data, s, initialize.Budget(600))
+    monkeypatch.setattr(streamed_lstsq, "BLOCK_SAMPLES", SMALL_BLOCK)
+    blocked = initialize.initial_points(data, s, initialize.Budget(600))
+    assert len(whole) == len(blocked) == 3
+    for a, b in zip(whole, blocked):
+        np.testing.assert_allclose(b, a, rtol=1e-6, atol=1e-9)
