@@ -228,14 +228,19 @@ def kernel(E, C, D, X0, Y0, P, Phi, y, out):
 
 
 class _LaneRows:
-    """Row of each lane quantity in a group's ``Z`` array (one column per candidate)."""
+    """Row of each lane quantity in a group's ``Z`` array (one column per candidate).
+
+    ``terms`` names the output terms present (``"d"``: direct term, ``"o"``:
+    offset); ``extra`` the rows after the state and previous signal sample
+    (the running ``J``, or the output ``yh`` of a normal-equation pass).
+    """
 
     def __init__(self, n: int, hold: str, K: int, terms: tuple, extra: tuple = ("J",)):
         names = [f"a{r}_{c}" for r in range(n) for c in range(n)] + [f"p{r}" for r in range(n)]
         names += [f"q{r}" for r in range(n)] if hold == "foh" else []
         names += [f"c{r}" for r in range(n)] + list(terms) + [f"P{k}" for k in range(K)]
-        self.terms = terms
         names += [f"x{r}" for r in range(n)] + ["vp"] + list(extra)
+        self.terms = terms
         self.index = {name: i for i, name in enumerate(names)}
 
     def __getitem__(self, name: str) -> str:

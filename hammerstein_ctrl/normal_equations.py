@@ -114,9 +114,19 @@ def neighbours(x, steps) -> np.ndarray:
            [1.  , 2.25]])
     """
     x = np.asarray(x, dtype=float)
+    steps = np.asarray(steps, dtype=float)
+    if x.ndim != 1 or steps.shape != x.shape:
+        raise ValueError(f"neighbours needs a point and one step per entry, got shapes {x.shape} and {steps.shape}")
+    return _neighbours(np.ascontiguousarray(x), np.ascontiguousarray(steps))
+
+
+@numba.njit(cache=True, nogil=True)
+def _neighbours(x, steps):  # pragma: no cover - compiled
     X = np.empty((x.size + 1, x.size))
-    X[:] = x
-    X[np.arange(1, x.size + 1), np.arange(x.size)] += np.asarray(steps, dtype=float)
+    for i in range(x.size + 1):
+        X[i] = x
+    for j in range(x.size):
+        X[j + 1, j] += steps[j]
     return X
 
 

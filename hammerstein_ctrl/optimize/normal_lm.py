@@ -198,9 +198,16 @@ def _iteration(gram, gradient, fun, scale, lam, x, check, limit, xtol):  # pragm
 
 def _column_norms(gram, previous=None):
     """Column norms of J from the Gram matrix (1 for a zero column), never below ``previous``."""
-    norms = np.sqrt(np.maximum(np.diag(gram), 0.0))
-    norms[~(norms > 0) | ~np.isfinite(norms)] = 1.0
-    return norms if previous is None else np.maximum(norms, previous)
+    return _norms(gram, np.zeros(gram.shape[0]) if previous is None else previous)
+
+
+@numba.njit(cache=True, nogil=True)
+def _norms(gram, floor):  # pragma: no cover - compiled
+    norms = np.empty(floor.size)
+    for j in range(floor.size):
+        v = np.sqrt(max(gram[j, j], 0.0))
+        norms[j] = max(v if v > 0 and np.isfinite(v) else 1.0, floor[j])
+    return norms
 
 
 class _Damping:
