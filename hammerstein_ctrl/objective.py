@@ -40,7 +40,7 @@ from .normal_equations import NONFINITE_RESIDUAL, NormalEquations, forward_steps
 from .simulate import normal_pass, simulate_batch, sse_basis_batch, sse_batch
 from .structure import BlockStructure
 
-__all__ = ["HammersteinCost", "CHUNK_BYTES", "BASIS_MAX_BYTES", "BASIS_BLOCK", "NONFINITE_RESIDUAL"]
+__all__ = ["HammersteinCost", "CHUNK_BYTES", "BASIS_MAX_BYTES", "BASIS_BLOCK", "EVAL_BLOCK", "NONFINITE_RESIDUAL"]
 
 
 #: Largest block of per-candidate signals ``g(u)`` (and simulated outputs) formed
@@ -58,6 +58,10 @@ BASIS_MAX_BYTES = 1 << 26
 
 #: Samples per block of a recomputed basis.
 BASIS_BLOCK = 1 << 16
+
+#: Samples of one candidate's signal ``g(u)`` evaluated at once by a nonlinearity without a
+#: basis (8 KiB samples: numpy's temporaries stay below the allocator's 128 KiB mmap threshold).
+EVAL_BLOCK = 1 << 13
 
 
 @numba.njit(cache=True, nogil=True)
@@ -116,6 +120,7 @@ class HammersteinCost:
         probe = None if g is None else g.basis(self._u[:1])
         self._linear_in_params = probe is not None
         self._basis = None
+        self._buffer = None
         if self._linear_in_params and probe.size * self._u.size * self._u.itemsize <= BASIS_MAX_BYTES:
             self._basis = np.ascontiguousarray(g.basis(self._u), dtype=float)
 
@@ -135,8 +140,8 @@ class HammersteinCost:
     def _pieces(self, b: np.ndarray, buffer=None):
         """Coefficients, signals and simulation options for a validated ``(B, n_params)`` array.
 
-        ``buffer`` (at least ``B`` rows of ``N``) receives the signals when the
-        nonlinearity has a basis, so chunks reuse one block of memory.
+        ``buffer`` (at least ``B`` rows of ``N``) receives the signals, so
+        chunks (and calls) reuse one block of memory.
         """
         s = self.structure
         num, den = s.linear._coefficients(b[:, :self._n_linear])
@@ -147,7 +152,7 @@ class HammersteinCost:
             elif self._linear_in_params:
                 V = self._combined(np.ascontiguousarray(g_params), buffer)
             else:
-                V = s.input_nonlinearity._evaluate(self._u, g_params)
+                V = self._evaluated(np.atleast_2d(g_params), buffer)
         offset, x0 = s.nuisance(b)
         h_params = s.output_params(b)
         opts = {"offset": offset, "x0": x0, "intersample": self.data.intersample,
@@ -166,10 +171,29 @@ class HammersteinCost:
                 _combine(P, np.ascontiguousarray(block, dtype=float), buffer, start)
         return buffer[:P.shape[0]]
 
+    def _evaluated(self, params, buffer):
+        """Signals ``g(u; params[b])`` in (the first rows of) ``buffer``, a row and :data:`EVAL_BLOCK` samples at a time.
+
+        Evaluating the whole ``B x N`` array at once has numpy allocate
+        ``B x N`` temporaries in every call, which the C allocator serves from
+        fresh pages once they pass its threshold (a page fault per 4 KiB on
+        every call: 2.5x the time of a TRS batch, depending on what the
+        process allocated before); blocks this size reuse the same memory.
+        """
+        if buffer is None:
+            buffer = np.empty((params.shape[0], self._u.size))
+        g = self.structure.input_nonlinearity
+        for row, p in zip(buffer, params):
+            for start in range(0, self._u.size, EVAL_BLOCK):
+                row[start:start + EVAL_BLOCK] = g._evaluate(self._u[start:start + EVAL_BLOCK], p)
+        return buffer[:params.shape[0]]
+
     def _signal_buffer(self, chunks):
-        """One block of signals reused by every chunk (``None`` without a basis)."""
+        """One block of signals reused by every chunk, and kept for the next call of the same size or less."""
         rows = chunks[0].stop - chunks[0].start if chunks else 0
-        return np.empty((rows, self._u.size)) if self._linear_in_params else None
+        if self._buffer is None or self._buffer.shape[0] < rows:
+            self._buffer = np.empty((rows, self._u.size))
+        return self._buffer
 
     def __call__(self, beta) -> float:
         """J at one beta (``inf`` if the candidate cannot be simulated)."""
