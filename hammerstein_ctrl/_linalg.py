@@ -134,13 +134,46 @@ def _expm_batch(M, b):  # pragma: no cover - compiled
 
 @numba.njit(cache=True, nogil=True)
 def expm_into(M, out):  # pragma: no cover - compiled
-    """``out[:, :] = expm(M)`` for one square matrix, callable from compiled code (NaN if ``M`` is not finite)."""
+    """``out[:, :] = expm(M)`` for one square matrix, callable from compiled code (NaN if ``M`` is not finite).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> out = np.empty((1, 1))
+    >>> expm_into(np.array([[1.0]]), out)
+    >>> bool(np.isclose(out[0, 0], np.e))
+    True
+    """
     _expm_one(M, out, _B13)
 
 
 @numba.njit(cache=True, nogil=True)
 def tf_augmented(num, den, dt):  # pragma: no cover - compiled
-    """Augmented FOH matrices of the companion realisations of a batch of num/den."""
+    """Augmented matrices ``[[A dt, B dt, 0], [0, 0, 1], [0, 0, 0]]`` of the companion realisations of num/den rows.
+
+    Parameters
+    ----------
+    num, den : ndarray, shape (B, l+1) and (B, n+1)
+        Descending powers, ``l <= n``, ``den[:, 0] != 0``.
+    dt : float
+
+    Returns
+    -------
+    M : ndarray, shape (B, n+2, n+2)
+    C : ndarray, shape (B, n)
+    D : ndarray, shape (B,)
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> M, C, D = tf_augmented(np.array([[1.0]]), np.array([[1.0, 2.0]]), 0.5)   # 1/(p + 2)
+    >>> M[0]
+    array([[-1. ,  0.5,  0. ],
+           [ 0. ,  0. ,  1. ],
+           [ 0. ,  0. ,  0. ]])
+    >>> C[0], D[0]
+    (array([1.]), np.float64(0.0))
+    """
     batch = den.shape[0]
     n = den.shape[1] - 1
     shift = n - (num.shape[1] - 1)
@@ -172,6 +205,13 @@ def tf_discrete(num, den, dt, max_norm):  # pragma: no cover - compiled
     replaced by ``1/p`` before the exponential; rows whose augmented matrix
     has a 1-norm above ``max_norm`` (``big``) are left for scipy's expm;
     ``clean`` says that every row is usable and done.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> E, C, D, ok, big, clean = tf_discrete(np.array([[1.0]]), np.array([[1.0, 2.0]]), 0.5, 64.0)
+    >>> bool(np.isclose(E[0, 0, 0], np.exp(-1.0))), bool(clean)
+    (True, True)
     """
     batch, n = den.shape[0], den.shape[1] - 1
     ok = np.ones(batch, dtype=np.bool_)

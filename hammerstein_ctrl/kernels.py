@@ -1,6 +1,6 @@
 """Compiled sampled recursions of a linear block, generated per state dimension and cached on disk.
 
-Every kernel reads, per candidate ``b``, the matrix exponential
+The kernels read, per candidate ``b``, the matrix exponential
 ``E[b] = expm([[A dt, B dt, 0], [0, 0, 1], [0, 0, 0]])`` and runs
 
 * first-order hold (``"foh"``, the input linear between samples, the paper's
@@ -18,11 +18,22 @@ evaluated in the same pass (:mod:`hammerstein_ctrl.compiled_maps`).  In
 measured ``y`` without storing the output.
 
 For state dimensions up to :data:`MAX_UNROLLED_STATES` the source is generated
-with the state held in scalars (registers) and :data:`INTERLEAVE` candidates
-simulated side by side (the recursion is latency-bound, so independent chains
-keep the CPU busy).  The generated source is written to a per-version cache
-directory (:func:`cache_dir`) and compiled by numba with ``cache=True``, so a
-new process loads the machine code instead of compiling again.  Larger
+per state dimension, in four families that share one generator of their
+arithmetic (so a candidate's operations, and its rounding, are the same in each):
+
+* :func:`get_kernel`: the state in scalars (registers) and :data:`INTERLEAVE`
+  candidates side by side (the recursion is latency-bound, so independent
+  chains keep the CPU busy); with ``K`` basis signals it forms the signal
+  ``P[b] @ Phi`` in the pass instead of reading ``V``;
+* :func:`get_coefficient_kernel`: the same, preceded by the realisation and
+  the matrix exponential in one compiled call (single evaluations);
+* :func:`get_lane_kernel`: candidates in groups across SIMD lanes (batches);
+* :func:`get_normal_kernel`: a point and its forward-difference neighbours
+  across SIMD lanes, accumulating the normal equations of least squares.
+
+The generated source is written to a per-version cache directory
+(:func:`cache_dir`) and compiled by numba with ``cache=True``, so a new
+process loads the machine code instead of compiling again.  Larger
 dimensions use one generic compiled loop.
 
 Examples
@@ -51,7 +62,8 @@ from pathlib import Path
 import numba
 import numpy as np
 
-__all__ = ["get_kernel", "get_coefficient_kernel", "get_normal_kernel", "get_lane_kernel", "lane_source", "has_output_maps", "kernel_source", "normal_source", "cache_dir",
+__all__ = ["get_kernel", "get_coefficient_kernel", "get_normal_kernel", "get_lane_kernel", "lane_source",
+           "has_output_maps", "kernel_source", "normal_source", "cache_dir", "OUTPUT_TERMS",
            "MAX_UNROLLED_STATES", "MAX_NORMAL_LANES", "LANE_WIDTHS", "LANE_MIN",
            "MAX_LANE_BASIS", "INTERLEAVE", "MODES", "HOLDS", "ENV_CACHE"]
 
@@ -69,6 +81,10 @@ ENV_CACHE = "HAMMERSTEIN_CTRL_CACHE"
 _OVERFLOW = 1.7e308
 #: Most candidates (one point and its forward-difference neighbours) of a normal-equation pass.
 MAX_NORMAL_LANES = 10
+#: One level of indentation of the generated source.
+_INDENT = " " * 4
+#: Terms of the output besides ``C x``: the direct term ``d v`` and the offset ``o``.
+OUTPUT_TERMS = ("d", "o")
 #: Candidates per group of a lanes kernel (16: two AVX-512 vectors, 8: one); the last
 #: group is padded.
 LANE_WIDTHS = (16, 8)
@@ -98,34 +114,80 @@ def kernel(E, C, D, X0, Y0, {inputs}, {args}):
 '''
 
 
+def _next_state(n: int, hold: str, q, x, vp: str, vi: str) -> list:
+    """Expressions of the next state, entry by entry: ``(A x)_r + (Bd0_r vp + Bd1_r vi)`` (zoh: ``Gamma_r vp``).
+
+    Every kernel family builds its arithmetic here and in :func:`_output_expr`
+    and :func:`_combination`, so their operations (and rounding) are the same;
+    ``q(name)`` is the text of a candidate's coefficient ``name`` and ``x(c)``
+    that of its state entry ``c``.
+    """
+    exprs = []
+    for r in range(n):
+        dyn = " + ".join(f"{q(f'a{r}_{c}')} * {x(c)}" for c in range(n))
+        drive = f"({q(f'p{r}')} * {vp} + {q(f'q{r}')} * {vi})" if hold == "foh" else f"{q(f'p{r}')} * {vp}"
+        exprs.append(f"({dyn}) + {drive}")
+    return exprs
+
+
+def _output_expr(n: int, q, x, v: str, terms=OUTPUT_TERMS, outmap=None) -> str:
+    """Expression of the output sample ``((C x) + d v) + o`` (``h(...)`` inside an output map).
+
+    A zero offset ``o`` adds exactly nothing to any output, and a zero direct
+    term ``d`` nothing while the signal ``v`` is finite, so ``terms`` may
+    leave them out (the lanes kernel then catches a non-finite last signal
+    sample itself: see :func:`_lane_group`).
+    """
+    linear = " + ".join(f"{q(f'c{r}')} * {x(r)}" for r in range(n)) or "0.0"
+    z = f"({linear})"
+    if "d" in terms:
+        z = f"({z} + {q('d')} * {v})"
+    if outmap:
+        z = f"h({z}, {q('hp')}, HX)"
+    return f"{z} + {q('o')}" if "o" in terms else z
+
+
+def _combination(q, K: int, f, target: str) -> list:
+    """Lines setting ``target`` to the signal sample ``P @ phi``, summed basis row by basis row."""
+    return [f"{target} = {q('P0')} * {f(0)}"] + [f"{target} += {q(f'P{k}')} * {f(k)}" for k in range(1, K)]
+
+
+def _coefficient_loads(n: int, hold: str, q, row: str, states: str, K: int | None, terms=OUTPUT_TERMS) -> list:
+    """Lines loading row ``row``'s coefficients (of ``E``, ``C``, ``D``, ``Y0``, ``P``) and initial state (of ``states``)."""
+    lines = []
+    for r in range(n):
+        lines += [f"{q(f'a{r}_{c}')} = E[{row}, {r}, {c}]" for c in range(n)]
+        if hold == "foh":
+            lines += [f"{q(f'q{r}')} = E[{row}, {r}, {n + 1}]", f"{q(f'p{r}')} = E[{row}, {r}, {n}] - {q(f'q{r}')}"]
+        else:
+            lines.append(f"{q(f'p{r}')} = E[{row}, {r}, {n}]")
+        lines += [f"{q(f'c{r}')} = C[{row}, {r}]", f"{q(f'x{r}')} = {states}[{row}, {r}]"]
+    lines += [f"{q('d')} = D[{row}]"] if "d" in terms else []
+    lines += [f"{q('o')} = Y0[{row}]"] if "o" in terms else []
+    return lines + [f"{q(f'P{k}')} = P[{row}, {k}]" for k in range(K or 0)]
+
+
+def _scalar_names(g: int):
+    """Candidate ``g``'s quantities as scalar variables (``a0_1`` -> ``a0_1_g``)."""
+    return lambda name: f"{name}_{g}"
+
+
+def _indent(ind: str, lines: list) -> list:
+    return [ind + line for line in lines]
+
+
 def _output(n: int, g: int, v: str, outmap) -> str:
     """Expression of candidate ``g``'s output sample given its input sample ``v``."""
-    linear = " + ".join(f"c{g}_{r} * x{g}_{r}" for r in range(n)) or "0.0"
-    z = f"({linear}) + d{g} * {v}"
-    return f"h({z}, hp{g}, HX) + o{g}" if outmap else f"{z} + o{g}"
-
-
-def _load_lane(n: int, g: int, hold: str, ind: str, row: str, states: str) -> list:
-    """Load the coefficients of row ``row`` (of ``E``, ``C``, ``D``, ``Y0``) and its state (of ``states``) as lane ``g``'s scalars."""
-    lines = [f"{ind}a{g}_{r}_{c} = E[{row}, {r}, {c}]" for r in range(n) for c in range(n)]
-    for r in range(n):
-        if hold == "foh":
-            lines += [f"{ind}q{g}_{r} = E[{row}, {r}, {n + 1}]",
-                      f"{ind}p{g}_{r} = E[{row}, {r}, {n}] - q{g}_{r}"]
-        else:
-            lines.append(f"{ind}p{g}_{r} = E[{row}, {r}, {n}]")
-        lines += [f"{ind}c{g}_{r} = C[{row}, {r}]", f"{ind}x{g}_{r} = {states}[{row}, {r}]"]
-    return lines + [f"{ind}d{g} = D[{row}]", f"{ind}o{g} = Y0[{row}]"]
+    q = _scalar_names(g)
+    return _output_expr(n, q, lambda r: q(f"x{r}"), v, outmap=outmap)
 
 
 def _advance(n: int, g: int, hold: str, ind: str) -> list:
-    """Lane ``g``'s state from the previous sample to this one (signal ``vp{g}`` before, ``vi{g}`` now)."""
-    lines = []
-    for r in range(n):
-        dyn = " + ".join(f"a{g}_{r}_{c} * x{g}_{c}" for c in range(n))
-        drive = f"(p{g}_{r} * vp{g} + q{g}_{r} * vi{g})" if hold == "foh" else f"p{g}_{r} * vp{g}"
-        lines.append(f"{ind}n{g}_{r} = ({dyn}) + {drive}")
-    return lines + [f"{ind}x{g}_{r} = n{g}_{r}" for r in range(n)]
+    """Candidate ``g``'s state from the previous sample to this one (signal ``vp_g`` before, ``vi_g`` now)."""
+    q = _scalar_names(g)
+    exprs = _next_state(n, hold, q, lambda c: q(f"x{c}"), q("vp"), q("vi"))
+    return ([f"{ind}{q(f'n{r}')} = {e}" for r, e in enumerate(exprs)]
+            + [f"{ind}{q(f'x{r}')} = {q(f'n{r}')}" for r in range(n)])
 
 
 _FROM_COEFFICIENTS = '''
@@ -141,39 +203,37 @@ def from_coefficients(num, den, dt, max_norm, X0, Y0, P, Phi, y, out):
 
 
 def _signal(g: int, i: str, K: int | None) -> list:
-    """Lines setting candidate ``g``'s signal sample ``vi{g}`` at sample ``i``: read from ``V``, or
-    ``P @ Phi`` summed basis row by basis row (``K`` signals, coefficients ``w{g}_k`` in scalars)."""
+    """Lines setting candidate ``g``'s signal sample ``vi_g`` at sample ``i``: read from ``V``, or ``P @ Phi``."""
+    q = _scalar_names(g)
     if K is None:
-        return [f"vi{g} = V[b0 + {g}, {i}]"]
-    return [f"vi{g} = w{g}_0 * Phi[0, {i}]"] + [f"vi{g} += w{g}_{k} * Phi[{k}, {i}]" for k in range(1, K)]
+        return [f"{q('vi')} = V[b0 + {g}, {i}]"]
+    return _combination(q, K, lambda k: f"Phi[{k}, {i}]", q("vi"))
 
 
 def _setup(n: int, g: int, hold: str, mode: str, ind: str, outmap=None, K: int | None = None) -> list:
     """Load candidate ``b0 + g``'s coefficients and initial state into scalars."""
-    row = f"b0 + {g}"
-    lines = _load_lane(n, g, hold, ind, row, "X0")
-    if K is not None:
-        lines += [f"{ind}w{g}_{k} = P[{row}, {k}]" for k in range(K)]
-    lines += [ind + line for line in _signal(g, "0", K)] + [f"{ind}vp{g} = vi{g}"]
+    q, row = _scalar_names(g), f"b0 + {g}"
+    lines = _coefficient_loads(n, hold, q, row, "X0", K) + _signal(g, "0", K) + [f"{q('vp')} = {q('vi')}"]
     if outmap:
-        lines.append(f"{ind}hp{g} = HP[{row}]")
-    lines.append(f"{ind}yh{g} = {_output(n, g, f'vp{g}', outmap)}")
+        lines.append(f"{q('hp')} = HP[{row}]")
+    lines.append(f"{q('yh')} = {_output(n, g, q('vp'), outmap)}")
     if mode == "sse":
-        lines += [f"{ind}e{g} = y[0] - yh{g}", f"{ind}J{g} = e{g} * e{g}"]
+        lines += [f"{q('e')} = y[0] - {q('yh')}", f"{q('J')} = {q('e')} * {q('e')}"]
     else:
-        lines.append(f"{ind}out[{row}, 0] = yh{g}")
-    return lines
+        lines.append(f"out[{row}, 0] = {q('yh')}")
+    return _indent(ind, lines)
 
 
 def _step(n: int, g: int, hold: str, mode: str, ind: str, outmap=None, K: int | None = None) -> list:
     """One sample of candidate ``b0 + g``'s recursion."""
-    lines = [ind + line for line in _signal(g, "i", K)] + _advance(n, g, hold, ind)
-    lines.append(f"{ind}yh{g} = {_output(n, g, f'vi{g}', outmap)}")
+    q = _scalar_names(g)
+    lines = _indent(ind, _signal(g, "i", K)) + _advance(n, g, hold, ind)
+    lines.append(f"{ind}{q('yh')} = {_output(n, g, q('vi'), outmap)}")
     if mode == "sse":
-        lines += [f"{ind}e{g} = yi - yh{g}", f"{ind}J{g} += e{g} * e{g}"]
+        lines += [f"{ind}{q('e')} = yi - {q('yh')}", f"{ind}{q('J')} += {q('e')} * {q('e')}"]
     else:
-        lines.append(f"{ind}out[b0 + {g}, i] = yh{g}")
-    lines.append(f"{ind}vp{g} = vi{g}")
+        lines.append(f"{ind}out[b0 + {g}, i] = {q('yh')}")
+    lines.append(f"{ind}{q('vp')} = {q('vi')}")
     return lines
 
 
@@ -190,27 +250,27 @@ def _block(n: int, group: int, hold: str, mode: str, ind: str, outmap=None, K: i
         lines += _step(n, g, hold, mode, body, outmap, K)
     if mode == "sse":
         # stop early only when every interleaved sum has overflowed (or is NaN)
-        alive = " or ".join(f"J{g} <= {_OVERFLOW!r}" for g in range(group))
+        alive = " or ".join(f"J_{g} <= {_OVERFLOW!r}" for g in range(group))
         lines += [f"{body}if (i & {_CHECK_MASK}) == 0 and not ({alive}):", f"{body}    break"]
-        lines += [f"{ind}out[b0 + {g}] = J{g} if J{g} <= {_OVERFLOW!r} else np.inf" for g in range(group)]
+        lines += [f"{ind}out[b0 + {g}] = J_{g} if J_{g} <= {_OVERFLOW!r} else np.inf" for g in range(group)]
     return "\n".join(lines)
 
 
 def kernel_source(n: int, mode: str, hold: str, outmap: str | None = None, K: int | None = None) -> str:
     """Python source of the generated kernel for ``n`` states (an output map, if named; ``K`` basis signals, if given)."""
-    ind = " " * 8
+    ind = _INDENT * 2
     args = ("HP, HX, " if outmap else "") + ("y, out" if mode == "sse" else "out")
     imports = f"from hammerstein_ctrl.compiled_maps import {outmap} as h\n" if outmap else ""
-    inputs, shape = ("V", "V.shape") if K is None else ("P, Phi", "P.shape[0], Phi.shape[1]")
-    direct = K is not None and mode == "sse" and outmap is None
-    if direct:
+    inputs, shape = ("V", "V.shape") if K is None else ("P, Phi", "E.shape[0], Phi.shape[1]")
+    fused = K is not None and mode == "sse" and outmap is None     # with from_coefficients
+    if fused:
         imports += "from hammerstein_ctrl._linalg import tf_discrete\n"
     src = _TEMPLATE.format(
         n=n, mode=mode, hold=hold, K=K, outmap=outmap, imports=imports, inputs=inputs, shape=shape, args=args,
         group=INTERLEAVE, block_group=_block(n, INTERLEAVE, hold, mode, ind, outmap, K),
         block_single=_block(n, 1, hold, mode, ind, outmap, K),
     )
-    return src + _FROM_COEFFICIENTS if direct else src
+    return src + _FROM_COEFFICIENTS if fused else src
 
 
 _LANES_TEMPLATE = '''"""Generated by hammerstein_ctrl.kernels: candidates across SIMD lanes, n = {n}, hold = {hold}, basis = {K}, terms = {terms}."""
@@ -251,38 +311,14 @@ class _LaneRows:
 
 
 def _lane_output(n: int, z: _LaneRows, x: str, v: str) -> str:
-    """Output expression of a lane (the same operation order as :func:`_output`).
-
-    A zero direct term ``d`` or offset ``o`` adds exactly nothing to a finite
-    output (and a non-finite one stays non-finite), so kernels for strictly
-    proper blocks or without offset leave those terms out.
-    """
-    linear = " + ".join(f"{z[f'c{r}']} * {x}{r}" for r in range(n))
-    z_out = f"({linear})"
-    if "d" in z.terms:
-        z_out = f"({z_out} + {z['d']} * {v})"
-    return f"{z_out} + {z['o']}" if "o" in z.terms else z_out
-
-
-def _lane_signal(z: _LaneRows, K: int, ind: str, f: str) -> list:
-    """``vi = P @ phi`` of a lane, summed in the order of the cost's signal combination."""
-    return [f"{ind}vi = {z['P0']} * {f}0"] + [f"{ind}vi += {z[f'P{k}']} * {f}{k}" for k in range(1, K)]
+    """Output expression of a lane from its state in the locals ``x0, x1, ...`` (prefix ``x``) and signal ``v``."""
+    return _output_expr(n, z.__getitem__, lambda r: f"{x}{r}", v, z.terms)
 
 
 def _lane_coefficients(n: int, hold: str, K: int, z: _LaneRows, ind: str, states: str) -> list:
-    """Load row ``b``'s coefficients and state (of ``states``) into column ``w`` (and the state into ``x{r}``)."""
-    lines = []
-    for r in range(n):
-        lines += [f"{ind}{z[f'a{r}_{c}']} = E[b, {r}, {c}]" for c in range(n)]
-        if hold == "foh":
-            lines += [f"{ind}{z[f'q{r}']} = E[b, {r}, {n + 1}]", f"{ind}{z[f'p{r}']} = E[b, {r}, {n}] - {z[f'q{r}']}"]
-        else:
-            lines.append(f"{ind}{z[f'p{r}']} = E[b, {r}, {n}]")
-        lines += [f"{ind}{z[f'c{r}']} = C[b, {r}]", f"{ind}{z[f'x{r}']} = {states}[b, {r}]",
-                  f"{ind}x{r} = {states}[b, {r}]"]
-    lines += [f"{ind}{z['d']} = D[b]"] if "d" in z.terms else []
-    lines += [f"{ind}{z['o']} = Y0[b]"] if "o" in z.terms else []
-    return lines + [f"{ind}{z[f'P{k}']} = P[b, {k}]" for k in range(K)]
+    """Load row ``b``'s coefficients and state (of ``states``) into column ``w``, and the state into ``x0, x1, ...``."""
+    lines = _coefficient_loads(n, hold, z.__getitem__, "b", states, K, z.terms)
+    return _indent(ind, lines + [f"x{r} = {states}[b, {r}]" for r in range(n)])
 
 
 def _lane_setup(n: int, hold: str, K: int, z: _LaneRows, ind: str) -> list:
@@ -290,20 +326,23 @@ def _lane_setup(n: int, hold: str, K: int, z: _LaneRows, ind: str) -> list:
     lines = [f"{ind}for w in range(W):", f"{ind}    b = b0 + w if w < m else b0"]
     body = ind + "    "
     lines += _lane_coefficients(n, hold, K, z, body, "X0")
-    lines += [f"{body}f{k} = Phi[{k}, 0]" for k in range(K)] + _lane_signal(z, K, body, "f")
+    lines += [f"{body}f{k} = Phi[{k}, 0]" for k in range(K)] + _lane_signal(z, K, body)
     lines += [f"{body}{z['vp']} = vi", f"{body}e = y[0] - ({_lane_output(n, z, 'x', 'vi')})",
               f"{body}{z['J']} = e * e"]
     return lines
 
 
+def _lane_signal(z: _LaneRows, K: int, ind: str) -> list:
+    """``vi = P @ phi`` of a lane, from the basis samples ``f0, f1, ...``."""
+    return _indent(ind, _combination(z.__getitem__, K, lambda k: f"f{k}", "vi"))
+
+
 def _lane_step(n: int, hold: str, K: int, z: _LaneRows, body: str) -> list:
-    """A lane's signal sample ``vi`` and its state advanced to ``n{r}`` (stored back in its column)."""
-    lines = _lane_signal(z, K, body, "f") + [f"{body}vp = {z['vp']}"]
+    """A lane's signal sample ``vi`` and its state advanced to ``n0, n1, ...`` (stored back in its column)."""
+    lines = _lane_signal(z, K, body) + [f"{body}vp = {z['vp']}"]
     lines += [f"{body}x{r} = {z[f'x{r}']}" for r in range(n)]
-    for r in range(n):
-        dyn = " + ".join(f"{z[f'a{r}_{c}']} * x{c}" for c in range(n))
-        drive = f"({z[f'p{r}']} * vp + {z[f'q{r}']} * vi)" if hold == "foh" else f"{z[f'p{r}']} * vp"
-        lines.append(f"{body}n{r} = ({dyn}) + {drive}")
+    exprs = _next_state(n, hold, z.__getitem__, lambda c: f"x{c}", "vp", "vi")
+    lines += [f"{body}n{r} = {e}" for r, e in enumerate(exprs)]
     return lines + [f"{body}{z[f'x{r}']} = n{r}" for r in range(n)] + [f"{body}{z['vp']} = vi"]
 
 
@@ -312,7 +351,7 @@ def _lane_loop(n: int, hold: str, K: int, z: _LaneRows, ind: str) -> list:
     lines = [f"{ind}for i in range(1, N):", f"{ind}    yi = y[i]"]
     lines += [f"{ind}    f{k} = Phi[{k}, i]" for k in range(K)]
     lines.append(f"{ind}    for w in range(W):")
-    body = ind + " " * 8
+    body = ind + _INDENT * 2
     lines += _lane_step(n, hold, K, z, body)
     lines += [f"{body}e = yi - ({_lane_output(n, z, 'n', 'vi')})", f"{body}{z['J']} += e * e"]
     # stop early once every candidate of the group has overflowed (or is NaN)
@@ -329,17 +368,29 @@ def _lane_group(n: int, hold: str, K: int, terms: tuple, width: int, ind: str) -
     lines = [f"{ind}W = {width}", f"{ind}Z = np.zeros(({len(z)}, W))",
              f"{ind}while batch - b0 >= {least}:", f"{ind}    m = min(W, batch - b0)"]
     lines += _lane_setup(n, hold, K, z, ind + "    ") + _lane_loop(n, hold, K, z, ind + "    ")
+    # the last signal sample reaches the output only through the direct term (zoh): without
+    # that term a non-finite one would go unseen, so it scores inf as it would with d = 0
     lines += [f"{ind}    for w in range(m):", f"{ind}        J = {z['J']}",
-              f"{ind}        out[b0 + w] = J if J <= {_OVERFLOW!r} else np.inf", f"{ind}    b0 += m"]
+              f"{ind}        out[b0 + w] = J if J <= {_OVERFLOW!r} and np.isfinite({z['vp']}) else np.inf",
+              f"{ind}    b0 += m"]
     return lines
 
 
 def lane_source(n: int, hold: str, K: int, direct: bool = True, offset: bool = True) -> str:
-    """Python source of the lanes kernel for ``n`` states and a basis of ``K`` signals."""
+    """Python source of the lanes kernel for ``n`` states and a basis of ``K`` signals.
+
+    Parameters as for :func:`get_lane_kernel`, which compiles it.
+
+    Examples
+    --------
+    >>> src = lane_source(2, "foh", 3, direct=False, offset=False)
+    >>> "def kernel(E, C, D, X0, Y0, P, Phi, y, out):" in src, "D[b]" in src
+    (True, False)
+    """
     terms = ("d",) * direct + ("o",) * offset
     groups = []
     for width in LANE_WIDTHS:
-        groups += _lane_group(n, hold, K, terms, width, " " * 4)
+        groups += _lane_group(n, hold, K, terms, width, _INDENT)
     return _LANES_TEMPLATE.format(n=n, hold=hold, K=K, terms=terms, groups="\n".join(groups))
 
 
@@ -388,9 +439,7 @@ def get_lane_kernel(n: int, hold: str, K: int, direct: bool = True, offset: bool
     """
     if hold not in HOLDS:
         raise ValueError(f"unknown hold {hold!r}")
-    if not (1 <= n <= MAX_UNROLLED_STATES and 1 <= K <= MAX_LANE_BASIS):
-        raise ValueError(f"lane kernels are compiled for 1..{MAX_UNROLLED_STATES} states and "
-                         f"1..{MAX_LANE_BASIS} basis signals, not n = {n}, K = {K}")
+    _check_sizes(n, K)
     name = f"hc_lanes_n{n}_{hold}_k{K}" + "_d" * bool(direct) + "_o" * bool(offset)
     return _load_source(lane_source(int(n), hold, int(K), bool(direct), bool(offset)), name)
 
@@ -421,7 +470,8 @@ def kernel(E, C, D, X, Y0, VP, P, Phi, y, begin, steps, acc):
 
 
 def _normal_rows(n: int, hold: str, K: int) -> _LaneRows:
-    return _LaneRows(n, hold, K, ("d", "o"), extra=("yh",))
+    """The rows of a normal-equation pass: every output term, and the lanes' output sample."""
+    return _LaneRows(n, hold, K, OUTPUT_TERMS, extra=("yh",))
 
 
 def _normal_setup(n: int, hold: str, K: int, lanes: int, ind: str) -> list:
@@ -464,17 +514,18 @@ def normal_source(n: int, hold: str, lanes: int, K: int) -> str:
     """Python source of the normal-equation pass for ``n`` states, ``lanes`` candidates and ``K`` basis signals."""
     z = _normal_rows(n, hold, K)
     width = next(w for w in sorted(LANE_WIDTHS) if w >= lanes)
-    fetch = [f"{' ' * 8}f{k} = Phi[{k}, i]" for k in range(K)]
-    first = [f"{' ' * 8}f{k} = Phi[{k}, 0]" for k in range(K)] + [f"{' ' * 8}yi = y[0]", f"{' ' * 8}for w in range(W):"]
-    first += _lane_signal(z, K, " " * 12, "f") + [f"{' ' * 12}{z['vp']} = vi"]
-    first += [f"{' ' * 12}x{r} = {z[f'x{r}']}" for r in range(n)]
-    first += [f"{' ' * 12}{z['yh']} = {_lane_output(n, z, 'x', 'vi')}"] + _normal_sums(lanes, z, " " * 8)
-    step = _lane_step(n, hold, K, z, " " * 12) + [f"{' ' * 12}{z['yh']} = {_lane_output(n, z, 'n', 'vi')}"]
+    ind1, ind2, ind3 = (_INDENT * level for level in (1, 2, 3))
+    fetch = [f"{ind2}f{k} = Phi[{k}, i]" for k in range(K)]
+    first = [f"{ind2}f{k} = Phi[{k}, 0]" for k in range(K)] + [f"{ind2}yi = y[0]", f"{ind2}for w in range(W):"]
+    first += _lane_signal(z, K, ind3) + [f"{ind3}{z['vp']} = vi"]
+    first += [f"{ind3}x{r} = {z[f'x{r}']}" for r in range(n)]
+    first += [f"{ind3}{z['yh']} = {_lane_output(n, z, 'x', 'vi')}"] + _normal_sums(lanes, z, ind2)
+    step = _lane_step(n, hold, K, z, ind3) + [f"{ind3}{z['yh']} = {_lane_output(n, z, 'n', 'vi')}"]
     return _NORMAL_TEMPLATE.format(
         n=n, hold=hold, lanes=lanes, K=K, width=width, rows=len(z),
-        setup="\n".join(_normal_setup(n, hold, K, lanes, " " * 4)), first="\n".join(first), fetch="\n".join(fetch),
-        step="\n".join(step), sums="\n".join(_normal_sums(lanes, z, " " * 8)),
-        store="\n".join(_normal_store(n, lanes, z, " " * 4)),
+        setup="\n".join(_normal_setup(n, hold, K, lanes, ind1)), first="\n".join(first), fetch="\n".join(fetch),
+        step="\n".join(step), sums="\n".join(_normal_sums(lanes, z, ind2)),
+        store="\n".join(_normal_store(n, lanes, z, ind1)),
     )
 
 
@@ -525,10 +576,9 @@ def get_normal_kernel(n: int, hold: str, lanes: int, K: int):
     """
     if hold not in HOLDS:
         raise ValueError(f"unknown hold {hold!r}")
-    if not (1 <= n <= MAX_UNROLLED_STATES and 2 <= lanes <= MAX_NORMAL_LANES and 1 <= K <= MAX_LANE_BASIS):
-        raise ValueError(f"normal-equation passes are compiled for 1..{MAX_UNROLLED_STATES} states, "
-                         f"2..{MAX_NORMAL_LANES} lanes and 1..{MAX_LANE_BASIS} basis signals, "
-                         f"not n = {n}, lanes = {lanes}, K = {K}")
+    _check_sizes(n, K)
+    if not 2 <= lanes <= MAX_NORMAL_LANES:
+        raise ValueError(f"normal-equation passes are compiled for 2..{MAX_NORMAL_LANES} lanes, not {lanes}")
     return _load_source(normal_source(int(n), hold, int(lanes), int(K)), f"hc_normal_n{n}_{hold}_l{lanes}_k{K}")
 
 
@@ -542,8 +592,9 @@ def cache_dir() -> Path | None:
     stale machine code.  ``None`` if no writable location exists (kernels are
     then compiled in memory in every process).
     """
-    # the generated modules call compiled code of _linalg, which numba's cache does not track
-    sources = Path(__file__).read_bytes() + (Path(__file__).parent / "_linalg.py").read_bytes()
+    # the generated modules call compiled code of these modules, which numba's cache does not track
+    here = Path(__file__).parent
+    sources = b"".join((here / name).read_bytes() for name in ("kernels.py",) + _CALLED_MODULES)
     digest = hashlib.sha256(sources + numba.__version__.encode()).hexdigest()[:16]
     root = os.environ.get(ENV_CACHE) or os.path.join(
         os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache"),
@@ -556,6 +607,17 @@ def cache_dir() -> Path | None:
     except OSError:
         return None
     return path
+
+
+#: Package modules whose compiled functions the generated kernels call.
+_CALLED_MODULES = ("_linalg.py", "compiled_maps.py")
+
+
+def _check_sizes(n: int, K: int):
+    """Raise unless kernels forming the signal from a basis are compiled for ``n`` states and ``K`` basis signals."""
+    if not (1 <= n <= MAX_UNROLLED_STATES and 1 <= K <= MAX_LANE_BASIS):
+        raise ValueError(f"kernels forming the signal from a basis are compiled for 1..{MAX_UNROLLED_STATES} "
+                         f"states and 1..{MAX_LANE_BASIS} basis signals, not n = {n}, K = {K}")
 
 
 def _write_once(path: Path, text: str):
@@ -597,10 +659,11 @@ def get_coefficient_kernel(n: int, hold: str, K: int):
     Examples
     --------
     >>> import numpy as np
+    >>> from hammerstein_ctrl.simulate import COMPILED_EXPM_MAX_NORM
     >>> f = get_coefficient_kernel(1, "zoh", 1)
     >>> J = np.empty(1)
-    >>> f(np.ones((1, 1)), np.array([[1.0, 0.0]]), 0.5, 64.0, np.zeros((1, 1)), np.zeros(1), np.ones((1, 1)),
-    ...   np.ones((1, 4)), np.zeros(4), J), J        # an integrator: y = (0, 0.5, 1, 1.5)
+    >>> f(np.ones((1, 1)), np.array([[1.0, 0.0]]), 0.5, COMPILED_EXPM_MAX_NORM, np.zeros((1, 1)), np.zeros(1),
+    ...   np.ones((1, 1)), np.ones((1, 4)), np.zeros(4), J), J        # an integrator: y = (0, 0.5, 1, 1.5)
     (True, array([3.5]))
     """
     get_kernel(n, "sse", hold, None, K)        # checks the arguments
@@ -628,7 +691,7 @@ def _load_module(src: str, name: str):
             path = None
     if path is None:
         module = types.ModuleType(name)
-        exec(compile(src, f"<{name}>", "exec"), module.__dict__)
+        exec(compile(src.replace("cache=True", "cache=False"), f"<{name}>", "exec"), module.__dict__)
         return module
     spec = importlib.util.spec_from_file_location(name, path)
     module = importlib.util.module_from_spec(spec)
@@ -638,7 +701,7 @@ def _load_module(src: str, name: str):
 
 
 @functools.lru_cache(maxsize=None)
-def get_kernel(n: int, mode: str, hold: str = "foh", outmap: str | None = None, basis: int | None = None):
+def get_kernel(n: int, mode: str, hold: str = "foh", outmap: str | None = None, K: int | None = None):
     """The compiled recursion for ``n`` states.
 
     Parameters
@@ -650,10 +713,10 @@ def get_kernel(n: int, mode: str, hold: str = "foh", outmap: str | None = None, 
     outmap : str, optional
         Name of an output map in :mod:`hammerstein_ctrl.compiled_maps`; only
         for ``n <= MAX_UNROLLED_STATES`` (see :func:`has_output_maps`).
-    basis : int, optional
-        Form each candidate's signal from ``basis`` basis signals in the pass
+    K : int, optional
+        Form each candidate's signal from ``K`` basis signals in the pass
         (``1 .. MAX_LANE_BASIS``; only for ``n <= MAX_UNROLLED_STATES``): the
-        kernel then takes ``P, Phi`` (shapes ``(B, basis)`` and ``(basis, N)``,
+        kernel then takes ``P, Phi`` (shapes ``(B, K)`` and ``(K, N)``,
         signal ``P[b] @ Phi`` summed basis row by basis row) in place of ``V``.
 
     Returns
@@ -664,15 +727,14 @@ def get_kernel(n: int, mode: str, hold: str = "foh", outmap: str | None = None, 
         (``"outputs"``: ``out`` of shape ``(B, N)``); with an output map, the
         map's parameters ``HP`` (``(B, m)``) and fixed data ``HX`` come before ``y``/``out``.
     """
-    if basis is not None and not (n <= MAX_UNROLLED_STATES and 1 <= basis <= MAX_LANE_BASIS):
-        raise ValueError(f"kernels forming the signal are compiled for up to {MAX_UNROLLED_STATES} states and "
-                         f"1..{MAX_LANE_BASIS} basis signals, not n = {n}, basis = {basis}")
+    if K is not None:
+        _check_sizes(n, K)
     if mode not in MODES or hold not in HOLDS:
         raise ValueError(f"unknown kernel mode {mode!r} / hold {hold!r}")
     if outmap is not None and not has_output_maps(n):
         raise ValueError(f"output maps are compiled for up to {MAX_UNROLLED_STATES} states, not {n}")
     if n <= MAX_UNROLLED_STATES:
-        return _load_generated(int(n), mode, hold, outmap, None if basis is None else int(basis))
+        return _load_generated(int(n), mode, hold, outmap, None if K is None else int(K))
     zoh = hold == "zoh"
     if mode == "sse":
         return lambda E, C, D, X0, Y0, V, y, out: _sse_generic(E, C, D, X0, Y0, V, y, out, zoh)

@@ -7,13 +7,17 @@ simulation is non-finite (overflow, NaN parameters) scores ``inf``.  A wrong
 *length* of beta is a programming error and raises
 :class:`~hammerstein_ctrl.exceptions.ParameterError`.
 
-Memory stays bounded on long records: a batch is formed a chunk of candidates
-at a time (:data:`CHUNK_BYTES` of signals), and past :data:`BASIS_MAX_BYTES`
-the basis of ``g`` is recomputed in blocks instead of stored.  The public
-methods do not enter a BLAS thread limit themselves (it would cost ~7 us, a
-tenth of an EMPS evaluation, and the evaluation calls no BLAS: the matrix
-exponential and the signal combination are compiled loops); the entry points
-that drive them (``identify``, ``minimize``, ``run_study``) hold it.
+Memory stays bounded on long records.  Where ``g`` is linear in its
+parameters (or absent) and the basis is stored, the values of J come from one
+compiled pass that forms each candidate's signal sample by sample
+(:func:`~hammerstein_ctrl.simulate.sse_basis_batch`), so no ``B x N`` array
+exists.  Otherwise (and for simulated outputs and residuals) a batch is formed
+a chunk of candidates at a time (:data:`CHUNK_BYTES` of signals), and past
+:data:`BASIS_MAX_BYTES` the basis of ``g`` is recomputed in blocks instead of
+stored.  The public methods do not enter a BLAS thread limit themselves (it
+would cost ~7 us, a seventh of an EMPS evaluation, and the evaluation calls no
+BLAS: the matrix exponential and the signal combination are compiled loops);
+the entry points that drive them (``identify``, ``minimize``, ``run_study``) hold it.
 
 Unstable candidates are simulated like any other by default, because that is
 what the paper does: EMPS's initial point (Table 5, ``a1 = -1``) is unstable
@@ -44,7 +48,8 @@ __all__ = ["HammersteinCost", "CHUNK_BYTES", "BASIS_MAX_BYTES", "BASIS_BLOCK", "
 
 
 #: Largest block of per-candidate signals ``g(u)`` (and simulated outputs) formed
-#: at once, in bytes.  A batch whose ``B x N`` signals would exceed it is
+#: at once, in bytes, where signals are formed at all (not in the compiled basis
+#: pass).  A batch whose ``B x N`` signals would exceed it is
 #: evaluated a chunk of candidates at a time, so that memory per sample stays
 #: bounded on long records (one candidate at a time from 2 million samples up);
 #: records of ordinary length take the whole batch in one chunk.

@@ -18,11 +18,12 @@ the realisation below, plus a constant output ``offset``.  With the augmented ma
 
 the state obeys ``x[k] = Ad x[k-1] + Bd0 v[k-1] + Bd1 v[k]`` (first-order
 hold; with zero-order hold ``x[k] = Ad x[k-1] + (Bd0 + Bd1) v[k-1]``) and
-``y[k] = C x[k] + D v[k] + offset``.  Here the matrix exponential is computed
-once per candidate in compiled code without BLAS
-(:func:`hammerstein_ctrl._linalg.expm_batch`) and the recursion, including the
+``y[k] = C x[k] + D v[k] + offset``.  Here the realisation and the matrix
+exponential are computed once per candidate in compiled code without BLAS
+(:func:`hammerstein_ctrl._linalg.tf_discrete`) and the recursion, including the
 sum of squared residuals, runs in generated compiled code
-(:mod:`hammerstein_ctrl.kernels`).  It agrees with
+(:mod:`hammerstein_ctrl.kernels`); a signal that is a combination of basis
+signals is formed inside that pass (:func:`sse_basis_batch`).  It agrees with
 python-control to about 1e-13 relative on the EMPS and TRS cases while costing
 tens of microseconds instead of tens of milliseconds.
 
@@ -42,7 +43,6 @@ True
 
 from __future__ import annotations
 
-import numba
 import numpy as np
 
 from ._checks import as_signal, check_intersample, check_transfer_function, uniform_grid
@@ -454,6 +454,8 @@ def simulate_batch(num, den, V, dt: float, *, x0=None, offset=None, intersample:
     E, C, D, ok = _tf_system(num, den, dt)
     batch, n = E.shape[0], E.shape[1] - 2
     V = _signals(V, batch)
+    if V.shape[1] == 0:
+        raise DataError("the signals are empty")
     Y = np.empty(V.shape)
     outmap, map_args, fallback = _output_map(output_map, batch, n)
     offsets = _offset_rows(offset, batch)
@@ -493,7 +495,7 @@ def sse_batch(num, den, V, dt: float, y, *, x0=None, offset=None, intersample: s
         ok &= ~unstable(den)
     batch, n = E.shape[0], E.shape[1] - 2
     outmap, map_args, fallback = _output_map(output_map, batch, n)
-    y = np.ascontiguousarray(y, dtype=float)
+    y = _measured(y, np.shape(V)[-1])
     if fallback:
         Y = simulate_batch(num, den, V, dt, x0=x0, offset=offset, intersample=hold, output_map=output_map)
         with np.errstate(all="ignore"):
@@ -510,19 +512,19 @@ def sse_batch(num, den, V, dt: float, y, *, x0=None, offset=None, intersample: s
 
 def sse_basis_batch(num, den, P, basis, dt: float, y, *, x0=None, offset=None, intersample: str = "foh",
                     reject_unstable: bool = False) -> np.ndarray | None:
-    """:func:`sse_batch` for candidates whose intermediate signal is ``P[b] @ basis``, across SIMD lanes.
+    """:func:`sse_batch` for candidates whose intermediate signal is ``P[b] @ basis``, formed in the pass.
 
     The signals are formed sample by sample inside the compiled pass (from
-    :data:`~hammerstein_ctrl.kernels.LANE_MIN` candidates on in the lanes
-    kernel, :func:`~hammerstein_ctrl.kernels.get_lane_kernel`), so no
+    :data:`~hammerstein_ctrl.kernels.LANE_MIN` candidates on across SIMD
+    lanes, :func:`~hammerstein_ctrl.kernels.get_lane_kernel`), so no
     ``B x N`` array is made, and the sums are bit-identical to
-    :func:`sse_batch` on the signals ``P @ basis`` (summed basis row by basis row).
+    :func:`sse_batch` on the signals ``P @ basis`` summed basis row by basis row.
 
     Parameters
     ----------
     num, den : array_like, shape (B, l+1) and (B, n+1)
-    P : array_like, shape (B, K)
-        Each candidate's coefficients of the basis.
+    P : array_like, shape (B, K) or (K,)
+        Each candidate's coefficients of the basis (one row: shared by all).
     basis : ndarray, shape (K, N)
     dt, y, x0, offset, intersample, reject_unstable
         As for :func:`sse_batch`.
@@ -530,8 +532,8 @@ def sse_basis_batch(num, den, P, basis, dt: float, y, *, x0=None, offset=None, i
     Returns
     -------
     ndarray, shape (B,) or None
-        ``None`` where no lanes kernel applies (more than
-        :data:`MAX_UNROLLED_STATES` states or
+        ``None`` where no compiled pass applies (no state, more than
+        :data:`MAX_UNROLLED_STATES` states or more than
         :data:`~hammerstein_ctrl.kernels.MAX_LANE_BASIS` basis signals).
 
     Examples
@@ -540,38 +542,60 @@ def sse_basis_batch(num, den, P, basis, dt: float, y, *, x0=None, offset=None, i
     >>> t = np.arange(0, 2, 0.01); u = np.sin(3 * t); y = np.cos(t)
     >>> basis = np.vstack([u, u ** 3]); P = np.array([[1.0, 0.5], [2.0, -1.0], [0.0, 1.0]])
     >>> num, den = np.ones((3, 1)), np.tile([1.0, 2.0], (3, 1))
-    >>> J = sse_basis_batch(num, den, P, basis, 0.01, y)
-    >>> bool(np.array_equal(J, sse_batch(num, den, P @ basis, 0.01, y)))
+    >>> V = P[:, :1] * basis[0] + P[:, 1:] * basis[1]          # summed basis row by basis row
+    >>> bool(np.array_equal(sse_basis_batch(num, den, P, basis, 0.01, y), sse_batch(num, den, V, 0.01, y)))
     True
     """
     hold = check_intersample(intersample)
-    P = np.ascontiguousarray(P, dtype=float)
-    num, den = _coefficient_rows(num, den)
+    num, den, P, basis, y = _basis_arguments(num, den, P, basis, y)
     batch, n, K = den.shape[0], den.shape[1] - 1, P.shape[1]
     if not (1 <= n <= MAX_UNROLLED_STATES and 1 <= K <= MAX_LANE_BASIS):
         return None
-    basis, y = np.ascontiguousarray(basis, dtype=float), np.ascontiguousarray(y, dtype=float)
+    X0, Y0 = _state_rows(x0, batch, n), _offset_rows(offset, batch)
     if batch < LANE_MIN:
         J = np.empty(batch)
-        if get_coefficient_kernel(n, hold, K)(num, den, float(dt), COMPILED_EXPM_MAX_NORM, _state_rows(x0, batch, n),
-                                              _offset_rows(offset, batch), P, basis, y, J):
+        # discretisation and pass in one compiled call, unless a row needs the general path
+        if get_coefficient_kernel(n, hold, K)(num, den, float(dt), COMPILED_EXPM_MAX_NORM, X0, Y0, P, basis, y, J):
             if reject_unstable:
                 J[unstable(den)] = np.inf
             return J
     E, C, D, ok = _tf_system(num, den, dt)
     if reject_unstable:
         ok &= ~unstable(den)
-    batch = E.shape[0]
     J = np.empty(batch)
-    Y0 = _offset_rows(offset, batch)
     if batch < LANE_MIN:
         kernel = get_kernel(n, "sse", hold, None, K)     # positional: the cached lookup is quicker
     else:
         kernel = get_lane_kernel(n, hold, K, direct=bool(D.any()), offset=bool(Y0.any()))
-    kernel(E, C, D, _state_rows(x0, batch, n), Y0, P, basis, y, J)
+    kernel(E, C, D, X0, Y0, P, basis, y, J)
     if not ok.all():
         J[~ok] = np.inf
     return J
+
+
+def _basis_arguments(num, den, P, basis, y):
+    """Coefficient rows, basis coefficients (one row per candidate), basis and output, checked against each other."""
+    num, den = _coefficient_rows(num, den)
+    P = np.atleast_2d(np.asarray(P, dtype=float))
+    basis = np.atleast_2d(np.asarray(basis, dtype=float))
+    if P.ndim != 2 or basis.ndim != 2 or P.shape[1] != basis.shape[0]:
+        raise ParameterError(f"basis coefficients of shape {P.shape} do not match a basis of shape {basis.shape}")
+    if P.shape[0] != den.shape[0]:
+        if 1 not in (P.shape[0], den.shape[0]):
+            raise ParameterError(f"{P.shape[0]} rows of basis coefficients for {den.shape[0]} transfer functions")
+        rows = max(P.shape[0], den.shape[0])
+        num, den = (np.ascontiguousarray(np.broadcast_to(a, (rows, a.shape[1]))) for a in (num, den))
+        P = np.broadcast_to(P, (rows, P.shape[1]))
+    return num, den, np.ascontiguousarray(P), np.ascontiguousarray(basis), _measured(y, basis.shape[1])
+
+
+def _measured(y, n_samples: int) -> np.ndarray:
+    """The measured output as a contiguous float array, as long as the signals (else a :class:`DataError`)."""
+    y = np.ascontiguousarray(y, dtype=float)
+    if y.ndim != 1 or y.size != n_samples or n_samples == 0:
+        raise DataError(f"the measured output has shape {y.shape}, the signals {n_samples} samples "
+                        "(both must have the same, non-zero, length)")
+    return y
 
 
 def normal_pass(num, den, dt: float, y, P, blocks, steps, *, x0=None, offset=None,
@@ -603,33 +627,46 @@ def normal_pass(num, den, dt: float, y, P, blocks, steps, *, x0=None, offset=Non
     -------
     NormalEquations or None
         ``None`` if the pass does not apply (more than
-        :data:`~hammerstein_ctrl.kernels.MAX_NORMAL_LANES` candidates, more than
-        :data:`MAX_UNROLLED_STATES` states, or a candidate whose coefficients
-        cannot be discretised); the sums may be non-finite if a simulation overflows.
+        :data:`~hammerstein_ctrl.kernels.MAX_NORMAL_LANES` candidates, no
+        state or more than :data:`MAX_UNROLLED_STATES` states, more than
+        :data:`~hammerstein_ctrl.kernels.MAX_LANE_BASIS` basis signals, or a
+        candidate whose coefficients cannot be discretised); the sums may be
+        non-finite if a simulation overflows.
+
+    Raises
+    ------
+    ParameterError
+        If the shapes of ``steps``, ``P``, ``den`` and the blocks do not fit
+        each other and the record.
     """
     hold = check_intersample(intersample)
-    steps = np.ascontiguousarray(steps, dtype=float).reshape(-1)
-    lanes = steps.size + 1
-    n = np.shape(den)[-1] - 1
-    K = np.shape(P)[-1]
-    if (lanes > MAX_NORMAL_LANES or not 1 <= n <= MAX_UNROLLED_STATES or np.shape(den)[0] != lanes
-            or not 1 <= K <= MAX_LANE_BASIS):
+    steps = np.ascontiguousarray(steps, dtype=float)
+    P = np.ascontiguousarray(P, dtype=float)
+    lanes, n, K = steps.size + 1, np.shape(den)[-1] - 1, P.shape[-1]
+    if steps.ndim != 1 or P.shape != (lanes, K) or np.shape(den)[0] != lanes:
+        raise ParameterError(f"a normal-equation pass needs one row of coefficients per candidate "
+                             f"(p + 1 = {lanes}), got steps {steps.shape}, P {P.shape}, den {np.shape(den)}")
+    if lanes > MAX_NORMAL_LANES or not 1 <= n <= MAX_UNROLLED_STATES or not 1 <= K <= MAX_LANE_BASIS:
         return None
     E, C, D, ok = _tf_system(num, den, dt)
     if not ok.all():
         return None
     kernel = get_normal_kernel(n, hold, lanes, K)
-    X, Y0 = _state_rows(x0, lanes, n), _offset_rows(offset, lanes)
-    P = np.ascontiguousarray(P, dtype=float)
-    p = steps.size
-    VP, acc = np.zeros(lanes), np.zeros(1 + p * (p + 1))
+    X, Y0 = np.array(_state_rows(x0, lanes, n)), _offset_rows(offset, lanes)   # X is written: a copy
+    VP, acc = np.zeros(lanes), np.zeros(1 + (lanes - 1) * lanes)
     y = np.ascontiguousarray(y, dtype=float)
     begin = 0
     for Phi in blocks:
         Phi = np.ascontiguousarray(Phi, dtype=float)
         stop = begin + Phi.shape[1]
+        if Phi.shape[0] != K or stop > y.size:
+            raise ParameterError(f"a block of the basis of shape {Phi.shape} does not fit {K} basis signals and "
+                                 f"a record of {y.size} samples (at sample {begin})")
         kernel(E, C, D, X, Y0, VP, P, Phi, y[begin:stop], begin, steps, acc)
         begin = stop
+    if begin != y.size:
+        raise ParameterError(f"the blocks of the basis cover {begin} samples of a record of {y.size}")
+    p = lanes - 1
     return NormalEquations(float(acc[0]), acc[1:1 + p], acc[1 + p:].reshape(p, p), steps)
 
 

@@ -165,7 +165,6 @@ class LinearStructure:
 
     def _coefficients(self, theta: np.ndarray):
         """:meth:`coefficients` for a validated ``(B, n_params)`` float array."""
-        batch = theta.shape[0]
         return _fill_coefficients(np.ascontiguousarray(theta), self._num0, self._den0, self._num_pos, self._den_pos)
 
     def free_parameters(self, num, den) -> np.ndarray:

@@ -106,3 +106,44 @@ def test_small_batches_in_one_compiled_call_and_their_fallbacks(batch):
             ref = sse_batch(num, den, _combined(P, basis), 1e-3, y, reject_unstable=reject)
             np.testing.assert_array_equal(J, ref)
     assert np.isinf(sse_basis_batch(num, den, P, basis, 1e-3, y)).all()
+
+
+def test_a_nonfinite_last_signal_sample_scores_inf_without_a_direct_term():
+    """ZOH: the last sample's signal reaches the output only through d; the lanes kernel leaves d = 0 out."""
+    N = 50
+    u = np.full(N, 1e-200)
+    u[-1] = 1e200
+    for batch in (1, LANE_MIN, 8):
+        num, den, P = np.ones((batch, 1)), np.tile([1.0, 1.0], (batch, 1)), np.full((batch, 1), 1e200)
+        J = sse_basis_batch(num, den, P, u[None], 0.01, np.zeros(N), intersample="zoh")
+        assert np.isinf(J).all()
+
+
+def test_basis_arguments_are_checked():
+    from hammerstein_ctrl.exceptions import DataError, ParameterError
+
+    rng = np.random.default_rng(0)
+    u, y = rng.normal(size=300), rng.normal(size=300)
+    num, den = np.ones((3, 1)), np.tile([1.0, 1.0], (3, 1))
+    shared = sse_basis_batch(num, den, np.array([[1.0]]), u[None], 0.01, y)   # one row of P for every candidate
+    np.testing.assert_array_equal(shared, sse_batch(num, den, u, 0.01, y))
+    with pytest.raises(ParameterError, match="2 rows of basis coefficients for 3"):
+        sse_basis_batch(num, den, np.ones((2, 1)), u[None], 0.01, y)
+    with pytest.raises(ParameterError, match="do not match a basis"):
+        sse_basis_batch(num, den, np.ones((3, 1)), np.ones((2, 300)), 0.01, y)
+    with pytest.raises(DataError, match="same, non-zero, length"):
+        sse_basis_batch(num, den, np.ones((3, 1)), u[None], 0.01, y[:-1])
+    with pytest.raises(DataError, match="same, non-zero, length"):
+        sse_batch(num, den, np.ones((3, 0)), 0.01, np.ones(0))
+
+
+def test_kernels_compile_in_memory_without_a_cache_directory(monkeypatch):
+    from hammerstein_ctrl import kernels
+
+    monkeypatch.setattr(kernels, "cache_dir", lambda: None)
+    module = kernels._load_module(kernels.lane_source(1, "zoh", 2, True, False), "hc_test_in_memory")
+    J = np.empty(3)
+    E = np.array([[[1.0, 0.5, 0.0], [0.0, 1.0, 1.0], [0.0, 0.0, 1.0]]] * 3)
+    module.kernel(E, np.ones((3, 1)), np.zeros(3), np.zeros((3, 1)), np.zeros(3), np.ones((3, 2)),
+                  np.vstack([np.ones(4), np.zeros(4)]), np.zeros(4), J)
+    np.testing.assert_array_equal(J, [3.5, 3.5, 3.5])

@@ -12,7 +12,7 @@ from scipy.optimize._numdiff import approx_derivative
 
 import hammerstein_ctrl as hc
 from hammerstein_ctrl import objective
-from hammerstein_ctrl.normal_equations import forward_steps, from_residuals
+from hammerstein_ctrl.normal_equations import forward_steps, from_residuals, neighbours
 from hammerstein_ctrl.objective import HammersteinCost
 from hammerstein_ctrl.optimize import levenberg_marquardt, normal_lm
 
@@ -121,7 +121,10 @@ def test_emps_from_the_nspsa_vector_stays_on_the_normal_equations(emps_case, mon
 
 def test_ill_conditioning_hands_over_to_minpack(emps_case):
     ne = emps_case.cost.normal_equations(emps_case.x0)  # the paper's unstable start
-    assert normal_lm._ill_conditioned(ne, normal_lm._column_norms(ne.gram))
+    scale = normal_lm._column_norms(ne.gram)
+    ill = normal_lm._iteration(ne.gram, ne.gradient, ne.fun, scale, normal_lm.INITIAL_DAMPING, np.asarray(emps_case.x0, float), True,
+                               normal_lm.ILL_CONDITIONED, 1e-10)[1]
+    assert ill
 
 
 @pytest.mark.parametrize("maxfev", [3, 5, 12, 23])
@@ -129,3 +132,32 @@ def test_budget_is_exact_on_the_normal_equations(emps_case, maxfev):
     r = levenberg_marquardt(emps_case.cost, np.asarray(emps_case.paper["nspsa"]["beta"]), maxfev=maxfev)
     assert r.nfev == maxfev and len(r.history["fun"]) == maxfev
     assert r.fun == min(r.history["fun"]) and "budget" in r.message
+
+
+def test_a_nan_cosine_never_passes_the_gtol_test():
+    """An infinite Jacobian column makes MINPACK's cosine NaN, as numpy's max would: no false convergence."""
+    gram, gradient = np.array([[np.inf, np.inf], [np.inf, 1.0]]), np.array([np.inf, 1e-12])
+    cosine, ill = normal_lm._iteration(gram, gradient, 1.0, np.ones(2), 1e-3, np.ones(2), True,
+                                       normal_lm.ILL_CONDITIONED, 1e-10)[:2]
+    assert np.isnan(cosine) and ill
+
+
+def test_normal_pass_checks_shapes_and_keeps_a_given_state(emps_case):
+    from hammerstein_ctrl.exceptions import ParameterError
+    from hammerstein_ctrl.simulate import normal_pass
+
+    cost = emps_case.cost
+    x = np.asarray(emps_case.paper["nspsa"]["beta"], float)
+    h = forward_steps(x)
+    X = neighbours(x, h)
+    num, den = emps_case.structure.linear.coefficients(X[:, :1])
+    P = X[:, 1:]
+    x0 = np.zeros((5, 2))
+    ne = normal_pass(num, den, emps_case.data.dt, cost._y, P, [cost._basis], h, x0=x0)
+    ref = normal_pass(num, den, emps_case.data.dt, cost._y, P, [cost._basis], h)
+    np.testing.assert_array_equal(ne.gram, ref.gram)
+    assert not x0.any()                                   # the caller's state is not written
+    with pytest.raises(ParameterError, match="one row of coefficients per candidate"):
+        normal_pass(num, den, emps_case.data.dt, cost._y, P[:2], [cost._basis], h)
+    with pytest.raises(ParameterError, match="cover 100 samples"):
+        normal_pass(num, den, emps_case.data.dt, cost._y, P, [cost._basis[:, :100]], h)

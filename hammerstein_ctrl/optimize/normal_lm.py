@@ -113,11 +113,6 @@ class _Passes:
         return ne._replace(fun=values[0])
 
 
-def _ill_conditioned(ne: NormalEquations, scale) -> bool:
-    """Whether the scaled Gram matrix is too ill-conditioned to solve the normal equations accurately."""
-    return bool(_ill(_scaled(ne.gram, np.asarray(scale, dtype=float)), ILL_CONDITIONED))
-
-
 @numba.njit(cache=True, nogil=True)
 def _scaled(gram, scale):  # pragma: no cover - compiled
     """``gram / outer(scale, scale)``."""
@@ -149,7 +144,10 @@ def _cosine(gram, gradient, fun):  # pragma: no cover - compiled
     for j in range(gradient.size):
         norm = np.sqrt(max(gram[j, j], 0.0))
         if norm > 0:
-            best = max(best, abs(gradient[j]) / (norm * root))
+            c = abs(gradient[j]) / (norm * root)
+            if np.isnan(c):  # as numpy's max: NaN wins, and never passes the gtol test
+                return c
+            best = max(best, c)
     return best
 
 
