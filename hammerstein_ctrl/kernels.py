@@ -449,8 +449,8 @@ import numba
 import numpy as np
 
 
-@numba.njit(cache=True, nogil=True, fastmath={{"contract"}}, error_model="numpy")
-def kernel(E, C, D, X, Y0, VP, P, Phi, y, begin, steps, acc):
+@numba.njit(cache=True, nogil=True, fastmath={{"contract"}})
+def kernel(E, C, D, X, Y0, VP, P, Phi, y, begin, acc):
     N = Phi.shape[1]
     W = {width}
     Z = np.zeros(({rows}, W))
@@ -481,7 +481,6 @@ def _normal_setup(n: int, hold: str, K: int, lanes: int, ind: str) -> list:
     lines += _lane_coefficients(n, hold, K, z, ind + "    ", "X")
     lines.append(f"{ind}    {z['vp']} = VP[b]")
     p = lanes - 1
-    lines += [f"{ind}ih{j} = 1.0 / steps[{j}]" for j in range(p)]
     lines.append(f"{ind}f = acc[0]")
     lines += [f"{ind}g{j} = acc[{1 + j}]" for j in range(p)]
     lines += [f"{ind}H{j}_{k} = acc[{1 + p + j * p + k}]" for j in range(p) for k in range(j + 1)]
@@ -493,7 +492,7 @@ def _normal_sums(lanes: int, z: _LaneRows, ind: str) -> list:
     p = lanes - 1
     yh = z.index["yh"]
     lines = [f"{ind}y0 = Z[{yh}, 0]", f"{ind}r = yi - y0", f"{ind}f += r * r"]
-    lines += [f"{ind}j{j} = (y0 - Z[{yh}, {j + 1}]) * ih{j}" for j in range(p)]
+    lines += [f"{ind}j{j} = y0 - Z[{yh}, {j + 1}]" for j in range(p)]
     lines += [f"{ind}g{j} += j{j} * r" for j in range(p)]
     return lines + [f"{ind}H{j}_{k} += j{j} * j{k}" for j in range(p) for k in range(j + 1)]
 
@@ -536,9 +535,10 @@ def get_normal_kernel(n: int, hold: str, lanes: int, K: int):
     Lane 0 simulates the point, lane ``j`` the point with parameter ``j - 1``
     moved by a step ``h``; the signal of lane ``g`` is ``P[g] @ Phi`` (a
     nonlinearity linear in its parameters, or ``Phi = u`` and ``P = 1``).
-    Per sample the pass adds ``r**2``, ``J r`` and ``J J^T`` to running sums,
-    with ``r = y - yhat_0`` and ``J[j] = (yhat_0 - yhat_{j+1}) / h_j`` (the
-    forward-difference derivative of ``r``), so the Jacobian is never stored.
+    Per sample the pass adds ``r**2``, ``d r`` and ``d d^T`` to running sums,
+    with ``r = y - yhat_0`` and ``d[j] = yhat_0 - yhat_{j+1}`` (``h_j`` times
+    the forward-difference derivative of ``r``: the caller divides by the
+    steps once at the end), so the Jacobian is never stored.
     The lanes step side by side in the columns of one small array (as in
     :func:`get_lane_kernel`), so LLVM vectorises their recursion.
 
@@ -555,12 +555,12 @@ def get_normal_kernel(n: int, hold: str, lanes: int, K: int):
     Returns
     -------
     callable
-        ``kernel(E, C, D, X, Y0, VP, P, Phi, y, begin, steps, acc)``.  ``X``
+        ``kernel(E, C, D, X, Y0, VP, P, Phi, y, begin, acc)``.  ``X``
         (lanes' states), ``VP`` (previous signal samples) and ``acc``
-        (``[f, g (p), H (p x p)]``; the lower triangle of ``H`` is read, all
-        of it written) are read and updated, so a long record can be passed a
-        block of samples at a time; ``begin`` is the index of the block's
-        first sample in the record and ``steps`` the ``h_j``.
+        (``[f, sum d r (p), sum d d^T (p x p)]``; the lower triangle of the
+        last is read, all of it written) are read and updated, so a long
+        record can be passed a block of samples at a time; ``begin`` is the
+        index of the block's first sample in the record.
 
     Examples
     --------
@@ -570,9 +570,9 @@ def get_normal_kernel(n: int, hold: str, lanes: int, K: int):
     >>> C, D, X, VP = np.ones((2, 1)), np.zeros(2), np.zeros((2, 1)), np.zeros(2)
     >>> P = np.array([[2.0], [2.5]])                # theta = 1 and theta + h with h = 0.25
     >>> acc = np.zeros(3)
-    >>> k(E, C, D, X, np.zeros(2), VP, P, np.ones((1, 3)), np.zeros(3), 0, np.array([0.25]), acc)
-    >>> acc                                          # y = 0: r = -(0, 2, 3) theta, dr/dtheta = -(0, 2, 3)
-    array([13., 13., 13.])
+    >>> k(E, C, D, X, np.zeros(2), VP, P, np.ones((1, 3)), np.zeros(3), 0, acc)
+    >>> acc            # y = 0: r = -(0, 2, 3) theta and d = h dr/dtheta = -(0, 2, 3) / 4
+    array([13.    ,  3.25  ,  0.8125])
     """
     if hold not in HOLDS:
         raise ValueError(f"unknown hold {hold!r}")

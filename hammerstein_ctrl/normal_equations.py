@@ -31,7 +31,7 @@ from typing import NamedTuple
 import numba
 import numpy as np
 
-__all__ = ["NormalEquations", "from_residuals", "forward_steps", "neighbours", "FD_REL_STEP", "NONFINITE_RESIDUAL"]
+__all__ = ["NormalEquations", "from_residuals", "from_difference_sums", "forward_steps", "neighbours", "FD_REL_STEP", "NONFINITE_RESIDUAL"]
 
 #: Relative step of the forward-difference Jacobian (scipy's "2-point" default, sqrt(eps)).
 FD_REL_STEP = float(np.sqrt(np.finfo(float).eps))
@@ -128,6 +128,36 @@ def _neighbours(x, steps):  # pragma: no cover - compiled
     for j in range(x.size):
         X[j + 1, j] += steps[j]
     return X
+
+
+def from_difference_sums(sums, steps) -> NormalEquations:
+    """Normal equations from ``[r @ r, D.T @ r, D.T @ D]`` (flattened), ``D[:, j] = h_j J[:, j]`` the neighbours' differences.
+
+    A pass that sums the differences ``r_{j+1} - r_0`` of the neighbours'
+    residuals (as :func:`~hammerstein_ctrl.kernels.get_normal_kernel` does)
+    divides by the steps once here instead of at every sample.
+
+    Examples
+    --------
+    >>> ne = from_difference_sums([13.0, 3.25, 0.8125], [0.25])
+    >>> ne.fun, ne.gradient, ne.gram
+    (13.0, array([13.]), array([[13.]]))
+    """
+    sums, steps = np.asarray(sums, dtype=float), np.ascontiguousarray(steps, dtype=float)
+    gradient, gram = _divide_by_steps(sums, steps)
+    return NormalEquations(float(sums[0]), gradient, gram, steps)
+
+
+@numba.njit(cache=True, nogil=True, error_model="numpy")
+def _divide_by_steps(sums, steps):  # pragma: no cover - compiled
+    p = steps.size
+    gradient = np.empty(p)
+    gram = np.empty((p, p))
+    for j in range(p):
+        gradient[j] = sums[1 + j] / steps[j]
+        for k in range(p):
+            gram[j, k] = sums[1 + p + j * p + k] / (steps[j] * steps[k])
+    return gradient, gram
 
 
 def from_residuals(R, steps) -> NormalEquations:

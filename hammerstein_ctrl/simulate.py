@@ -50,7 +50,7 @@ from ._linalg import expm_batch, single_threaded_blas, tf_augmented, tf_discrete
 from .exceptions import DataError, ParameterError
 from .kernels import (LANE_MIN, MAX_LANE_BASIS, MAX_NORMAL_LANES, MAX_UNROLLED_STATES, get_coefficient_kernel,
                       get_kernel, get_lane_kernel, get_normal_kernel, has_output_maps)
-from .normal_equations import NormalEquations
+from .normal_equations import NormalEquations, from_difference_sums
 
 __all__ = [
     "companion_realization",
@@ -662,12 +662,11 @@ def normal_pass(num, den, dt: float, y, P, blocks, steps, *, x0=None, offset=Non
         if Phi.shape[0] != K or stop > y.size:
             raise ParameterError(f"a block of the basis of shape {Phi.shape} does not fit {K} basis signals and "
                                  f"a record of {y.size} samples (at sample {begin})")
-        kernel(E, C, D, X, Y0, VP, P, Phi, y[begin:stop], begin, steps, acc)
+        kernel(E, C, D, X, Y0, VP, P, Phi, y[begin:stop], begin, acc)
         begin = stop
     if begin != y.size:
         raise ParameterError(f"the blocks of the basis cover {begin} samples of a record of {y.size}")
-    p = lanes - 1
-    return NormalEquations(float(acc[0]), acc[1:1 + p], acc[1 + p:].reshape(p, p), steps)
+    return from_difference_sums(acc, steps)
 
 
 def free_response(num, den, dt: float, n_samples: int) -> np.ndarray:
