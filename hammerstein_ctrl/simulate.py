@@ -364,9 +364,7 @@ def _tf_system(num, den, dt: float):
 
 def _coefficient_rows(num, den):
     """``num``, ``den`` as C-contiguous float rows, as many of each (checked for properness)."""
-    if (type(num) is np.ndarray and type(den) is np.ndarray and num.ndim == 2 and den.ndim == 2
-            and num.dtype == np.float64 and den.dtype == np.float64 and num.shape[0] == den.shape[0]
-            and num.shape[1] <= den.shape[1] and num.flags.c_contiguous and den.flags.c_contiguous):
+    if _float_matrix(num) and _float_matrix(den) and num.shape[0] == den.shape[0] and num.shape[1] <= den.shape[1]:
         return num, den
     num, den = _broadcast_rows(np.atleast_2d(np.asarray(num, dtype=float)),
                                np.atleast_2d(np.asarray(den, dtype=float)))
@@ -576,6 +574,8 @@ def sse_basis_batch(num, den, P, basis, dt: float, y, *, x0=None, offset=None, i
 def _basis_arguments(num, den, P, basis, y):
     """Coefficient rows, basis coefficients (one row per candidate), basis and output, checked against each other."""
     num, den = _coefficient_rows(num, den)
+    if _float_matrix(P) and _float_matrix(basis) and P.shape[0] == den.shape[0] and P.shape[1] == basis.shape[0]:
+        return num, den, P, basis, _measured(y, basis.shape[1])        # the cost's own arrays: nothing to do
     P = np.atleast_2d(np.asarray(P, dtype=float))
     basis = np.atleast_2d(np.asarray(basis, dtype=float))
     if P.ndim != 2 or basis.ndim != 2 or P.shape[1] != basis.shape[0]:
@@ -587,6 +587,11 @@ def _basis_arguments(num, den, P, basis, y):
         num, den = (np.ascontiguousarray(np.broadcast_to(a, (rows, a.shape[1]))) for a in (num, den))
         P = np.broadcast_to(P, (rows, P.shape[1]))
     return num, den, np.ascontiguousarray(P), np.ascontiguousarray(basis), _measured(y, basis.shape[1])
+
+
+def _float_matrix(a) -> bool:
+    """Whether ``a`` is already a C-contiguous 2-D float64 array."""
+    return type(a) is np.ndarray and a.ndim == 2 and a.dtype == np.float64 and a.flags.c_contiguous
 
 
 def _measured(y, n_samples: int) -> np.ndarray:
