@@ -360,13 +360,11 @@ class HammersteinCost:
                            intersample=self.data.intersample)
 
     def _basis_blocks(self):
-        """The basis of ``g`` as blocks of samples: the stored one whole, or recomputed a block at a time."""
+        """The basis of ``g`` as blocks of samples: the stored one whole (a list), or recomputed a block at a time."""
         if self._basis is not None:
-            yield self._basis
-            return
+            return [self._basis]
         g = self.structure.input_nonlinearity
-        for start in range(0, self._u.size, BASIS_BLOCK):
-            yield g.basis(self._u[start:start + BASIS_BLOCK])
+        return (g.basis(self._u[start:start + BASIS_BLOCK]) for start in range(0, self._u.size, BASIS_BLOCK))
 
     def __repr__(self):
         return f"HammersteinCost({self.data.name!r}, {self.structure.describe()})"
