@@ -96,8 +96,9 @@ def _rows(study, paper: bool, alpha: float):
             line += f"; paper: p = {rp['p']:.3g}, h = {rp['h']}"
         notes.append(line)
     if "lm" in study.methods:
-        notes.append("LM* = Levenberg-Marquardt on the output error (scipy least_squares), not in the "
-                     "paper; deterministic from the paper's initial point.")
+        notes.append("LM* = Levenberg-Marquardt on the output error (normal equations from one compiled pass, "
+                     "MINPACK's lmder where they are ill-conditioned), not in the paper; deterministic from the "
+                     "paper's initial point.")
     notes.append("NFE of the SPSA family includes the one evaluation of the final iterate; "
                  "AMVO-SCA is a documented reconstruction.")
     return rows, notes
