@@ -469,14 +469,13 @@ def kernel(E, C, D, X, Y0, VP, P, Phi, y, begin, acc):
 '''
 
 
-def _normal_rows(n: int, hold: str, K: int) -> _LaneRows:
-    """The rows of a normal-equation pass: every output term, and the lanes' output sample."""
-    return _LaneRows(n, hold, K, OUTPUT_TERMS, extra=("yh",))
+def _normal_rows(n: int, hold: str, K: int, terms: tuple) -> _LaneRows:
+    """The rows of a normal-equation pass: the output terms present, and the lanes' output sample."""
+    return _LaneRows(n, hold, K, terms, extra=("yh",))
 
 
-def _normal_setup(n: int, hold: str, K: int, lanes: int, ind: str) -> list:
+def _normal_setup(n: int, hold: str, K: int, lanes: int, z: _LaneRows, ind: str) -> list:
     """Every lane's coefficients, state and previous signal (padding lanes repeat lane 0), and the sums."""
-    z = _normal_rows(n, hold, K)
     lines = [f"{ind}for w in range(W):", f"{ind}    b = w if w < {lanes} else 0"]
     lines += _lane_coefficients(n, hold, K, z, ind + "    ", "X")
     lines.append(f"{ind}    {z['vp']} = VP[b]")
@@ -501,6 +500,9 @@ def _normal_store(n: int, lanes: int, z: _LaneRows, ind: str) -> list:
     """Write the lanes' states, previous signals and the sums back for the next block of samples."""
     lines = [f"{ind}for w in range({lanes}):"]
     lines += [f"{ind}    X[w, {r}] = {z[f'x{r}']}" for r in range(n)] + [f"{ind}    VP[w] = {z['vp']}"]
+    # a non-finite signal sample not yet in the state (zoh: the last one) may reach no sum when the
+    # direct term is left out: the sum of squares is then not finite, as it would be with d = 0
+    lines += [f"{ind}    if not np.isfinite({z['vp']}):", f"{ind}        f = np.nan"]
     p = lanes - 1
     lines.append(f"{ind}acc[0] = f")
     lines += [f"{ind}acc[{1 + j}] = g{j}" for j in range(p)]
@@ -509,9 +511,9 @@ def _normal_store(n: int, lanes: int, z: _LaneRows, ind: str) -> list:
     return lines
 
 
-def normal_source(n: int, hold: str, lanes: int, K: int) -> str:
+def normal_source(n: int, hold: str, lanes: int, K: int, direct: bool = True, offset: bool = True) -> str:
     """Python source of the normal-equation pass for ``n`` states, ``lanes`` candidates and ``K`` basis signals."""
-    z = _normal_rows(n, hold, K)
+    z = _normal_rows(n, hold, K, ("d",) * direct + ("o",) * offset)
     width = next(w for w in sorted(LANE_WIDTHS) if w >= lanes)
     ind1, ind2, ind3 = (_INDENT * level for level in (1, 2, 3))
     fetch = [f"{ind2}f{k} = Phi[{k}, i]" for k in range(K)]
@@ -522,14 +524,14 @@ def normal_source(n: int, hold: str, lanes: int, K: int) -> str:
     step = _lane_step(n, hold, K, z, ind3) + [f"{ind3}{z['yh']} = {_lane_output(n, z, 'n', 'vi')}"]
     return _NORMAL_TEMPLATE.format(
         n=n, hold=hold, lanes=lanes, K=K, width=width, rows=len(z),
-        setup="\n".join(_normal_setup(n, hold, K, lanes, ind1)), first="\n".join(first), fetch="\n".join(fetch),
+        setup="\n".join(_normal_setup(n, hold, K, lanes, z, ind1)), first="\n".join(first), fetch="\n".join(fetch),
         step="\n".join(step), sums="\n".join(_normal_sums(lanes, z, ind2)),
         store="\n".join(_normal_store(n, lanes, z, ind1)),
     )
 
 
 @functools.lru_cache(maxsize=None)
-def get_normal_kernel(n: int, hold: str, lanes: int, K: int):
+def get_normal_kernel(n: int, hold: str, lanes: int, K: int, direct: bool = True, offset: bool = True):
     """The compiled normal-equation pass: a point and its forward-difference neighbours side by side.
 
     Lane 0 simulates the point, lane ``j`` the point with parameter ``j - 1``
@@ -551,6 +553,8 @@ def get_normal_kernel(n: int, hold: str, lanes: int, K: int):
         Number of candidates, ``2 .. MAX_NORMAL_LANES``.
     K : int
         Number of basis signals, ``1 .. MAX_LANE_BASIS``.
+    direct, offset : bool, default True
+        As for :func:`get_lane_kernel`.
 
     Returns
     -------
@@ -579,7 +583,8 @@ def get_normal_kernel(n: int, hold: str, lanes: int, K: int):
     _check_sizes(n, K)
     if not 2 <= lanes <= MAX_NORMAL_LANES:
         raise ValueError(f"normal-equation passes are compiled for 2..{MAX_NORMAL_LANES} lanes, not {lanes}")
-    return _load_source(normal_source(int(n), hold, int(lanes), int(K)), f"hc_normal_n{n}_{hold}_l{lanes}_k{K}")
+    name = f"hc_normal_n{n}_{hold}_l{lanes}_k{K}" + "_d" * bool(direct) + "_o" * bool(offset)
+    return _load_source(normal_source(int(n), hold, int(lanes), int(K), bool(direct), bool(offset)), name)
 
 
 @functools.lru_cache(maxsize=1)

@@ -656,8 +656,8 @@ def normal_pass(num, den, dt: float, y, P, blocks, steps, *, x0=None, offset=Non
     E, C, D, ok = _tf_system(num, den, dt)
     if not ok.all():
         return None
-    kernel = get_normal_kernel(n, hold, lanes, K)
     X, Y0 = np.array(_state_rows(x0, lanes, n)), _offset_rows(offset, lanes)   # X is written: a copy
+    kernel = get_normal_kernel(n, hold, lanes, K, bool(D.any()), bool(Y0.any()))
     VP, acc = np.zeros(lanes), np.zeros(1 + (lanes - 1) * lanes)
     y = np.ascontiguousarray(y, dtype=float)
     begin = 0

@@ -161,3 +161,18 @@ def test_normal_pass_checks_shapes_and_keeps_a_given_state(emps_case):
         normal_pass(num, den, emps_case.data.dt, cost._y, P[:2], [cost._basis], h)
     with pytest.raises(ParameterError, match="cover 100 samples"):
         normal_pass(num, den, emps_case.data.dt, cost._y, P, [cost._basis[:, :100]], h)
+
+
+def test_a_nonfinite_last_signal_sample_makes_the_pass_nonfinite():
+    """ZOH, strictly proper, no offset: the pass leaves d = 0 out, so the last signal sample must be checked."""
+    from hammerstein_ctrl.simulate import normal_pass
+
+    N = 40
+    u = np.full(N, 1e-200)
+    u[-1] = 1e200
+    num, den = np.ones((2, 1)), np.tile([1.0, 1.0], (2, 1))
+    P = np.array([[1e200], [1e200 * (1 + 1e-8)]])
+    ne = normal_pass(num, den, 0.01, np.zeros(N), P, [u[None]], np.array([1e192]), intersample="zoh")
+    assert not ne.finite
+    ok = normal_pass(num, den, 0.01, np.zeros(N), P, [np.full((1, N), 1e-200)], np.array([1e192]), intersample="zoh")
+    assert ok.finite
