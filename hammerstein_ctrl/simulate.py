@@ -653,11 +653,16 @@ def normal_pass(num, den, dt: float, y, P, blocks, steps, *, x0=None, offset=Non
                              f"(p + 1 = {lanes}), got steps {steps.shape}, P {P.shape}, den {np.shape(den)}")
     if lanes > MAX_NORMAL_LANES or not 1 <= n <= MAX_UNROLLED_STATES or not 1 <= K <= MAX_LANE_BASIS:
         return None
-    E, C, D, ok = _tf_system(num, den, dt)
-    if not ok.all():
-        return None
+    num, den = _coefficient_rows(num, den)
+    E, C, D, ok, big, clean = tf_discrete(num, den, float(dt), COMPILED_EXPM_MAX_NORM)
+    if not clean:
+        if not ok.all():
+            return None
+        E, C, D, ok = _tf_system(num, den, dt)
     X, Y0 = np.array(_state_rows(x0, lanes, n)), _offset_rows(offset, lanes)   # X is written: a copy
-    kernel = get_normal_kernel(n, hold, lanes, K, bool(D.any()), bool(Y0.any()))
+    # a strictly proper block has D = 0 and no offset Y0 = 0 (no need to look)
+    direct = num.shape[1] == den.shape[1] and bool(D.any())
+    kernel = get_normal_kernel(n, hold, lanes, K, direct, offset is not None and bool(Y0.any()))
     VP, acc = np.zeros(lanes), np.zeros(1 + (lanes - 1) * lanes)
     y = np.ascontiguousarray(y, dtype=float)
     begin = 0

@@ -100,17 +100,17 @@ class _Passes:
                 self.value(row)
             raise BudgetExhausted("evaluation budget exhausted")
         self.counted.charge(X.shape[0])
-        with np.errstate(all="ignore"):
-            if self._normal is not None:
-                ne = self._normal(x, h)
-            else:
+        if self._normal is not None:
+            ne = self._normal(x, h)
+        else:
+            with np.errstate(all="ignore"):
                 R = self._batch(X) if self._batch is not None else [self._residuals(row) for row in X]
                 ne = from_residuals(R, h)
         values = [ne.fun] + ne.neighbour_values().tolist()
         values = [f if math.isfinite(f) else math.inf for f in values]
         for row, f in zip(X, values):
             self.counted.record_value(row, f)
-        return ne._replace(fun=values[0])
+        return ne if values[0] == ne.fun else ne._replace(fun=values[0])
 
 
 @numba.njit(cache=True, nogil=True)
