@@ -35,13 +35,15 @@ Examples
 
 from __future__ import annotations
 
+import functools
+
 import numba
 import numpy as np
 
 from .exceptions import ParameterError
-from .kernels import MAX_NORMAL_LANES
+from .kernels import MAX_LANE_BASIS, MAX_NORMAL_LANES, MAX_UNROLLED_STATES, get_coefficient_kernel
 from .normal_equations import NONFINITE_RESIDUAL, NormalEquations, forward_steps, from_residuals, neighbours
-from .simulate import normal_pass, simulate_batch, sse_basis_batch, sse_batch
+from .simulate import COMPILED_EXPM_MAX_NORM, normal_pass, simulate_batch, sse_basis_batch, sse_batch
 from .structure import BlockStructure
 
 __all__ = ["HammersteinCost", "CHUNK_BYTES", "BASIS_MAX_BYTES", "BASIS_BLOCK", "EVAL_BLOCK", "NONFINITE_RESIDUAL"]
@@ -128,6 +130,7 @@ class HammersteinCost:
         self._buffer = None
         if self._linear_in_params and probe.size * self._u.size * self._u.itemsize <= BASIS_MAX_BYTES:
             self._basis = np.ascontiguousarray(g.basis(self._u), dtype=float)
+        self._direct = self._direct_pass()
 
     @property
     def n_params(self) -> int:
@@ -205,7 +208,34 @@ class HammersteinCost:
         b = self.structure.check_beta(beta)
         if b.ndim != 1:
             raise ParameterError("cost(beta) takes one vector; use cost.batch for a batch")
-        return float(self._sse(b[None, :])[0])
+        b = b[None, :]
+        if self._direct is not None:
+            kernel, P, basis, X0, Y0 = self._direct
+            num, den = self.structure.linear._coefficients(b[:, :self._n_linear])
+            J = np.empty(1)
+            # discretisation and pass in one compiled call; False sends the candidate the general way
+            if kernel()(num, den, self.data.dt, COMPILED_EXPM_MAX_NORM, X0, Y0,
+                        self.structure.input_params(b) if P is None else P, basis, self._y, J):
+                return float(J[0])
+        return float(self._sse(b)[0])
+
+    def _direct_pass(self):
+        """What a single evaluation needs for the one compiled call of :func:`~hammerstein_ctrl.kernels.get_coefficient_kernel`.
+
+        ``None`` unless the structure is a plain Hammerstein one whose
+        nonlinearity has a stored basis (or is absent), with no estimated
+        offset or initial state and no rejection of unstable candidates;
+        the call then gives the bits :meth:`batch` gives.
+        """
+        s, n = self.structure, self.structure.linear.den_order
+        K = 1 if s.input_nonlinearity is None else (None if self._basis is None else self._basis.shape[0])
+        if (s.output_nonlinearity is not None or s.n_params != s.n_core or self.reject_unstable or K is None
+                or not 1 <= n <= MAX_UNROLLED_STATES or K > MAX_LANE_BASIS):
+            return None
+        kernel = functools.partial(get_coefficient_kernel, n, self.data.intersample, K)    # loaded on first use
+        if s.input_nonlinearity is None:
+            return kernel, np.ones((1, 1)), self._u[None, :], np.zeros((1, n)), np.zeros(1)
+        return kernel, None, self._basis, np.zeros((1, n)), np.zeros(1)
 
     def batch(self, betas) -> np.ndarray:
         """J for each row of ``betas`` (shape ``(B, n_params)``), in one compiled pass."""

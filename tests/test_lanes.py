@@ -147,3 +147,27 @@ def test_kernels_compile_in_memory_without_a_cache_directory(monkeypatch):
     module.kernel(E, np.ones((3, 1)), np.zeros(3), np.zeros((3, 1)), np.zeros(3), np.ones((3, 2)),
                   np.vstack([np.ones(4), np.zeros(4)]), np.zeros(4), J)
     np.testing.assert_array_equal(J, [3.5, 3.5, 3.5])
+
+
+@pytest.mark.parametrize("kind", ["basis", "no g", "offset and x0", "reject unstable", "tanh"])
+def test_single_evaluations_give_the_bits_of_a_batch(kind):
+    """cost(beta) takes one compiled call where it can; every route gives what the batch gives."""
+    import hammerstein_ctrl as hc
+    from hammerstein_ctrl.objective import HammersteinCost
+
+    rng = np.random.default_rng(5)
+    N = 2000
+    u = np.repeat(rng.uniform(-2, 2, N // 20), 20)
+    data = hc.IOData(u, np.sin(np.arange(N) * 0.01) + 0.1 * rng.normal(size=N), dt=0.01, name="syn")
+    g = {"no g": None, "tanh": hc.Tanh()}.get(kind, hc.Polynomial(2))
+    from hammerstein_ctrl.structure import BlockStructure
+
+    options = {"offset": kind == "offset and x0", "initial_state": "estimate" if kind == "offset and x0" else "zero"}
+    structure = (BlockStructure(hc.LinearStructure(1, 2), **options) if g is None      # a linear block alone
+                 else hc.HammersteinStructure(hc.LinearStructure(1, 2), g, **options))
+    cost = HammersteinCost(data, structure, reject_unstable=kind == "reject unstable")
+    assert (cost._direct is not None) == (kind in ("basis", "no g"))
+    betas = rng.uniform(0.5, 2.0, (12, structure.n_params))
+    betas[3, 2] = -1.0                      # an unstable candidate
+    betas[5, 0] = np.nan                    # a hostile one
+    np.testing.assert_array_equal([cost(b) for b in betas], cost.batch(betas))
