@@ -1,6 +1,7 @@
 """Compiled sampled recursions of a linear block, generated per state dimension and cached on disk.
 
-The kernels read, per candidate ``b``, the matrix exponential
+The kernels read (or, those preceded by the discretisation, compute), per
+candidate ``b``, the matrix exponential
 ``E[b] = expm([[A dt, B dt, 0], [0, 0, 1], [0, 0, 0]])`` and runs
 
 * first-order hold (``"foh"``, the input linear between samples, the paper's
@@ -512,7 +513,11 @@ def _normal_store(n: int, lanes: int, z: _LaneRows, ind: str) -> list:
 
 
 def normal_source(n: int, hold: str, lanes: int, K: int, direct: bool = True, offset: bool = True) -> str:
-    """Python source of the normal-equation pass for ``n`` states, ``lanes`` candidates and ``K`` basis signals."""
+    """Python source of the normal-equation pass for ``n`` states, ``lanes`` candidates and ``K`` basis signals.
+
+    ``direct`` and ``offset`` say whether the output has the terms ``d v``
+    and ``o`` (see :func:`get_normal_kernel`, which compiles it).
+    """
     z = _normal_rows(n, hold, K, ("d",) * direct + ("o",) * offset)
     width = next(w for w in sorted(LANE_WIDTHS) if w >= lanes)
     ind1, ind2, ind3 = (_INDENT * level for level in (1, 2, 3))
@@ -587,6 +592,10 @@ def get_normal_kernel(n: int, hold: str, lanes: int, K: int, direct: bool = True
     return _load_source(normal_source(int(n), hold, int(lanes), int(K), bool(direct), bool(offset)), name)
 
 
+#: Package modules whose compiled functions the generated kernels call.
+_CALLED_MODULES = ("_linalg.py", "compiled_maps.py")
+
+
 @functools.lru_cache(maxsize=1)
 def cache_dir() -> Path | None:
     """Directory holding the generated kernel sources (and numba's cache beside them).
@@ -612,10 +621,6 @@ def cache_dir() -> Path | None:
     except OSError:
         return None
     return path
-
-
-#: Package modules whose compiled functions the generated kernels call.
-_CALLED_MODULES = ("_linalg.py", "compiled_maps.py")
 
 
 def _check_sizes(n: int, K: int):

@@ -137,13 +137,31 @@ def from_difference_sums(sums, steps) -> NormalEquations:
     residuals (as :func:`~hammerstein_ctrl.kernels.get_normal_kernel` does)
     divides by the steps once here instead of at every sample.
 
+    Parameters
+    ----------
+    sums : array_like, shape (1 + p + p*p,)
+        ``r @ r``, then ``D.T @ r``, then ``D.T @ D`` row by row.
+    steps : array_like, shape (p,)
+        The forward-difference steps ``h``.
+
+    Returns
+    -------
+    NormalEquations
+
+    Raises
+    ------
+    ValueError
+        If the sizes of ``sums`` and ``steps`` do not fit each other.
+
     Examples
     --------
     >>> ne = from_difference_sums([13.0, 3.25, 0.8125], [0.25])
     >>> ne.fun, ne.gradient, ne.gram
     (13.0, array([13.]), array([[13.]]))
     """
-    sums, steps = np.asarray(sums, dtype=float), np.ascontiguousarray(steps, dtype=float)
+    sums, steps = np.ascontiguousarray(sums, dtype=float), np.ascontiguousarray(steps, dtype=float)
+    if steps.ndim != 1 or sums.shape != (1 + steps.size * (steps.size + 1),):
+        raise ValueError(f"sums of shape {sums.shape} do not fit {steps.size} steps (1 + p + p*p values expected)")
     gradient, gram = _divide_by_steps(sums, steps)
     return NormalEquations(float(sums[0]), gradient, gram, steps)
 

@@ -36,6 +36,7 @@ Examples
 from __future__ import annotations
 
 import functools
+import threading
 
 import numba
 import numpy as np
@@ -127,7 +128,7 @@ class HammersteinCost:
         probe = None if g is None else g.basis(self._u[:1])
         self._linear_in_params = probe is not None
         self._basis = None
-        self._buffer = None
+        self._local = threading.local()     # each thread's signal buffer (see _signal_buffer)
         if self._linear_in_params and probe.size * self._u.size * self._u.itemsize <= BASIS_MAX_BYTES:
             self._basis = np.ascontiguousarray(g.basis(self._u), dtype=float)
         self._direct = self._direct_pass()
@@ -197,11 +198,21 @@ class HammersteinCost:
         return buffer[:params.shape[0]]
 
     def _signal_buffer(self, chunks):
-        """One block of signals reused by every chunk, and kept for the next call of the same size or less."""
+        """One block of signals reused by every chunk, kept for this thread's next call of the same size or less."""
         rows = chunks[0].stop - chunks[0].start if chunks else 0
-        if self._buffer is None or self._buffer.shape[0] < rows:
-            self._buffer = np.empty((rows, self._u.size))
-        return self._buffer
+        buffer = getattr(self._local, "buffer", None)
+        if buffer is None or buffer.shape[0] < rows:
+            buffer = self._local.buffer = np.empty((rows, self._u.size))
+        return buffer
+
+    def __getstate__(self):
+        state = self.__dict__.copy()
+        del state["_local"]                 # buffers are per process and thread, not part of the cost
+        return state
+
+    def __setstate__(self, state):
+        self.__dict__.update(state)
+        self._local = threading.local()
 
     def __call__(self, beta) -> float:
         """J at one beta (``inf`` if the candidate cannot be simulated)."""
@@ -209,7 +220,7 @@ class HammersteinCost:
         if b.ndim != 1:
             raise ParameterError("cost(beta) takes one vector; use cost.batch for a batch")
         b = b[None, :]
-        if self._direct is not None:
+        if self._direct is not None and not self.reject_unstable:
             kernel, P, basis, X0, Y0 = self._direct
             num, den = self.structure.linear._coefficients(b[:, :self._n_linear])
             J = np.empty(1)
@@ -224,12 +235,12 @@ class HammersteinCost:
 
         ``None`` unless the structure is a plain Hammerstein one whose
         nonlinearity has a stored basis (or is absent), with no estimated
-        offset or initial state and no rejection of unstable candidates;
-        the call then gives the bits :meth:`batch` gives.
+        offset or initial state; :meth:`__call__` takes it unless unstable
+        candidates are rejected, and it gives the bits :meth:`batch` gives.
         """
         s, n = self.structure, self.structure.linear.den_order
         K = 1 if s.input_nonlinearity is None else (None if self._basis is None else self._basis.shape[0])
-        if (s.output_nonlinearity is not None or s.n_params != s.n_core or self.reject_unstable or K is None
+        if (s.output_nonlinearity is not None or s.n_params != s.n_core or K is None
                 or not 1 <= n <= MAX_UNROLLED_STATES or K > MAX_LANE_BASIS):
             return None
         kernel = functools.partial(get_coefficient_kernel, n, self.data.intersample, K)    # loaded on first use

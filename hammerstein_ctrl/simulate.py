@@ -63,6 +63,8 @@ __all__ = [
     "sse_basis_batch",
     "free_response",
     "normal_pass",
+    "unstable",
+    "COMPILED_EXPM_MAX_NORM",
     "MAX_UNROLLED_STATES",
 ]
 
@@ -641,8 +643,9 @@ def normal_pass(num, den, dt: float, y, P, blocks, steps, *, x0=None, offset=Non
     Raises
     ------
     ParameterError
-        If the shapes of ``steps``, ``P``, ``den`` and the blocks do not fit
-        each other and the record.
+        If the shapes of ``steps``, ``P`` and ``den`` do not fit each other.
+    DataError
+        If the record is empty or the blocks do not cover it.
     """
     hold = check_intersample(intersample)
     steps = np.ascontiguousarray(steps, dtype=float)
@@ -659,23 +662,25 @@ def normal_pass(num, den, dt: float, y, P, blocks, steps, *, x0=None, offset=Non
         if not ok.all():
             return None
         E, C, D, ok = _tf_system(num, den, dt)
+        if not ok.all():
+            return None
     X, Y0 = np.array(_state_rows(x0, lanes, n)), _offset_rows(offset, lanes)   # X is written: a copy
     # a strictly proper block has D = 0 and no offset Y0 = 0 (no need to look)
     direct = num.shape[1] == den.shape[1] and bool(D.any())
     kernel = get_normal_kernel(n, hold, lanes, K, direct, offset is not None and bool(Y0.any()))
     VP, acc = np.zeros(lanes), np.zeros(1 + (lanes - 1) * lanes)
-    y = np.ascontiguousarray(y, dtype=float)
+    y = _measured(y, np.size(y))
     begin = 0
     for Phi in blocks:
         Phi = np.ascontiguousarray(Phi, dtype=float)
         stop = begin + Phi.shape[1]
         if Phi.shape[0] != K or stop > y.size:
-            raise ParameterError(f"a block of the basis of shape {Phi.shape} does not fit {K} basis signals and "
-                                 f"a record of {y.size} samples (at sample {begin})")
+            raise DataError(f"a block of the basis of shape {Phi.shape} does not fit {K} basis signals and "
+                            f"a record of {y.size} samples (at sample {begin})")
         kernel(E, C, D, X, Y0, VP, P, Phi, y[begin:stop], begin, acc)
         begin = stop
     if begin != y.size:
-        raise ParameterError(f"the blocks of the basis cover {begin} samples of a record of {y.size}")
+        raise DataError(f"the blocks of the basis cover {begin} samples of a record of {y.size}")
     return from_difference_sums(acc, steps)
 
 

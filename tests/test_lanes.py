@@ -166,8 +166,32 @@ def test_single_evaluations_give_the_bits_of_a_batch(kind):
     structure = (BlockStructure(hc.LinearStructure(1, 2), **options) if g is None      # a linear block alone
                  else hc.HammersteinStructure(hc.LinearStructure(1, 2), g, **options))
     cost = HammersteinCost(data, structure, reject_unstable=kind == "reject unstable")
-    assert (cost._direct is not None) == (kind in ("basis", "no g"))
+    assert (cost._direct is not None) == (kind in ("basis", "no g", "reject unstable"))
     betas = rng.uniform(0.5, 2.0, (12, structure.n_params))
     betas[3, 2] = -1.0                      # an unstable candidate
     betas[5, 0] = np.nan                    # a hostile one
     np.testing.assert_array_equal([cost(b) for b in betas], cost.batch(betas))
+
+
+def test_reject_unstable_set_after_construction_and_threads_keep_their_own_buffers():
+    """The one-call path honours reject_unstable as it is now; each thread forms its signals in its own buffer."""
+    import pickle
+    from concurrent.futures import ThreadPoolExecutor
+
+    case = presets.trs()
+    x = np.asarray(case.true_beta, float)
+    betas = x * (1 + 0.2 * np.random.default_rng(3).normal(size=(40, x.size)))
+    serial = [case.cost.batch(betas[i::4]) for i in range(4)]
+    with ThreadPoolExecutor(4) as pool:
+        for _ in range(5):
+            threaded = list(pool.map(case.cost.batch, [betas[i::4] for i in range(4)]))
+            for a, b in zip(serial, threaded):
+                np.testing.assert_array_equal(a, b)
+    copy = pickle.loads(pickle.dumps(case.cost))
+    np.testing.assert_array_equal(copy.batch(betas), case.cost.batch(betas))
+
+    emps = presets.emps()
+    unstable = np.asarray(emps.x0, float)          # a1 = -1: a pole in the right half-plane
+    assert np.isfinite(emps.cost(unstable))
+    emps.cost.reject_unstable = True
+    assert emps.cost(unstable) == np.inf == emps.cost.batch([unstable])[0]

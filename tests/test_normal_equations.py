@@ -143,7 +143,8 @@ def test_a_nan_cosine_never_passes_the_gtol_test():
 
 
 def test_normal_pass_checks_shapes_and_keeps_a_given_state(emps_case):
-    from hammerstein_ctrl.exceptions import ParameterError
+    from hammerstein_ctrl.exceptions import DataError, ParameterError
+    from hammerstein_ctrl.normal_equations import from_difference_sums
     from hammerstein_ctrl.simulate import normal_pass
 
     cost = emps_case.cost
@@ -159,8 +160,12 @@ def test_normal_pass_checks_shapes_and_keeps_a_given_state(emps_case):
     assert not x0.any()                                   # the caller's state is not written
     with pytest.raises(ParameterError, match="one row of coefficients per candidate"):
         normal_pass(num, den, emps_case.data.dt, cost._y, P[:2], [cost._basis], h)
-    with pytest.raises(ParameterError, match="cover 100 samples"):
+    with pytest.raises(DataError, match="cover 100 samples"):
         normal_pass(num, den, emps_case.data.dt, cost._y, P, [cost._basis[:, :100]], h)
+    with pytest.raises(DataError, match="non-zero"):
+        normal_pass(num, den, emps_case.data.dt, np.zeros(0), P, [], h)
+    with pytest.raises(ValueError, match="do not fit 2 steps"):
+        from_difference_sums([1.0, 2.0], [0.1, 0.2])
 
 
 def test_a_nonfinite_last_signal_sample_makes_the_pass_nonfinite():

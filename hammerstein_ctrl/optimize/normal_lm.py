@@ -34,7 +34,7 @@ from ..normal_equations import NormalEquations, forward_steps, from_residuals, n
 from ._common import BudgetExhausted
 
 __all__ = ["normal_equations_lm", "INITIAL_DAMPING", "MAX_DAMPING", "ILL_CONDITIONED", "MESSAGES", "CONVERGED",
-           "ILL_CONDITIONED_CODE"]
+           "ILL_CONDITIONED_CODE", "DAMPING_DECREASE_LIMIT"]
 
 #: First damping, relative to the largest diagonal entry of the scaled Gram matrix (Nielsen's tau).
 INITIAL_DAMPING = 1e-3
