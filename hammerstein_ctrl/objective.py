@@ -223,30 +223,39 @@ class HammersteinCost:
         if self._direct is not None and not self.reject_unstable:
             kernel, P, basis, X0, Y0 = self._direct
             num, den = self.structure.linear._coefficients(b[:, :self._n_linear])
+            if P is None:
+                P = self.structure.input_params(b)
+            elif basis is None:                 # g without a basis: its signal is the basis, with weight 1
+                with np.errstate(all="ignore"):
+                    basis = self._evaluated(self.structure.input_params(b), None)
             J = np.empty(1)
             # discretisation and pass in one compiled call; False sends the candidate the general way
-            if kernel()(num, den, self.data.dt, COMPILED_EXPM_MAX_NORM, X0, Y0,
-                        self.structure.input_params(b) if P is None else P, basis, self._y, J):
+            if kernel()(num, den, self.data.dt, COMPILED_EXPM_MAX_NORM, X0, Y0, P, basis, self._y, J):
                 return float(J[0])
         return float(self._sse(b)[0])
 
     def _direct_pass(self):
         """What a single evaluation needs for the one compiled call of :func:`~hammerstein_ctrl.kernels.get_coefficient_kernel`.
 
-        ``None`` unless the structure is a plain Hammerstein one whose
-        nonlinearity has a stored basis (or is absent), with no estimated
-        offset or initial state; :meth:`__call__` takes it unless unstable
-        candidates are rejected, and it gives the bits :meth:`batch` gives.
+        ``(kernel, P, basis, X0, Y0)``: ``P = None`` takes the coefficients
+        of ``g`` on its stored basis, ``basis = None`` the evaluated signal of
+        a ``g`` without a basis (weight 1).  ``None`` unless the structure
+        is a plain Hammerstein one (or a linear block alone) with no estimated
+        offset or initial state and, for a ``g`` linear in its parameters, a
+        stored basis; :meth:`__call__` takes it unless unstable candidates are
+        rejected, and it gives the bits :meth:`batch` gives.
         """
         s, n = self.structure, self.structure.linear.den_order
-        K = 1 if s.input_nonlinearity is None else (None if self._basis is None else self._basis.shape[0])
+        g = s.input_nonlinearity
+        K = self._basis.shape[0] if self._basis is not None else (None if self._linear_in_params else 1)
         if (s.output_nonlinearity is not None or s.n_params != s.n_core or K is None
                 or not 1 <= n <= MAX_UNROLLED_STATES or K > MAX_LANE_BASIS):
             return None
         kernel = functools.partial(get_coefficient_kernel, n, self.data.intersample, K)    # loaded on first use
-        if s.input_nonlinearity is None:
-            return kernel, np.ones((1, 1)), self._u[None, :], np.zeros((1, n)), np.zeros(1)
-        return kernel, None, self._basis, np.zeros((1, n)), np.zeros(1)
+        zeros = np.zeros((1, n)), np.zeros(1)
+        if g is None:
+            return (kernel, np.ones((1, 1)), self._u[None, :]) + zeros
+        return (kernel, None, self._basis) + zeros if self._basis is not None else (kernel, np.ones((1, 1)), None) + zeros
 
     def batch(self, betas) -> np.ndarray:
         """J for each row of ``betas`` (shape ``(B, n_params)``), in one compiled pass."""
