@@ -168,6 +168,11 @@ def _coefficient_loads(n: int, hold: str, q, row: str, states: str, K: int | Non
     return lines + [f"{q(f'P{k}')} = P[{row}, {k}]" for k in range(K or 0)]
 
 
+def _terms(direct: bool, offset: bool) -> tuple:
+    """The :data:`OUTPUT_TERMS` present: ``"d"`` with a direct term, ``"o"`` with an offset."""
+    return tuple(t for t, present in zip(OUTPUT_TERMS, (direct, offset)) if present)
+
+
 def _scalar_names(g: int):
     """Candidate ``g``'s quantities as scalar variables (``a0_1`` -> ``a0_1_g``)."""
     return lambda name: f"{name}_{g}"
@@ -388,7 +393,7 @@ def lane_source(n: int, hold: str, K: int, direct: bool = True, offset: bool = T
     >>> "def kernel(E, C, D, X0, Y0, P, Phi, y, out):" in src, "D[b]" in src
     (True, False)
     """
-    terms = ("d",) * direct + ("o",) * offset
+    terms = _terms(direct, offset)
     groups = []
     for width in LANE_WIDTHS:
         groups += _lane_group(n, hold, K, terms, width, _INDENT)
@@ -441,7 +446,7 @@ def get_lane_kernel(n: int, hold: str, K: int, direct: bool = True, offset: bool
     if hold not in HOLDS:
         raise ValueError(f"unknown hold {hold!r}")
     _check_sizes(n, K)
-    name = f"hc_lanes_n{n}_{hold}_k{K}" + "_d" * bool(direct) + "_o" * bool(offset)
+    name = f"hc_lanes_n{n}_{hold}_k{K}" + "".join(f"_{t}" for t in _terms(direct, offset))
     return _load_source(lane_source(int(n), hold, int(K), bool(direct), bool(offset)), name)
 
 
@@ -518,7 +523,7 @@ def normal_source(n: int, hold: str, lanes: int, K: int, direct: bool = True, of
     ``direct`` and ``offset`` say whether the output has the terms ``d v``
     and ``o`` (see :func:`get_normal_kernel`, which compiles it).
     """
-    z = _normal_rows(n, hold, K, ("d",) * direct + ("o",) * offset)
+    z = _normal_rows(n, hold, K, _terms(direct, offset))
     width = next(w for w in sorted(LANE_WIDTHS) if w >= lanes)
     ind1, ind2, ind3 = (_INDENT * level for level in (1, 2, 3))
     fetch = [f"{ind2}f{k} = Phi[{k}, i]" for k in range(K)]
@@ -588,7 +593,7 @@ def get_normal_kernel(n: int, hold: str, lanes: int, K: int, direct: bool = True
     _check_sizes(n, K)
     if not 2 <= lanes <= MAX_NORMAL_LANES:
         raise ValueError(f"normal-equation passes are compiled for 2..{MAX_NORMAL_LANES} lanes, not {lanes}")
-    name = f"hc_normal_n{n}_{hold}_l{lanes}_k{K}" + "_d" * bool(direct) + "_o" * bool(offset)
+    name = f"hc_normal_n{n}_{hold}_l{lanes}_k{K}" + "".join(f"_{t}" for t in _terms(direct, offset))
     return _load_source(normal_source(int(n), hold, int(lanes), int(K), bool(direct), bool(offset)), name)
 
 

@@ -35,7 +35,6 @@ Examples
 
 from __future__ import annotations
 
-import functools
 import threading
 
 import numba
@@ -220,42 +219,49 @@ class HammersteinCost:
         if b.ndim != 1:
             raise ParameterError("cost(beta) takes one vector; use cost.batch for a batch")
         b = b[None, :]
-        if self._direct is not None and not self.reject_unstable:
-            kernel, P, basis, X0, Y0 = self._direct
+        form = None if self._direct is None or self.reject_unstable else self._basis_form(b, evaluate=True)
+        if form is not None and form[0].shape[1] <= MAX_LANE_BASIS:
+            n, X0, Y0 = self._direct
+            P, basis = form
             num, den = self.structure.linear._coefficients(b[:, :self._n_linear])
-            if P is None:
-                P = self.structure.input_params(b)
-            elif basis is None:                 # g without a basis: its signal is the basis, with weight 1
-                with np.errstate(all="ignore"):
-                    basis = self._evaluated(self.structure.input_params(b), None)
             J = np.empty(1)
             # discretisation and pass in one compiled call; False sends the candidate the general way
-            if kernel()(num, den, self.data.dt, COMPILED_EXPM_MAX_NORM, X0, Y0, P, basis, self._y, J):
+            if get_coefficient_kernel(n, self.data.intersample, P.shape[1])(
+                    num, den, self.data.dt, COMPILED_EXPM_MAX_NORM, X0, Y0, P, basis, self._y, J):
                 return float(J[0])
         return float(self._sse(b)[0])
 
     def _direct_pass(self):
-        """What a single evaluation needs for the one compiled call of :func:`~hammerstein_ctrl.kernels.get_coefficient_kernel`.
+        """``(n, X0, Y0)`` for single evaluations in one compiled call (:func:`~hammerstein_ctrl.kernels.get_coefficient_kernel`).
 
-        ``(kernel, P, basis, X0, Y0)``: ``P = None`` takes the coefficients
-        of ``g`` on its stored basis, ``basis = None`` the evaluated signal of
-        a ``g`` without a basis (weight 1).  ``None`` unless the structure
-        is a plain Hammerstein one (or a linear block alone) with no estimated
-        offset or initial state and, for a ``g`` linear in its parameters, a
-        stored basis; :meth:`__call__` takes it unless unstable candidates are
-        rejected, and it gives the bits :meth:`batch` gives.
+        ``None`` unless the structure is a plain Hammerstein one (or a linear
+        block alone) of at most :data:`~hammerstein_ctrl.kernels.MAX_UNROLLED_STATES`
+        states with no estimated offset or initial state; :meth:`__call__`
+        uses it where the signal has a basis form (:meth:`_basis_form`) and
+        unstable candidates are not rejected, and it gives the bits
+        :meth:`batch` gives.
         """
         s, n = self.structure, self.structure.linear.den_order
-        g = s.input_nonlinearity
-        K = self._basis.shape[0] if self._basis is not None else (None if self._linear_in_params else 1)
-        if (s.output_nonlinearity is not None or s.n_params != s.n_core or K is None
-                or not 1 <= n <= MAX_UNROLLED_STATES or K > MAX_LANE_BASIS):
+        if s.output_nonlinearity is not None or s.n_params != s.n_core or not 1 <= n <= MAX_UNROLLED_STATES:
             return None
-        kernel = functools.partial(get_coefficient_kernel, n, self.data.intersample, K)    # loaded on first use
-        zeros = np.zeros((1, n)), np.zeros(1)
-        if g is None:
-            return (kernel, np.ones((1, 1)), self._u[None, :]) + zeros
-        return (kernel, None, self._basis) + zeros if self._basis is not None else (kernel, np.ones((1, 1)), None) + zeros
+        return n, np.zeros((1, n)), np.zeros(1)
+
+    def _basis_form(self, b: np.ndarray, evaluate: bool = False):
+        """``(P, basis)`` with each candidate's signal ``P[i] @ basis``, or ``None`` where it is not formed that way.
+
+        Without ``g`` the basis is ``u`` (weight 1); with a stored basis, the
+        coefficients of ``g``.  With ``evaluate``, a single candidate of a
+        ``g`` without a basis has its evaluated signal as the basis (weight 1).
+        """
+        g_params = self.structure.input_params(b)
+        if g_params is None:
+            return np.ones((b.shape[0], 1)), self._u[None, :]
+        if self._basis is not None:
+            return g_params, self._basis
+        if evaluate and not self._linear_in_params and b.shape[0] == 1:
+            with np.errstate(all="ignore"):
+                return np.ones((1, 1)), self._evaluated(np.atleast_2d(g_params), None)
+        return None
 
     def batch(self, betas) -> np.ndarray:
         """J for each row of ``betas`` (shape ``(B, n_params)``), in one compiled pass."""
@@ -278,15 +284,10 @@ class HammersteinCost:
     def _basis_sse(self, b: np.ndarray) -> np.ndarray | None:
         """J of a batch with the signals formed inside the compiled pass (``None`` where it does not apply)."""
         s = self.structure
-        if s.output_nonlinearity is not None:
+        form = None if s.output_nonlinearity is not None else self._basis_form(b)
+        if form is None:
             return None
-        g_params = s.input_params(b)
-        if g_params is None:
-            P, basis = np.ones((b.shape[0], 1)), self._u[None, :]
-        elif self._basis is not None:
-            P, basis = g_params, self._basis
-        else:
-            return None
+        P, basis = form
         num, den = s.linear._coefficients(b[:, :self._n_linear])
         offset, x0 = s.nuisance(b)
         # compiled throughout: no numpy floating-point warnings to silence
@@ -397,11 +398,11 @@ class HammersteinCost:
         s = self.structure
         if s.output_nonlinearity is not None or X.shape[0] > MAX_NORMAL_LANES:
             return None
-        g_params = s.input_params(X)
-        if g_params is None:
-            P, blocks = np.ones((X.shape[0], 1)), [self._u[None, :]]
+        form = self._basis_form(X)
+        if form is not None:
+            P, blocks = form[0], [form[1]]
         elif self._linear_in_params:
-            P, blocks = g_params, self._basis_blocks()
+            P, blocks = s.input_params(X), self._basis_blocks()
         else:
             return None
         num, den = s.linear._coefficients(X[:, :self._n_linear])
@@ -410,9 +411,7 @@ class HammersteinCost:
                            intersample=self.data.intersample)
 
     def _basis_blocks(self):
-        """The basis of ``g`` as blocks of samples: the stored one whole (a list), or recomputed a block at a time."""
-        if self._basis is not None:
-            return [self._basis]
+        """The basis of ``g``, recomputed a block of samples at a time (for records too long to store it)."""
         g = self.structure.input_nonlinearity
         return (g.basis(self._u[start:start + BASIS_BLOCK]) for start in range(0, self._u.size, BASIS_BLOCK))
 

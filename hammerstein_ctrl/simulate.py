@@ -353,6 +353,11 @@ def _tf_system(num, den, dt: float):
     are replaced by a harmless system (their results are overwritten by the
     caller), so the matrix exponential never sees inf or NaN.
     """
+    return _discretized(num, den, dt)[:4]
+
+
+def _discretized(num, den, dt: float):
+    """:func:`_tf_system` and ``clean``: every row usable (``ok`` all true, known without looking)."""
     num, den = _coefficient_rows(num, den)
     E, C, D, ok, big, clean = tf_discrete(num, den, float(dt), COMPILED_EXPM_MAX_NORM)
     if not clean and big.any():
@@ -361,7 +366,7 @@ def _tf_system(num, den, dt: float):
         M = tf_augmented(num[big], den[big], float(dt))[0]
         with single_threaded_blas():
             E[big] = scipy.linalg.expm(M)
-    return E, C, D, ok
+    return E, C, D, ok, clean
 
 
 def _coefficient_rows(num, den):
@@ -566,11 +571,16 @@ def sse_basis_batch(num, den, P, basis, dt: float, y, *, x0=None, offset=None, i
     if batch < LANE_MIN:
         kernel = get_kernel(n, "sse", hold, None, K)     # positional: the cached lookup is quicker
     else:
-        kernel = get_lane_kernel(n, hold, K, direct=bool(D.any()), offset=bool(Y0.any()))
+        kernel = get_lane_kernel(n, hold, K, *_output_terms(num, den, D, offset, Y0))
     kernel(E, C, D, X0, Y0, P, basis, y, J)
     if not ok.all():
         J[~ok] = np.inf
     return J
+
+
+def _output_terms(num, den, D, offset, Y0) -> tuple[bool, bool]:
+    """Whether the outputs have a direct term and an offset (a strictly proper block, or no offset given, needs no look)."""
+    return num.shape[1] == den.shape[1] and bool(D.any()), offset is not None and bool(Y0.any())
 
 
 def _basis_arguments(num, den, P, basis, y):
@@ -657,17 +667,11 @@ def normal_pass(num, den, dt: float, y, P, blocks, steps, *, x0=None, offset=Non
     if lanes > MAX_NORMAL_LANES or not 1 <= n <= MAX_UNROLLED_STATES or not 1 <= K <= MAX_LANE_BASIS:
         return None
     num, den = _coefficient_rows(num, den)
-    E, C, D, ok, big, clean = tf_discrete(num, den, float(dt), COMPILED_EXPM_MAX_NORM)
-    if not clean:
-        if not ok.all():
-            return None
-        E, C, D, ok = _tf_system(num, den, dt)
-        if not ok.all():
-            return None
+    E, C, D, ok, clean = _discretized(num, den, dt)
+    if not clean and not ok.all():
+        return None
     X, Y0 = np.array(_state_rows(x0, lanes, n)), _offset_rows(offset, lanes)   # X is written: a copy
-    # a strictly proper block has D = 0 and no offset Y0 = 0 (no need to look)
-    direct = num.shape[1] == den.shape[1] and bool(D.any())
-    kernel = get_normal_kernel(n, hold, lanes, K, direct, offset is not None and bool(Y0.any()))
+    kernel = get_normal_kernel(n, hold, lanes, K, *_output_terms(num, den, D, offset, Y0))
     VP, acc = np.zeros(lanes), np.zeros(1 + (lanes - 1) * lanes)
     y = _measured(y, np.size(y))
     begin = 0
