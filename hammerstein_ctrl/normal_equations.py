@@ -85,20 +85,22 @@ def forward_steps(x, upper=None) -> np.ndarray:
     Returned as ``(x + h) - x`` so that the step is exactly representable.
     """
     x = np.asarray(x, dtype=float)
-    if upper is None and x.ndim == 1:
-        return _forward_steps(np.ascontiguousarray(x))
-    h = FD_REL_STEP * np.where(x >= 0, 1.0, -1.0) * np.maximum(1.0, np.abs(x))
-    if upper is not None:
-        h = np.where(x + h > upper, -h, h)
-    return (x + h) - x
+    bound = _NO_BOUND if upper is None else np.broadcast_to(np.asarray(upper, dtype=float), x.shape).ravel()
+    return _forward_steps(np.ascontiguousarray(x).ravel(), np.ascontiguousarray(bound)).reshape(x.shape)
+
+
+#: The upper bound of unbounded forward steps (one value for every parameter).
+_NO_BOUND = np.array([np.inf])
 
 
 @numba.njit(cache=True, nogil=True)
-def _forward_steps(x):  # pragma: no cover - compiled
-    """:func:`forward_steps` without bounds, in one compiled call (the same operations)."""
+def _forward_steps(x, upper):  # pragma: no cover - compiled
+    """:func:`forward_steps` of a flat ``x`` below ``upper`` (one value each, or one for all), in one compiled call."""
     h = np.empty_like(x)
     for i in range(x.size):
         step = FD_REL_STEP * (1.0 if x[i] >= 0 else -1.0) * max(1.0, abs(x[i]))
+        if x[i] + step > upper[i if upper.size > 1 else 0]:
+            step = -step
         h[i] = (x[i] + step) - x[i]
     return h
 
