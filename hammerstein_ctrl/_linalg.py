@@ -81,7 +81,8 @@ def _solve_in_place(A, B):  # pragma: no cover - compiled
 
 
 @numba.njit(cache=True, nogil=True)
-def _expm_one(M, out, b):  # pragma: no cover - compiled
+def _one_norm(M):  # pragma: no cover - compiled
+    """Largest absolute column sum of the square ``M``."""
     n = M.shape[0]
     norm = 0.0
     for j in range(n):
@@ -89,39 +90,79 @@ def _expm_one(M, out, b):  # pragma: no cover - compiled
         for i in range(n):
             s += abs(M[i, j])
         norm = max(norm, s)
+    return norm
+
+
+@numba.njit(cache=True, nogil=True)
+def _combine3(X, cx, Y, cy, Z, cz, out, add):  # pragma: no cover - compiled
+    """``out = cx X + cy Y + cz Z``, or ``out + cx X + ...`` with ``add``, summed left to right as numpy would."""
+    n = X.shape[0]
+    for i in range(n):
+        for j in range(n):
+            s = cx * X[i, j]
+            if add:
+                s = out[i, j] + s
+            out[i, j] = (s + cy * Y[i, j]) + cz * Z[i, j]
+
+
+@numba.njit(cache=True, nogil=True)
+def _copy(src, dst):  # pragma: no cover - compiled
+    n = src.shape[0]
+    for i in range(n):
+        for j in range(n):
+            dst[i, j] = src[i, j]
+
+
+#: Square work matrices of one exponential: A, A^2, A^4, A^6, W, T, U, V, Q.
+_EXPM_WORK = 9
+
+
+@numba.njit(cache=True, nogil=True)
+def _expm_one(M, out, b):  # pragma: no cover - compiled
+    """``out = expm(M)``: degree-13 Pade with scaling and squaring, in one block of work memory.
+
+    Written as loops (no array expressions): the compiled code stays small,
+    which keeps loading it from the cache quick, and nothing is allocated but
+    the work block.
+    """
+    n = M.shape[0]
+    norm = _one_norm(M)
     if not np.isfinite(norm):
         out[:, :] = np.nan
         return
     s = 0
     if norm > PADE13_THETA:
         s = int(np.ceil(np.log2(norm / PADE13_THETA)))
-    A = M * (0.5 ** s)
-    A2 = np.empty((n, n))
-    A4 = np.empty((n, n))
-    A6 = np.empty((n, n))
+    work = np.empty((_EXPM_WORK, n, n))
+    A, A2, A4, A6, W, T, U, V, Q = (work[0], work[1], work[2], work[3], work[4], work[5], work[6], work[7],
+                                    work[8])
+    scale = 0.5 ** s
+    for i in range(n):
+        for j in range(n):
+            A[i, j] = M[i, j] * scale
     _matmul(A, A, A2)
     _matmul(A2, A2, A4)
     _matmul(A4, A2, A6)
-    W = b[13] * A6 + b[11] * A4 + b[9] * A2
-    T = np.empty((n, n))
+    _combine3(A6, b[13], A4, b[11], A2, b[9], W, False)
     _matmul(A6, W, T)
-    W = T + b[7] * A6 + b[5] * A4 + b[3] * A2
+    _combine3(A6, b[7], A4, b[5], A2, b[3], T, True)
     for i in range(n):
-        W[i, i] += b[1]
-    U = np.empty((n, n))
-    _matmul(A, W, U)
-    Z = b[12] * A6 + b[10] * A4 + b[8] * A2
-    _matmul(A6, Z, T)
-    V = T + b[6] * A6 + b[4] * A4 + b[2] * A2
+        T[i, i] += b[1]
+    _matmul(A, T, U)
+    _combine3(A6, b[12], A4, b[10], A2, b[8], W, False)
+    _matmul(A6, W, T)
+    _combine3(A6, b[6], A4, b[4], A2, b[2], T, True)
     for i in range(n):
-        V[i, i] += b[0]
-    P = V + U
-    Q = V - U
-    _solve_in_place(Q, P)
+        T[i, i] += b[0]
+    for i in range(n):                  # P = V + U (in T), Q = V - U
+        for j in range(n):
+            Q[i, j] = T[i, j] - U[i, j]
+            T[i, j] = T[i, j] + U[i, j]
+    _solve_in_place(Q, T)
     for _ in range(s):
-        _matmul(P, P, T)
-        P[:, :] = T
-    out[:, :] = P
+        _matmul(T, T, V)
+        _copy(V, T)
+    _copy(T, out)
 
 
 @numba.njit(cache=True, nogil=True)
@@ -233,13 +274,7 @@ def tf_discrete(num, den, dt, max_norm):  # pragma: no cover - compiled
     E = np.empty_like(M)
     big = np.zeros(batch, dtype=np.bool_)
     for b in range(batch):
-        norm = 0.0
-        for j in range(n + 2):
-            s = 0.0
-            for i in range(n + 2):
-                s += abs(M[b, i, j])
-            norm = max(norm, s)
-        big[b] = norm > max_norm
+        big[b] = _one_norm(M[b]) > max_norm
         if not big[b]:
             expm_into(M[b], E[b])
     return E, C, D, ok, big, ok.all() and not big.any()
