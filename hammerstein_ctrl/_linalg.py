@@ -24,7 +24,8 @@ import functools
 import numba
 import numpy as np
 
-__all__ = ["expm_batch", "expm_into", "tf_augmented", "tf_discrete", "single_threaded_blas", "PADE13_THETA"]
+__all__ = ["expm_batch", "expm_into", "tf_augmented", "tf_discrete", "single_threaded_blas", "solve_in_place",
+           "symmetric_eigenvalues", "PADE13_THETA", "JACOBI_MAX_SWEEPS"]
 
 #: Largest 1-norm for which the degree-13 Pade approximant is accurate to unit
 #: roundoff without scaling (Higham 2005, Table 2.3).
@@ -50,9 +51,21 @@ def _matmul(X, Y, out):  # pragma: no cover - compiled
 
 
 @numba.njit(cache=True, nogil=True)
-def _solve_in_place(A, B):  # pragma: no cover - compiled
-    """Overwrite ``B`` with ``A^-1 B`` (Gaussian elimination, partial pivoting; ``A`` destroyed)."""
-    n = A.shape[0]
+def solve_in_place(A, B):  # pragma: no cover - compiled
+    """Overwrite ``B`` (``n x m``) with ``A^-1 B``: Gaussian elimination with partial pivoting, ``A`` destroyed.
+
+    A singular ``A`` leaves non-finite entries in ``B`` (no exception): NaN when
+    elimination meets a zero pivot, else whatever the tiny pivots give.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> B = np.array([[1.0], [2.0]])
+    >>> solve_in_place(np.array([[2.0, 0.0], [0.0, 4.0]]), B)
+    >>> B.ravel().tolist()
+    [0.5, 0.5]
+    """
+    n, m = A.shape[0], B.shape[1]
     for col in range(n):
         piv = col
         best = abs(A[col, col])
@@ -62,22 +75,89 @@ def _solve_in_place(A, B):  # pragma: no cover - compiled
         if piv != col:
             for c in range(n):
                 A[col, c], A[piv, c] = A[piv, c], A[col, c]
+            for c in range(m):
                 B[col, c], B[piv, c] = B[piv, c], B[col, c]
         d = A[col, col]
+        if d == 0.0:                    # a zero column below the diagonal: A is singular
+            for r in range(n):
+                for c in range(m):
+                    B[r, c] = np.nan
+            return
         for r in range(col + 1, n):
             f = A[r, col] / d
             if f != 0.0:
                 for c in range(col, n):
                     A[r, c] -= f * A[col, c]
-                for c in range(n):
+                for c in range(m):
                     B[r, c] -= f * B[col, c]
     for col in range(n - 1, -1, -1):
         d = A[col, col]
-        for c in range(n):
+        for c in range(m):
             s = B[col, c]
             for k in range(col + 1, n):
                 s -= A[col, k] * B[k, c]
             B[col, c] = s / d
+
+
+#: Most sweeps of the Jacobi eigenvalue method (it converges quadratically: a few sweeps suffice).
+JACOBI_MAX_SWEEPS = 60
+
+
+@numba.njit(cache=True, nogil=True)
+def _rotate(A, p, q):  # pragma: no cover - compiled
+    """One Jacobi rotation of the symmetric ``A`` zeroing ``A[p, q]``; False if it is already negligible."""
+    apq = A[p, q]
+    app, aqq = A[p, p], A[q, q]
+    if abs(apq) <= np.finfo(np.float64).eps * np.sqrt(abs(app * aqq)) or apq == 0.0:
+        return False
+    theta = (aqq - app) / (2.0 * apq)
+    t = 1.0 / (abs(theta) + np.sqrt(theta * theta + 1.0))
+    if theta < 0.0:
+        t = -t
+    c = 1.0 / np.sqrt(t * t + 1.0)
+    s = t * c
+    n = A.shape[0]
+    for k in range(n):
+        akp, akq = A[k, p], A[k, q]
+        A[k, p] = c * akp - s * akq
+        A[k, q] = s * akp + c * akq
+    for k in range(n):
+        apk, aqk = A[p, k], A[q, k]
+        A[p, k] = c * apk - s * aqk
+        A[q, k] = s * apk + c * aqk
+    return True
+
+
+@numba.njit(cache=True, nogil=True)
+def symmetric_eigenvalues(S):  # pragma: no cover - compiled
+    """Eigenvalues of the symmetric, finite ``S`` in ascending order (cyclic Jacobi; ``S`` unchanged).
+
+    Each rotation is skipped once ``|a_pq| <= eps sqrt(|a_pp a_qq|)``, the
+    test that gives small eigenvalues of definite matrices to high relative
+    accuracy (Demmel and Veselic 1992).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> symmetric_eigenvalues(np.array([[2.0, 1.0], [1.0, 2.0]])).round(12).tolist()
+    [1.0, 3.0]
+    """
+    n = S.shape[0]
+    A = np.empty((n, n))
+    for i in range(n):
+        for j in range(n):
+            A[i, j] = S[i, j]
+    for _ in range(JACOBI_MAX_SWEEPS):
+        rotated = False
+        for p in range(n - 1):
+            for q in range(p + 1, n):
+                rotated = _rotate(A, p, q) or rotated
+        if not rotated:
+            break
+    w = np.empty(n)
+    for i in range(n):
+        w[i] = A[i, i]
+    return np.sort(w)
 
 
 @numba.njit(cache=True, nogil=True)
@@ -158,7 +238,7 @@ def _expm_one(M, out, b):  # pragma: no cover - compiled
         for j in range(n):
             Q[i, j] = T[i, j] - U[i, j]
             T[i, j] = T[i, j] + U[i, j]
-    _solve_in_place(Q, T)
+    solve_in_place(Q, T)
     for _ in range(s):
         _matmul(T, T, V)
         _copy(V, T)

@@ -661,6 +661,8 @@ def format_lm_speed(r) -> str:
         f"one iteration from the N-SPSA vector ({r['iterations']} steps, {r['passes']} passes, "
         f"{r['nfev']} evaluations, {r['run_s'] * 1e3:.1f} ms, J = {r['fun']:.6g})   "
         f"{r['iteration_s'] / s:5.2f} evaluations",
+        f"  the same iteration in values of J ({r['cost_s'] * 1e6:.0f} us each)                "
+        f"{r['iteration_s'] / r['cost_s']:5.2f} values",
     ])
 
 

@@ -30,6 +30,7 @@ import math
 import numba
 import numpy as np
 
+from .._linalg import solve_in_place, symmetric_eigenvalues
 from ..normal_equations import NormalEquations, forward_steps, from_residuals, neighbours
 from ._common import BudgetExhausted
 
@@ -125,13 +126,21 @@ def _scaled(gram, scale):  # pragma: no cover - compiled
 
 
 @numba.njit(cache=True, nogil=True)
+def _finite_matrix(A):  # pragma: no cover - compiled
+    for i in range(A.shape[0]):
+        for j in range(A.shape[1]):
+            if not np.isfinite(A[i, j]):
+                return False
+    return True
+
+
+@numba.njit(cache=True, nogil=True)
 def _ill(A, limit):  # pragma: no cover - compiled
     """Whether the symmetric ``A`` has a non-finite entry or a condition number of ``limit`` or more."""
-    for v in A.ravel():
-        if not np.isfinite(v):
-            return True
-    w = np.linalg.eigvalsh(A)
-    return not (np.isfinite(w).all() and w[0] > w[-1] / limit)
+    if not _finite_matrix(A):
+        return True
+    w = symmetric_eigenvalues(A)
+    return not w[0] > w[-1] / limit
 
 
 @numba.njit(cache=True, nogil=True)
@@ -172,16 +181,15 @@ def _iteration(gram, gradient, fun, scale, lam, x, check, limit, xtol):  # pragm
         A[i, i] += lam * top
     delta = np.zeros(p)
     solved = False
-    if np.isfinite(A).all():
-        b = np.empty(p)
+    if _finite_matrix(A):
+        z = np.empty((p, 1))
         for i in range(p):
-            b[i] = -gradient[i] / scale[i]
-        try:
-            z = np.linalg.solve(A, b)
-            delta = z / scale
-            solved = np.isfinite(delta).all()
-        except Exception:  # a singular damped matrix: the caller raises the damping
-            solved = False
+            z[i, 0] = -gradient[i] / scale[i]
+        solve_in_place(A, z)        # a singular damped matrix gives a non-finite step: the caller raises the damping
+        solved = True
+        for i in range(p):
+            delta[i] = z[i, 0] / scale[i]
+            solved = solved and np.isfinite(delta[i])
     step, size, predicted = 0.0, 0.0, 0.0
     for i in range(p):
         step += (scale[i] * delta[i]) ** 2
