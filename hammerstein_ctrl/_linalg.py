@@ -19,7 +19,9 @@ True
 
 from __future__ import annotations
 
+import contextlib
 import functools
+import threading
 
 import numba
 import numpy as np
@@ -384,13 +386,20 @@ def _controller():
     return ThreadpoolController()
 
 
+#: Per thread: how deeply :func:`single_threaded_blas` blocks are nested.
+_BLAS_LIMIT = threading.local()
+
+
+@contextlib.contextmanager
 def single_threaded_blas():
     """Context manager holding BLAS and OpenMP thread pools to one thread.
 
     Small dense linear algebra gains nothing from threads, and on a busy
     machine the spinning worker threads of OpenBLAS made each call tens of
     times slower.  The controller is built once per process (inspecting the
-    loaded libraries is the expensive part), so entering costs microseconds.
+    loaded libraries is the expensive part), and a block nested in another
+    (``identify`` calls ``minimize``, which calls its solver) costs nothing:
+    only the outermost one sets and restores the limits (about 20 us).
 
     Examples
     --------
@@ -399,4 +408,13 @@ def single_threaded_blas():
     ...     float(np.linalg.det(np.eye(3)))
     1.0
     """
-    return _controller().limit(limits=1)
+    depth = getattr(_BLAS_LIMIT, "depth", 0)
+    _BLAS_LIMIT.depth = depth + 1
+    try:
+        if depth:
+            yield
+        else:
+            with _controller().limit(limits=1):
+                yield
+    finally:
+        _BLAS_LIMIT.depth = depth

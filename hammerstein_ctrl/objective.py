@@ -43,7 +43,7 @@ import numpy as np
 from .exceptions import ParameterError
 from .kernels import MAX_LANE_BASIS, MAX_NORMAL_LANES, MAX_UNROLLED_STATES, get_coefficient_kernel
 from .normal_equations import NONFINITE_RESIDUAL, NormalEquations, forward_steps, from_residuals, neighbours
-from .simulate import COMPILED_EXPM_MAX_NORM, normal_pass, simulate_batch, sse_basis_batch, sse_batch
+from .simulate import COMPILED_EXPM_MAX_NORM, normal_pass, simulate_batch, sse_basis_batch, sse_batch, unstable
 from .structure import BlockStructure
 
 __all__ = ["HammersteinCost", "CHUNK_BYTES", "BASIS_MAX_BYTES", "BASIS_BLOCK", "EVAL_BLOCK", "NONFINITE_RESIDUAL"]
@@ -322,7 +322,8 @@ class HammersteinCost:
 
         Non-finite residuals are replaced by a large finite value
         (:data:`NONFINITE_RESIDUAL`) so that trust-region solvers back off
-        instead of failing.
+        instead of failing; with ``reject_unstable`` an unstable candidate's
+        residuals are all that value (the cost scores it ``inf``).
         """
         b = self.structure.check_beta(beta)
         if b.ndim != 1:
@@ -348,7 +349,14 @@ class HammersteinCost:
             for r in R:  # a finite sum proves a finite row without an N-long mask
                 if not np.isfinite(r.sum()):
                     r[~np.isfinite(r)] = NONFINITE_RESIDUAL
+        if self.reject_unstable:
+            R[self._unstable(betas)] = NONFINITE_RESIDUAL   # what the cost scores inf, least squares sees huge
         return R
+
+    def _unstable(self, betas) -> np.ndarray:
+        """Which rows of ``betas`` have a linear block with a pole in the open right half-plane."""
+        b = self.structure.check_beta(betas)
+        return unstable(self.structure.linear._coefficients(b.reshape(-1, b.shape[-1])[:, :self._n_linear])[1])
 
     def normal_equations(self, beta, steps=None) -> NormalEquations:
         """``r @ r``, ``J.T @ r`` and ``J.T @ J`` at ``beta``, ``J`` the forward-difference Jacobian of the residuals.
@@ -388,6 +396,8 @@ class HammersteinCost:
             raise ParameterError("normal_equations(beta) takes one vector")
         h = forward_steps(b) if steps is None else np.asarray(steps, dtype=float).reshape(b.shape)
         X = neighbours(b, h)
+        if self.reject_unstable and self._unstable(X).any():
+            return from_residuals(self.residuals_batch(X), h)
         ne = self._fused_normal_equations(X, h)
         if ne is not None and ne.finite:
             return ne

@@ -98,6 +98,29 @@ def test_reject_unstable_option(emps_dir):
     assert np.isfinite(strict.cost([3.1, 0.5, -0.4, 0.04]))  # the integrator pole at 0 is allowed
 
 
+def test_reject_unstable_reaches_least_squares(emps_dir):
+    """Residuals and normal equations see an unstable candidate as the cost does (huge, not a fit)."""
+    from hammerstein_ctrl import identify, presets
+    from hammerstein_ctrl.normal_equations import NONFINITE_RESIDUAL, neighbours
+
+    strict, plain = presets.emps(path=emps_dir, reject_unstable=True), presets.emps(path=emps_dir)
+    bad, good = np.asarray(strict.x0, float), np.array([3.1, 0.5, -0.4, 0.04])
+    R = strict.cost.residuals_batch([bad, good])
+    assert np.all(R[0] == NONFINITE_RESIDUAL)
+    np.testing.assert_array_equal(R[1], plain.cost.residuals(good))
+    ne = strict.cost.normal_equations(bad)
+    assert ne.fun == pytest.approx(R[0] @ R[0]) and ne.fun > 1e300
+    # a stable point whose neighbours are stable: the fused pass, as without the option
+    assert strict.cost.normal_equations(good).fun == plain.cost.normal_equations(good).fun
+    # a stable point with an unstable neighbour (a1 just below 0 after a forward step of the other sign)
+    edge = np.array([0.0, 0.5, -0.4, 0.04])
+    h = np.array([-1e-8, 1e-8, 1e-8, 1e-8])
+    assert strict.cost._unstable(neighbours(edge, h)).tolist() == [False, True, False, False, False]
+    assert strict.cost.normal_equations(edge, h).gram[0, 0] > 1e290
+    res = identify(strict.data, strict.structure, method="lm", x0=bad, reject_unstable=True)
+    assert not res.success and "unstable" in res.message
+
+
 def test_lsim_input_errors():
     H = ct.tf([1], [1, 1])
     with pytest.raises(DataError, match="length mismatch: t has 10 samples but v has 9"):

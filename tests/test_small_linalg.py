@@ -62,3 +62,25 @@ def test_expm_matches_scipy_across_scalings():
         M = rng.standard_normal((n, n)) * 10.0 ** rng.uniform(-3, 1.5)
         np.testing.assert_allclose(expm_batch(M[None])[0], scipy.linalg.expm(M), rtol=1e-10,
                                    atol=1e-12 * np.abs(scipy.linalg.expm(M)).max())
+
+
+def test_single_threaded_blas_nests_and_restores():
+    threadpoolctl = pytest.importorskip("threadpoolctl")
+    from hammerstein_ctrl._linalg import single_threaded_blas
+
+    def threads():
+        return [lib["num_threads"] for lib in threadpoolctl.threadpool_info()]
+
+    before = threads()
+    with single_threaded_blas():
+        assert set(threads()) <= {1}
+        with single_threaded_blas():
+            assert set(threads()) <= {1}
+        assert set(threads()) <= {1}            # the inner block leaves the outer limit in place
+    assert threads() == before
+    with pytest.raises(RuntimeError):
+        with single_threaded_blas():
+            raise RuntimeError("inside")
+    assert threads() == before                  # restored after an exception too
+    with single_threaded_blas():
+        assert set(threads()) <= {1}            # and the depth count was reset
