@@ -306,22 +306,30 @@ def memory_child(method: str, n_samples: int) -> dict:
             "nfev": int(result.nfev)}
 
 
-def _child_env() -> dict:
-    """Environment for a child Python that imports this copy of the package."""
+def _child_env(bytecode: bool = False) -> dict:
+    """Environment for a child Python that imports this copy of the package.
+
+    With ``bytecode`` the child writes and reads Python's bytecode cache even
+    where ``PYTHONDONTWRITEBYTECODE`` is set (as it is in some CI images): a
+    package installed by pip has its modules byte-compiled, so first-call
+    times without it would count compiling the package's own source.
+    """
     import os
     from pathlib import Path
 
     env = dict(os.environ)
+    if bytecode:
+        env.pop("PYTHONDONTWRITEBYTECODE", None)
     root = str(Path(__file__).resolve().parent.parent)
     env["PYTHONPATH"] = os.pathsep.join([root] + [p for p in env.get("PYTHONPATH", "").split(os.pathsep) if p])
     return env
 
 
-def run_child(code: str, *, timeout: float = 1800) -> dict:
-    """Run ``code`` in a fresh Python process; it must print one JSON object as its last line."""
+def run_child(code: str, *, timeout: float = 1800, bytecode: bool = False) -> dict:
+    """Run ``code`` in a fresh Python process; it must print one JSON object as its last line (``bytecode``: see :func:`_child_env`)."""
     import json
 
-    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=_child_env(),
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=_child_env(bytecode),
                           timeout=timeout)
     if proc.returncode != 0:
         raise RuntimeError(f"child process failed ({proc.returncode}): {proc.stderr.strip()[-2000:]}")
@@ -465,14 +473,15 @@ print(json.dumps({"import_s": t1 - t0, "dependencies_s": t2 - t1, "load_s": t3 -
 
 def _wall(argv) -> float:
     t0 = time.perf_counter()
-    subprocess.run(argv, check=True, capture_output=True, env=_child_env())
+    subprocess.run(argv, check=True, capture_output=True, env=_child_env(bytecode=True))
     return time.perf_counter() - t0
 
 
 def first_call_latency(*, repeat: int = 3) -> dict:
     """Import time, first ``identify(method="lm")`` on EMPS and ``--help`` time, each in a fresh process.
 
-    The kernel cache is warmed by one untimed run first.  The package imports
+    The kernel and bytecode caches are warmed by one untimed run first (see
+    :func:`_child_env`).  The package imports
     its dependencies on first use; ``dependencies_s`` is the import of those
     an identification needs (numpy, scipy, numba, python-control, which the
     returned ``TransferFunction`` needs), ``load_s`` reading the EMPS preset,
@@ -481,9 +490,10 @@ def first_call_latency(*, repeat: int = 3) -> dict:
     package's own first-call overhead.  ``python_s`` is a bare interpreter's start-up, to
     read ``help_s`` against.  Medians over ``repeat`` processes.
     """
-    run_child(_FIRST_CALL)
-    runs = [run_child(_FIRST_CALL) for _ in range(repeat)]
+    run_child(_FIRST_CALL, bytecode=True)
+    runs = [run_child(_FIRST_CALL, bytecode=True) for _ in range(repeat)]
     out = {k: statistics.median(r[k] for r in runs) for k in runs[0]}
+    out["processes"] = repeat
     out["python_s"] = statistics.median(_wall([sys.executable, "-c", "pass"]) for _ in range(repeat))
     out["help_s"] = statistics.median(_wall([sys.executable, "-m", "hammerstein_ctrl.cli", "--help"])
                                       for _ in range(repeat))
@@ -638,7 +648,7 @@ def format_contention(rows) -> str:
 
 def format_first_call(r) -> str:
     return "\n".join([
-        "Fresh process, kernel cache warm (medians of 3 processes)", "",
+        f"Fresh process, kernel and bytecode caches warm (medians of {r.get('processes', 3)} processes)", "",
         f"import hammerstein_ctrl            {r['import_s']:.3f} s",
         f"then numpy, scipy, numba, control  {r['dependencies_s']:.3f} s (imported on first use; "
         "identify returns a control.TransferFunction)",
