@@ -153,17 +153,21 @@ def _combination(q, K: int, f, target: str) -> list:
     return [f"{target} = {q('P0')} * {f(0)}"] + [f"{target} += {q(f'P{k}')} * {f(k)}" for k in range(1, K)]
 
 
-def _coefficient_loads(n: int, hold: str, q, row: str, states: str, K: int | None, terms=OUTPUT_TERMS) -> list:
-    """Lines loading row ``row``'s coefficients (of ``E``, ``C``, ``D``, ``Y0``, ``P``) and initial state (of ``states``)."""
-    lines = []
+def _coefficient_loads(n: int, hold: str, q, row: str, states: str, K: int | None, terms=OUTPUT_TERMS,
+                       block: str | None = None) -> list:
+    """Lines loading row ``row``'s coefficients (of ``E``, ``C``, ``D``, ``Y0``, ``P``) and initial state (of ``states``).
+
+    ``block`` names the row of the linear block's ``E``, ``C``, ``D`` if it is not ``row``.
+    """
+    lines, e = [], row if block is None else block
     for r in range(n):
-        lines += [f"{q(f'a{r}_{c}')} = E[{row}, {r}, {c}]" for c in range(n)]
+        lines += [f"{q(f'a{r}_{c}')} = E[{e}, {r}, {c}]" for c in range(n)]
         if hold == "foh":
-            lines += [f"{q(f'q{r}')} = E[{row}, {r}, {n + 1}]", f"{q(f'p{r}')} = E[{row}, {r}, {n}] - {q(f'q{r}')}"]
+            lines += [f"{q(f'q{r}')} = E[{e}, {r}, {n + 1}]", f"{q(f'p{r}')} = E[{e}, {r}, {n}] - {q(f'q{r}')}"]
         else:
-            lines.append(f"{q(f'p{r}')} = E[{row}, {r}, {n}]")
-        lines += [f"{q(f'c{r}')} = C[{row}, {r}]", f"{q(f'x{r}')} = {states}[{row}, {r}]"]
-    lines += [f"{q('d')} = D[{row}]"] if "d" in terms else []
+            lines.append(f"{q(f'p{r}')} = E[{e}, {r}, {n}]")
+        lines += [f"{q(f'c{r}')} = C[{e}, {r}]", f"{q(f'x{r}')} = {states}[{row}, {r}]"]
+    lines += [f"{q('d')} = D[{e}]"] if "d" in terms else []
     lines += [f"{q('o')} = Y0[{row}]"] if "o" in terms else []
     return lines + [f"{q(f'P{k}')} = P[{row}, {k}]" for k in range(K or 0)]
 
@@ -321,9 +325,12 @@ def _lane_output(n: int, z: _LaneRows, x: str, v: str) -> str:
     return _output_expr(n, z.__getitem__, lambda r: f"{x}{r}", v, z.terms)
 
 
-def _lane_coefficients(n: int, hold: str, K: int, z: _LaneRows, ind: str, states: str) -> list:
-    """Load row ``b``'s coefficients and state (of ``states``) into column ``w``, and the state into ``x0, x1, ...``."""
-    lines = _coefficient_loads(n, hold, z.__getitem__, "b", states, K, z.terms)
+def _lane_coefficients(n: int, hold: str, K: int, z: _LaneRows, ind: str, states: str, block: str | None = None) -> list:
+    """Load row ``b``'s coefficients and state (of ``states``) into column ``w``, and the state into ``x0, x1, ...``.
+
+    ``block``: the row of the linear block, if not ``b`` (see :func:`_coefficient_loads`).
+    """
+    lines = _coefficient_loads(n, hold, z.__getitem__, "b", states, K, z.terms, block)
     return _indent(ind, lines + [f"x{r} = {states}[b, {r}]" for r in range(n)])
 
 
@@ -482,8 +489,9 @@ def _normal_rows(n: int, hold: str, K: int, terms: tuple) -> _LaneRows:
 
 def _normal_setup(n: int, hold: str, K: int, lanes: int, z: _LaneRows, ind: str) -> list:
     """Every lane's coefficients, state and previous signal (padding lanes repeat lane 0), and the sums."""
-    lines = [f"{ind}for w in range(W):", f"{ind}    b = w if w < {lanes} else 0"]
-    lines += _lane_coefficients(n, hold, K, z, ind + "    ", "X")
+    lines = [f"{ind}for w in range(W):", f"{ind}    b = w if w < {lanes} else 0",
+             f"{ind}    e = b if b < E.shape[0] else 0"]
+    lines += _lane_coefficients(n, hold, K, z, ind + "    ", "X", "e")
     lines.append(f"{ind}    {z['vp']} = VP[b]")
     p = lanes - 1
     lines.append(f"{ind}f = acc[0]")
@@ -569,7 +577,10 @@ def get_normal_kernel(n: int, hold: str, lanes: int, K: int, direct: bool = True
     Returns
     -------
     callable
-        ``kernel(E, C, D, X, Y0, VP, P, Phi, y, begin, acc)``.  ``X``
+        ``kernel(E, C, D, X, Y0, VP, P, Phi, y, begin, acc)``.  ``E``,
+        ``C``, ``D`` may have fewer rows than there are lanes: the lanes past
+        them share row 0's linear block (neighbours that move only the
+        signal, the offset or the initial state).  ``X``
         (lanes' states), ``VP`` (previous signal samples) and ``acc``
         (``[f, sum d r (p), sum d d^T (p x p)]``; the lower triangle of the
         last is read, all of it written) are read and updated, so a long

@@ -415,7 +415,8 @@ class HammersteinCost:
             P, blocks = s.input_params(X), self._basis_blocks()
         else:
             return None
-        num, den = s.linear._coefficients(X[:, :self._n_linear])
+        # rows past 1 + n_linear move no parameter of the linear block: they share row 0's
+        num, den = s.linear._coefficients(X[:1 + self._n_linear, :self._n_linear])
         offset, x0 = s.nuisance(X)
         return normal_pass(num, den, self.data.dt, self._y, P, blocks, h, x0=x0, offset=offset,
                            intersample=self.data.intersample)

@@ -627,7 +627,10 @@ def normal_pass(num, den, dt: float, y, P, blocks, steps, *, x0=None, offset=Non
 
     Parameters
     ----------
-    num, den : array_like, shape (p+1, l+1) and (p+1, n+1)
+    num, den : array_like, shape (L, l+1) and (L, n+1), 1 <= L <= p+1
+        The candidates' linear blocks; candidates past the first ``L`` share
+        row 0's (neighbours that move only the signal, the offset or the
+        initial state: one discretisation serves them all).
     dt : float
     y : ndarray, shape (N,)
         Measured output.
@@ -661,9 +664,10 @@ def normal_pass(num, den, dt: float, y, P, blocks, steps, *, x0=None, offset=Non
     steps = np.ascontiguousarray(steps, dtype=float)
     P = np.ascontiguousarray(P, dtype=float)
     lanes, n, K = steps.size + 1, np.shape(den)[-1] - 1, P.shape[-1]
-    if steps.ndim != 1 or P.shape != (lanes, K) or np.shape(den)[0] != lanes:
-        raise ParameterError(f"a normal-equation pass needs one row of coefficients per candidate "
-                             f"(p + 1 = {lanes}), got steps {steps.shape}, P {P.shape}, den {np.shape(den)}")
+    if steps.ndim != 1 or P.shape != (lanes, K) or not 1 <= np.shape(den)[0] <= lanes:
+        raise ParameterError(f"a normal-equation pass needs one row of basis coefficients per candidate "
+                             f"(p + 1 = {lanes}) and at most as many linear blocks, got steps {steps.shape}, "
+                             f"P {P.shape}, den {np.shape(den)}")
     if lanes > MAX_NORMAL_LANES or not 1 <= n <= MAX_UNROLLED_STATES or not 1 <= K <= MAX_LANE_BASIS:
         return None
     num, den = _coefficient_rows(num, den)

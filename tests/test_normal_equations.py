@@ -158,8 +158,15 @@ def test_normal_pass_checks_shapes_and_keeps_a_given_state(emps_case):
     ref = normal_pass(num, den, emps_case.data.dt, cost._y, P, [cost._basis], h)
     np.testing.assert_array_equal(ne.gram, ref.gram)
     assert not x0.any()                                   # the caller's state is not written
-    with pytest.raises(ParameterError, match="one row of coefficients per candidate"):
+    # the neighbours of the basis coefficients share the point's linear block: two rows serve five lanes
+    shared = normal_pass(num[:2], den[:2], emps_case.data.dt, cost._y, P, [cost._basis], h)
+    assert shared.fun == ref.fun
+    np.testing.assert_array_equal(shared.gram, ref.gram)
+    np.testing.assert_array_equal(shared.gradient, ref.gradient)
+    with pytest.raises(ParameterError, match="one row of basis coefficients per candidate"):
         normal_pass(num, den, emps_case.data.dt, cost._y, P[:2], [cost._basis], h)
+    with pytest.raises(ParameterError, match="at most as many linear blocks"):
+        normal_pass(np.vstack([num, num[:1]]), np.vstack([den, den[:1]]), emps_case.data.dt, cost._y, P, [cost._basis], h)
     with pytest.raises(DataError, match="cover 100 samples"):
         normal_pass(num, den, emps_case.data.dt, cost._y, P, [cost._basis[:, :100]], h)
     with pytest.raises(DataError, match="non-zero"):
