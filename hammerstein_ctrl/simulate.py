@@ -580,7 +580,7 @@ def sse_basis_batch(num, den, P, basis, dt: float, y, *, x0=None, offset=None, i
 
 def _output_terms(num, den, D, offset, Y0) -> tuple[bool, bool]:
     """Whether the outputs have a direct term and an offset (a strictly proper block, or no offset given, needs no look)."""
-    return num.shape[1] == den.shape[1] and bool(D.any()), offset is not None and bool(Y0.any())
+    return np.shape(num)[-1] == np.shape(den)[-1] and bool(D.any()), offset is not None and bool(Y0.any())
 
 
 def _basis_arguments(num, den, P, basis, y):
@@ -670,7 +670,6 @@ def normal_pass(num, den, dt: float, y, P, blocks, steps, *, x0=None, offset=Non
                              f"P {P.shape}, den {np.shape(den)}")
     if lanes > MAX_NORMAL_LANES or not 1 <= n <= MAX_UNROLLED_STATES or not 1 <= K <= MAX_LANE_BASIS:
         return None
-    num, den = _coefficient_rows(num, den)
     E, C, D, ok, clean = _discretized(num, den, dt)
     if not clean and not ok.all():
         return None
