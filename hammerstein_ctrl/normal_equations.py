@@ -79,28 +79,43 @@ def _neighbour_values(fun, gradient, gram, steps):  # pragma: no cover - compile
     return values
 
 
-def forward_steps(x, upper=None) -> np.ndarray:
-    """scipy's ``"2-point"`` steps: ``sqrt(eps) max(1, |x|)`` with the sign of ``x``, flipped to stay below ``upper``.
+def forward_steps(x, upper=None, lower=None) -> np.ndarray:
+    """scipy's ``"2-point"`` steps: ``sqrt(eps) max(1, |x|)`` with the sign of ``x``, kept inside ``[lower, upper]``.
 
-    Returned as ``(x + h) - x`` so that the step is exactly representable.
+    As scipy's ``approx_derivative`` does: a step that would leave the box is
+    reversed if the reversed one fits, else it becomes the distance to the
+    farther bound.  Returned as ``(x + h) - x`` so that the step is exactly
+    representable.
+
+    Examples
+    --------
+    >>> forward_steps([2.0, -1.0], upper=[2.0, 0.0], lower=[0.0, -1.0]) / 1.4901161193847656e-08
+    array([-2.,  1.])
     """
     x = np.asarray(x, dtype=float)
-    bound = _NO_BOUND if upper is None else np.broadcast_to(np.asarray(upper, dtype=float), x.shape).ravel()
-    return _forward_steps(np.ascontiguousarray(x).ravel(), np.ascontiguousarray(bound)).reshape(x.shape)
+    return _forward_steps(np.ascontiguousarray(x).ravel(), _bound(upper, x, np.inf),
+                          _bound(lower, x, -np.inf)).reshape(x.shape)
 
 
-#: The upper bound of unbounded forward steps (one value for every parameter).
-_NO_BOUND = np.array([np.inf])
+def _bound(value, x, default):
+    """A bound as a flat array: one value for every parameter if none is given, else one per entry of ``x``."""
+    if value is None:
+        return np.full(1, default)
+    return np.ascontiguousarray(np.broadcast_to(np.asarray(value, dtype=float), x.shape).ravel())
 
 
 @numba.njit(cache=True, nogil=True)
-def _forward_steps(x, upper):  # pragma: no cover - compiled
-    """:func:`forward_steps` of a flat ``x`` below ``upper`` (one value each, or one for all), in one compiled call."""
+def _forward_steps(x, upper, lower):  # pragma: no cover - compiled
+    """:func:`forward_steps` of a flat ``x`` in ``[lower, upper]`` (one value each, or one for all), in one compiled call."""
     h = np.empty_like(x)
     for i in range(x.size):
         step = FD_REL_STEP * (1.0 if x[i] >= 0 else -1.0) * max(1.0, abs(x[i]))
-        if x[i] + step > upper[i if upper.size > 1 else 0]:
-            step = -step
+        up, lo = upper[i if upper.size > 1 else 0], lower[i if lower.size > 1 else 0]
+        if x[i] + step > up or x[i] + step < lo:
+            if abs(step) <= max(x[i] - lo, up - x[i]):
+                step = -step
+            else:
+                step = up - x[i] if up - x[i] >= x[i] - lo else lo - x[i]
         h[i] = (x[i] + step) - x[i]
     return h
 

@@ -111,12 +111,12 @@ class _BatchedJacobian:
     def __init__(self, counted: _CountedResiduals, residuals_batch, box):
         self.counted = counted
         self.residuals_batch = residuals_batch or (lambda X: np.array([counted.fun(x) for x in X]))
-        self.upper = None if box is None else box[1]
+        self.lower, self.upper = (None, None) if box is None else box
         self._cache = (None, None)
         self._formed = 0
 
     def steps(self, x):
-        return forward_steps(x, self.upper)
+        return forward_steps(x, self.upper, self.lower)
 
     def columns(self, x):
         """The Jacobian's columns as the rows of an ``(n, N)`` array.
