@@ -6,7 +6,7 @@ import numpy as np
 
 from .exceptions import DataError, ParameterError
 
-__all__ = ["GRID_TOLERANCE", "INTERSAMPLE", "MAX_ORDER", "check_intersample", "as_signal",
+__all__ = ["GRID_TOLERANCE", "INTERSAMPLE", "MAX_ORDER", "check_intersample", "as_signal", "as_real_array",
            "check_transfer_function", "uniform_grid"]
 
 #: Largest allowed deviation of a sample time from the uniform grid ``t0 + k*dt``,
@@ -64,6 +64,31 @@ def as_signal(x, name: str, *, allow_empty: bool = False) -> np.ndarray:
             f"{name} contains {int(bad.sum())} non-finite value(s); first is {kind} at sample {k}"
         )
     return a
+
+
+def as_real_array(x, name: str) -> np.ndarray:
+    """``x`` as a float array, or a :class:`ParameterError` naming ``name`` for complex or non-numeric values.
+
+    NaN and inf pass (a cost scores them ``inf``); values are never silently cast.
+
+    Examples
+    --------
+    >>> as_real_array([1, 2.5], "beta")
+    array([1. , 2.5])
+    >>> as_real_array([1 + 2j], "beta")
+    Traceback (most recent call last):
+    ...
+    hammerstein_ctrl.exceptions.ParameterError: beta is complex; parameters must be real
+    """
+    raw = np.asarray(x)
+    if raw.dtype.kind == "c":
+        raise ParameterError(f"{name} is complex; parameters must be real")
+    if raw.dtype.kind not in "biuf":
+        try:
+            return raw.astype(float)
+        except (TypeError, ValueError):
+            raise ParameterError(f"{name} must be numbers, got {str(x)[:80]}") from None
+    return raw.astype(float, copy=False)
 
 
 def _trimmed(c, label: str) -> np.ndarray:

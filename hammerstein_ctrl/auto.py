@@ -32,7 +32,7 @@ import numpy as np
 
 from .exceptions import ParameterError
 from .initialize import Budget, initial_points, nuisance_estimate, stabilize
-from .optimize import COMPLETED, SOLVER_FAILED, History, as_rng, levenberg_marquardt
+from .optimize import COMPLETED, SOLVER_FAILED, History, as_rng, as_x0, levenberg_marquardt
 from .simulate import unstable
 
 __all__ = ["auto_minimize", "AUTO_MAXFEV", "RESTART_SPREAD", "MAX_RESTARTS"]
@@ -71,7 +71,7 @@ class _Merged:
 def _user_start(cost, x0, budget: Budget):
     """The user's x0, completed with offset/initial state and stabilised."""
     s = cost.structure
-    x = np.asarray(x0, dtype=float).reshape(-1)
+    x = as_x0(x0)
     if x.size == s.n_core and s.n_params > s.n_core:
         x = nuisance_estimate(cost.data, s, x, budget)
     x = s.check_beta(x).copy()

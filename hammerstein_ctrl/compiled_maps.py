@@ -48,15 +48,21 @@ def polynomial_map(z, p, extra):  # pragma: no cover - compiled
 
 
 @numba.njit(cache=True, nogil=True)
+def _clip(z, a):  # pragma: no cover - compiled
+    """``numpy.clip(z, -a, a)`` for ``a >= 0``: NaN if ``z`` or ``a`` is NaN (``min``/``max`` would drop it)."""
+    if np.isnan(z) or np.isnan(a):
+        return np.nan
+    return min(max(z, -a), a)
+
+
+@numba.njit(cache=True, nogil=True)
 def saturation_map(z, p, extra):  # pragma: no cover - compiled
-    a = abs(p[1])
-    return p[0] * min(max(z, -a), a)
+    return p[0] * _clip(z, abs(p[1]))
 
 
 @numba.njit(cache=True, nogil=True)
 def deadzone_map(z, p, extra):  # pragma: no cover - compiled
-    a = abs(p[1])
-    return p[0] * (z - min(max(z, -a), a))
+    return p[0] * (z - _clip(z, abs(p[1])))
 
 
 @numba.njit(cache=True, nogil=True)

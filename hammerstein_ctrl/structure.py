@@ -27,7 +27,7 @@ from typing import Mapping
 import numba
 import numpy as np
 
-from ._checks import MAX_ORDER
+from ._checks import MAX_ORDER, as_real_array
 from .exceptions import ParameterError
 from .nonlinearities import Nonlinearity
 
@@ -377,9 +377,9 @@ class BlockStructure:
         Raises
         ------
         ParameterError
-            On a wrong length, naming the expected parameters.
+            On a wrong length, naming the expected parameters, or values that are not real numbers.
         """
-        b = np.asarray(beta, dtype=float)
+        b = beta if type(beta) is np.ndarray and beta.dtype == np.float64 else as_real_array(beta, "beta")
         if b.ndim not in (1, 2) or b.shape[-1] != self.n_params:
             got = b.shape[-1] if b.ndim else "a scalar"
             raise ParameterError(

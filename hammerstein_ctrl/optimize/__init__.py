@@ -5,7 +5,7 @@ functions.  Every routine takes a ``seed`` (int or ``numpy.random.Generator``),
 counts every objective evaluation in ``nfev`` and never exceeds ``maxfev``.
 """
 
-from ._common import CALLBACK_STOP, COMPLETED, DIVERGED, NO_FINITE_VALUE, SOLVER_FAILED, History, as_rng
+from ._common import CALLBACK_STOP, COMPLETED, DIVERGED, NO_FINITE_VALUE, SOLVER_FAILED, History, as_rng, as_x0
 from .amvo_sca import amvo_sca
 from .least_squares import levenberg_marquardt
 from .gains import SPALL_ALPHA, SPALL_GAMMA, GainSequence, PerturbationGain, StepGain
@@ -16,5 +16,5 @@ __all__ = [
     "minimize", "canonical_method", "METHODS", "SCIPY_METHODS",
     "spsa", "nlspsa", "nspsa", "amvo_sca", "levenberg_marquardt", "normalized_difference",
     "GainSequence", "StepGain", "PerturbationGain", "SPALL_ALPHA", "SPALL_GAMMA",
-    "COMPLETED", "CALLBACK_STOP", "DIVERGED", "NO_FINITE_VALUE", "SOLVER_FAILED", "History", "as_rng",
+    "COMPLETED", "CALLBACK_STOP", "DIVERGED", "NO_FINITE_VALUE", "SOLVER_FAILED", "History", "as_rng", "as_x0",
 ]

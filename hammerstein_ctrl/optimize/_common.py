@@ -7,6 +7,7 @@ import time
 import numpy as np
 from scipy.optimize import Bounds, OptimizeResult
 
+from .._checks import as_real_array
 from ..exceptions import ParameterError
 
 # Result status codes (``OptimizeResult.status``).
@@ -140,11 +141,15 @@ def as_rng(seed) -> np.random.Generator:
         return seed
     if isinstance(seed, np.random.RandomState):
         raise ParameterError("pass an int seed or a numpy.random.Generator, not a RandomState")
-    return np.random.default_rng(seed)
+    try:
+        return np.random.default_rng(seed)
+    except (TypeError, ValueError) as exc:
+        raise ParameterError(f"seed must be None, a non-negative integer (or a sequence of them) or a "
+                             f"numpy.random.Generator, got {seed!r} ({exc})") from None
 
 
 def as_x0(x0) -> np.ndarray:
-    x = np.array(x0, dtype=float).reshape(-1)
+    x = np.array(as_real_array(x0, "x0")).reshape(-1)
     if x.size == 0:
         raise ParameterError("x0 is empty")
     if not np.all(np.isfinite(x)):
