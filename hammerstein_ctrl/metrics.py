@@ -35,13 +35,15 @@ def _pair(y, yhat):
 def sse(y, yhat) -> float:
     """Sum of squared errors ``J = sum (y - yhat)^2`` (paper Eq. 13)."""
     y, yhat = _pair(y, yhat)
-    return float(np.sum((y - yhat) ** 2))
+    with np.errstate(over="ignore"):        # a diverging model: inf, without numpy's warning
+        return float(np.sum((y - yhat) ** 2))
 
 
 def rmse(y, yhat) -> float:
     """Root-mean-square error."""
     y, yhat = _pair(y, yhat)
-    return float(np.sqrt(np.mean((y - yhat) ** 2)))
+    with np.errstate(over="ignore"):
+        return float(np.sqrt(np.mean((y - yhat) ** 2)))
 
 
 def nrmse(y, yhat) -> float:
@@ -56,7 +58,8 @@ def nrmse(y, yhat) -> float:
     scale = np.linalg.norm(y - y.mean())
     if scale == 0:
         raise DataError("y is constant: NRMSE and fit % are undefined")
-    return float(np.linalg.norm(y - yhat) / scale)
+    with np.errstate(over="ignore"):
+        return float(np.linalg.norm(y - yhat) / scale)
 
 
 def fit_percent(y, yhat) -> float:

@@ -40,6 +40,7 @@ import threading
 import numba
 import numpy as np
 
+from ._checks import as_real_array
 from .exceptions import ParameterError
 from .kernels import MAX_LANE_BASIS, MAX_NORMAL_LANES, MAX_UNROLLED_STATES, get_coefficient_kernel
 from .normal_equations import NONFINITE_RESIDUAL, NormalEquations, forward_steps, from_residuals, neighbours
@@ -394,7 +395,7 @@ class HammersteinCost:
         b = self.structure.check_beta(beta)
         if b.ndim != 1:
             raise ParameterError("normal_equations(beta) takes one vector")
-        h = forward_steps(b) if steps is None else np.asarray(steps, dtype=float).reshape(b.shape)
+        h = forward_steps(b) if steps is None else self._checked_steps(steps, b.shape)
         X = neighbours(b, h)
         if self.reject_unstable and self._unstable(X).any():
             return from_residuals(self.residuals_batch(X), h)
@@ -402,6 +403,15 @@ class HammersteinCost:
         if ne is not None and ne.finite:
             return ne
         return from_residuals(self.residuals_batch(X), h)
+
+    @staticmethod
+    def _checked_steps(steps, shape) -> np.ndarray:
+        """Forward-difference steps: one finite, non-zero step per parameter (else a :class:`ParameterError`)."""
+        h = as_real_array(steps, "steps")
+        if h.shape != shape or not np.all(np.isfinite(h) & (h != 0)):
+            raise ParameterError(f"steps must be {shape[0]} finite, non-zero numbers (one per parameter), "
+                                 f"got {np.array2string(h, threshold=12)}")
+        return h
 
     def _fused_normal_equations(self, X, h):
         """The compiled pass of :func:`~hammerstein_ctrl.simulate.normal_pass`, or ``None`` where it does not apply."""

@@ -45,7 +45,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._checks import as_signal, check_intersample, check_transfer_function, uniform_grid
+from ._checks import as_signal, check_dt, check_intersample, check_transfer_function, uniform_grid
 from ._linalg import expm_batch, single_threaded_blas, tf_augmented, tf_discrete
 from .exceptions import DataError, ParameterError
 from .kernels import (LANE_MIN, MAX_LANE_BASIS, MAX_NORMAL_LANES, MAX_UNROLLED_STATES, get_coefficient_kernel,
@@ -359,7 +359,8 @@ def _tf_system(num, den, dt: float):
 def _discretized(num, den, dt: float):
     """:func:`_tf_system` and ``clean``: every row usable (``ok`` all true, known without looking)."""
     num, den = _coefficient_rows(num, den)
-    E, C, D, ok, big, clean = tf_discrete(num, den, float(dt), COMPILED_EXPM_MAX_NORM)
+    dt = dt if type(dt) is float and dt > 0 and dt != np.inf else check_dt(dt)
+    E, C, D, ok, big, clean = tf_discrete(num, den, dt, COMPILED_EXPM_MAX_NORM)
     if not clean and big.any():
         import scipy.linalg
 
@@ -399,6 +400,9 @@ def unstable(den) -> np.ndarray:
 
 def _signals(V, batch: int) -> np.ndarray:
     V = np.atleast_2d(np.asarray(V, dtype=float))
+    if V.ndim != 2 or V.shape[0] not in (1, batch):
+        raise ParameterError(f"signals must be one row, or one row per transfer function ({batch}), "
+                             f"got an array of shape {V.shape}")
     if V.shape[0] != batch:
         V = np.broadcast_to(V, (batch, V.shape[1]))
     return np.ascontiguousarray(V)
