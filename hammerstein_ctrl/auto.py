@@ -165,26 +165,45 @@ def auto_minimize(cost, x0=None, *, maxfev: int | None = None, seed=None, allow_
             best, best_key = res, key
         if callback is not None and callback(res):
             break
+    if best is None:
+        return _unrefined(cost, starts, budget, merged, started)
     return _result(cost, best, budget, runs, len(starts), merged, allow_unstable, started)
+
+
+def _unrefined(cost, starts, budget, merged, started):
+    """The result when the budget ends before any refinement: the best start (not refined), or no point at all.
+
+    The start's J is evaluated once more for the report (as ``identify``
+    simulates its final model), outside the budget.
+    """
+    from scipy.optimize import OptimizeResult
+
+    hint = f"raise maxfev (the default is {AUTO_MAXFEV})"
+    if starts:
+        x = cost.structure.normalize(starts[0])
+        fun = float(cost(x))
+        message = (f"evaluation budget of {budget.maxfev} exhausted before any refinement: x is the best "
+                   f"data-driven start, not refined; {hint}")
+    else:
+        x, fun = np.full(cost.n_params, np.nan), np.inf
+        message = f"evaluation budget of {budget.maxfev} exhausted before a starting point was found; {hint}"
+    return OptimizeResult(x=x, fun=fun, nfev=budget.nfev, nit=0, success=False, status=SOLVER_FAILED,
+                          message=message, history=merged.history.as_dict(), method="auto",
+                          starts=len(starts), best_x=x.copy() if starts else None, best_fun=fun, nfev_monitor=0,
+                          elapsed=time.perf_counter() - started)
 
 
 def _result(cost, best, budget, runs, n_starts, merged, allow_unstable, started):
     from scipy.optimize import OptimizeResult
 
-    if best is None:
-        x = np.full(cost.n_params, np.nan)
-        return OptimizeResult(x=x, fun=np.inf, nfev=budget.nfev, nit=0, success=False, status=SOLVER_FAILED,
-                              message=f"evaluation budget of {budget.maxfev} exhausted before any refinement",
-                              history=merged.history.as_dict(), method="auto", starts=n_starts,
-                              best_x=None, best_fun=np.inf, nfev_monitor=0,
-                              elapsed=time.perf_counter() - started)
     converged = best.status == COMPLETED and "budget" not in str(best.message)
     x = cost.structure.normalize(best.x)
     ok = _acceptable(cost, x, best.fun, allow_unstable)
     if converged and ok:
         message = f"converged ({best.message.rstrip('.')}) after {runs} refinement(s) from {n_starts} start(s)"
     elif not converged:
-        message = f"best of {runs} refinement(s) did not converge: {best.message}"
+        message = (f"best of {runs} refinement(s) did not converge within maxfev = {budget.maxfev} "
+                   f"(raise it): {best.message}")
     else:
         message = f"no acceptable model (unstable or no better than a constant) after {runs} refinement(s)"
     return OptimizeResult(x=x, fun=float(best.fun), nfev=budget.nfev, nit=runs, success=bool(converged and ok),

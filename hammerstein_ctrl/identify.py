@@ -117,6 +117,9 @@ class IdentificationResult:
         from .display import as_iodata
         from .initialize import estimate_initial_state
 
+        if self.model is None:
+            raise ParameterError(f"this identification produced no model, so there is nothing to validate "
+                                 f"({self.message})")
         data = as_iodata(data)
         mode = initial_state or self.structure.initial_state
         if mode not in ("zero", "estimate"):
@@ -325,7 +328,9 @@ def _assess(cost, res, key: str, x0, report: dict, allow_unstable: bool) -> tupl
     if not allow_unstable and np.all(np.isfinite(x)) and unstable(den)[0]:
         problems.append("the model is unstable (a pole in the right half-plane); pass allow_unstable=True "
                         "to accept it")
-    if not np.isfinite(res.fun):
+    if not np.all(np.isfinite(x)):
+        problems.append("no model: the optimiser returned no finite parameters")
+    elif not np.isfinite(res.fun):
         problems.append("the final model cannot be simulated (non-finite output)")
     elif report["fit_percent"] <= 0:
         problems.append(f"fit {report['fit_percent']:.1f} % is no better than a constant")
