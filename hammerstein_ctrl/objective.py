@@ -424,12 +424,39 @@ class HammersteinCost:
         elif self._linear_in_params:
             P, blocks = s.input_params(X), self._basis_blocks()
         else:
-            return None
+            P, blocks = self._signal_selection(s.input_params(X))
+            if P is None:
+                return None
         # rows past 1 + n_linear move no parameter of the linear block: they share row 0's
         num, den = s.linear._coefficients(X[:1 + self._n_linear, :self._n_linear])
         offset, x0 = s.nuisance(X)
         return normal_pass(num, den, self.data.dt, self._y, P, blocks, h, x0=x0, offset=offset,
                            intersample=self.data.intersample)
+
+    def _signal_selection(self, params):
+        """``(P, blocks)`` for a ``g`` without a basis: its distinct signals as the basis, each lane selecting one.
+
+        The point and the neighbours that move no parameter of ``g`` share
+        one signal; each neighbour that moves one has its own.  The signals
+        are evaluated :data:`EVAL_BLOCK` samples at a time, so memory stays
+        bounded.  ``(None, None)`` if there are more than
+        :data:`~hammerstein_ctrl.kernels.MAX_LANE_BASIS` distinct signals.
+        """
+        rows = [0] + [int(i) for i in np.flatnonzero(np.any(params != params[0], axis=1))]
+        if len(rows) > MAX_LANE_BASIS:
+            return None, None
+        P = np.zeros((params.shape[0], len(rows)))
+        P[:, 0] = 1.0                             # the point's signal, for every lane but those moving g
+        P[rows[1:], 0] = 0.0
+        P[rows[1:], np.arange(1, len(rows))] = 1.0
+        g, u = self.structure.input_nonlinearity, self._u
+
+        def blocks():
+            with np.errstate(all="ignore"):
+                for start in range(0, u.size, EVAL_BLOCK):
+                    part = u[start:start + EVAL_BLOCK]
+                    yield np.array([g._evaluate(part, params[r]) for r in rows])
+        return P, blocks()
 
     def _basis_blocks(self):
         """The basis of ``g``, recomputed a block of samples at a time (for records too long to store it)."""

@@ -117,3 +117,29 @@ def test_auto_in_bounded_memory(record):
     assert r.nfev == budget and r.optimize_result.starts == 3
     np.testing.assert_allclose(r.x, bench.SYNTHETIC_BETA, rtol=1e-6)
     assert per_sample < 90
+
+
+@pytest.mark.parametrize("intersample", ["foh", "zoh"])
+def test_normal_equations_of_a_g_without_basis_stream_its_signals(record, intersample):
+    """tanh has no basis: its distinct signals (the point's and one per parameter of g) are evaluated a
+    block at a time inside the compiled pass, with the numbers of the stored N x p Jacobian and no p x N array."""
+    from hammerstein_ctrl.datasets import IOData
+    from hammerstein_ctrl.nonlinearities import Tanh
+    from hammerstein_ctrl.normal_equations import forward_steps, from_residuals, neighbours
+    from hammerstein_ctrl.structure import HammersteinStructure, LinearStructure
+
+    data = IOData(record.u, record.y, dt=record.dt, intersample=intersample)
+    structure = HammersteinStructure(LinearStructure(1, 2), Tanh(), offset=True)
+    cost = HammersteinCost(data, structure)
+    x = np.array([2.0, 3.0, 1.5, 0.8, 0.5, 0.05])
+    h = forward_steps(x)
+    assert cost._fused_normal_equations(neighbours(x, h), h) is not None      # the compiled pass applies
+    per_sample, ne = peak_bytes_per_sample(lambda: cost.normal_equations(x))
+    assert per_sample < 8                        # p + 1 = 7 residual vectors alone would be 56 B per sample
+    small = HammersteinCost(data.window(0.0, 20.0), structure)
+    ref = from_residuals(small.residuals_batch(neighbours(x, h)), h)
+    got = small.normal_equations(x)
+    assert got.fun == pytest.approx(small(x), rel=1e-12) == pytest.approx(ref.fun, rel=1e-12)
+    np.testing.assert_allclose(got.gradient, ref.gradient, rtol=1e-6, atol=1e-9 * np.abs(ref.gradient).max())
+    np.testing.assert_allclose(got.gram, ref.gram, rtol=1e-6, atol=1e-9 * np.abs(ref.gram).max())
+    assert np.isfinite(ne.fun)
