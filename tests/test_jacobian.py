@@ -87,17 +87,24 @@ def test_lm_iterates_exactly_as_scipy_least_squares(case, request):
 
 @pytest.mark.parametrize("maxfev", [None, 7, 23, 60])
 def test_lm_run_unchanged_by_batching(trs_case, maxfev):
-    """Same iterates, value, evaluation count and history, including a budget running out mid-Jacobian."""
+    """Same iterates, value, evaluation count and history, including a budget running out mid-Jacobian.
+
+    The batched run takes the compiled normal-equation pass (tanh's signals
+    selected per lane), which sums the same differences in another order:
+    values agree to rounding, counts exactly.
+    """
     cost = trs_case.cost
     batched = levenberg_marquardt(cost, trs_case.x0, maxfev=maxfev)
     columns = levenberg_marquardt(ResidualsOnly(cost), trs_case.x0, maxfev=maxfev)
     assert batched.nfev == columns.nfev
     if maxfev is not None:
         assert batched.nfev == maxfev
-    np.testing.assert_array_equal(batched.x, columns.x)
-    assert batched.fun == columns.fun and batched.best_fun == columns.best_fun
-    for key in ("nfev", "fun", "best"):
-        np.testing.assert_array_equal(batched.history[key], columns.history[key])
+    np.testing.assert_allclose(batched.x, columns.x, rtol=1e-12)
+    assert batched.fun == pytest.approx(columns.fun, rel=1e-12)
+    assert batched.best_fun == pytest.approx(columns.best_fun, rel=1e-12)
+    np.testing.assert_array_equal(batched.history["nfev"], columns.history["nfev"])
+    for key in ("fun", "best"):
+        np.testing.assert_allclose(batched.history[key], columns.history[key], rtol=1e-12)
 
 
 def test_lm_with_bounds_unchanged_by_batching(trs_case):

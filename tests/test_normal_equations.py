@@ -74,14 +74,18 @@ def test_blocks_of_a_recomputed_basis_give_the_same_sums(emps_case, monkeypatch)
     np.testing.assert_allclose(ne.gram, whole.gram, rtol=1e-9)
 
 
-def test_structures_without_a_fused_pass_use_the_residuals(trs_case):
-    """TRS (tanh, not linear in its parameters) and a Wiener model: the sums from residuals_batch."""
+def test_g_without_a_basis_takes_the_fused_pass_and_a_wiener_model_the_residuals(trs_case):
+    """TRS (tanh, not linear in its parameters): its signals selected per lane in the compiled pass;
+    a Wiener model (an output nonlinearity): the sums from residuals_batch.  Both as the stored Jacobian."""
     x = np.asarray(trs_case.paper["nspsa"]["beta"])
     h = forward_steps(x)
-    assert trs_case.cost._fused_normal_equations(x + np.vstack([np.zeros(x.size), np.diag(h)]), h) is None
+    assert trs_case.cost._fused_normal_equations(neighbours(x, h), h) is not None
     _check(trs_case.cost, x)
     wiener = HammersteinCost(_synthetic("foh", N=1500), hc.WienerStructure(hc.LinearStructure(0, 2), hc.Tanh()))
-    _check(wiener, np.array([2.0, 3.0, 1.5, 0.7]))
+    xw = np.array([2.0, 3.0, 1.5, 0.7])
+    hw = forward_steps(xw)
+    assert wiener._fused_normal_equations(neighbours(xw, hw), hw) is None
+    _check(wiener, xw)
 
 
 def test_from_residuals_replaces_nonfinite_residuals():
