@@ -83,6 +83,8 @@ def as_real_array(x, name: str) -> np.ndarray:
     raw = np.asarray(x)
     if raw.dtype.kind == "c":
         raise ParameterError(f"{name} is complex; parameters must be real")
+    if raw.dtype.kind in "USV":
+        raise ParameterError(f"{name} must be numbers, got text or bytes: {str(x)[:80]}")
     if raw.dtype.kind not in "biuf":
         try:
             return raw.astype(float)

@@ -110,7 +110,7 @@ def _rotate(A, p, q):  # pragma: no cover - compiled
     """One Jacobi rotation of the symmetric ``A`` zeroing ``A[p, q]``; False if it is already negligible."""
     apq = A[p, q]
     app, aqq = A[p, p], A[q, q]
-    if abs(apq) <= np.finfo(np.float64).eps * np.sqrt(abs(app * aqq)) or apq == 0.0:
+    if abs(apq) <= np.finfo(np.float64).eps * (np.sqrt(abs(app)) * np.sqrt(abs(aqq))) or apq == 0.0:
         return False
     theta = (aqq - app) / (2.0 * apq)
     t = 1.0 / (abs(theta) + np.sqrt(theta * theta + 1.0))
@@ -386,8 +386,9 @@ def _controller():
     return ThreadpoolController()
 
 
-#: Per thread: how deeply :func:`single_threaded_blas` blocks are nested.
-_BLAS_LIMIT = threading.local()
+#: How many :func:`single_threaded_blas` blocks are open in the process, and the limiter of the first.
+_BLAS_LIMIT = {"depth": 0, "limiter": None}
+_BLAS_LOCK = threading.Lock()
 
 
 @contextlib.contextmanager
@@ -397,9 +398,10 @@ def single_threaded_blas():
     Small dense linear algebra gains nothing from threads, and on a busy
     machine the spinning worker threads of OpenBLAS made each call tens of
     times slower.  The controller is built once per process (inspecting the
-    loaded libraries is the expensive part), and a block nested in another
-    (``identify`` calls ``minimize``, which calls its solver) costs nothing:
-    only the outermost one sets and restores the limits (about 20 us).
+    loaded libraries is the expensive part).  The limits are process-wide, so
+    blocks are counted across threads: the first to open sets them (about
+    20 us), the last to close restores them, and blocks nested in those
+    (``identify`` calls ``minimize``, which calls its solver) cost nothing.
 
     Examples
     --------
@@ -408,13 +410,37 @@ def single_threaded_blas():
     ...     float(np.linalg.det(np.eye(3)))
     1.0
     """
-    depth = getattr(_BLAS_LIMIT, "depth", 0)
-    _BLAS_LIMIT.depth = depth + 1
+    with _BLAS_LOCK:
+        if _BLAS_LIMIT["depth"] == 0:
+            with _controlling_this_thread():
+                _BLAS_LIMIT["limiter"] = _controller().limit(limits=1)
+        _BLAS_LIMIT["depth"] += 1
     try:
-        if depth:
-            yield
-        else:
-            with _controller().limit(limits=1):
-                yield
+        yield
     finally:
-        _BLAS_LIMIT.depth = depth
+        with _BLAS_LOCK:
+            _BLAS_LIMIT["depth"] -= 1
+            if _BLAS_LIMIT["depth"] == 0:
+                with _controlling_this_thread():
+                    _BLAS_LIMIT["limiter"].restore_original_limits()
+                _BLAS_LIMIT["limiter"] = None
+
+
+@contextlib.contextmanager
+def _controlling_this_thread():
+    """Let this thread set OpenBLAS's process-wide pool, then let any thread do so again.
+
+    threadpoolctl (3.8) lets only the first thread that set a limit change it
+    again; the block that closes last may run in another thread.
+    """
+    import threadpoolctl
+
+    openblas = getattr(threadpoolctl, "OpenBLASController", None)
+    clear = getattr(openblas, "clear_controlling_thread", None)
+    if clear is not None:
+        clear(force=True)
+    try:
+        yield
+    finally:
+        if clear is not None:
+            clear(force=True)

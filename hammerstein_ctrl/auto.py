@@ -139,6 +139,7 @@ def auto_minimize(cost, x0=None, *, maxfev: int | None = None, seed=None, allow_
         if x0 is None:
             raise
         starts = []
+    found = len(starts)                   # data-driven starts; the user's x0 comes after them
     if x0 is not None:
         starts.append(_user_start(cost, x0, budget))
     merged = _Merged()
@@ -166,27 +167,30 @@ def auto_minimize(cost, x0=None, *, maxfev: int | None = None, seed=None, allow_
         if callback is not None and callback(res):
             break
     if best is None:
-        return _unrefined(cost, starts, budget, merged, started)
+        return _unrefined(cost, starts, found, budget, merged, started)
     return _result(cost, best, budget, runs, len(starts), merged, allow_unstable, started)
 
 
-def _unrefined(cost, starts, budget, merged, started):
-    """The result when the budget ends before any refinement: the best start (not refined), or no point at all.
+def _unrefined(cost, starts, found, budget, merged, started):
+    """The result when too little budget is left for any refinement: the best start (not refined), or no point.
 
+    ``found`` of the ``starts`` are data-driven (the user's x0 follows them).
     The start's J is evaluated once more for the report (as ``identify``
     simulates its final model), outside the budget.
     """
     from scipy.optimize import OptimizeResult
 
-    hint = f"raise maxfev (the default is {AUTO_MAXFEV})"
+    hint = (f"{budget.nfev} of maxfev = {budget.maxfev} evaluations spent, and a refinement needs at least "
+            f"{MIN_REFINE_BUDGET}; raise maxfev (the default is {AUTO_MAXFEV})")
     if starts:
         x = cost.structure.normalize(starts[0])
         fun = float(cost(x))
-        message = (f"evaluation budget of {budget.maxfev} exhausted before any refinement: x is the best "
-                   f"data-driven start, not refined; {hint}")
+        which = "the best data-driven start" if found else "the user's x0 (stabilised)"
+        message = f"no refinement ran: x is {which}, not refined ({hint})"
     else:
         x, fun = np.full(cost.n_params, np.nan), np.inf
-        message = f"evaluation budget of {budget.maxfev} exhausted before a starting point was found; {hint}"
+        message = (f"the search for starting points used up its share of the budget without finding one "
+                   f"({hint})")
     return OptimizeResult(x=x, fun=fun, nfev=budget.nfev, nit=0, success=False, status=SOLVER_FAILED,
                           message=message, history=merged.history.as_dict(), method="auto",
                           starts=len(starts), best_x=x.copy() if starts else None, best_fun=fun, nfev_monitor=0,

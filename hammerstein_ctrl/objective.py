@@ -397,8 +397,11 @@ class HammersteinCost:
             raise ParameterError("normal_equations(beta) takes one vector")
         h = forward_steps(b) if steps is None else self._checked_steps(steps, b.shape)
         X = neighbours(b, h)
-        if self.reject_unstable and self._unstable(X).any():
-            return from_residuals(self.residuals_batch(X), h)
+        if self.reject_unstable:
+            bad = self._unstable(X)
+            if bad.any():       # the cost scores the point inf: so do its normal equations (a solver cannot start there)
+                ne = from_residuals(self.residuals_batch(X), h)
+                return ne._replace(fun=np.inf) if bad[0] else ne
         ne = self._fused_normal_equations(X, h)
         if ne is not None and ne.finite:
             return ne

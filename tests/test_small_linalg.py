@@ -84,3 +84,12 @@ def test_single_threaded_blas_nests_and_restores():
     assert threads() == before                  # restored after an exception too
     with single_threaded_blas():
         assert set(threads()) <= {1}            # and the depth count was reset
+
+
+def test_strings_are_not_numbers():
+    from hammerstein_ctrl._checks import as_real_array
+    from hammerstein_ctrl.exceptions import ParameterError
+
+    with pytest.raises(ParameterError, match="text"):
+        as_real_array(["1.5"], "beta")
+    assert as_real_array(np.array([1, None, 2.0], dtype=object)[[0, 2]], "beta").tolist() == [1.0, 2.0]

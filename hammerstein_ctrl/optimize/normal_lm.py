@@ -54,7 +54,8 @@ MESSAGES = {
     4: "`gtol` termination condition is satisfied.",
     5: "the step limit was reached before convergence",
     6: "no step lowers the sum of squares any more (the damping exceeded 1e20)",
-    7: "the residuals are not finite at the starting point",
+    7: "the sum of squares is not finite at the starting point (an overflowing simulation, or an unstable "
+       "start where unstable candidates are rejected)",
     8: "the normal equations are too ill-conditioned here",
 }
 #: Codes that mean convergence.
