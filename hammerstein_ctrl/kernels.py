@@ -81,7 +81,7 @@ ENV_CACHE = "HAMMERSTEIN_CTRL_CACHE"
 #: A sum of squares above this is treated as overflowed.
 _OVERFLOW = 1.7e308
 #: Most candidates (one point and its forward-difference neighbours) of a normal-equation pass.
-MAX_NORMAL_LANES = 10
+MAX_NORMAL_LANES = 16
 #: One level of indentation of the generated source.
 _INDENT = " " * 4
 #: Terms of the output besides ``C x``: the direct term ``d v`` and the offset ``o``.

@@ -192,3 +192,34 @@ def test_a_nonfinite_last_signal_sample_makes_the_pass_nonfinite():
     assert not ne.finite
     ok = normal_pass(num, den, 0.01, np.zeros(N), P, [np.full((1, N), 1e-200)], np.array([1e192]), intersample="zoh")
     assert ok.finite
+
+
+def test_up_to_sixteen_lanes_take_the_fused_pass():
+    """A degree-7 polynomial g with a (2, 3) block and an offset: 14 lanes, the stored Jacobian's sums;
+    with x(0) estimated too (17 lanes) the residuals give them."""
+    import control
+
+    from hammerstein_ctrl.kernels import MAX_NORMAL_LANES
+
+    t = 0.01 * np.arange(4000)
+    u = np.sin(t) + 0.5 * np.sin(3.3 * t)
+    y = control.forced_response(control.tf([1, 2], [1, 2, 4, 3]), t, u + 0.2 * u ** 3).outputs
+    data = hc.IOData(u, y, dt=0.01)
+    s = hc.HammersteinStructure(hc.LinearStructure(2, 3), hc.Polynomial(7), offset=True)
+    cost = HammersteinCost(data, s)
+    x = np.random.default_rng(0).uniform(0.5, 2.0, s.n_params)
+    h = forward_steps(x)
+    assert s.n_params + 1 == 14 <= MAX_NORMAL_LANES
+    assert cost._fused_normal_equations(neighbours(x, h), h) is not None
+    ne = cost.normal_equations(x)
+    f, g, G = _stored(cost, x)
+    assert ne.fun == pytest.approx(f, rel=1e-12)
+    scale = np.sqrt(np.outer(np.diag(G), np.diag(G)))
+    assert np.max(np.abs(ne.gram - G) / scale) < 1e-5
+    wide = HammersteinCost(data, hc.HammersteinStructure(hc.LinearStructure(2, 3), hc.Polynomial(7), offset=True,
+                                                         initial_state="estimate"))
+    xw = np.random.default_rng(1).uniform(0.5, 2.0, wide.n_params)
+    hw = forward_steps(xw)
+    assert wide.n_params + 1 == 17 > MAX_NORMAL_LANES
+    assert wide._fused_normal_equations(neighbours(xw, hw), hw) is None
+    assert wide.normal_equations(xw).fun == pytest.approx(wide(xw), rel=1e-12)
