@@ -362,11 +362,14 @@ class HammersteinCost:
     def normal_equations(self, beta, steps=None) -> NormalEquations:
         """``r @ r``, ``J.T @ r`` and ``J.T @ J`` at ``beta``, ``J`` the forward-difference Jacobian of the residuals.
 
-        For a Hammerstein structure whose nonlinearity is linear in its
-        parameters (or absent) the point and its neighbours are simulated side
-        by side in one compiled pass that accumulates the sums, with no
-        ``N x p`` Jacobian in memory; otherwise the sums are formed from
-        :meth:`residuals_batch`.  Either way the ``p + 1`` residual vectors
+        The point and its neighbours are simulated side by side in one
+        compiled pass that accumulates the sums, with no ``N x p`` Jacobian
+        in memory (the signals of ``g`` formed from its basis, or evaluated a
+        block at a time; an output map applied in the pass).  Structures with
+        more than :data:`~hammerstein_ctrl.kernels.MAX_NORMAL_LANES` - 1
+        parameters, more than :data:`~hammerstein_ctrl.kernels.MAX_LANE_BASIS`
+        distinct signals or an output map without a compiled form have the
+        sums formed from :meth:`residuals_batch`.  Either way the ``p + 1`` residual vectors
         are those of ``beta`` and ``beta + steps[j] e_j``.
 
         Parameters
@@ -419,7 +422,7 @@ class HammersteinCost:
     def _fused_normal_equations(self, X, h):
         """The compiled pass of :func:`~hammerstein_ctrl.simulate.normal_pass`, or ``None`` where it does not apply."""
         s = self.structure
-        if s.output_nonlinearity is not None or X.shape[0] > MAX_NORMAL_LANES:
+        if X.shape[0] > MAX_NORMAL_LANES:
             return None
         form = self._basis_form(X)
         if form is not None:
@@ -433,8 +436,10 @@ class HammersteinCost:
         # rows past 1 + n_linear move no parameter of the linear block: they share row 0's
         num, den = s.linear._coefficients(X[:1 + self._n_linear, :self._n_linear])
         offset, x0 = s.nuisance(X)
+        h_params = s.output_params(X)
         return normal_pass(num, den, self.data.dt, self._y, P, blocks, h, x0=x0, offset=offset,
-                           intersample=self.data.intersample)
+                           intersample=self.data.intersample,
+                           output_map=None if h_params is None else (s.output_nonlinearity, h_params))
 
     def _signal_selection(self, params):
         """``(P, blocks)`` for a ``g`` without a basis: its distinct signals as the basis, each lane selecting one.

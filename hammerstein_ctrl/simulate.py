@@ -620,7 +620,7 @@ def _measured(y, n_samples: int) -> np.ndarray:
 
 
 def normal_pass(num, den, dt: float, y, P, blocks, steps, *, x0=None, offset=None,
-                intersample: str = "foh") -> NormalEquations | None:
+                intersample: str = "foh", output_map=None) -> NormalEquations | None:
     """Normal equations of a point and its forward-difference neighbours, in one compiled pass.
 
     Row 0 of the candidates is the point, row ``j + 1`` the point with
@@ -644,8 +644,8 @@ def normal_pass(num, den, dt: float, y, P, blocks, steps, *, x0=None, offset=Non
         The basis, in blocks of samples that together span the record.
     steps : array_like, shape (p,)
         The forward-difference steps.
-    x0, offset, intersample
-        As for :func:`simulate_batch`.
+    x0, offset, intersample, output_map
+        As for :func:`simulate_batch` (an output map's parameters: one row per candidate).
 
     Returns
     -------
@@ -653,8 +653,9 @@ def normal_pass(num, den, dt: float, y, P, blocks, steps, *, x0=None, offset=Non
         ``None`` if the pass does not apply (more than
         :data:`~hammerstein_ctrl.kernels.MAX_NORMAL_LANES` candidates, no
         state or more than :data:`MAX_UNROLLED_STATES` states, more than
-        :data:`~hammerstein_ctrl.kernels.MAX_LANE_BASIS` basis signals, or a
-        candidate whose coefficients cannot be discretised); the sums may be
+        :data:`~hammerstein_ctrl.kernels.MAX_LANE_BASIS` basis signals, an
+        output map without a compiled form, or a candidate whose
+        coefficients cannot be discretised); the sums may be
         non-finite if a simulation overflows.
 
     Raises
@@ -677,8 +678,12 @@ def normal_pass(num, den, dt: float, y, P, blocks, steps, *, x0=None, offset=Non
     E, C, D, ok, clean = _discretized(num, den, dt)
     if not clean and not ok.all():
         return None
+    outmap, map_args, fallback = _output_map(output_map, lanes, n)
+    if fallback:
+        return None
     X, Y0 = np.array(_state_rows(x0, lanes, n)), _offset_rows(offset, lanes)   # X is written: a copy
-    kernel = get_normal_kernel(n, hold, lanes, K, *_output_terms(num, den, D, offset, Y0))
+    kernel = get_normal_kernel(n, hold, lanes, K, *_output_terms(num, den, D, offset, Y0), outmap)
+    HP, HX = map_args or (np.zeros((lanes, 0)), np.zeros(0))
     VP, acc = np.zeros(lanes), np.zeros(1 + (lanes - 1) * lanes)
     y = _measured(y, np.size(y))
     begin = 0
@@ -688,7 +693,7 @@ def normal_pass(num, den, dt: float, y, P, blocks, steps, *, x0=None, offset=Non
         if Phi.shape[0] != K or stop > y.size:
             raise DataError(f"a block of the basis of shape {Phi.shape} does not fit {K} basis signals and "
                             f"a record of {y.size} samples (at sample {begin})")
-        kernel(E, C, D, X, Y0, VP, P, Phi, y[begin:stop], begin, acc)
+        kernel(E, C, D, X, Y0, VP, P, Phi, HP, HX, y[begin:stop], begin, acc)
         begin = stop
     if begin != y.size:
         raise DataError(f"the blocks of the basis cover {begin} samples of a record of {y.size}")

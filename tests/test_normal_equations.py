@@ -74,18 +74,25 @@ def test_blocks_of_a_recomputed_basis_give_the_same_sums(emps_case, monkeypatch)
     np.testing.assert_allclose(ne.gram, whole.gram, rtol=1e-9)
 
 
-def test_g_without_a_basis_takes_the_fused_pass_and_a_wiener_model_the_residuals(trs_case):
+def test_g_without_a_basis_and_output_maps_take_the_fused_pass(trs_case):
     """TRS (tanh, not linear in its parameters): its signals selected per lane in the compiled pass;
-    a Wiener model (an output nonlinearity): the sums from residuals_batch.  Both as the stored Jacobian."""
+    Wiener and Hammerstein-Wiener models: the output map applied in the pass.  All as the stored Jacobian."""
     x = np.asarray(trs_case.paper["nspsa"]["beta"])
     h = forward_steps(x)
     assert trs_case.cost._fused_normal_equations(neighbours(x, h), h) is not None
     _check(trs_case.cost, x)
-    wiener = HammersteinCost(_synthetic("foh", N=1500), hc.WienerStructure(hc.LinearStructure(0, 2), hc.Tanh()))
-    xw = np.array([2.0, 3.0, 1.5, 0.7])
-    hw = forward_steps(xw)
-    assert wiener._fused_normal_equations(neighbours(xw, hw), hw) is None
-    _check(wiener, xw)
+    for hold in ("foh", "zoh"):
+        data = _synthetic(hold, N=1500)
+        for structure, xs in ((hc.WienerStructure(hc.LinearStructure(0, 2), hc.Tanh()), [2.0, 3.0, 1.5, 0.7]),
+                              (hc.WienerStructure(hc.LinearStructure(1, 2), hc.Saturation(), offset=True),
+                               [0.5, 2.0, 3.0, 1.2, 0.05, 0.1]),
+                              (hc.HammersteinWienerStructure(hc.LinearStructure(0, 2), hc.Coulomb(), hc.Tanh()),
+                               [2.0, 3.0, 0.2, 0.1, 1.5, 0.7])):
+            cost = HammersteinCost(data, structure)
+            xs = np.array(xs)
+            hs = forward_steps(xs)
+            assert cost._fused_normal_equations(neighbours(xs, hs), hs) is not None
+            _check(cost, xs)
 
 
 def test_from_residuals_replaces_nonfinite_residuals():
@@ -223,3 +230,12 @@ def test_up_to_sixteen_lanes_take_the_fused_pass():
     assert wide.n_params + 1 == 17 > MAX_NORMAL_LANES
     assert wide._fused_normal_equations(neighbours(xw, hw), hw) is None
     assert wide.normal_equations(xw).fun == pytest.approx(wide(xw), rel=1e-12)
+
+
+def test_an_output_map_without_a_compiled_form_takes_the_residuals():
+    cubic = hc.CustomNonlinearity(lambda v, p: p[0] * v + p[1] * v ** 3, n_params=2)
+    cost = HammersteinCost(_synthetic("foh", N=1500), hc.WienerStructure(hc.LinearStructure(0, 2), cubic))
+    x = np.array([2.0, 3.0, 1.5, 0.1])
+    h = forward_steps(x)
+    assert cubic.compiled_map is None and cost._fused_normal_equations(neighbours(x, h), h) is None
+    _check(cost, x)
