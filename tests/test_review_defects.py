@@ -146,3 +146,16 @@ def test_identify_of_an_overflowing_model_does_not_leak_numpy_warnings():
         warnings.simplefilter("error", RuntimeWarning)
         res = hc.identify(data, structure, method="lm", x0=[0.0, -1.0, 1.0, 0.1, 0.1], maxfev=300)
     assert not res.success
+
+
+def test_huge_residuals_are_booked_without_a_numpy_warning():
+    """auto's MINPACK refinements book residuals of 1e150 stand-ins: their sum of squares is inf, silently."""
+    import warnings
+
+    from hammerstein_ctrl.optimize.least_squares import _CountedResiduals
+
+    counted = _CountedResiduals(lambda x: np.full(3, 1e200), None)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RuntimeWarning)
+        r = counted(np.zeros(2))
+    assert r.shape == (3,) and counted.history.as_dict()["fun"].tolist() == [np.inf]
