@@ -413,8 +413,8 @@ class HammersteinCost:
     @staticmethod
     def _checked_steps(steps, shape) -> np.ndarray:
         """Forward-difference steps: one finite, non-zero step per parameter (else a :class:`ParameterError`)."""
-        h = as_real_array(steps, "steps")
-        if h.shape != shape or not np.all(np.isfinite(h) & (h != 0)):
+        h = steps if type(steps) is np.ndarray and steps.dtype == np.float64 else as_real_array(steps, "steps")
+        if h.shape != shape or not (np.isfinite(h).all() and h.all()):
             raise ParameterError(f"steps must be {shape[0]} finite, non-zero numbers (one per parameter), "
                                  f"got {np.array2string(h, threshold=12)}")
         return h
