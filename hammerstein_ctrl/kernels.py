@@ -491,12 +491,14 @@ def _normal_rows(n: int, hold: str, K: int, terms: tuple) -> _LaneRows:
     return _LaneRows(n, hold, K, terms, extra=("yh",))
 
 
-def _normal_setup(n: int, hold: str, K: int, lanes: int, z: _LaneRows, ind: str) -> list:
+def _normal_setup(n: int, hold: str, K: int, lanes: int, z: _LaneRows, ind: str, outputs: bool = False) -> list:
     """Every lane's coefficients, state and previous signal (padding lanes repeat lane 0), and the sums."""
     lines = [f"{ind}for w in range(W):", f"{ind}    b = w if w < {lanes} else 0",
              f"{ind}    e = b if b < E.shape[0] else 0"]
     lines += _lane_coefficients(n, hold, K, z, ind + "    ", "X", "e")
     lines.append(f"{ind}    {z['vp']} = VP[b]")
+    if outputs:
+        return lines
     p = lanes - 1
     lines.append(f"{ind}f = acc[0]")
     lines += [f"{ind}g{j} = acc[{1 + j}]" for j in range(p)]
@@ -514,10 +516,18 @@ def _normal_sums(lanes: int, z: _LaneRows, ind: str) -> list:
     return lines + [f"{ind}H{j}_{k} += j{j} * j{k}" for j in range(p) for k in range(j + 1)]
 
 
-def _normal_store(n: int, lanes: int, z: _LaneRows, ind: str) -> list:
+def _lane_outputs(lanes: int, z: _LaneRows, ind: str, sample: str) -> list:
+    """Store every lane's output sample in row ``sample`` of ``acc`` (an outputs pass)."""
+    yh = z.index["yh"]
+    return [f"{ind}acc[{sample}, {w}] = Z[{yh}, {w}]" for w in range(lanes)]
+
+
+def _normal_store(n: int, lanes: int, z: _LaneRows, ind: str, outputs: bool = False) -> list:
     """Write the lanes' states, previous signals and the sums back for the next block of samples."""
     lines = [f"{ind}for w in range({lanes}):"]
     lines += [f"{ind}    X[w, {r}] = {z[f'x{r}']}" for r in range(n)] + [f"{ind}    VP[w] = {z['vp']}"]
+    if outputs:         # the caller checks VP for a non-finite signal sample not yet in any output
+        return lines
     # a non-finite signal sample not yet in the state (zoh: the last one) may reach no sum when the
     # direct term is left out: the sum of squares is then not finite, as it would be with d = 0
     lines += [f"{ind}    if not np.isfinite({z['vp']}):", f"{ind}        f = np.nan"]
@@ -530,12 +540,14 @@ def _normal_store(n: int, lanes: int, z: _LaneRows, ind: str) -> list:
 
 
 def normal_source(n: int, hold: str, lanes: int, K: int, direct: bool = True, offset: bool = True,
-                  outmap: str | None = None) -> str:
+                  outmap: str | None = None, outputs: bool = False) -> str:
     """Python source of the normal-equation pass for ``n`` states, ``lanes`` candidates and ``K`` basis signals.
 
     ``direct`` and ``offset`` say whether the output has the terms ``d v``
     and ``o``, ``outmap`` names an output map of
-    :mod:`~hammerstein_ctrl.compiled_maps` (see :func:`get_normal_kernel`, which compiles it).
+    :mod:`~hammerstein_ctrl.compiled_maps`, and ``outputs`` makes the pass
+    store every lane's output sample instead of summing (see
+    :func:`get_normal_kernel`, which compiles it).
     """
     z = _normal_rows(n, hold, K, _terms(direct, offset))
     width = next(w for w in sorted(LANE_WIDTHS) if w >= lanes)
@@ -545,20 +557,22 @@ def normal_source(n: int, hold: str, lanes: int, K: int, direct: bool = True, of
     first = [f"{ind2}f{k} = Phi[{k}, 0]" for k in range(K)] + [f"{ind2}yi = y[0]", f"{ind2}for w in range(W):"]
     first += lane + _lane_signal(z, K, ind3) + [f"{ind3}{z['vp']} = vi"]
     first += [f"{ind3}x{r} = {z[f'x{r}']}" for r in range(n)]
-    first += [f"{ind3}{z['yh']} = {_lane_output(n, z, 'x', 'vi', outmap)}"] + _normal_sums(lanes, z, ind2)
+    first += [f"{ind3}{z['yh']} = {_lane_output(n, z, 'x', 'vi', outmap)}"]
+    first += _lane_outputs(lanes, z, ind2, "0") if outputs else _normal_sums(lanes, z, ind2)
     step = lane + _lane_step(n, hold, K, z, ind3) + [f"{ind3}{z['yh']} = {_lane_output(n, z, 'n', 'vi', outmap)}"]
+    sums = _lane_outputs(lanes, z, ind2, "i") if outputs else _normal_sums(lanes, z, ind2)
     return _NORMAL_TEMPLATE.format(
         n=n, hold=hold, lanes=lanes, K=K, width=width, rows=len(z), outmap=outmap,
         imports=f"from hammerstein_ctrl.compiled_maps import {outmap} as h\n" if outmap else "",
-        setup="\n".join(_normal_setup(n, hold, K, lanes, z, ind1)), first="\n".join(first), fetch="\n".join(fetch),
-        step="\n".join(step), sums="\n".join(_normal_sums(lanes, z, ind2)),
-        store="\n".join(_normal_store(n, lanes, z, ind1)),
+        setup="\n".join(_normal_setup(n, hold, K, lanes, z, ind1, outputs)), first="\n".join(first),
+        fetch="\n".join(fetch), step="\n".join(step), sums="\n".join(sums),
+        store="\n".join(_normal_store(n, lanes, z, ind1, outputs)),
     )
 
 
 @functools.lru_cache(maxsize=None)
 def get_normal_kernel(n: int, hold: str, lanes: int, K: int, direct: bool = True, offset: bool = True,
-                      outmap: str | None = None):
+                      outmap: str | None = None, outputs: bool = False):
     """The compiled normal-equation pass: a point and its forward-difference neighbours side by side.
 
     Lane 0 simulates the point, lane ``j`` the point with parameter ``j - 1``
@@ -591,7 +605,9 @@ def get_normal_kernel(n: int, hold: str, lanes: int, K: int, direct: bool = True
     -------
     callable
         ``kernel(E, C, D, X, Y0, VP, P, Phi, HP, HX, y, begin, acc)`` (without
-        a map, ``HP`` and ``HX`` are not read: pass empty arrays).  ``E``,
+        a map, ``HP`` and ``HX`` are not read: pass empty arrays).  With
+        ``outputs``, ``acc`` is an ``(N_block, lanes)`` array that receives
+        every lane's output samples, and ``y`` is not read.  ``E``,
         ``C``, ``D`` may have fewer rows than there are lanes: the lanes past
         them share row 0's linear block (neighbours that move only the
         signal, the offset or the initial state).  ``X``
@@ -621,8 +637,9 @@ def get_normal_kernel(n: int, hold: str, lanes: int, K: int, direct: bool = True
     if outmap is not None and not has_output_maps(n):
         raise ValueError(f"output maps are compiled for up to {MAX_UNROLLED_STATES} states, not {n}")
     name = (f"hc_normal_n{n}_{hold}_l{lanes}_k{K}" + "".join(f"_{t}" for t in _terms(direct, offset))
-            + (f"_{outmap}" if outmap else ""))
-    return _load_source(normal_source(int(n), hold, int(lanes), int(K), bool(direct), bool(offset), outmap), name)
+            + (f"_{outmap}" if outmap else "") + ("_outputs" if outputs else ""))
+    return _load_source(normal_source(int(n), hold, int(lanes), int(K), bool(direct), bool(offset), outmap,
+                                      bool(outputs)), name)
 
 
 #: Package modules whose compiled functions the generated kernels call.

@@ -31,7 +31,8 @@ from typing import NamedTuple
 import numba
 import numpy as np
 
-__all__ = ["NormalEquations", "from_residuals", "from_difference_sums", "forward_steps", "neighbours", "FD_REL_STEP", "NONFINITE_RESIDUAL"]
+__all__ = ["NormalEquations", "from_residuals", "from_difference_sums", "from_factor", "forward_steps", "neighbours",
+           "FD_REL_STEP", "NONFINITE_RESIDUAL"]
 
 #: Relative step of the forward-difference Jacobian (scipy's "2-point" default, sqrt(eps)).
 FD_REL_STEP = float(np.sqrt(np.finfo(float).eps))
@@ -50,6 +51,9 @@ class NormalEquations(NamedTuple):
     gradient: np.ndarray
     gram: np.ndarray
     steps: np.ndarray
+    #: ``(R, qtr)`` with ``J = Q R`` and ``qtr = Q.T r`` where the sums come from a QR factorisation
+    #: (:func:`from_factor`), else ``None``.
+    factor: tuple | None = None
 
     def neighbour_values(self) -> np.ndarray:
         """Sum of squares at each neighbour ``x + h_j e_j``: ``f + 2 h_j g_j + h_j**2 G_jj``.
@@ -193,6 +197,29 @@ def _divide_by_steps(sums, steps):  # pragma: no cover - compiled
         for k in range(p):
             gram[j, k] = sums[1 + p + j * p + k] / (steps[j] * steps[k])
     return gradient, gram
+
+
+def from_factor(R, steps) -> NormalEquations:
+    """Normal equations from the triangular factor ``R`` of ``[D r]``, ``D[:, j] = h_j J[:, j]``, keeping the factor.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> D = np.array([[0.5], [1.0]]); r = np.array([1.0, 2.0])        # h = 0.5: J = [[1], [2]]
+    >>> R = np.linalg.qr(np.column_stack([D, r]), mode="r")
+    >>> ne = from_factor(R, [0.5])
+    >>> round(ne.fun, 12), ne.gradient.round(12).tolist(), ne.gram.round(12).tolist()
+    (5.0, [5.0], [[5.0]])
+    """
+    R, steps = np.asarray(R, dtype=float), np.asarray(steps, dtype=float)
+    p = steps.size
+    if R.shape != (p + 1, p + 1):
+        raise ValueError(f"a factor of shape {R.shape} does not fit {p} steps")
+    RJ = R[:p, :p] / steps
+    qtr = R[:p, p].copy()
+    with np.errstate(all="ignore"):
+        fun = float(R[:, p] @ R[:, p])
+        return NormalEquations(fun, RJ.T @ qtr, RJ.T @ RJ, steps, (RJ, qtr))
 
 
 def from_residuals(R, steps) -> NormalEquations:

@@ -43,8 +43,10 @@ import numpy as np
 from ._checks import as_real_array
 from .exceptions import ParameterError
 from .kernels import MAX_LANE_BASIS, MAX_NORMAL_LANES, MAX_UNROLLED_STATES, get_coefficient_kernel
-from .normal_equations import NONFINITE_RESIDUAL, NormalEquations, forward_steps, from_residuals, neighbours
-from .simulate import COMPILED_EXPM_MAX_NORM, normal_pass, simulate_batch, sse_basis_batch, sse_batch, unstable
+from .normal_equations import (NONFINITE_RESIDUAL, NormalEquations, forward_steps, from_factor, from_residuals,
+                               neighbours)
+from .simulate import (COMPILED_EXPM_MAX_NORM, normal_factor, normal_pass, simulate_batch, sse_basis_batch, sse_batch,
+                       unstable)
 from .structure import BlockStructure
 
 __all__ = ["HammersteinCost", "CHUNK_BYTES", "BASIS_MAX_BYTES", "BASIS_BLOCK", "EVAL_BLOCK", "NONFINITE_RESIDUAL"]
@@ -140,6 +142,11 @@ class HammersteinCost:
     @property
     def param_names(self) -> tuple[str, ...]:
         return self.structure.param_names
+
+    @property
+    def n_samples(self) -> int:
+        """Length of the record."""
+        return self._y.size
 
     def _chunks(self, batch: int):
         """Slices of at most ``CHUNK_BYTES`` worth of signals covering ``range(batch)``."""
@@ -408,7 +415,47 @@ class HammersteinCost:
         ne = self._fused_normal_equations(X, h)
         if ne is not None and ne.finite:
             return ne
+        if ne is not None and not np.isfinite(ne.fun):
+            # the point's own simulation is not finite: the cost scores it inf, and so do its normal
+            # equations (no p + 1 stored residual vectors for a point no solver can use)
+            return ne._replace(fun=np.inf)
         return from_residuals(self.residuals_batch(X), h)
+
+    def normal_factor(self, beta, steps=None) -> NormalEquations:
+        """:meth:`normal_equations` with the Jacobian's QR factor (``factor = (R, Q.T r)``) instead of ``J.T J``.
+
+        Where :meth:`normal_equations` takes its compiled pass, the lanes'
+        outputs leave it a block of samples at a time and the differences are
+        reduced by a streamed QR (:func:`~hammerstein_ctrl.simulate.normal_factor`):
+        memory stays bounded per sample, and the factor keeps the accuracy the
+        Gram matrix loses on an ill-conditioned Jacobian.  Elsewhere the
+        factor comes from the stored residual vectors.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from hammerstein_ctrl import presets
+        >>> p = presets.emps()
+        >>> x = np.asarray(p.paper["nspsa"]["beta"])
+        >>> qr, ne = p.cost.normal_factor(x), p.cost.normal_equations(x)
+        >>> bool(np.allclose(qr.gram, ne.gram, rtol=1e-6)), round(qr.fun, 6) == round(ne.fun, 6)
+        (True, True)
+        """
+        b = self.structure.check_beta(beta)
+        if b.ndim != 1:
+            raise ParameterError("normal_factor(beta) takes one vector")
+        h = forward_steps(b) if steps is None else self._checked_steps(steps, b.shape)
+        X = neighbours(b, h)
+        ne = None if self.reject_unstable and self._unstable(X).any() else self._fused_normal_equations(
+            X, h, normal_factor)
+        if ne is not None and (ne.finite or not np.isfinite(ne.fun)):
+            return ne if ne.finite else ne._replace(fun=np.inf)
+        ne = self.normal_equations(b, h)        # the residuals' sums, with their rules for hostile points
+        if not np.isfinite(ne.fun):
+            return ne
+        R = self.residuals_batch(X)
+        D = np.column_stack([(R[1:] - R[0]).T, R[0]])
+        return from_factor(np.linalg.qr(D, mode="r"), h)._replace(fun=ne.fun)
 
     @staticmethod
     def _checked_steps(steps, shape) -> np.ndarray:
@@ -419,8 +466,8 @@ class HammersteinCost:
                                  f"got {np.array2string(h, threshold=12)}")
         return h
 
-    def _fused_normal_equations(self, X, h):
-        """The compiled pass of :func:`~hammerstein_ctrl.simulate.normal_pass`, or ``None`` where it does not apply."""
+    def _fused_normal_equations(self, X, h, driver=normal_pass):
+        """The compiled pass of :func:`~hammerstein_ctrl.simulate.normal_pass` (or ``driver``), or ``None`` where it does not apply."""
         s = self.structure
         if X.shape[0] > MAX_NORMAL_LANES:
             return None
@@ -437,9 +484,9 @@ class HammersteinCost:
         num, den = s.linear._coefficients(X[:1 + self._n_linear, :self._n_linear])
         offset, x0 = s.nuisance(X)
         h_params = s.output_params(X)
-        return normal_pass(num, den, self.data.dt, self._y, P, blocks, h, x0=x0, offset=offset,
-                           intersample=self.data.intersample,
-                           output_map=None if h_params is None else (s.output_nonlinearity, h_params))
+        return driver(num, den, self.data.dt, self._y, P, blocks, h, x0=x0, offset=offset,
+                      intersample=self.data.intersample,
+                      output_map=None if h_params is None else (s.output_nonlinearity, h_params))
 
     def _signal_selection(self, params):
         """``(P, blocks)`` for a ``g`` without a basis: its distinct signals as the basis, each lane selecting one.

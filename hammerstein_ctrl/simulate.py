@@ -50,7 +50,7 @@ from ._linalg import expm_batch, single_threaded_blas, tf_augmented, tf_discrete
 from .exceptions import DataError, ParameterError
 from .kernels import (LANE_MIN, MAX_LANE_BASIS, MAX_NORMAL_LANES, MAX_UNROLLED_STATES, get_coefficient_kernel,
                       get_kernel, get_lane_kernel, get_normal_kernel, has_output_maps)
-from .normal_equations import NormalEquations, from_difference_sums
+from .normal_equations import NormalEquations, from_difference_sums, from_factor
 
 __all__ = [
     "companion_realization",
@@ -665,39 +665,114 @@ def normal_pass(num, den, dt: float, y, P, blocks, steps, *, x0=None, offset=Non
     DataError
         If the record is empty or the blocks do not cover it.
     """
-    hold = check_intersample(intersample)
-    steps = np.ascontiguousarray(steps, dtype=float)
-    P = np.ascontiguousarray(P, dtype=float)
-    lanes, n, K = steps.size + 1, np.shape(den)[-1] - 1, P.shape[-1]
-    if steps.ndim != 1 or P.shape != (lanes, K) or not 1 <= np.shape(den)[0] <= lanes:
-        raise ParameterError(f"a normal-equation pass needs one row of basis coefficients per candidate "
-                             f"(p + 1 = {lanes}) and at most as many linear blocks, got steps {steps.shape}, "
-                             f"P {P.shape}, den {np.shape(den)}")
-    if lanes > MAX_NORMAL_LANES or not 1 <= n <= MAX_UNROLLED_STATES or not 1 <= K <= MAX_LANE_BASIS:
+    lane_pass = _LanePass.prepare(num, den, dt, y, P, steps, x0, offset, intersample, output_map, outputs=False)
+    if lane_pass is None:
         return None
-    E, C, D, ok, clean = _discretized(num, den, dt)
-    if not clean and not ok.all():
+    acc = np.zeros(1 + (lane_pass.lanes - 1) * lane_pass.lanes)
+    for begin, Phi, y_block in lane_pass.blocks(blocks):
+        lane_pass.run(Phi, y_block, begin, acc)
+    return from_difference_sums(acc, lane_pass.steps)
+
+
+def normal_factor(num, den, dt: float, y, P, blocks, steps, *, x0=None, offset=None,
+                  intersample: str = "foh", output_map=None) -> NormalEquations | None:
+    """:func:`normal_pass` with the Jacobian reduced by a streamed QR instead of summed into ``J.T J``.
+
+    The lanes' outputs come out of the compiled pass :data:`~hammerstein_ctrl.streamed_lstsq.BLOCK_SAMPLES`
+    samples at a time; each block of ``[D r]`` (the neighbours' differences
+    and the residual) is factored and merged up a tree
+    (:func:`~hammerstein_ctrl.streamed_lstsq.factor_of_blocks`), so the
+    result keeps a QR factorisation's accuracy where ``J.T J`` would square
+    the condition number, in memory bounded per sample.
+
+    Returns
+    -------
+    NormalEquations or None
+        With ``factor = (R, qtr)``: ``J = Q R`` and ``qtr = Q.T r``
+        (``gram = R.T R``, ``gradient = R.T qtr``); ``None`` where
+        :func:`normal_pass` gives ``None``, and NaN sums if a simulation
+        overflows.
+    """
+    from .streamed_lstsq import factor_of_blocks     # scipy.linalg's LAPACK: imported on first use
+
+    lane_pass = _LanePass.prepare(num, den, dt, y, P, steps, x0, offset, intersample, output_map, outputs=True)
+    if lane_pass is None:
         return None
-    outmap, map_args, fallback = _output_map(output_map, lanes, n)
-    if fallback:
-        return None
-    X, Y0 = np.array(_state_rows(x0, lanes, n)), _offset_rows(offset, lanes)   # X is written: a copy
-    kernel = get_normal_kernel(n, hold, lanes, K, *_output_terms(num, den, D, offset, Y0), outmap)
-    HP, HX = map_args or (np.zeros((lanes, 0)), np.zeros(0))
-    VP, acc = np.zeros(lanes), np.zeros(1 + (lanes - 1) * lanes)
-    y = _measured(y, np.size(y))
-    begin = 0
-    for Phi in blocks:
-        Phi = np.ascontiguousarray(Phi, dtype=float)
-        stop = begin + Phi.shape[1]
-        if Phi.shape[0] != K or stop > y.size:
-            raise DataError(f"a block of the basis of shape {Phi.shape} does not fit {K} basis signals and "
-                            f"a record of {y.size} samples (at sample {begin})")
-        kernel(E, C, D, X, Y0, VP, P, Phi, HP, HX, y[begin:stop], begin, acc)
-        begin = stop
-    if begin != y.size:
-        raise DataError(f"the blocks of the basis cover {begin} samples of a record of {y.size}")
-    return from_difference_sums(acc, steps)
+    p = lane_pass.lanes - 1
+    R = factor_of_blocks(lane_pass.difference_blocks(blocks), p + 1)
+    if not np.isfinite(lane_pass.VP).all():   # a signal sample that reached no output
+        R[:] = np.nan
+    return from_factor(R, lane_pass.steps)
+
+
+class _LanePass:
+    """The checked arguments of a compiled pass over a point and its neighbours, and its running state."""
+
+    @classmethod
+    def prepare(cls, num, den, dt, y, P, steps, x0, offset, intersample, output_map, outputs: bool):
+        """The pass, or ``None`` where it does not apply (see :func:`normal_pass`)."""
+        hold = check_intersample(intersample)
+        steps = np.ascontiguousarray(steps, dtype=float)
+        P = np.ascontiguousarray(P, dtype=float)
+        lanes, n, K = steps.size + 1, np.shape(den)[-1] - 1, P.shape[-1]
+        if steps.ndim != 1 or P.shape != (lanes, K) or not 1 <= np.shape(den)[0] <= lanes:
+            raise ParameterError(f"a normal-equation pass needs one row of basis coefficients per candidate "
+                                 f"(p + 1 = {lanes}) and at most as many linear blocks, got steps {steps.shape}, "
+                                 f"P {P.shape}, den {np.shape(den)}")
+        if lanes > MAX_NORMAL_LANES or not 1 <= n <= MAX_UNROLLED_STATES or not 1 <= K <= MAX_LANE_BASIS:
+            return None
+        E, C, D, ok, clean = _discretized(num, den, dt)
+        if not clean and not ok.all():
+            return None
+        outmap, map_args, fallback = _output_map(output_map, lanes, n)
+        if fallback:
+            return None
+        self = cls()
+        self.lanes, self.K, self.steps, self.P = lanes, K, steps, P
+        self.X, self.Y0 = np.array(_state_rows(x0, lanes, n)), _offset_rows(offset, lanes)  # X is written: a copy
+        self.kernel = get_normal_kernel(n, hold, lanes, K, *_output_terms(num, den, D, offset, self.Y0), outmap,
+                                        outputs)
+        self.E, self.C, self.D = E, C, D
+        self.HP, self.HX = map_args or (np.zeros((lanes, 0)), np.zeros(0))
+        self.VP = np.zeros(lanes)
+        self.y = _measured(y, np.size(y))
+        return self
+
+    def run(self, Phi, y_block, begin: int, acc):
+        """One block of samples through the compiled pass (the lanes' state carried over)."""
+        self.kernel(self.E, self.C, self.D, self.X, self.Y0, self.VP, self.P, Phi, self.HP, self.HX, y_block,
+                    begin, acc)
+
+    def blocks(self, blocks):
+        """``(begin, Phi, y)`` of each block of the basis, checked against the record, which they must cover."""
+        begin, y = 0, self.y
+        for Phi in blocks:
+            Phi = np.ascontiguousarray(Phi, dtype=float)
+            stop = begin + Phi.shape[1]
+            if Phi.shape[0] != self.K or stop > y.size:
+                raise DataError(f"a block of the basis of shape {Phi.shape} does not fit {self.K} basis signals "
+                                f"and a record of {y.size} samples (at sample {begin})")
+            yield begin, Phi, y[begin:stop]
+            begin = stop
+        if begin != y.size:
+            raise DataError(f"the blocks of the basis cover {begin} samples of a record of {y.size}")
+
+    def difference_blocks(self, blocks):
+        """``[D r]`` a block of at most ``BLOCK_SAMPLES`` samples at a time (one reused buffer)."""
+        from .streamed_lstsq import BLOCK_SAMPLES
+
+        outputs = np.empty((BLOCK_SAMPLES, self.lanes))
+        F = np.empty((BLOCK_SAMPLES, self.lanes), order="F")
+        for begin, Phi, y_block in self.blocks(blocks):
+            for a in range(0, Phi.shape[1], BLOCK_SAMPLES):
+                b = min(a + BLOCK_SAMPLES, Phi.shape[1])
+                Yh = outputs[:b - a]
+                self.run(np.ascontiguousarray(Phi[:, a:b]), y_block[a:b], begin + a, Yh)
+                part = F[:b - a]
+                with np.errstate(all="ignore"):
+                    np.subtract(Yh[:, :1], Yh[:, 1:], out=part[:, :-1])
+                    np.subtract(y_block[a:b], Yh[:, 0], out=part[:, -1])
+                yield part
 
 
 def free_response(num, den, dt: float, n_samples: int) -> np.ndarray:

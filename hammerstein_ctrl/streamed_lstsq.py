@@ -36,8 +36,8 @@ from __future__ import annotations
 import numpy as np
 import scipy.linalg
 
-__all__ = ["BLOCK_SAMPLES", "triangular_factor", "rank_tolerance", "solve_scaled", "solve_minimum_norm", "factor_sse",
-           "residual", "constant_column"]
+__all__ = ["BLOCK_SAMPLES", "triangular_factor", "factor_of_blocks", "rank_tolerance", "solve_scaled",
+           "solve_minimum_norm", "factor_sse", "residual", "constant_column"]
 
 #: Samples per block of the streamed factorisation and residual (a block of
 #: ``p + 1`` columns takes ``8 (p + 1) BLOCK_SAMPLES`` bytes).
@@ -112,24 +112,57 @@ def triangular_factor(columns, y) -> np.ndarray:
     rows = _rows(columns)
     y = np.asarray(y, dtype=float)
     p1 = sum(a.shape[0] for a in rows) + 1
+    return factor_of_blocks(_blocks(rows, y, p1), p1)
+
+
+def _blocks(rows, y, p1: int):
+    """Consecutive ``(L, p1)`` blocks of ``[X y]``, written into one reused Fortran-ordered buffer."""
     n = y.shape[0]
-    below = np.tri(p1, k=-1, dtype=bool)
     block = np.empty((max(min(BLOCK_SAMPLES, n), p1), p1), order="F")
-    pending: list[tuple[int, np.ndarray]] = []  # (level, R) with strictly decreasing levels
     for begin in range(0, n, BLOCK_SAMPLES):
         stop = min(begin + BLOCK_SAMPLES, n)
         part = block[:stop - begin]
         _fill(rows, begin, stop, part[:, :-1])
         part[:, -1] = y[begin:stop]
+        yield part
+
+
+def factor_of_blocks(blocks, width: int) -> np.ndarray:
+    """Upper-triangular ``R`` (``width x width``) of the rows of consecutive blocks, reduced as a tree.
+
+    Parameters
+    ----------
+    blocks : iterable of ndarray, shape (L_i, width)
+        The matrix, a block of rows at a time (each may be overwritten).
+    width : int
+
+    Returns
+    -------
+    ndarray
+        ``R`` with ``R^T R`` the Gram matrix of all the rows; all NaN if a
+        block holds a non-finite value.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> A = np.random.default_rng(0).normal(size=(50, 3))
+    >>> R = factor_of_blocks((A[i:i + 7].copy() for i in range(0, 50, 7)), 3)
+    >>> bool(np.allclose(R.T @ R, A.T @ A))
+    True
+    """
+    below = np.tri(width, k=-1, dtype=bool)
+    pending: list[tuple[int, np.ndarray]] = []  # (level, R) with strictly decreasing levels
+    for part in blocks:
         if not np.all(np.isfinite(part)):
-            return np.full((p1, p1), np.nan)
-        block[stop - begin:p1] = 0.0  # a block shorter than the triangle: zero rows
-        level, R = 0, _triangle(block[:max(stop - begin, p1)], below)
+            return np.full((width, width), np.nan)
+        if part.shape[0] < width:  # a block shorter than the triangle: zero rows
+            part = np.vstack([part, np.zeros((width - part.shape[0], width))])
+        level, R = 0, _triangle(np.asfortranarray(part), below)
         while pending and pending[-1][0] == level:
             R = _merge(pending.pop()[1], R, below)
             level += 1
         pending.append((level, R))
-    R = pending.pop()[1] if pending else np.zeros((p1, p1))
+    R = pending.pop()[1] if pending else np.zeros((width, width))
     while pending:
         R = _merge(pending.pop()[1], R, below)
     return R

@@ -143,3 +143,16 @@ def test_normal_equations_of_a_g_without_basis_stream_its_signals(record, inters
     np.testing.assert_allclose(got.gradient, ref.gradient, rtol=1e-6, atol=1e-9 * np.abs(ref.gradient).max())
     np.testing.assert_allclose(got.gram, ref.gram, rtol=1e-6, atol=1e-9 * np.abs(ref.gram).max())
     assert np.isfinite(ne.fun)
+
+
+def test_normal_factor_streams_its_blocks(cost):
+    """The QR-factor form of the normal equations: lanes' outputs a block at a time, no p x N array."""
+    x = np.asarray(bench.SYNTHETIC_BETA, float)
+    per_sample, qr = peak_bytes_per_sample(lambda: cost.normal_factor(x))
+    assert per_sample < 2
+    ne = cost.normal_equations(x)
+    assert qr.fun == pytest.approx(ne.fun, rel=1e-9)
+    scale = np.sqrt(np.outer(np.diag(ne.gram), np.diag(ne.gram)))
+    assert np.max(np.abs(qr.gram - ne.gram) / scale) < 1e-6
+    R, qtr = qr.factor
+    np.testing.assert_allclose(R.T @ R, qr.gram)

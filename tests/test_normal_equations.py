@@ -239,3 +239,41 @@ def test_an_output_map_without_a_compiled_form_takes_the_residuals():
     h = forward_steps(x)
     assert cubic.compiled_map is None and cost._fused_normal_equations(neighbours(x, h), h) is None
     _check(cost, x)
+
+
+@pytest.mark.parametrize("case", ["emps_case", "trs_case"])
+def test_normal_factor_matches_the_sums_and_the_stored_jacobian(case, request):
+    case = request.getfixturevalue(case)
+    x = np.asarray(case.paper["nspsa"]["beta"], float)
+    qr = case.cost.normal_factor(x)
+    f, g, G = _stored(case.cost, x)
+    scale = np.sqrt(np.outer(np.diag(G), np.diag(G)))
+    assert qr.fun == pytest.approx(f, rel=1e-12)
+    assert np.max(np.abs(qr.gram - G) / scale) < 1e-6
+    np.testing.assert_allclose(qr.gradient, g, rtol=1e-6, atol=1e-6 * np.abs(g).max())
+    R, qtr = qr.factor
+    assert np.allclose(np.triu(R), R)                       # upper triangular
+    # a Wiener model (compiled map) and a custom output map (the stored residuals' QR) agree as well
+    for h in (hc.Saturation(), hc.CustomNonlinearity(lambda v, p: p[0] * v + p[1] * v ** 3, n_params=2)):
+        cost = HammersteinCost(_synthetic("zoh", N=1500), hc.WienerStructure(hc.LinearStructure(0, 2), h))
+        xs = np.array([2.0, 3.0, 1.5, 0.3])
+        a, b = cost.normal_factor(xs), cost.normal_equations(xs)
+        assert a.fun == pytest.approx(b.fun, rel=1e-12)
+        np.testing.assert_allclose(a.gram, b.gram, rtol=1e-6, atol=1e-9 * np.abs(b.gram).max())
+
+
+@pytest.mark.parametrize("case", ["emps_case", "trs_case"])
+def test_lm_on_the_qr_factor_reaches_minpacks_optimum(case, request, monkeypatch):
+    """From the paper's x0 the Gram matrix is too ill-conditioned: below MINPACK_MAX_BYTES MINPACK's lmder
+    takes over; past it (forced here) the solver goes on with the streamed QR factor, to the same optimum."""
+    from hammerstein_ctrl.optimize import least_squares as ls
+
+    case = request.getfixturevalue(case)
+    minpack = levenberg_marquardt(case.cost, case.x0)
+    monkeypatch.setattr(ls, "MINPACK_MAX_BYTES", 0)
+    factored = levenberg_marquardt(case.cost, case.x0)
+    assert factored.success and minpack.success
+    assert factored.fun == pytest.approx(minpack.fun, rel=1e-7)
+    assert factored.fun <= minpack.fun * (1 + 1e-12)
+    if case.name == "emps":             # TRS's tanh has a nearly flat direction (d0 d1 fixed): J, not x
+        np.testing.assert_allclose(factored.x, minpack.x, rtol=1e-5)

@@ -42,7 +42,13 @@ from ._common import (
 )
 from .normal_lm import CONVERGED, ILL_CONDITIONED_CODE, MESSAGES, normal_equations_lm
 
-__all__ = ["levenberg_marquardt"]
+__all__ = ["levenberg_marquardt", "MINPACK_MAX_BYTES"]
+
+#: Largest N x p Jacobian (bytes) handed to MINPACK's QR-based lmder where the normal equations are too
+#: ill-conditioned.  Past it, an objective with ``normal_factor`` (a HammersteinCost) keeps to the
+#: normal-equation solver on a streamed QR factor of the Jacobian instead, in memory bounded per sample;
+#: below it, MINPACK's iterates and messages are kept.
+MINPACK_MAX_BYTES = 1 << 24
 
 #: MINPACK's exit codes that mean convergence, and the messages scipy's least_squares gives for them.
 _MINPACK_CONVERGED = (1, 2, 3, 4)
@@ -161,8 +167,10 @@ def _solve(fun, counted, jac, x0, box, tolerances):
     if box is not None:
         res = scipy.optimize.least_squares(counted, x0, jac=jac, method="trf", bounds=box, **tolerances)
         return res.x, float(2.0 * res.cost), bool(res.success), str(res.message), int(res.nfev)
+    # past MINPACK_MAX_BYTES of Jacobian the solver goes on with a streamed QR factor instead of MINPACK
+    factor = getattr(fun, "n_samples", 0) * x0.size * np.dtype(float).itemsize > MINPACK_MAX_BYTES
     x, f, code, iterations = normal_equations_lm(fun, counted, x0, max_steps=_MAX_STEPS_PER_PARAM * x0.size,
-                                                 **tolerances)
+                                                 factor=factor, **tolerances)
     if code != ILL_CONDITIONED_CODE:
         return x, f, code in CONVERGED, MESSAGES[code], iterations
     x0 = x

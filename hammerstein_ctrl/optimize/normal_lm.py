@@ -15,7 +15,9 @@ scaled Gram matrix is too ill-conditioned for them (:data:`ILL_CONDITIONED`;
 typically far from the optimum, e.g. at an unstable start, or in a structure
 with a nearly flat direction) the solver stops with code 8 and
 :func:`~hammerstein_ctrl.optimize.levenberg_marquardt` continues from that
-point with MINPACK's QR-based lmder.
+point with MINPACK's QR-based lmder, or (``factor``, for long records) goes
+on itself with the Jacobian's QR factor streamed out of the compiled pass
+(``normal_factor``), each step a small least-squares solve on it.
 
 Termination follows MINPACK's tests and messages: ``ftol`` (actual and
 predicted relative reductions of the sum of squares), ``xtol`` (scaled step
@@ -75,6 +77,8 @@ class _Passes:
     def __init__(self, fun, counted):
         self.counted = counted
         self._normal = getattr(fun, "normal_equations", None)
+        self._factor = getattr(fun, "normal_factor", None)
+        self.factored = False           # True: passes give the Jacobian's QR factor (see use_factor)
         self._batch = getattr(fun, "residuals_batch", None)
         self._residuals = fun.residuals
         self._value = getattr(fun, "__call__", None) if self._normal is not None else None
@@ -102,7 +106,9 @@ class _Passes:
                 self.value(row)
             raise BudgetExhausted("evaluation budget exhausted")
         self.counted.charge(X.shape[0])
-        if self._normal is not None:
+        if self.factored:
+            ne = self._factor(x, h)
+        elif self._normal is not None:
             ne = self._normal(x, h)
         else:
             with np.errstate(all="ignore"):
@@ -113,6 +119,11 @@ class _Passes:
         for row, f in zip(X, values):
             self.counted.record_value(row, f)
         return ne if values[0] == ne.fun else ne._replace(fun=values[0])
+
+    @property
+    def can_factor(self) -> bool:
+        """Whether the objective gives the Jacobian's QR factor (``normal_factor``)."""
+        return self._factor is not None
 
 
 @numba.njit(cache=True, nogil=True)
@@ -191,16 +202,43 @@ def _iteration(gram, gradient, fun, scale, lam, x, check, limit, xtol):  # pragm
         for i in range(p):
             delta[i] = z[i, 0] / scale[i]
             solved = solved and np.isfinite(delta[i])
+    small, predicted = _step_measures(gram, gradient, scale, delta, x, xtol)
+    return _cosine(gram, gradient, fun), ill, solved, delta, small, predicted
+
+
+@numba.njit(cache=True, nogil=True)
+def _step_measures(gram, gradient, scale, delta, x, xtol):  # pragma: no cover - compiled
+    """MINPACK's xtol test on the step ``delta`` and the reduction of the sum of squares its linear model predicts."""
     step, size, predicted = 0.0, 0.0, 0.0
-    for i in range(p):
+    for i in range(scale.size):
         step += (scale[i] * delta[i]) ** 2
         size += (scale[i] * x[i]) ** 2
         curvature = 0.0
-        for j in range(p):
+        for j in range(scale.size):
             curvature += gram[i, j] * delta[j]
         predicted -= delta[i] * (2.0 * gradient[i] + curvature)
-    small = np.sqrt(step) <= xtol * np.sqrt(size)
-    return _cosine(gram, gradient, fun), ill, solved, delta, small, predicted
+    return np.sqrt(step) <= xtol * np.sqrt(size), predicted
+
+
+def _factor_iteration(ne, scale, lam, x, xtol):
+    """:func:`_iteration` from the Jacobian's QR factor (``ne.factor``): the damped step by least squares.
+
+    ``min |R delta + Q.T r|^2 + mu |diag(scale) delta|^2`` is solved as the
+    stacked least-squares problem, with a QR factorisation's accuracy where
+    the normal equations would square the condition number; nothing is ill-conditioned here.
+    """
+    RJ, qtr = ne.factor
+    p = scale.size
+    A = RJ / scale
+    top = max(float(np.max(np.einsum("ij,ij->j", A, A))), np.finfo(np.float64).tiny)
+    stacked = np.vstack([A, np.sqrt(lam * top) * np.eye(p)])
+    with np.errstate(all="ignore"):
+        finite = np.isfinite(stacked).all() and np.isfinite(qtr).all()
+        z = np.linalg.lstsq(stacked, np.concatenate([-qtr, np.zeros(p)]), rcond=None)[0] if finite else np.zeros(p)
+    delta = z / scale
+    solved = bool(finite and np.isfinite(delta).all())
+    small, predicted = _step_measures(ne.gram, ne.gradient, scale, delta, x, xtol)
+    return _cosine(ne.gram, ne.gradient, ne.fun), False, solved, delta, small, predicted
 
 
 def _column_norms(gram, previous=None):
@@ -238,12 +276,16 @@ class _Damping:
         self.nu *= 2.0
 
 
-def normal_equations_lm(fun, counted, x0, *, ftol, xtol, gtol, max_steps: int):
+def normal_equations_lm(fun, counted, x0, *, ftol, xtol, gtol, max_steps: int, factor: bool = False):
     """Run the solver from ``x0``; ``(x, f, code, iterations)`` with ``code`` a key of :data:`MESSAGES`.
 
     Code 8 (:data:`ILL_CONDITIONED_CODE`) returns the current point as soon
     as the scaled Gram matrix is :data:`ILL_CONDITIONED`, for the caller to
-    continue from it with a QR-based solver.
+    continue from it with a QR-based solver.  With ``factor`` (and an
+    objective with ``normal_factor``) the solver goes on itself instead:
+    from then on each pass reduces the Jacobian by a streamed QR
+    (:func:`~hammerstein_ctrl.simulate.normal_factor`) and each step is a
+    small least-squares solve on the factor, in memory bounded per sample.
 
     Raises :class:`~hammerstein_ctrl.optimize._common.BudgetExhausted` when
     the budget ends first (the counted object then holds the best point).
@@ -259,12 +301,19 @@ def normal_equations_lm(fun, counted, x0, *, ftol, xtol, gtol, max_steps: int):
     while True:
         if ne.fun == 0.0:
             return x, ne.fun, 1, iterations
-        cosine, ill, solved, delta, small, predicted = _iteration(
-            ne.gram, ne.gradient, ne.fun, scale, damping.lam, x, not alone, ILL_CONDITIONED, xtol)
+        if ne.factor is not None:
+            cosine, ill, solved, delta, small, predicted = _factor_iteration(ne, scale, damping.lam, x, xtol)
+        else:
+            cosine, ill, solved, delta, small, predicted = _iteration(
+                ne.gram, ne.gradient, ne.fun, scale, damping.lam, x, not alone, ILL_CONDITIONED, xtol)
         if cosine <= gtol:
             return x, ne.fun, 4, iterations
-        if ill:
+        if ill and not (factor and passes.can_factor):
             return x, ne.fun, ILL_CONDITIONED_CODE, iterations
+        if ill:                                 # from here on, the QR factor of each pass
+            passes.factored = True
+            ne, alone = passes.full(x), False
+            continue
         if not solved:
             damping.reject()
             if damping.lam > MAX_DAMPING:
