@@ -600,6 +600,9 @@ def get_normal_kernel(n: int, hold: str, lanes: int, K: int, direct: bool = True
         An output map of :mod:`~hammerstein_ctrl.compiled_maps` applied to
         every lane's output (Wiener and Hammerstein-Wiener structures); lane
         ``j``'s map parameters are the row ``HP[j]``, the map's fixed data ``HX``.
+    outputs : bool, default False
+        Store every lane's output samples instead of summing (for a streamed
+        QR factor of the Jacobian, :func:`~hammerstein_ctrl.simulate.normal_factor`).
 
     Returns
     -------

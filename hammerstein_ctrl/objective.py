@@ -415,11 +415,17 @@ class HammersteinCost:
         ne = self._fused_normal_equations(X, h)
         if ne is not None and ne.finite:
             return ne
-        if ne is not None and not np.isfinite(ne.fun):
-            # the point's own simulation is not finite: the cost scores it inf, and so do its normal
-            # equations (no p + 1 stored residual vectors for a point no solver can use)
-            return ne._replace(fun=np.inf)
+        if ne is not None and self._scored_inf(ne, b):
+            return ne._replace(fun=np.inf)      # no p + 1 stored residual vectors for a point no solver can use
         return from_residuals(self.residuals_batch(X), h)
+
+    def _scored_inf(self, ne, b) -> bool:
+        """Whether a pass that came out non-finite is so because the cost scores the point itself inf.
+
+        The pass cannot tell which lane failed; a finite point with a
+        non-finite neighbour (a parameter at inf) takes the residuals' route.
+        """
+        return not np.isfinite(ne.fun) and not np.isfinite(self(b))
 
     def normal_factor(self, beta, steps=None) -> NormalEquations:
         """:meth:`normal_equations` with the Jacobian's QR factor (``factor = (R, Q.T r)``) instead of ``J.T J``.
@@ -446,16 +452,21 @@ class HammersteinCost:
             raise ParameterError("normal_factor(beta) takes one vector")
         h = forward_steps(b) if steps is None else self._checked_steps(steps, b.shape)
         X = neighbours(b, h)
-        ne = None if self.reject_unstable and self._unstable(X).any() else self._fused_normal_equations(
-            X, h, normal_factor)
-        if ne is not None and (ne.finite or not np.isfinite(ne.fun)):
+        if self.reject_unstable and self._unstable(X).any():
+            return self.normal_equations(b, steps)       # its rules for rejected points
+        ne = self._fused_normal_equations(X, h, normal_factor)
+        if ne is not None and (ne.finite or self._scored_inf(ne, b)):
             return ne if ne.finite else ne._replace(fun=np.inf)
-        ne = self.normal_equations(b, h)        # the residuals' sums, with their rules for hostile points
-        if not np.isfinite(ne.fun):
-            return ne
-        R = self.residuals_batch(X)
-        D = np.column_stack([(R[1:] - R[0]).T, R[0]])
-        return from_factor(np.linalg.qr(D, mode="r"), h)._replace(fun=ne.fun)
+        from .streamed_lstsq import factor_of_blocks    # scipy.linalg's LAPACK: imported on first use
+
+        R = self.residuals_batch(X)                      # non-finite entries already NONFINITE_RESIDUAL
+        if not np.isfinite(h).all():
+            return from_residuals(R, h)
+        with np.errstate(all="ignore"):
+            D = np.column_stack([(R[1:] - R[0]).T, R[0]])
+            fun = float(R[0] @ R[0])
+        # a record shorter than p + 1 samples: the factor is padded with zero rows
+        return from_factor(factor_of_blocks([D], h.size + 1), h)._replace(fun=fun)
 
     @staticmethod
     def _checked_steps(steps, shape) -> np.ndarray:

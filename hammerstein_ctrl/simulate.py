@@ -63,6 +63,7 @@ __all__ = [
     "sse_basis_batch",
     "free_response",
     "normal_pass",
+    "normal_factor",
     "unstable",
     "COMPILED_EXPM_MAX_NORM",
     "MAX_UNROLLED_STATES",

@@ -78,7 +78,7 @@ class _Passes:
         self.counted = counted
         self._normal = getattr(fun, "normal_equations", None)
         self._factor = getattr(fun, "normal_factor", None)
-        self.factored = False           # True: passes give the Jacobian's QR factor (see use_factor)
+        self.factored = False           # True: passes give the Jacobian's QR factor (normal_factor)
         self._batch = getattr(fun, "residuals_batch", None)
         self._residuals = fun.residuals
         self._value = getattr(fun, "__call__", None) if self._normal is not None else None
