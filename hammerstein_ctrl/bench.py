@@ -398,7 +398,10 @@ def contention_ratio(fn, *, number: int = 100, pairs: int = CONTENTION_PAIRS) ->
         ``quiet_s``, ``busy_s`` (wall seconds per call), ``ratio`` (busy /
         quiet) and ``cpu_ratio``, the same ratio of the process's CPU time (all its threads):
         threads spinning against each other raise both, while merely sharing
-        the cores with more processes raises the wall time only.
+        the cores with more processes raises the wall time only (unless the
+        two cores are hyper-threads of one, whose shared units slow both).
+        ``busy_cpu_per_wall`` is the process's CPU time over its wall time
+        in the busy blocks: above 1, more than one of its threads ran.
         ``sibling_share`` is the sibling's CPU time over the wall time of the
         busy blocks (how busy it really kept a core).
     """
@@ -414,7 +417,8 @@ def contention_ratio(fn, *, number: int = 100, pairs: int = CONTENTION_PAIRS) ->
             busy_wall += busy[-1][0] * number
         sibling_share = (_cpu_seconds(proc.pid) - sibling0) / busy_wall
     (q, qc), (b, bc) = ([statistics.median(col) for col in zip(*runs)] for runs in (quiet, busy))
-    return {"quiet_s": q, "busy_s": b, "ratio": b / q, "cpu_ratio": bc / qc, "sibling_share": sibling_share}
+    return {"quiet_s": q, "busy_s": b, "ratio": b / q, "cpu_ratio": bc / qc, "busy_cpu_per_wall": bc / b,
+            "sibling_share": sibling_share}
 
 
 def _cpu_seconds(pid: int) -> float:

@@ -7,11 +7,14 @@ spun against the other work.  Here a sibling process spins a one-thread BLAS
 loop, paused and running in interleaved blocks (medians of 7 each), and the
 cost's time per evaluation is compared between the two.
 
-The machine running the tests is shared, so the bounds are generous: the CPU
-time of the whole process (all its threads) must not grow by more than 30 %
-(spinning threads inflate it; merely sharing the cores does not), and the wall
-time not by more than 3x (sharing two cores with one more busy process can
-cost up to ~1.5x wall time on its own).
+The machine running the tests is shared, so the bounds are generous: while
+the sibling runs, the process must use at most 1.2 CPU seconds per wall second
+(spinning worker threads add theirs; one thread cannot), and its wall time per
+evaluation must not grow by more than 3x (sharing two cores with one more busy
+process can cost up to ~1.5x on its own).  The growth of the process's CPU time
+is not bounded here: where the two cores are hyper-threads of one, a sibling
+busy with vector arithmetic slows the batched kernel's own thread by up to ~1.9x
+(measured on this machine), with no thread of ours spinning.
 """
 
 import numpy as np
@@ -19,8 +22,8 @@ import pytest
 
 from hammerstein_ctrl import bench
 
-#: Largest accepted busy/quiet ratio of the process's CPU time per evaluation.
-CPU_RATIO_BOUND = 1.3
+#: Largest accepted CPU seconds of the process per wall second while the sibling runs.
+CPU_PER_WALL_BOUND = 1.2
 #: Largest accepted busy/quiet ratio of wall time per evaluation.
 WALL_RATIO_BOUND = 3.0
 
@@ -46,6 +49,21 @@ def test_emps_cost_unaffected_by_busy_sibling(emps_case, emps_beta, kind):
         fn, number = (lambda: cost.batch(betas)), 4
     expected = fn()
     r = bench.contention_ratio(fn, number=number)
-    assert r["cpu_ratio"] < CPU_RATIO_BOUND, r
+    assert r["busy_cpu_per_wall"] < CPU_PER_WALL_BOUND, r
     assert r["ratio"] < WALL_RATIO_BOUND, r
     np.testing.assert_array_equal(fn(), expected)  # same numbers under load
+
+
+def test_the_measure_sees_threads_spinning_against_the_sibling():
+    """The bound can fail: a 300 x 300 product in two-thread OpenBLAS uses ~1.3 CPU seconds per wall second
+    while the sibling runs (one thread: 1.0)."""
+    threadpoolctl = pytest.importorskip("threadpoolctl")
+    if max((lib["num_threads"] for lib in threadpoolctl.threadpool_info() if lib["user_api"] == "blas"),
+           default=1) < 2:
+        pytest.skip("BLAS runs one thread here")
+    a = np.random.default_rng(0).standard_normal((300, 300))
+    # a machine loaded by other work can starve the second thread: seen in one of three tries suffices
+    seen = [bench.contention_ratio(lambda: a @ a, number=200)["busy_cpu_per_wall"] for _ in range(3)]
+    assert max(seen) > CPU_PER_WALL_BOUND, seen
+    with threadpoolctl.threadpool_limits(1):
+        assert bench.contention_ratio(lambda: a @ a, number=200)["busy_cpu_per_wall"] < CPU_PER_WALL_BOUND
