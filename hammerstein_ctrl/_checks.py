@@ -29,6 +29,8 @@ INTERSAMPLE = ("foh", "zoh")
 
 def check_intersample(value) -> str:
     """Return ``"foh"`` or ``"zoh"`` (case-insensitive) or raise a :class:`DataError`."""
+    if value == "foh" or value == "zoh":        # the usual case, on every simulation call
+        return value
     key = str(value).strip().lower()
     if key not in INTERSAMPLE:
         raise DataError(f"intersample must be one of {INTERSAMPLE}, got {value!r}")

@@ -104,8 +104,13 @@ def forward_steps(x, upper=None, lower=None) -> np.ndarray:
 def _bound(value, x, default):
     """A bound as a flat array: one value for every parameter if none is given, else one per entry of ``x``."""
     if value is None:
-        return np.full(1, default)
+        return _NO_UPPER if default > 0 else _NO_LOWER
     return np.ascontiguousarray(np.broadcast_to(np.asarray(value, dtype=float), x.shape).ravel())
+
+
+#: The bounds of unbounded forward steps (one value for every parameter; never written, and left writeable
+#: so that numba compiles one signature for bounded and unbounded steps).
+_NO_UPPER, _NO_LOWER = np.array([np.inf]), np.array([-np.inf])
 
 
 @numba.njit(cache=True, nogil=True)

@@ -90,6 +90,15 @@ def _combine(P, basis, out, start):  # pragma: no cover - compiled
                 row[i] += c * bj[i]
 
 
+@numba.njit(cache=True, nogil=True)
+def _usable_steps(h):  # pragma: no cover - compiled
+    """Whether every step is finite and non-zero."""
+    for v in h:
+        if not (np.isfinite(v) and v != 0.0):
+            return False
+    return True
+
+
 class HammersteinCost:
     """Sum of squared output errors of a Hammerstein structure on a record.
 
@@ -472,7 +481,7 @@ class HammersteinCost:
     def _checked_steps(steps, shape) -> np.ndarray:
         """Forward-difference steps: one finite, non-zero step per parameter (else a :class:`ParameterError`)."""
         h = steps if type(steps) is np.ndarray and steps.dtype == np.float64 else as_real_array(steps, "steps")
-        if h.shape != shape or not (np.isfinite(h).all() and h.all()):
+        if h.shape != shape or not _usable_steps(h.ravel()):
             raise ParameterError(f"steps must be {shape[0]} finite, non-zero numbers (one per parameter), "
                                  f"got {np.array2string(h, threshold=12)}")
         return h

@@ -606,13 +606,15 @@ def _basis_arguments(num, den, P, basis, y):
     return num, den, np.ascontiguousarray(P), np.ascontiguousarray(basis), _measured(y, basis.shape[1])
 
 
-def _float_matrix(a) -> bool:
-    """Whether ``a`` is already a C-contiguous 2-D float64 array."""
-    return type(a) is np.ndarray and a.ndim == 2 and a.dtype == np.float64 and a.flags.c_contiguous
+def _float_matrix(a, ndim: int = 2) -> bool:
+    """Whether ``a`` is already a C-contiguous float64 array of ``ndim`` dimensions."""
+    return type(a) is np.ndarray and a.ndim == ndim and a.dtype == np.float64 and a.flags.c_contiguous
 
 
 def _measured(y, n_samples: int) -> np.ndarray:
     """The measured output as a contiguous float array, as long as the signals (else a :class:`DataError`)."""
+    if _float_matrix(y, 1) and y.size == n_samples > 0:
+        return y                                # the cost's own array: nothing to do
     y = np.ascontiguousarray(y, dtype=float)
     if y.ndim != 1 or y.size != n_samples or n_samples == 0:
         raise DataError(f"the measured output has shape {y.shape}, the signals {n_samples} samples "
