@@ -656,9 +656,10 @@ def normal_pass(num, den, dt: float, y, P, blocks, steps, *, x0=None, offset=Non
         ``None`` if the pass does not apply (more than
         :data:`~hammerstein_ctrl.kernels.MAX_NORMAL_LANES` candidates, no
         state or more than :data:`MAX_UNROLLED_STATES` states, more than
-        :data:`~hammerstein_ctrl.kernels.MAX_LANE_BASIS` basis signals, an
-        output map without a compiled form, or a candidate whose
-        coefficients cannot be discretised); the sums may be
+        :data:`~hammerstein_ctrl.kernels.MAX_LANE_BASIS` basis signals, or a
+        candidate whose coefficients cannot be discretised; an output map
+        without a compiled form is applied in numpy to the lanes' outputs,
+        a block of samples at a time); the sums may be
         non-finite if a simulation overflows.
 
     Raises
@@ -672,9 +673,24 @@ def normal_pass(num, den, dt: float, y, P, blocks, steps, *, x0=None, offset=Non
     if lane_pass is None:
         return None
     acc = np.zeros(1 + (lane_pass.lanes - 1) * lane_pass.lanes)
-    for begin, Phi, y_block in lane_pass.blocks(blocks):
-        lane_pass.run(Phi, y_block, begin, acc)
+    if lane_pass.python_map is not None:       # the lanes' outputs leave the pass and are mapped in numpy
+        _sum_blocks(lane_pass.difference_blocks(blocks), lane_pass.lanes - 1, acc)
+        if not np.isfinite(lane_pass.VP).all():
+            acc[0] = np.nan
+    else:
+        for begin, Phi, y_block in lane_pass.blocks(blocks):
+            lane_pass.run(Phi, y_block, begin, acc)
     return from_difference_sums(acc, lane_pass.steps)
+
+
+def _sum_blocks(parts, p: int, acc):
+    """Add ``[r @ r, D.T @ r, D.T @ D]`` of each block ``[D r]`` to ``acc`` (the layout of the compiled sums)."""
+    with np.errstate(all="ignore"):
+        for part in parts:
+            D, r = part[:, :p], part[:, p]
+            acc[0] += r @ r
+            acc[1:1 + p] += D.T @ r
+            acc[1 + p:] += (D.T @ D).ravel()
 
 
 def normal_factor(num, den, dt: float, y, P, blocks, steps, *, x0=None, offset=None,
@@ -728,13 +744,15 @@ class _LanePass:
         if not clean and not ok.all():
             return None
         outmap, map_args, fallback = _output_map(output_map, lanes, n)
-        if fallback:
-            return None
         self = cls()
         self.lanes, self.K, self.steps, self.P = lanes, K, steps, P
         self.X, self.Y0 = np.array(_state_rows(x0, lanes, n)), _offset_rows(offset, lanes)  # X is written: a copy
-        self.kernel = get_normal_kernel(n, hold, lanes, K, *_output_terms(num, den, D, offset, self.Y0), outmap,
-                                        outputs)
+        direct, has_offset = _output_terms(num, den, D, offset, self.Y0)
+        # an output map without a compiled form: the lanes' linear outputs leave the pass, and the map
+        # (then the offset) is applied to them a block at a time (python_map)
+        self.python_map = fallback
+        self.kernel = get_normal_kernel(n, hold, lanes, K, direct, has_offset and not fallback, outmap,
+                                        outputs or bool(fallback))
         self.E, self.C, self.D = E, C, D
         self.HP, self.HX = map_args or (np.zeros((lanes, 0)), np.zeros(0))
         self.VP = np.zeros(lanes)
@@ -771,6 +789,8 @@ class _LanePass:
                 b = min(a + BLOCK_SAMPLES, Phi.shape[1])
                 Yh = outputs[:b - a]
                 self.run(np.ascontiguousarray(Phi[:, a:b]), y_block[a:b], begin + a, Yh)
+                if self.python_map is not None:
+                    _apply_python_map(Yh.T, self.python_map, self.Y0)     # writes through the view
                 part = F[:b - a]
                 with np.errstate(all="ignore"):
                     np.subtract(Yh[:, :1], Yh[:, 1:], out=part[:, :-1])

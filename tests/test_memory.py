@@ -156,3 +156,18 @@ def test_normal_factor_streams_its_blocks(cost):
     assert np.max(np.abs(qr.gram - ne.gram) / scale) < 1e-6
     R, qtr = qr.factor
     assert not np.tril(R, -1).any() and qtr @ qtr <= qr.fun      # triangular; Q.T r is part of r
+
+
+def test_normal_equations_of_a_custom_output_map_stream_the_lanes(record):
+    """A custom h (no compiled form) is applied to the lanes' outputs a block at a time: no p + 1 residuals."""
+    from hammerstein_ctrl.nonlinearities import CustomNonlinearity
+    from hammerstein_ctrl.structure import LinearStructure, WienerStructure
+
+    cubic = CustomNonlinearity(lambda v, p: p[0] * v + p[1] * v ** 3, n_params=2)
+    cost = HammersteinCost(record, WienerStructure(LinearStructure(0, 2), cubic))
+    x = np.array([2.0, 3.0, 1.5, 0.1])
+    cost.normal_equations(x)
+    per_sample, ne = peak_bytes_per_sample(lambda: cost.normal_equations(x))
+    assert per_sample < 4 and np.isfinite(ne.fun)     # p + 1 = 5 stored residual vectors would be 40 B
+    per_sample, qr = peak_bytes_per_sample(lambda: cost.normal_factor(x))
+    assert per_sample < 4 and qr.fun == pytest.approx(ne.fun, rel=1e-9)

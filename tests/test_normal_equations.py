@@ -232,13 +232,18 @@ def test_up_to_sixteen_lanes_take_the_fused_pass():
     assert wide.normal_equations(xw).fun == pytest.approx(wide(xw), rel=1e-12)
 
 
-def test_an_output_map_without_a_compiled_form_takes_the_residuals():
+@pytest.mark.parametrize("hold", ["foh", "zoh"])
+def test_an_output_map_without_a_compiled_form_is_applied_to_the_lanes_outputs(hold):
+    """A custom h: the pass hands out the lanes' linear outputs a block at a time, mapped (and offset) in
+    numpy, so no p + 1 residual vectors are stored; the sums are the stored Jacobian's."""
     cubic = hc.CustomNonlinearity(lambda v, p: p[0] * v + p[1] * v ** 3, n_params=2)
-    cost = HammersteinCost(_synthetic("foh", N=1500), hc.WienerStructure(hc.LinearStructure(0, 2), cubic))
-    x = np.array([2.0, 3.0, 1.5, 0.1])
-    h = forward_steps(x)
-    assert cubic.compiled_map is None and cost._fused_normal_equations(neighbours(x, h), h) is None
-    _check(cost, x)
+    for offset, x in ((False, [2.0, 3.0, 1.5, 0.1]), (True, [2.0, 3.0, 1.5, 0.1, 0.2])):
+        cost = HammersteinCost(_synthetic(hold, N=1500),
+                               hc.WienerStructure(hc.LinearStructure(0, 2), cubic, offset=offset))
+        x = np.array(x)
+        h = forward_steps(x)
+        assert cubic.compiled_map is None and cost._fused_normal_equations(neighbours(x, h), h) is not None
+        _check(cost, x)
 
 
 @pytest.mark.parametrize("case", ["emps_case", "trs_case"])
