@@ -411,11 +411,7 @@ class HammersteinCost:
         >>> bool(np.allclose(ne.gram, slow.gram, rtol=1e-6)), round(ne.fun, 6) == round(p.cost(x), 6)
         (True, True)
         """
-        b = self.structure.check_beta(beta)
-        if b.ndim != 1:
-            raise ParameterError("normal_equations(beta) takes one vector")
-        h = forward_steps(b) if steps is None else self._checked_steps(steps, b.shape)
-        X = neighbours(b, h)
+        b, h, X = self._neighbourhood(beta, steps, "normal_equations")
         if self.reject_unstable:
             bad = self._unstable(X)
             if bad.any():       # the cost scores the point inf: so do its normal equations (a solver cannot start there)
@@ -456,11 +452,7 @@ class HammersteinCost:
         >>> bool(np.allclose(qr.gram, ne.gram, rtol=1e-6)), round(qr.fun, 6) == round(ne.fun, 6)
         (True, True)
         """
-        b = self.structure.check_beta(beta)
-        if b.ndim != 1:
-            raise ParameterError("normal_factor(beta) takes one vector")
-        h = forward_steps(b) if steps is None else self._checked_steps(steps, b.shape)
-        X = neighbours(b, h)
+        b, h, X = self._neighbourhood(beta, steps, "normal_factor")
         if self.reject_unstable and self._unstable(X).any():
             return self.normal_equations(b, steps)       # its rules for rejected points
         ne = self._fused_normal_equations(X, h, normal_factor)
@@ -476,6 +468,14 @@ class HammersteinCost:
             fun = float(R[0] @ R[0])
         # a record shorter than p + 1 samples: the factor is padded with zero rows
         return from_factor(factor_of_blocks([D], h.size + 1), h)._replace(fun=fun)
+
+    def _neighbourhood(self, beta, steps, method: str):
+        """``(b, h, X)``: the checked point, its forward-difference steps and the point with its neighbours."""
+        b = self.structure.check_beta(beta)
+        if b.ndim != 1:
+            raise ParameterError(f"{method}(beta) takes one vector")
+        h = forward_steps(b) if steps is None else self._checked_steps(steps, b.shape)
+        return b, h, neighbours(b, h)
 
     @staticmethod
     def _checked_steps(steps, shape) -> np.ndarray:
