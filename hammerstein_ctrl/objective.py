@@ -42,7 +42,7 @@ import numpy as np
 
 from ._checks import as_real_array
 from .exceptions import ParameterError
-from .kernels import MAX_LANE_BASIS, MAX_NORMAL_LANES, MAX_UNROLLED_STATES, get_coefficient_kernel
+from .kernels import MAX_LANE_BASIS, MAX_UNROLLED_STATES, get_coefficient_kernel
 from .normal_equations import (NONFINITE_RESIDUAL, NormalEquations, forward_steps, from_factor, from_residuals,
                                neighbours)
 from .simulate import (COMPILED_EXPM_MAX_NORM, normal_factor, normal_pass, simulate_batch, sse_basis_batch, sse_batch,
@@ -383,10 +383,11 @@ class HammersteinCost:
         in memory (the signals of ``g`` formed from its basis, or evaluated a
         block at a time; an output map applied in the pass).  Structures with
         more than :data:`~hammerstein_ctrl.kernels.MAX_NORMAL_LANES` - 1
-        parameters, more than :data:`~hammerstein_ctrl.kernels.MAX_LANE_BASIS`
-        distinct signals or an output map without a compiled form have the
-        sums formed from :meth:`residuals_batch`.  Either way the ``p + 1`` residual vectors
-        are those of ``beta`` and ``beta + steps[j] e_j``.
+        parameters or more than :data:`~hammerstein_ctrl.kernels.MAX_LANE_BASIS`
+        distinct signals run in groups of passes side by side, and an output
+        map without a compiled form is applied in numpy, the lanes' outputs
+        leaving the pass a block of samples at a time.  Either way the ``p + 1``
+        residual vectors are those of ``beta`` and ``beta + steps[j] e_j``.
 
         Parameters
         ----------
@@ -489,8 +490,6 @@ class HammersteinCost:
     def _fused_normal_equations(self, X, h, driver=normal_pass):
         """The compiled pass of :func:`~hammerstein_ctrl.simulate.normal_pass` (or ``driver``), or ``None`` where it does not apply."""
         s = self.structure
-        if X.shape[0] > MAX_NORMAL_LANES:
-            return None
         form = self._basis_form(X)
         if form is not None:
             P, blocks = form[0], [form[1]]
@@ -498,8 +497,6 @@ class HammersteinCost:
             P, blocks = s.input_params(X), self._basis_blocks()
         else:
             P, blocks = self._signal_selection(s.input_params(X))
-            if P is None:
-                return None
         # rows past 1 + n_linear move no parameter of the linear block: they share row 0's
         num, den = s.linear._coefficients(X[:1 + self._n_linear, :self._n_linear])
         offset, x0 = s.nuisance(X)
@@ -514,12 +511,9 @@ class HammersteinCost:
         The point and the neighbours that move no parameter of ``g`` share
         one signal; each neighbour that moves one has its own.  The signals
         are evaluated :data:`EVAL_BLOCK` samples at a time, so memory stays
-        bounded.  ``(None, None)`` if there are more than
-        :data:`~hammerstein_ctrl.kernels.MAX_LANE_BASIS` distinct signals.
+        bounded.
         """
         rows = [0] + [int(i) for i in np.flatnonzero(np.any(params != params[0], axis=1))]
-        if len(rows) > MAX_LANE_BASIS:
-            return None, None
         P = np.zeros((params.shape[0], len(rows)))
         P[:, 0] = 1.0                             # the point's signal, for every lane but those moving g
         P[rows[1:], 0] = 0.0

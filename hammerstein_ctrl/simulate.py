@@ -653,14 +653,16 @@ def normal_pass(num, den, dt: float, y, P, blocks, steps, *, x0=None, offset=Non
     Returns
     -------
     NormalEquations or None
-        ``None`` if the pass does not apply (more than
-        :data:`~hammerstein_ctrl.kernels.MAX_NORMAL_LANES` candidates, no
-        state or more than :data:`MAX_UNROLLED_STATES` states, more than
-        :data:`~hammerstein_ctrl.kernels.MAX_LANE_BASIS` basis signals, or a
-        candidate whose coefficients cannot be discretised; an output map
-        without a compiled form is applied in numpy to the lanes' outputs,
-        a block of samples at a time); the sums may be
-        non-finite if a simulation overflows.
+        ``None`` if the pass does not apply (no state or more than
+        :data:`MAX_UNROLLED_STATES` states, a candidate whose coefficients
+        cannot be discretised, or, past one pass, a candidate whose signal
+        needs more than :data:`~hammerstein_ctrl.kernels.MAX_LANE_BASIS`
+        basis rows).  More than :data:`~hammerstein_ctrl.kernels.MAX_NORMAL_LANES`
+        candidates or :data:`~hammerstein_ctrl.kernels.MAX_LANE_BASIS`
+        basis signals run in groups of passes side by side, and an output
+        map without a compiled form is applied in numpy; either way the
+        lanes' outputs leave the pass a block of samples at a time.  The
+        sums may be non-finite if a simulation overflows.
 
     Raises
     ------
@@ -669,18 +671,19 @@ def normal_pass(num, den, dt: float, y, P, blocks, steps, *, x0=None, offset=Non
     DataError
         If the record is empty or the blocks do not cover it.
     """
-    lane_pass = _LanePass.prepare(num, den, dt, y, P, steps, x0, offset, intersample, output_map, outputs=False)
+    steps = _pass_steps(steps, P, den)
+    lane_pass = _lane_pass(num, den, dt, y, P, x0, offset, intersample, output_map, outputs=False)
     if lane_pass is None:
         return None
     acc = np.zeros(1 + (lane_pass.lanes - 1) * lane_pass.lanes)
-    if lane_pass.python_map is not None:       # the lanes' outputs leave the pass and are mapped in numpy
+    if lane_pass.streams_outputs:       # the lanes' outputs leave the pass (mapped in numpy, or lane groups)
         _sum_blocks(lane_pass.difference_blocks(blocks), lane_pass.lanes - 1, acc)
-        if not np.isfinite(lane_pass.VP).all():
+        if not lane_pass.signals_finite():
             acc[0] = np.nan
     else:
         for begin, Phi, y_block in lane_pass.blocks(blocks):
             lane_pass.run(Phi, y_block, begin, acc)
-    return from_difference_sums(acc, lane_pass.steps)
+    return from_difference_sums(acc, steps)
 
 
 def _sum_blocks(parts, p: int, acc):
@@ -714,38 +717,59 @@ def normal_factor(num, den, dt: float, y, P, blocks, steps, *, x0=None, offset=N
     """
     from .streamed_lstsq import factor_of_blocks     # scipy.linalg's LAPACK: imported on first use
 
-    lane_pass = _LanePass.prepare(num, den, dt, y, P, steps, x0, offset, intersample, output_map, outputs=True)
+    steps = _pass_steps(steps, P, den)
+    lane_pass = _lane_pass(num, den, dt, y, P, x0, offset, intersample, output_map, outputs=True)
     if lane_pass is None:
         return None
     p = lane_pass.lanes - 1
     R = factor_of_blocks(lane_pass.difference_blocks(blocks), p + 1)
-    if not np.isfinite(lane_pass.VP).all():   # a signal sample that reached no output
+    if not lane_pass.signals_finite():   # a signal sample that reached no output
         R[:] = np.nan
-    return from_factor(R, lane_pass.steps)
+    return from_factor(R, steps)
+
+
+def _pass_steps(steps, P, den) -> np.ndarray:
+    """The forward-difference steps of a pass, checked against the candidates' basis coefficients and blocks."""
+    steps = np.ascontiguousarray(steps, dtype=float)
+    lanes = steps.size + 1
+    if steps.ndim != 1 or np.ndim(P) != 2 or np.shape(P)[0] != lanes or not 1 <= np.shape(den)[0] <= lanes:
+        raise ParameterError(f"a normal-equation pass needs one row of basis coefficients per candidate "
+                             f"(p + 1 = {lanes}) and at most as many linear blocks, got steps {steps.shape}, "
+                             f"P {np.shape(P)}, den {np.shape(den)}")
+    return steps
+
+
+def _lane_pass(num, den, dt, y, P, x0, offset, intersample, output_map, outputs: bool):
+    """One compiled pass over every candidate, or lane groups where they do not fit one (``None``: neither applies).
+
+    One pass takes up to :data:`~hammerstein_ctrl.kernels.MAX_NORMAL_LANES`
+    candidates and :data:`~hammerstein_ctrl.kernels.MAX_LANE_BASIS` basis
+    signals; past either, :class:`_LaneGroups` runs several passes side by
+    side over each block of samples, their outputs leaving them.
+    """
+    P = np.ascontiguousarray(P, dtype=float)
+    if P.shape[0] <= MAX_NORMAL_LANES and 1 <= P.shape[1] <= MAX_LANE_BASIS:
+        return _LanePass.prepare(num, den, dt, y, P, x0, offset, intersample, output_map, outputs)
+    return _LaneGroups.prepare(num, den, dt, y, P, x0, offset, intersample, output_map)
 
 
 class _LanePass:
     """The checked arguments of a compiled pass over a point and its neighbours, and its running state."""
 
     @classmethod
-    def prepare(cls, num, den, dt, y, P, steps, x0, offset, intersample, output_map, outputs: bool):
-        """The pass, or ``None`` where it does not apply (see :func:`normal_pass`)."""
+    def prepare(cls, num, den, dt, y, P, x0, offset, intersample, output_map, outputs: bool):
+        """The pass over the candidates (rows of ``P``), or ``None`` where it does not apply (see :func:`normal_pass`)."""
         hold = check_intersample(intersample)
-        steps = np.ascontiguousarray(steps, dtype=float)
         P = np.ascontiguousarray(P, dtype=float)
-        lanes, n, K = steps.size + 1, np.shape(den)[-1] - 1, P.shape[-1]
-        if steps.ndim != 1 or P.shape != (lanes, K) or not 1 <= np.shape(den)[0] <= lanes:
-            raise ParameterError(f"a normal-equation pass needs one row of basis coefficients per candidate "
-                                 f"(p + 1 = {lanes}) and at most as many linear blocks, got steps {steps.shape}, "
-                                 f"P {P.shape}, den {np.shape(den)}")
-        if lanes > MAX_NORMAL_LANES or not 1 <= n <= MAX_UNROLLED_STATES or not 1 <= K <= MAX_LANE_BASIS:
+        lanes, n, K = P.shape[0], np.shape(den)[-1] - 1, P.shape[-1]
+        if not 2 <= lanes <= MAX_NORMAL_LANES or not 1 <= n <= MAX_UNROLLED_STATES or not 1 <= K <= MAX_LANE_BASIS:
             return None
         E, C, D, ok, clean = _discretized(num, den, dt)
         if not clean and not ok.all():
             return None
         outmap, map_args, fallback = _output_map(output_map, lanes, n)
         self = cls()
-        self.lanes, self.K, self.steps, self.P = lanes, K, steps, P
+        self.lanes, self.K, self.P = lanes, K, P
         self.X, self.Y0 = np.array(_state_rows(x0, lanes, n)), _offset_rows(offset, lanes)  # X is written: a copy
         direct, has_offset = _output_terms(num, den, D, offset, self.Y0)
         # an output map without a compiled form: the lanes' linear outputs leave the pass, and the map
@@ -759,6 +783,15 @@ class _LanePass:
         self.y = _measured(y, np.size(y))
         return self
 
+    @property
+    def streams_outputs(self) -> bool:
+        """Whether the lanes' outputs leave the pass (:meth:`difference_blocks`) instead of being summed in it."""
+        return self.python_map is not None
+
+    def signals_finite(self) -> bool:
+        """Whether every lane's last signal sample is finite (one that reached no output yet may not be)."""
+        return bool(np.isfinite(self.VP).all())
+
     def run(self, Phi, y_block, begin: int, acc):
         """One block of samples through the compiled pass (the lanes' state carried over)."""
         self.kernel(self.E, self.C, self.D, self.X, self.Y0, self.VP, self.P, Phi, self.HP, self.HX, y_block,
@@ -766,24 +799,13 @@ class _LanePass:
 
     def blocks(self, blocks):
         """``(begin, Phi, y)`` of each block of the basis, checked against the record, which they must cover."""
-        begin, y = 0, self.y
-        for Phi in blocks:
-            Phi = np.ascontiguousarray(Phi, dtype=float)
-            stop = begin + Phi.shape[1]
-            if Phi.shape[0] != self.K or stop > y.size:
-                raise DataError(f"a block of the basis of shape {Phi.shape} does not fit {self.K} basis signals "
-                                f"and a record of {y.size} samples (at sample {begin})")
-            yield begin, Phi, y[begin:stop]
-            begin = stop
-        if begin != y.size:
-            raise DataError(f"the blocks of the basis cover {begin} samples of a record of {y.size}")
+        return _checked_blocks(blocks, self.K, self.y)
 
-    def difference_blocks(self, blocks):
-        """``[D r]`` a block of at most ``BLOCK_SAMPLES`` samples at a time (one reused buffer)."""
+    def output_blocks(self, blocks):
+        """``(y, Yh)``: the lanes' outputs (``Yh[i, lane]``) a block of at most ``BLOCK_SAMPLES`` samples at a time."""
         from .streamed_lstsq import BLOCK_SAMPLES
 
         outputs = np.empty((BLOCK_SAMPLES, self.lanes))
-        F = np.empty((BLOCK_SAMPLES, self.lanes), order="F")
         for begin, Phi, y_block in self.blocks(blocks):
             for a in range(0, Phi.shape[1], BLOCK_SAMPLES):
                 b = min(a + BLOCK_SAMPLES, Phi.shape[1])
@@ -791,11 +813,137 @@ class _LanePass:
                 self.run(np.ascontiguousarray(Phi[:, a:b]), y_block[a:b], begin + a, Yh)
                 if self.python_map is not None:
                     _apply_python_map(Yh.T, self.python_map, self.Y0)     # writes through the view
-                part = F[:b - a]
-                with np.errstate(all="ignore"):
-                    np.subtract(Yh[:, :1], Yh[:, 1:], out=part[:, :-1])
-                    np.subtract(y_block[a:b], Yh[:, 0], out=part[:, -1])
-                yield part
+                yield y_block[a:b], Yh
+
+    def difference_blocks(self, blocks):
+        """``[D r]`` a block of at most ``BLOCK_SAMPLES`` samples at a time (one reused buffer)."""
+        return _differences(self.output_blocks(blocks), self.lanes)
+
+
+def _checked_blocks(blocks, K: int, y):
+    """``(begin, Phi, y)`` of each block of a ``K``-signal basis, checked against the record, which they must cover."""
+    begin = 0
+    for Phi in blocks:
+        Phi = np.ascontiguousarray(Phi, dtype=float)
+        stop = begin + Phi.shape[1]
+        if Phi.shape[0] != K or stop > y.size:
+            raise DataError(f"a block of the basis of shape {Phi.shape} does not fit {K} basis signals "
+                            f"and a record of {y.size} samples (at sample {begin})")
+        yield begin, Phi, y[begin:stop]
+        begin = stop
+    if begin != y.size:
+        raise DataError(f"the blocks of the basis cover {begin} samples of a record of {y.size}")
+
+
+def _differences(output_blocks, lanes: int):
+    """``[D r]`` of each block of lane outputs: ``D[:, j] = y_0 - y_{j+1}`` and ``r = y - y_0`` (one reused buffer)."""
+    from .streamed_lstsq import BLOCK_SAMPLES
+
+    F = np.empty((BLOCK_SAMPLES, lanes), order="F")
+    for y_part, Yh in output_blocks:
+        part = F[:Yh.shape[0]]
+        with np.errstate(all="ignore"):
+            np.subtract(Yh[:, :1], Yh[:, 1:], out=part[:, :-1])
+            np.subtract(y_part, Yh[:, 0], out=part[:, -1])
+        yield part
+
+
+class _LaneGroups:
+    """Candidates past one compiled pass (lanes or basis signals), in groups of passes run side by side.
+
+    Each group is a :class:`_LanePass` of at most
+    :data:`~hammerstein_ctrl.kernels.MAX_NORMAL_LANES` candidates whose
+    signals take at most :data:`~hammerstein_ctrl.kernels.MAX_LANE_BASIS`
+    rows: the basis rows its candidates use, or (``relative``) row 0's
+    signal ``P[0] @ Phi`` and the rows in which they differ from it, as a
+    forward-difference neighbour differs in one.  Over each block of samples
+    every group runs on its own signals, carrying its lanes' state, and the
+    outputs of all candidates leave together: memory stays bounded per sample.
+    """
+
+    streams_outputs = True
+
+    @classmethod
+    def prepare(cls, num, den, dt, y, P, x0, offset, intersample, output_map):
+        """The groups, or ``None`` where a candidate fits no group or a pass does not apply."""
+        plan = _lane_groups(P)
+        num, den = _coefficient_rows(num, den)
+        if plan is None or not 1 <= den.shape[1] - 1 <= MAX_UNROLLED_STATES:
+            return None
+        lanes, n = P.shape[0], den.shape[1] - 1
+        X, Y0 = _state_rows(x0, lanes, n), _offset_rows(offset, lanes)
+        HP = None if output_map is None else np.broadcast_to(
+            np.atleast_2d(np.asarray(output_map[1], dtype=float)), (lanes, output_map[0].n_params))
+        self = cls()
+        self.lanes, self.K, self.P, self.y, self.groups = lanes, P.shape[1], P, _measured(y, np.size(y)), []
+        for rows, cols, relative in plan:
+            lane_rows = rows if len(rows) > 1 else rows * 2       # a pass has two lanes at least
+            Pg = P[lane_rows][:, cols]
+            if relative:
+                Pg = np.column_stack([np.ones(len(lane_rows)), Pg - P[0, cols]])
+            linear = [r if r < den.shape[0] else 0 for r in lane_rows]    # past the given blocks: row 0's
+            group = _LanePass.prepare(num[linear], den[linear], dt, self.y, Pg, X[lane_rows], Y0[lane_rows],
+                                      intersample, None if HP is None else (output_map[0], HP[lane_rows]),
+                                      outputs=True)
+            if group is None:
+                return None
+            self.groups.append((rows, cols, relative, group))
+        return self
+
+    def signals_finite(self) -> bool:
+        return all(group.signals_finite() for *_, group in self.groups)
+
+    def output_blocks(self, blocks):
+        """``(y, Yh)``: every candidate's output, a block of at most ``BLOCK_SAMPLES`` samples at a time."""
+        from .streamed_lstsq import BLOCK_SAMPLES
+
+        outputs = np.empty((BLOCK_SAMPLES, self.lanes))
+        buffers = [np.empty((BLOCK_SAMPLES, group.lanes)) for *_, group in self.groups]
+        for begin, Phi, y_block in _checked_blocks(blocks, self.K, self.y):
+            for a in range(0, Phi.shape[1], BLOCK_SAMPLES):
+                b = min(a + BLOCK_SAMPLES, Phi.shape[1])
+                part, reference = Phi[:, a:b], None
+                for (rows, cols, relative, group), buffer in zip(self.groups, buffers):
+                    if relative and reference is None:
+                        reference = self.P[0] @ part
+                    signals = np.vstack([reference, part[cols]]) if relative else np.ascontiguousarray(part[cols])
+                    Yg = buffer[:b - a]
+                    group.run(signals, y_block[a:b], begin + a, Yg)
+                    if group.python_map is not None:
+                        _apply_python_map(Yg.T, group.python_map, group.Y0)
+                    outputs[:b - a, rows] = Yg[:, :len(rows)]
+                yield y_block[a:b], outputs[:b - a]
+
+    def difference_blocks(self, blocks):
+        """``[D r]`` a block of at most ``BLOCK_SAMPLES`` samples at a time (one reused buffer)."""
+        return _differences(self.output_blocks(blocks), self.lanes)
+
+
+def _group_signals(P, rows):
+    """``(cols, relative)``: the fewest basis rows that give the candidates ``rows`` their signals, or ``None``."""
+    direct = np.flatnonzero(np.any(P[rows] != 0.0, axis=0))
+    moved = np.flatnonzero(np.any(P[rows] != P[0], axis=0))
+    if direct.size <= moved.size + 1 and direct.size <= MAX_LANE_BASIS:
+        return (direct if direct.size else np.arange(1)), False
+    if moved.size + 1 <= MAX_LANE_BASIS:
+        return moved, True
+    return None
+
+
+def _lane_groups(P):
+    """``[(rows, cols, relative)]``: consecutive candidates in groups that fit one pass each (``None`` if one fits none)."""
+    plan, rows = [], []
+    for b in range(P.shape[0]):
+        if rows and len(rows) < MAX_NORMAL_LANES and _group_signals(P, rows + [b]) is not None:
+            rows.append(b)
+            continue
+        if rows:
+            plan.append((rows, *_group_signals(P, rows)))
+        if _group_signals(P, [b]) is None:
+            return None
+        rows = [b]
+    plan.append((rows, *_group_signals(P, rows)))
+    return plan
 
 
 def free_response(num, den, dt: float, n_samples: int) -> np.ndarray:

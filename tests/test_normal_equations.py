@@ -203,7 +203,7 @@ def test_a_nonfinite_last_signal_sample_makes_the_pass_nonfinite():
 
 def test_up_to_sixteen_lanes_take_the_fused_pass():
     """A degree-7 polynomial g with a (2, 3) block and an offset: 14 lanes, the stored Jacobian's sums;
-    with x(0) estimated too (17 lanes) the residuals give them."""
+    with x(0) estimated too (17 lanes) two lane groups give them (see test_lane_groups_*)."""
     import control
 
     from hammerstein_ctrl.kernels import MAX_NORMAL_LANES
@@ -228,8 +228,88 @@ def test_up_to_sixteen_lanes_take_the_fused_pass():
     xw = np.random.default_rng(1).uniform(0.5, 2.0, wide.n_params)
     hw = forward_steps(xw)
     assert wide.n_params + 1 == 17 > MAX_NORMAL_LANES
-    assert wide._fused_normal_equations(neighbours(xw, hw), hw) is None
+    assert wide._fused_normal_equations(neighbours(xw, hw), hw) is not None
     assert wide.normal_equations(xw).fun == pytest.approx(wide(xw), rel=1e-12)
+
+
+def _lane_group_cases():
+    import control
+
+    t = 0.01 * np.arange(4000)
+    u = np.sin(t) + 0.5 * np.sin(3.3 * t)
+    y = control.forced_response(control.tf([1, 2], [1, 2, 4, 3]), t, u + 0.2 * u ** 3).outputs
+    data = hc.IOData(u, y, dt=0.01)
+    knots = np.linspace(-0.9, 0.9, 11)
+    return data, {
+        # 17 lanes, 8 basis signals: two groups on the same basis rows
+        "lanes": hc.HammersteinStructure(hc.LinearStructure(2, 3), hc.Polynomial(7), offset=True,
+                                         initial_state="estimate"),
+        # 17 lanes, 11 basis signals: groups on row 0's signal and the rows their neighbours move
+        "lanes and basis": hc.HammersteinStructure(hc.LinearStructure(1, 3), hc.PiecewiseLinear(knots), offset=True),
+        # 12 lanes, 11 basis signals
+        "basis": hc.HammersteinStructure(hc.LinearStructure(0, 2), hc.PiecewiseLinear(knots[1:-1])),
+        # an output saturation with 18 lanes and 11 basis signals: a compiled output map in every group
+        "output map": hc.HammersteinWienerStructure(hc.LinearStructure(1, 3), hc.PiecewiseLinear(knots),
+                                                    hc.Saturation(), offset=True),
+    }
+
+
+@pytest.mark.parametrize("case", ["lanes", "lanes and basis", "basis", "output map"])
+def test_lane_groups_give_the_stored_jacobians_sums(case):
+    """Past one pass (more than 16 lanes or 8 basis signals) groups of passes run side by side:
+    the sums and the QR factor are the stored forward-difference Jacobian's."""
+    from hammerstein_ctrl.kernels import MAX_LANE_BASIS, MAX_NORMAL_LANES
+    from hammerstein_ctrl.simulate import _LaneGroups
+
+    data, structures = _lane_group_cases()
+    s = structures[case]
+    cost = HammersteinCost(data, s)
+    x = np.random.default_rng(1).uniform(0.5, 2.0, s.n_params)
+    h = forward_steps(x)
+    assert s.n_params + 1 > MAX_NORMAL_LANES or s.input_nonlinearity.n_params > MAX_LANE_BASIS, s.n_params
+    groups = []
+    original = _LaneGroups.prepare.__func__
+
+    def spy(cls, *args):
+        groups.append(original(cls, *args))
+        return groups[-1]
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(_LaneGroups, "prepare", classmethod(spy))
+        ne, qr = cost.normal_equations(x, h), cost.normal_factor(x, h)
+    assert len(groups) == 2 and all(g is not None and len(g.groups) >= 2 for g in groups)
+    f, g, G = _stored(cost, x)
+    scale = np.sqrt(np.outer(np.diag(G), np.diag(G)))
+    for result in (ne, qr):
+        assert result.fun == pytest.approx(f, rel=1e-12)
+        assert np.max(np.abs(result.gram - G) / scale) < 1e-5
+        assert np.max(np.abs(result.gradient - g) / np.sqrt(np.diag(G) * f)) < 1e-5
+
+
+def test_lane_groups_keep_memory_bounded_on_long_records():
+    """17 lanes and 11 basis signals: the peak grows by under 4 B per sample between 1e6 and 2e6 samples,
+    where p + 1 stored residual vectors take 136 (the rest is a few blocks of samples: basis, lane outputs)."""
+    import tracemalloc
+
+    s = _lane_group_cases()[1]["lanes and basis"]
+    x = np.random.default_rng(1).uniform(0.5, 2.0, s.n_params)
+    x[:4] = [1.0, 1.0, 3.0, 3.0]                            # H = 1 / (p + 1)^3: stable over 1e6 samples
+    peaks = {}
+    for n in (1_000_000, 2_000_000):
+        t = 0.01 * np.arange(n)
+        cost = HammersteinCost(hc.IOData(np.sin(0.3 * t) + 0.5 * np.sin(3.3 * t), np.cos(t), dt=0.01), s)
+        cost.normal_equations(x)                            # compile, allocate caches
+        for method in (cost.normal_equations, cost.normal_factor):
+            tracemalloc.start()
+            try:
+                ne = method(x)
+                peak = tracemalloc.get_traced_memory()[1]
+            finally:
+                tracemalloc.stop()
+            assert np.isfinite(ne.fun)
+            peaks[method.__name__, n] = peak
+    for name in ("normal_equations", "normal_factor"):
+        growth = (peaks[name, 2_000_000] - peaks[name, 1_000_000]) / 1_000_000
+        assert growth < 4, (name, growth, peaks)
 
 
 @pytest.mark.parametrize("hold", ["foh", "zoh"])
