@@ -47,8 +47,9 @@ import numpy as np
 import scipy.optimize
 
 from .exceptions import ParameterError
-from .simulate import free_response, simulate_batch, unstable
-from .streamed_lstsq import (constant_column, factor_sse, residual, solve_minimum_norm, solve_scaled,
+from .simulate import free_response, response_blocks, simulate_batch, unstable
+from . import streamed_lstsq
+from .streamed_lstsq import (constant_column, factor_of_blocks, factor_sse, residual, solve_minimum_norm, solve_scaled,
                              triangular_factor)
 
 __all__ = ["initial_points", "stabilize", "nuisance_estimate", "estimate_initial_state", "static_affine_sse",
@@ -79,6 +80,9 @@ SCAN_SHARE = 0.4
 REFINE_SHARE = 0.6
 #: Relative tolerance of the reduced refinement.
 REFINE_TOL = 1e-8
+#: Size of a regression's columns (``8 N`` bytes each) past which its driving signals and their
+#: simulated responses are formed a block of samples at a time instead of held whole.
+STREAMED_COLUMNS_BYTES = 1 << 24
 
 
 class BudgetSpent(RuntimeError):
@@ -138,9 +142,12 @@ def _arx_poles(data, drives, m: int) -> np.ndarray | None:
     N = y.size
     if N <= 4 * m + 2:
         return None
-    lagged = [y[m - i:N - i] for i in range(1, m + 1)]
-    lagged += [d[m - i:N - i] for d in drives for i in range(1, m + 1)]
-    R = triangular_factor(lagged + [constant_column(N - m)], y[m:])
+    if drives.array is None:
+        R = factor_of_blocks(_lagged_blocks(y, drives, m), (1 + drives.count) * m + 2)
+    else:
+        lagged = [y[m - i:N - i] for i in range(1, m + 1)]
+        lagged += [d[m - i:N - i] for d in drives.array for i in range(1, m + 1)]
+        R = triangular_factor(lagged + [constant_column(N - m)], y[m:])
     if not np.all(np.isfinite(R)):
         return None
     coef = solve_minimum_norm(R, N - m)
@@ -149,6 +156,23 @@ def _arx_poles(data, drives, m: int) -> np.ndarray | None:
     if not np.all(np.isfinite(s)):
         return None
     return np.where(s.real > 0, -s.real + 1j * s.imag, s)
+
+
+def _lagged_blocks(y, drives: _Drives, m: int):
+    """Blocks of ``[y lags, drive lags, 1, y]`` at samples ``m..N-1`` (the ARX regression), drives formed by blocks."""
+    N = y.size
+    width = (1 + drives.count) * m + 2
+    size = streamed_lstsq.BLOCK_SAMPLES
+    block = np.empty((min(size, N - m), width), order="F")
+    for a in range(m, N, size):
+        b = min(a + size, N)
+        part, D = block[:b - a], drives.part(a - m, b - 1)
+        for i in range(1, m + 1):
+            part[:, i - 1] = y[a - i:b - i]
+            part[:, m * np.arange(1, 1 + drives.count) + i - 1] = D[:, m - i:m - i + b - a].T
+        part[:, -2] = 1.0
+        part[:, -1] = y[a:b]
+        yield part
 
 
 def _candidate_linear(linear, data, drives) -> dict:
@@ -200,12 +224,111 @@ def stabilize(linear, theta) -> np.ndarray:
 # ---------------------------------------------------------------------------
 # least squares with H fixed
 # ---------------------------------------------------------------------------
-def _drives(nonlinearity, u) -> np.ndarray:
-    """Signals whose responses span the output with ``H`` fixed: the basis, else ``[u, 1]``."""
-    basis = None if nonlinearity is None else nonlinearity.basis(u)
+class _Drives:
+    """Signals that drive ``H`` in a regression (``count`` rows of ``n_samples``).
+
+    Held whole (``array``), or, on a long record, formed from the input a
+    block of samples at a time by ``part(begin, stop)`` (``array`` None).
+    """
+
+    def __init__(self, count: int, n_samples: int, array=None, part=None):
+        self.count, self.n_samples, self.array = count, n_samples, array
+        self._part = part if array is None else (lambda begin, stop: array[:, begin:stop])
+
+    @classmethod
+    def rows(cls, array) -> "_Drives":
+        """Signals already held: an ``(count, N)`` array (or one signal)."""
+        array = np.atleast_2d(np.asarray(array, dtype=float))
+        return cls(array.shape[0], array.shape[1], array=array)
+
+    @classmethod
+    def basis_of(cls, nonlinearity, signal, reg) -> "_Drives | None":
+        """The basis of ``nonlinearity`` on ``signal`` (``None`` if it has none); by blocks where ``reg`` streams it."""
+        probe = None if nonlinearity is None else nonlinearity.basis(signal[:1])
+        if probe is None:
+            return None
+        if not reg.streams(np.shape(probe)[0]):
+            return cls.rows(nonlinearity.basis(signal))
+        return cls(np.shape(probe)[0], signal.size,
+                   part=lambda begin, stop: np.asarray(nonlinearity.basis(signal[begin:stop]), dtype=float))
+
+    def part(self, begin: int, stop: int) -> np.ndarray:
+        """Samples ``begin:stop`` of every signal, ``(count, stop - begin)``."""
+        return self._part(begin, stop)
+
+    def blocks(self):
+        """Consecutive blocks of :data:`~hammerstein_ctrl.streamed_lstsq.BLOCK_SAMPLES` samples."""
+        size = streamed_lstsq.BLOCK_SAMPLES
+        for begin in range(0, self.n_samples, size):
+            yield self.part(begin, min(begin + size, self.n_samples))
+
+
+def _drives(nonlinearity, u, reg) -> _Drives:
+    """Signals whose responses span the output with ``H`` fixed: the basis, else ``[u, 1]`` (by blocks where ``reg`` streams them)."""
+    basis = _Drives.basis_of(nonlinearity, u, reg)
     if basis is not None:
-        return np.asarray(basis, dtype=float)
-    return np.stack([u, np.ones_like(u)])
+        return basis
+    if not reg.streams(2):
+        return _Drives.rows(np.stack([u, np.ones_like(u)]))
+    return _Drives(2, u.size, part=lambda begin, stop: np.stack([u[begin:stop], np.ones(stop - begin)]))
+
+
+class _StreamedColumns:
+    """A regression's columns formed a block of samples at a time, never held whole.
+
+    The responses of ``H(theta)`` to the drives (or, with ``theta`` None, the
+    drives themselves), then a constant column and the free responses, as
+    :meth:`_Regression.columns` holds them on a shorter record.
+    """
+
+    def __init__(self, reg, theta, drives: _Drives, constant: bool, free: bool):
+        self.drives, self.constant, self.free = drives, constant, free
+        self.dt, self.intersample = reg.data.dt, reg.data.intersample
+        self.n_free = reg.structure.linear.den_order if free else 0
+        self.width = drives.count + int(constant) + self.n_free
+        self.block = None if theta is None else [r[0] for r in reg.structure.linear.coefficients(theta)]
+
+    def _sources(self):
+        """Blocks ``(L, count [+ n_free])`` of the simulated (or plain) drives."""
+        if self.block is None:
+            return (part.T for part in self.drives.blocks())
+        return response_blocks(*self.block, self.dt, self.drives.blocks(), self.drives.count,
+                               self.drives.n_samples, free=self.free, intersample=self.intersample)
+
+    def blocks(self):
+        """``(begin, X)``: the columns at the next block of samples (one reused buffer)."""
+        k = self.drives.count
+        buffer = np.empty((min(streamed_lstsq.BLOCK_SAMPLES, self.drives.n_samples), self.width))
+        begin = 0
+        for Y in self._sources():
+            X = buffer[:Y.shape[0]]
+            X[:, :k] = Y[:, :k]
+            if self.constant:
+                X[:, k] = 1.0
+            X[:, k + int(self.constant):] = Y[:, k:]
+            yield begin, X
+            begin += Y.shape[0]
+
+    def factor(self, y) -> np.ndarray:
+        """The triangular factor of ``[X y]`` (:func:`~hammerstein_ctrl.streamed_lstsq.triangular_factor`); NaN if not finite."""
+        def rows():
+            block = np.empty((min(streamed_lstsq.BLOCK_SAMPLES, y.size), self.width + 1), order="F")
+            for begin, X in self.blocks():
+                part = block[:X.shape[0]]
+                part[:, :-1] = X
+                part[:, -1] = y[begin:begin + X.shape[0]]
+                yield part
+        try:
+            return factor_of_blocks(rows(), self.width + 1)
+        except ParameterError:          # a block that cannot be simulated: no fit, as a non-finite column
+            return np.full((self.width + 1, self.width + 1), np.nan)
+
+    def residual(self, w, y) -> np.ndarray:
+        """``y - X w``, formed block by block."""
+        out = np.empty(y.size)
+        for begin, X in self.blocks():
+            np.subtract(y[begin:begin + X.shape[0]], X @ w, out=out[begin:begin + X.shape[0]])
+        return out
 
 
 class _Regression:
@@ -222,6 +345,10 @@ class _Regression:
         self.y = np.asarray(data.y, dtype=float)
         self.constant = structure.offset or affine_output
 
+    def streams(self, count: int) -> bool:
+        """Whether ``count`` drives (with their responses) are formed a block of samples at a time."""
+        return self.y.size * self.y.itemsize * count > STREAMED_COLUMNS_BYTES
+
     def simulate(self, theta, drives) -> np.ndarray:
         """Responses ``(k, N)`` of ``H(theta)`` to each drive (``k`` counted evaluations)."""
         self.budget.charge(drives.shape[0])
@@ -235,13 +362,20 @@ class _Regression:
         """Whether :meth:`columns` adds the free responses of an estimated initial state."""
         return self.structure.initial_state == "estimate" and self.structure.output_nonlinearity is None
 
-    def evaluations(self, drives) -> int:
+    def evaluations(self, drives: _Drives) -> int:
         """Simulated signals (budget charged) of one :meth:`columns` call."""
-        return drives.shape[0] + (self.structure.linear.den_order if self.free_columns else 0)
+        return drives.count + (self.structure.linear.den_order if self.free_columns else 0)
 
-    def columns(self, theta, drives) -> list[np.ndarray]:
-        """Responses of ``H(theta)`` to each drive, then constant and free-response columns."""
-        parts = [self.simulate(theta, drives)]
+    def columns(self, theta, drives):
+        """Responses of ``H(theta)`` to each drive, then constant and free-response columns.
+
+        A list of arrays, or, for drives formed by blocks, :class:`_StreamedColumns`.
+        """
+        drives = drives if isinstance(drives, _Drives) else _Drives.rows(drives)
+        if drives.array is None:
+            self.budget.charge(self.evaluations(drives))
+            return _StreamedColumns(self, theta, drives, self.constant, self.free_columns)
+        parts = [self.simulate(theta, drives.array)]
         if self.constant:
             parts.append(constant_column(self.y.size))
         if self.free_columns:
@@ -250,23 +384,28 @@ class _Regression:
             parts.append(free_response(num[0], den[0], self.data.dt, self.y.size).T)
         return parts
 
-    def static_columns(self, signals) -> list[np.ndarray]:
-        """The signals themselves (``(k, N)``), then the offset column."""
-        parts = [np.asarray(signals, dtype=float)]
+    def static_columns(self, signals):
+        """The signals themselves (``(k, N)``, or :class:`_Drives`), then the offset column."""
+        signals = signals if isinstance(signals, _Drives) else _Drives.rows(signals)
+        if signals.array is None:
+            return _StreamedColumns(self, None, signals, self.structure.offset, False)
+        parts = [signals.array]
         if self.structure.offset:
             parts.append(constant_column(self.y.size))
         return parts
 
     def fit(self, columns) -> tuple[np.ndarray | None, float]:
         """Coefficients and sum of squared residuals of the least-squares fit (``(None, inf)`` if not finite)."""
-        R = triangular_factor(columns, self.y)
+        R = columns.factor(self.y) if isinstance(columns, _StreamedColumns) else triangular_factor(columns, self.y)
         w = solve_scaled(R, self.y.size)
         return (None, np.inf) if w is None else (w, factor_sse(R, w))
 
     def solve(self, columns):
         """Coefficients and residual vector of the least-squares fit (``None`` if not finite)."""
         w, _ = self.fit(columns)
-        return (None, None) if w is None else (w, residual(columns, w, self.y))
+        if w is None:
+            return None, None
+        return w, columns.residual(w, self.y) if isinstance(columns, _StreamedColumns) else residual(columns, w, self.y)
 
 
 def _reduced_sse(reg: _Regression, theta, drives) -> float:
@@ -326,9 +465,9 @@ def _fit_static(reg: _Regression, nl, signal, columns) -> tuple[np.ndarray, np.n
     scale parameter scan their shape (:meth:`~Nonlinearity.shape_grid`) over the
     range of ``signal`` and fit the scale.
     """
-    basis = nl.basis(signal)
+    basis = _Drives.basis_of(nl, signal, reg)
     if basis is not None:
-        w, _ = reg.fit(columns(np.asarray(basis, dtype=float)))
+        w, _ = reg.fit(columns(basis))
         return None if w is None else (w[:nl.n_params], w[nl.n_params:])
     best = None
     for p in nl.shape_grid(signal):
@@ -437,7 +576,7 @@ def initial_points(data, structure, budget: Budget, *, count: int = REFINED_CAND
     # the starts may use a share of what is left; the refinements need the rest
     own = Budget(int(INITIAL_SHARE * budget.remaining) if np.isfinite(budget.remaining) else None)
     reg = _Regression(structure, data, own, affine_output=structure.output_nonlinearity is not None)
-    drives = _drives(structure.input_nonlinearity, u)
+    drives = _drives(structure.input_nonlinearity, u, reg)
     points = []
     try:
         starts = []

@@ -62,6 +62,7 @@ __all__ = [
     "sse_batch",
     "sse_basis_batch",
     "free_response",
+    "response_blocks",
     "normal_pass",
     "normal_factor",
     "unstable",
@@ -757,19 +758,29 @@ def _lane_pass(num, den, dt, y, P, x0, offset, intersample, output_map, outputs:
     (shorter ones are quicker from stored residual vectors: ``None``).
     """
     P = np.ascontiguousarray(P, dtype=float)
-    if P.shape[0] <= MAX_NORMAL_LANES and 1 <= P.shape[1] <= MAX_LANE_BASIS:
-        return _LanePass.prepare(num, den, dt, y, P, x0, offset, intersample, output_map, outputs)
-    if P.shape[0] * np.size(y) * P.itemsize <= GROUPS_MIN_BYTES:
+    if P.shape[0] * np.size(y) * P.itemsize <= GROUPS_MIN_BYTES and not (
+            P.shape[0] <= MAX_NORMAL_LANES and 1 <= P.shape[1] <= MAX_LANE_BASIS):
         return None
-    return _LaneGroups.prepare(num, den, dt, y, P, x0, offset, intersample, output_map)
+    return _lane_pass_or_groups(num, den, dt, y, P, x0, offset, intersample, output_map, np.size(y), outputs)
+
+
+def _lane_pass_or_groups(num, den, dt, y, P, x0, offset, intersample, output_map, n_samples: int,
+                         outputs: bool = True):
+    """One :class:`_LanePass` where the candidates fit one, else :class:`_LaneGroups` (``None`` if neither applies)."""
+    if P.shape[0] <= MAX_NORMAL_LANES and 1 <= P.shape[1] <= MAX_LANE_BASIS:
+        return _LanePass.prepare(num, den, dt, y, P, x0, offset, intersample, output_map, outputs, n_samples)
+    return _LaneGroups.prepare(num, den, dt, y, P, x0, offset, intersample, output_map, n_samples)
 
 
 class _LanePass:
     """The checked arguments of a compiled pass over a point and its neighbours, and its running state."""
 
     @classmethod
-    def prepare(cls, num, den, dt, y, P, x0, offset, intersample, output_map, outputs: bool):
-        """The pass over the candidates (rows of ``P``), or ``None`` where it does not apply (see :func:`normal_pass`)."""
+    def prepare(cls, num, den, dt, y, P, x0, offset, intersample, output_map, outputs: bool, n_samples=None):
+        """The pass over the candidates (rows of ``P``), or ``None`` where it does not apply (see :func:`normal_pass`).
+
+        ``y`` is the measured output, or ``None`` for outputs only (``outputs``) over ``n_samples``.
+        """
         hold = check_intersample(intersample)
         P = np.ascontiguousarray(P, dtype=float)
         lanes, n, K = P.shape[0], np.shape(den)[-1] - 1, P.shape[-1]
@@ -791,7 +802,8 @@ class _LanePass:
         self.E, self.C, self.D = E, C, D
         self.HP, self.HX = map_args or (np.zeros((lanes, 0)), np.zeros(0))
         self.VP = np.zeros(lanes)
-        self.y = _measured(y, np.size(y))
+        self.y = None if y is None else _measured(y, np.size(y))
+        self.n_samples = n_samples if y is None else self.y.size
         return self
 
     @property
@@ -810,7 +822,7 @@ class _LanePass:
 
     def blocks(self, blocks):
         """``(begin, Phi, y)`` of each block of the basis, checked against the record, which they must cover."""
-        return _checked_blocks(blocks, self.K, self.y)
+        return _checked_blocks(blocks, self.K, self.y, self.n_samples)
 
     def output_blocks(self, blocks):
         """``(y, Yh)``: the lanes' outputs (``Yh[i, lane]``) a block of at most ``BLOCK_SAMPLES`` samples at a time."""
@@ -831,19 +843,22 @@ class _LanePass:
         return _differences(self.output_blocks(blocks), self.lanes)
 
 
-def _checked_blocks(blocks, K: int, y):
-    """``(begin, Phi, y)`` of each block of a ``K``-signal basis, checked against the record, which they must cover."""
+def _checked_blocks(blocks, K: int, y, n_samples: int):
+    """``(begin, Phi, y)`` of each block of a ``K``-signal basis, checked against the record, which they must cover.
+
+    Without a measured output (``y`` None) the block's ``y`` is zeros (a pass that only hands out outputs).
+    """
     begin = 0
     for Phi in blocks:
         Phi = np.ascontiguousarray(Phi, dtype=float)
         stop = begin + Phi.shape[1]
-        if Phi.shape[0] != K or stop > y.size:
+        if Phi.shape[0] != K or stop > n_samples:
             raise DataError(f"a block of the basis of shape {Phi.shape} does not fit {K} basis signals "
-                            f"and a record of {y.size} samples (at sample {begin})")
-        yield begin, Phi, y[begin:stop]
+                            f"and a record of {n_samples} samples (at sample {begin})")
+        yield begin, Phi, np.zeros(Phi.shape[1]) if y is None else y[begin:stop]
         begin = stop
-    if begin != y.size:
-        raise DataError(f"the blocks of the basis cover {begin} samples of a record of {y.size}")
+    if begin != n_samples:
+        raise DataError(f"the blocks of the basis cover {begin} samples of a record of {n_samples}")
 
 
 def _differences(output_blocks, lanes: int):
@@ -875,8 +890,8 @@ class _LaneGroups:
     streams_outputs = True
 
     @classmethod
-    def prepare(cls, num, den, dt, y, P, x0, offset, intersample, output_map):
-        """The groups, or ``None`` where a candidate fits no group or a pass does not apply."""
+    def prepare(cls, num, den, dt, y, P, x0, offset, intersample, output_map, n_samples=None):
+        """The groups, or ``None`` where a candidate fits no group or a pass does not apply (``y``: as :class:`_LanePass`)."""
         plan = _lane_groups(P)
         num, den = _coefficient_rows(num, den)
         if plan is None or not 1 <= den.shape[1] - 1 <= MAX_UNROLLED_STATES:
@@ -886,7 +901,9 @@ class _LaneGroups:
         HP = None if output_map is None else np.broadcast_to(
             np.atleast_2d(np.asarray(output_map[1], dtype=float)), (lanes, output_map[0].n_params))
         self = cls()
-        self.lanes, self.K, self.P, self.y, self.groups = lanes, P.shape[1], P, _measured(y, np.size(y)), []
+        self.lanes, self.K, self.P, self.groups = lanes, P.shape[1], P, []
+        self.y = None if y is None else _measured(y, np.size(y))
+        self.n_samples = n_samples if y is None else self.y.size
         for rows, cols, relative in plan:
             lane_rows = rows if len(rows) > 1 else rows * 2       # a pass has two lanes at least
             Pg = P[lane_rows][:, cols]
@@ -895,7 +912,7 @@ class _LaneGroups:
             linear = [r if r < den.shape[0] else 0 for r in lane_rows]    # past the given blocks: row 0's
             group = _LanePass.prepare(num[linear], den[linear], dt, self.y, Pg, X[lane_rows], Y0[lane_rows],
                                       intersample, None if HP is None else (output_map[0], HP[lane_rows]),
-                                      outputs=True)
+                                      outputs=True, n_samples=self.n_samples)
             if group is None:
                 return None
             self.groups.append((rows, cols, relative, group))
@@ -910,7 +927,7 @@ class _LaneGroups:
 
         outputs = np.empty((BLOCK_SAMPLES, self.lanes))
         buffers = [np.empty((BLOCK_SAMPLES, group.lanes)) for *_, group in self.groups]
-        for begin, Phi, y_block in _checked_blocks(blocks, self.K, self.y):
+        for begin, Phi, y_block in _checked_blocks(blocks, self.K, self.y, self.n_samples):
             for a in range(0, Phi.shape[1], BLOCK_SAMPLES):
                 b = min(a + BLOCK_SAMPLES, Phi.shape[1])
                 part, reference = Phi[:, a:b], None
@@ -955,6 +972,67 @@ def _lane_groups(P):
         rows = [b]
     plan.append((rows, *_group_signals(P, rows)))
     return plan
+
+
+def response_blocks(num, den, dt: float, signals, n_signals: int, n_samples: int, *, free: bool = False,
+                    intersample: str = "foh"):
+    """Responses of one linear block to several signals, handed out a block of samples at a time.
+
+    The responses are never held whole: the compiled passes of the
+    normal equations (in outputs mode, several side by side past one)
+    carry their state from block to block, so a long record's regression
+    columns take memory bounded per sample.
+
+    Parameters
+    ----------
+    num, den : array_like, shape (l+1,) and (n+1,)
+        One transfer function (descending powers).
+    dt : float
+    signals : iterable of ndarray, shape (n_signals, L_i)
+        The driving signals, in consecutive blocks of samples that together span the record.
+    n_signals, n_samples : int
+    free : bool, default False
+        Also hand out the free responses from each unit initial state
+        (:func:`free_response`), after the driven ones.
+    intersample : {"foh", "zoh"}, default "foh"
+
+    Yields
+    ------
+    ndarray, shape (L, n_signals [+ n])
+        The responses at the next ``L <= BLOCK_SAMPLES`` samples, one column
+        each (a reused buffer: copy what you keep).
+
+    Raises
+    ------
+    ParameterError
+        If the block cannot be simulated in a compiled pass (no state, more
+        than :data:`MAX_UNROLLED_STATES` states, coefficients that cannot be
+        discretised).
+
+    Examples
+    --------
+    >>> t = np.arange(5.0)
+    >>> parts = response_blocks([1.0], [1.0, 1.0], 1.0, [np.ones((1, 5))], 1, 5, free=True)
+    >>> Y = np.vstack([part.copy() for part in parts])
+    >>> bool(np.allclose(Y[:, 0], simulate_batch([[1.0]], [[1.0, 1.0]], np.ones(5), 1.0)[0]))
+    True
+    >>> bool(np.allclose(Y[:, 1], free_response([1.0], [1.0, 1.0], 1.0, 5)[:, 0]))
+    True
+    """
+    num, den = check_transfer_function(num, den, name="linear block")
+    n = den.size - 1
+    extra = n if free else 0
+    lanes = max(n_signals + extra, 2)                   # a pass has two lanes at least
+    P = np.zeros((lanes, n_signals))
+    P[np.arange(n_signals), np.arange(n_signals)] = 1.0
+    X = np.zeros((lanes, max(n, 1)))[:, :n]
+    X[n_signals:n_signals + extra] = np.eye(n)[:extra]
+    passes = _lane_pass_or_groups(num[None, :], den[None, :], dt, None, P, X, None, intersample, None,
+                                  n_samples) if n_signals >= 1 and n >= 1 else None
+    if passes is None:
+        raise ParameterError(f"the linear block {num} / {den} cannot be simulated a block at a time")
+    for _, Y in passes.output_blocks(signals):
+        yield Y[:, :n_signals + extra]
 
 
 def free_response(num, den, dt: float, n_samples: int) -> np.ndarray:

@@ -112,13 +112,31 @@ def dense_columns(reg, theta, drives):
                             for c in reg.columns(theta, drives)])
 
 
+@pytest.fixture(params=[False, True], ids=["held", "streamed"])
+def streamed(request, monkeypatch):
+    """Regression columns held whole, or (streamed) formed a block of samples at a time however short the record."""
+    if request.param:
+        monkeypatch.setattr(initialize, "STREAMED_COLUMNS_BYTES", 0)
+    return request.param
+
+
+def _held_columns(reg, theta, drives):
+    """The columns held whole, whichever way ``reg`` forms them."""
+    held = initialize._Drives.rows(drives.array if drives.array is not None else
+                                   np.hstack([p for p in drives.blocks()]))
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(initialize, "STREAMED_COLUMNS_BYTES", 1 << 62)
+        return dense_columns(reg, theta, held)
+
+
 @pytest.mark.parametrize("offset, initial_state", [(False, "zero"), (True, "zero"), (False, "estimate")])
-def test_reduced_fit_equals_dense_lstsq(small_blocks, offset, initial_state):
+def test_reduced_fit_equals_dense_lstsq(small_blocks, offset, initial_state, streamed):
     data, s = hammerstein_case(offset=offset, initial_state=initial_state)
     reg = initialize._Regression(s, data, initialize.Budget(None))
-    drives = initialize._drives(s.input_nonlinearity, np.asarray(data.u))
+    drives = initialize._drives(s.input_nonlinearity, np.asarray(data.u), reg)
+    assert (drives.array is None) == streamed
     for theta in ([4.0, 1.2], [1.0, 3.0], [9.0, 0.5]):
-        Phi = dense_columns(reg, np.array(theta), drives)
+        Phi = _held_columns(reg, np.array(theta), drives)
         assert Phi.shape == (3000, 3 + offset + 2 * (initial_state == "estimate"))
         ref, res, rank, _ = np.linalg.lstsq(Phi, reg.y, rcond=None)
         assert rank == Phi.shape[1]
@@ -129,11 +147,13 @@ def test_reduced_fit_equals_dense_lstsq(small_blocks, offset, initial_state):
         np.testing.assert_allclose(r, reg.y - Phi @ ref, rtol=1e-7, atol=1e-10)
 
 
-def test_arx_poles_equal_dense_equation_error_fit(small_blocks):
+def test_arx_poles_equal_dense_equation_error_fit(small_blocks, streamed):
     data, s = hammerstein_case(n=2000)
-    drives = initialize._drives(s.input_nonlinearity, np.asarray(data.u))
+    drives = initialize._drives(s.input_nonlinearity, np.asarray(data.u), initialize._Regression(s, data, None))
+    assert (drives.array is None) == streamed
     y, m, N = np.asarray(data.y), 2, 2000
-    X = np.column_stack([-y[m - i:N - i] for i in (1, 2)] + [d[m - i:N - i] for d in drives for i in (1, 2)]
+    basis = s.input_nonlinearity.basis(np.asarray(data.u))
+    X = np.column_stack([-y[m - i:N - i] for i in (1, 2)] + [d[m - i:N - i] for d in basis for i in (1, 2)]
                         + [np.ones(N - m)])
     coef = np.linalg.lstsq(X, y[m:], rcond=None)[0]
     ref = np.sort_complex(np.log(np.roots(np.r_[1.0, coef[:m]]).astype(complex)) / data.dt)
@@ -150,11 +170,14 @@ def test_static_affine_sse_equals_dense(small_blocks):
     assert initialize.static_affine_sse(data) == pytest.approx(float(res[0]), rel=1e-10)
 
 
-def test_initial_points_do_not_depend_on_the_block_size(monkeypatch):
-    """The whole start pipeline (scan, ARX poles, reduced LM, static fit), blocks of 37 vs one block."""
+def test_initial_points_do_not_depend_on_the_block_size(monkeypatch, streamed):
+    """The whole start pipeline (scan, ARX poles, reduced LM, static fit), blocks of 37 vs one block held whole
+    (streamed: the drives and their responses also formed by blocks, through the compiled lane passes)."""
     data, s = hammerstein_case(n=2000, offset=True)
     s = HammersteinStructure(LinearStructure(0, 2), Polynomial(2), offset=True)
-    whole = initialize.initial_points(data, s, initialize.Budget(600))
+    with monkeypatch.context() as held:
+        held.setattr(initialize, "STREAMED_COLUMNS_BYTES", 1 << 62)
+        whole = initialize.initial_points(data, s, initialize.Budget(600))
     monkeypatch.setattr(streamed_lstsq, "BLOCK_SAMPLES", SMALL_BLOCK)
     blocked = initialize.initial_points(data, s, initialize.Budget(600))
     assert len(whole) == len(blocked) == 3
