@@ -541,7 +541,8 @@ def _assemble(structure, theta, g_params, h_params, nuisance) -> np.ndarray:
 
 def _check_automatic(structure, u):
     for nl in (structure.input_nonlinearity, structure.output_nonlinearity):
-        if nl is not None and nl.basis(u) is None and (nl.shape_grid(u) is None or nl.scale_index is None):
+        # whether there is a basis shows on one sample (the whole basis of a long record takes 8 p bytes per sample)
+        if nl is not None and nl.basis(u[:1]) is None and (nl.shape_grid(u) is None or nl.scale_index is None):
             raise ParameterError(
                 f"no automatic initial point for the {nl.name!r} nonlinearity (it has neither a basis nor a "
                 f"scan); give x0 = [{', '.join(structure.param_names)}]")
