@@ -71,10 +71,10 @@ def test_residuals_in_bounded_memory(cost):
     assert per_sample < 20  # the output and the signal, 8 B each
 
 
-# N-SPSA and AMVO-SCA: the stored basis (24 B) and one chunk of signals; LM: MINPACK's Jacobian and
-# ours (32 B each for 4 parameters), the basis, a chunk of outputs and a few residual vectors
-# (scipy's least_squares route held two more Jacobian copies: 216 B here)
-@pytest.mark.parametrize("method, bound", [("nspsa", 100), ("amvo-sca", 100), ("lm", 150)])
+# N-SPSA and AMVO-SCA: the stored basis (24 B) and one chunk of signals (40 B measured); LM: the basis,
+# the lanes' state and a residual vector (40 B measured; MINPACK's route held its Jacobian and ours,
+# 32 B each, and scipy's least_squares route two more Jacobian copies: 216 B here)
+@pytest.mark.parametrize("method, bound", [("nspsa", 60), ("amvo-sca", 60), ("lm", 60)])
 def test_identify_in_bounded_memory(record, method, bound):
     bench.identify_long_record(bench.synthetic_record(2000), method)  # compile/load outside the measurement
     per_sample, r = peak_bytes_per_sample(lambda: bench.identify_long_record(record, method))
@@ -101,10 +101,12 @@ def test_auto_in_bounded_memory(record):
     """``identify(data, structure)`` (method "auto") on the 1e6-sample record, as at 1e7 samples.
 
     The cost streams its basis here (as it does past BASIS_MAX_BYTES, e.g. at
-    1e7 samples); the starts hold the drives (24 B), one set of responses
-    (24 B) and MINPACK's residual, Jacobian column and work vector with ours
-    (32 B); their regressions are reduced block by block (streamed_lstsq),
-    never formed whole (they took 192 B/sample at 1e7 samples before).
+    1e7 samples); the starts form their drives and the drives' responses a
+    block of samples at a time (through the compiled lane passes) and reduce
+    their regressions block by block (streamed_lstsq), so what remains is
+    MINPACK's residual, Jacobian and work vectors on the reduced problem
+    (25 B measured; holding the drives and their responses took 80 B, and
+    forming the regressions whole 192 B/sample at 1e7 samples before).
     """
     from hammerstein_ctrl import identify, objective
 
@@ -116,7 +118,28 @@ def test_auto_in_bounded_memory(record):
         per_sample, r = peak_bytes_per_sample(lambda: identify(record, structure, maxfev=budget, seed=0))
     assert r.nfev == budget and r.optimize_result.starts == 3
     np.testing.assert_allclose(r.x, bench.SYNTHETIC_BETA, rtol=1e-6)
-    assert per_sample < 90
+    assert per_sample < 40
+
+
+@pytest.mark.parametrize("method", ["lm", "auto"])
+def test_a_wide_structure_in_bounded_memory(record, method):
+    """16 parameters and an 11-signal basis (piecewise-linear g with 11 knots, a (1, 3) block, an offset).
+
+    Past one compiled pass the normal equations run as lane groups, and the
+    starts form their 11 drives and responses by blocks: 30 B/sample measured,
+    where p + 1 = 17 stored residual vectors alone took 136 and auto's starts
+    (which formed the whole basis to see whether there was one) 400.
+    """
+    from hammerstein_ctrl import HammersteinStructure, LinearStructure, PiecewiseLinear, identify
+
+    s = HammersteinStructure(LinearStructure(1, 3), PiecewiseLinear(np.linspace(-0.9, 0.9, 11)), offset=True)
+    kwargs = {"maxfev": 300 if method == "auto" else 60, "seed": 0, "method": method}
+    if method == "lm":
+        kwargs["x0"] = np.r_[[1.0, 1.0, 3.0, 3.0], np.linspace(-0.9, 0.9, 11), 0.0]     # H = 1 / (p + 1)^3
+    identify(bench.synthetic_record(3000), s, **kwargs)                    # compile outside the measurement
+    per_sample, r = peak_bytes_per_sample(lambda: identify(record, s, **kwargs))
+    assert r.nfev == kwargs["maxfev"] and np.isfinite(r.fun)
+    assert per_sample < 60
 
 
 @pytest.mark.parametrize("intersample", ["foh", "zoh"])
