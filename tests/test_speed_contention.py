@@ -26,6 +26,9 @@ from hammerstein_ctrl import bench
 CPU_PER_WALL_BOUND = 1.2
 #: Largest accepted busy/quiet ratio of wall time per evaluation.
 WALL_RATIO_BOUND = 3.0
+#: CPU seconds per wall second below which a one-thread product shows the cores taken by other work (a
+#: second thread could not spin there, so the check that the measure sees spinning threads cannot run).
+FREE_CORE_SHARE = 0.9
 
 
 @pytest.fixture(scope="module")
@@ -62,8 +65,11 @@ def test_the_measure_sees_threads_spinning_against_the_sibling():
            default=1) < 2:
         pytest.skip("BLAS runs one thread here")
     a = np.random.default_rng(0).standard_normal((300, 300))
+    with threadpoolctl.threadpool_limits(1):
+        one = bench.contention_ratio(lambda: a @ a, number=200)["busy_cpu_per_wall"]
+    assert one < CPU_PER_WALL_BOUND
+    if one < FREE_CORE_SHARE:
+        pytest.skip(f"other work holds the cores (one thread gets {one:.2f} CPU s per wall s): no thread can spin")
     # a machine loaded by other work can starve the second thread: seen in one of three tries suffices
     seen = [bench.contention_ratio(lambda: a @ a, number=200)["busy_cpu_per_wall"] for _ in range(3)]
     assert max(seen) > CPU_PER_WALL_BOUND, seen
-    with threadpoolctl.threadpool_limits(1):
-        assert bench.contention_ratio(lambda: a @ a, number=200)["busy_cpu_per_wall"] < CPU_PER_WALL_BOUND
