@@ -55,8 +55,12 @@ from .streamed_lstsq import (constant_column, factor_of_blocks, factor_sse, resi
 __all__ = ["initial_points", "stabilize", "nuisance_estimate", "estimate_initial_state", "static_affine_sse",
            "Budget", "BudgetSpent", "POLE_PATTERNS"]
 
-#: Frequencies scanned per pole pattern.
+#: Frequencies scanned per pole pattern (at least; see :data:`SCAN_PER_DECADE`).
 SCAN_FREQUENCIES = 12
+#: Density of the scanned frequencies on long records, whose band spans more decades: the band of a
+#: 1e6-sample record (five decades) had 2.9 times between scanned frequencies where a 1e4-sample
+#: record's had 1.9, and no candidate came near a plant's poles.
+SCAN_PER_DECADE = 3.5
 #: Lowest scanned frequency: this many periods fit in the record.
 MIN_PERIODS = 2.0
 #: Highest scanned frequency as a fraction of the Nyquist frequency.
@@ -118,7 +122,8 @@ class Budget:
 def _frequencies(data) -> np.ndarray:
     lo = 2 * np.pi * MIN_PERIODS / max(data.duration, data.dt)
     hi = MAX_NYQUIST_FRACTION * np.pi / data.dt
-    return np.geomspace(lo, max(hi, 1.01 * lo), SCAN_FREQUENCIES)
+    hi = max(hi, 1.01 * lo)
+    return np.geomspace(lo, hi, max(SCAN_FREQUENCIES, int(np.ceil(SCAN_PER_DECADE * np.log10(hi / lo)))))
 
 
 def _poles(pattern: str, w: float, m: int) -> np.ndarray:
@@ -548,6 +553,41 @@ def _check_automatic(structure, u):
                 f"scan); give x0 = [{', '.join(structure.param_names)}]")
 
 
+def _ranked_starts(reg: _Regression, groups: dict, drives: _Drives, count: int) -> list:
+    """``(theta, reduced sse)`` of the best ``count`` scan candidates of each group, interleaved by rank.
+
+    Each group's best comes first, then each group's second, and so on.  A
+    small budget thins the scan (every ``stride``-th candidate) rather than losing it.
+    """
+    total = sum(len(rows) for rows in groups.values()) * reg.evaluations(drives)
+    stride = max(1, int(np.ceil(total / max(reg.budget.remaining * SCAN_SHARE, 1.0))))
+    ranked = []
+    for rows in groups.values():
+        rows = rows[::stride]
+        scored = sorted(((_reduced_sse(reg, theta, drives), i) for i, theta in enumerate(rows)))
+        ranked.append([(rows[i], sse) for sse, i in scored[:count]])
+    return [group[rank] for rank in range(count) for group in ranked if rank < len(group)]
+
+
+def _refine_in_turn(reg: _Regression, starts: list, drives: _Drives) -> list:
+    """``(theta, sse)`` of each start refined in turn, best first, each with up to :data:`REFINE_EVALUATIONS`.
+
+    The refinements share :data:`REFINE_SHARE` of what is left; a start
+    that needs many steps to converge (a scan candidate far from the
+    optimum) gets them, where an even split of the share left each a few
+    steps and none converged.  Starts past the share keep their scan value.
+    """
+    pool, begin = REFINE_SHARE * reg.budget.remaining, reg.budget.nfev
+    refined = []
+    for theta, sse in starts:
+        left = int((pool - (reg.budget.nfev - begin)) // reg.evaluations(drives))
+        if left <= theta.size + 1:          # no step fits: the scan's value stands
+            refined.append((theta, sse))
+        else:
+            refined.append(_refine_linear(reg, theta, drives, min(REFINE_EVALUATIONS, left)))
+    return sorted(refined, key=lambda item: item[1])
+
+
 def initial_points(data, structure, budget: Budget, *, count: int = REFINED_CANDIDATES) -> list[np.ndarray]:
     """Candidate starting betas for ``structure`` on ``data``, best first.
 
@@ -580,17 +620,8 @@ def initial_points(data, structure, budget: Budget, *, count: int = REFINED_CAND
     drives = _drives(structure.input_nonlinearity, u, reg)
     points = []
     try:
-        starts = []
-        groups = _candidate_linear(structure.linear, data, drives)
-        total = sum(len(rows) for rows in groups.values()) * reg.evaluations(drives)
-        stride = max(1, int(np.ceil(total / max(own.remaining * SCAN_SHARE, 1.0))))
-        for rows in groups.values():
-            rows = rows[::stride]  # a small budget thins the scan rather than losing it
-            scored = sorted(((_reduced_sse(reg, theta, drives), i) for i, theta in enumerate(rows)))
-            starts += [rows[i] for _, i in scored[:count]]
-        share = REFINE_SHARE * own.remaining / (max(len(starts), 1) * reg.evaluations(drives))
-        per_start = int(min(share, REFINE_EVALUATIONS))
-        refined = sorted((_refine_linear(reg, theta, drives, per_start) for theta in starts), key=lambda item: item[1])
+        starts = _ranked_starts(reg, _candidate_linear(structure.linear, data, drives), drives, count)
+        refined = _refine_in_turn(reg, starts, drives)
         del drives  # the static fits form their own basis
         reg.constant = structure.offset
         for theta, _ in refined[:count]:

@@ -116,7 +116,7 @@ def test_auto_in_bounded_memory(record):
     with pytest.MonkeyPatch.context() as mp:
         mp.setattr(objective, "BASIS_MAX_BYTES", 0)
         per_sample, r = peak_bytes_per_sample(lambda: identify(record, structure, maxfev=budget, seed=0))
-    assert r.nfev == budget and r.optimize_result.starts == 3
+    assert r.success and r.nfev <= budget and r.optimize_result.starts == 3
     np.testing.assert_allclose(r.x, bench.SYNTHETIC_BETA, rtol=1e-6)
     assert per_sample < 40
 
