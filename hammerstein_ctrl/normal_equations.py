@@ -31,8 +31,8 @@ from typing import NamedTuple
 import numba
 import numpy as np
 
-__all__ = ["NormalEquations", "from_residuals", "from_difference_sums", "from_factor", "forward_steps", "neighbours",
-           "FD_REL_STEP", "NONFINITE_RESIDUAL"]
+__all__ = ["NormalEquations", "from_residuals", "from_difference_sums", "from_factor", "scored_inf", "forward_steps",
+           "neighbours", "FD_REL_STEP", "NONFINITE_RESIDUAL"]
 
 #: Relative step of the forward-difference Jacobian (scipy's "2-point" default, sqrt(eps)).
 FD_REL_STEP = float(np.sqrt(np.finfo(float).eps))
@@ -220,11 +220,26 @@ def from_factor(R, steps) -> NormalEquations:
     p = steps.size
     if R.shape != (p + 1, p + 1):
         raise ValueError(f"a factor of shape {R.shape} does not fit {p} steps")
-    RJ = R[:p, :p] / steps
     qtr = R[:p, p].copy()
     with np.errstate(all="ignore"):
+        RJ = R[:p, :p] / steps
         fun = float(R[:, p] @ R[:, p])
         return NormalEquations(fun, RJ.T @ qtr, RJ.T @ RJ, steps, (RJ, qtr))
+
+
+def scored_inf(steps) -> NormalEquations:
+    """Normal equations of a point scored ``inf`` (it cannot be simulated, or is rejected): no solver can use it.
+
+    The sums are left at zero: nothing was simulated to form them.
+
+    Examples
+    --------
+    >>> ne = scored_inf([0.5, 0.25])
+    >>> ne.fun, ne.finite, ne.neighbour_values().tolist()
+    (inf, False, [inf, inf])
+    """
+    steps = np.ascontiguousarray(steps, dtype=float)
+    return NormalEquations(np.inf, np.zeros(steps.size), np.zeros((steps.size, steps.size)), steps)
 
 
 def from_residuals(R, steps) -> NormalEquations:

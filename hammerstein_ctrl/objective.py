@@ -41,12 +41,13 @@ import numba
 import numpy as np
 
 from ._checks import as_real_array
+from ._linalg import single_threaded_blas
 from .exceptions import ParameterError
 from .kernels import MAX_LANE_BASIS, MAX_UNROLLED_STATES, get_coefficient_kernel
 from .normal_equations import (NONFINITE_RESIDUAL, NormalEquations, forward_steps, from_factor, from_residuals,
-                               neighbours)
-from .simulate import (COMPILED_EXPM_MAX_NORM, normal_factor, normal_pass, simulate_batch, sse_basis_batch, sse_batch,
-                       unstable)
+                               neighbours, scored_inf)
+from .simulate import (COMPILED_EXPM_MAX_NORM, GROUPS_MIN_BYTES, normal_factor, normal_pass, simulate_batch,
+                       sse_basis_batch, sse_batch, unstable)
 from .structure import BlockStructure
 
 __all__ = ["HammersteinCost", "CHUNK_BYTES", "BASIS_MAX_BYTES", "BASIS_BLOCK", "EVAL_BLOCK", "NONFINITE_RESIDUAL"]
@@ -415,17 +416,26 @@ class HammersteinCost:
         b, h, X = self._neighbourhood(beta, steps, "normal_equations")
         if self.reject_unstable:
             bad = self._unstable(X)
-            if bad.any():       # the cost scores the point inf: so do its normal equations (a solver cannot start there)
-                ne = from_residuals(self.residuals_batch(X), h)
-                return ne._replace(fun=np.inf) if bad[0] else ne
+            if bad[0]:          # the cost scores the point inf: so do its normal equations (a solver cannot start there)
+                return scored_inf(h)
+            if bad.any():       # an unstable neighbour: its huge residuals keep the solver from stepping that way
+                return from_residuals(self.residuals_batch(X), h)
         ne = self._fused_normal_equations(X, h)
         if ne is not None and ne.finite:
             return ne
-        if ne is not None and self._scored_inf(ne, b):
-            return ne._replace(fun=np.inf)      # no p + 1 stored residual vectors for a point no solver can use
+        # no p + 1 stored residual vectors for a point no solver can use
+        if ne is not None and self._point_scored_inf(ne, b) or ne is None and self._long_and_inf(X, b):
+            return scored_inf(h)
         return from_residuals(self.residuals_batch(X), h)
 
-    def _scored_inf(self, ne, b) -> bool:
+    def _long_and_inf(self, X, b) -> bool:
+        """Whether ``X``'s residual vectors would be large (past ``GROUPS_MIN_BYTES``) and the cost scores ``b`` inf.
+
+        Checked before storing them: the point alone is one evaluation.
+        """
+        return X.shape[0] * self._y.size * self._y.itemsize > GROUPS_MIN_BYTES and not np.isfinite(self(b))
+
+    def _point_scored_inf(self, ne, b) -> bool:
         """Whether a pass that came out non-finite is so because the cost scores the point itself inf.
 
         The pass cannot tell which lane failed; a finite point with a
@@ -457,8 +467,10 @@ class HammersteinCost:
         if self.reject_unstable and self._unstable(X).any():
             return self.normal_equations(b, steps)       # its rules for rejected points
         ne = self._fused_normal_equations(X, h, normal_factor)
-        if ne is not None and (ne.finite or self._scored_inf(ne, b)):
+        if ne is not None and (ne.finite or self._point_scored_inf(ne, b)):
             return ne if ne.finite else ne._replace(fun=np.inf)
+        if ne is None and self._long_and_inf(X, b):
+            return scored_inf(h)
         from .streamed_lstsq import factor_of_blocks    # scipy.linalg's LAPACK: imported on first use
 
         R = self.residuals_batch(X)                      # non-finite entries already NONFINITE_RESIDUAL
@@ -468,7 +480,9 @@ class HammersteinCost:
             D = np.column_stack([(R[1:] - R[0]).T, R[0]])
             fun = float(R[0] @ R[0])
         # a record shorter than p + 1 samples: the factor is padded with zero rows
-        return from_factor(factor_of_blocks([D], h.size + 1), h)._replace(fun=fun)
+        with single_threaded_blas():
+            R = factor_of_blocks([D], h.size + 1)
+        return from_factor(R, h)._replace(fun=fun)
 
     def _neighbourhood(self, beta, steps, method: str):
         """``(b, h, X)``: the checked point, its forward-difference steps and the point with its neighbours."""

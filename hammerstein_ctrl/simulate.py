@@ -416,9 +416,12 @@ def _output_map(output_map, batch: int, n: int):
     if output_map is None:
         return None, (), None
     nonlinearity, params = output_map
-    HP = np.ascontiguousarray(np.broadcast_to(nonlinearity.check_params(params).reshape(-1, nonlinearity.n_params)
-                                              if np.ndim(params) else params, (batch, nonlinearity.n_params)),
-                              dtype=float)
+    m = nonlinearity.n_params
+    if m == 0:                          # a map without parameters: one empty row per candidate
+        HP = np.zeros((batch, 0))
+    else:
+        HP = np.ascontiguousarray(np.broadcast_to(nonlinearity.check_params(params).reshape(-1, m)
+                                                  if np.ndim(params) else params, (batch, m)), dtype=float)
     if nonlinearity.compiled_map and has_output_maps(n):
         extra = np.ascontiguousarray(nonlinearity.map_extra(), dtype=float)
         return nonlinearity.compiled_map, (HP, extra), None
@@ -679,7 +682,8 @@ def normal_pass(num, den, dt: float, y, P, blocks, steps, *, x0=None, offset=Non
         return None
     acc = np.zeros(1 + (lane_pass.lanes - 1) * lane_pass.lanes)
     if lane_pass.streams_outputs:       # the lanes' outputs leave the pass (mapped in numpy, or lane groups)
-        _sum_blocks(lane_pass.difference_blocks(blocks), lane_pass.lanes - 1, acc)
+        with single_threaded_blas():    # small products of each block: threads would only spin
+            _sum_blocks(lane_pass.difference_blocks(blocks), lane_pass.lanes - 1, acc)
         if not lane_pass.signals_finite():
             acc[0] = np.nan
     else:
@@ -724,7 +728,8 @@ def normal_factor(num, den, dt: float, y, P, blocks, steps, *, x0=None, offset=N
     if lane_pass is None:
         return None
     p = lane_pass.lanes - 1
-    R = factor_of_blocks(lane_pass.difference_blocks(blocks), p + 1)
+    with single_threaded_blas():        # a small QR of each block: threads would only spin
+        R = factor_of_blocks(lane_pass.difference_blocks(blocks), p + 1)
     if not lane_pass.signals_finite():   # a signal sample that reached no output
         R[:] = np.nan
     return from_factor(R, steps)
@@ -758,8 +763,8 @@ def _lane_pass(num, den, dt, y, P, x0, offset, intersample, output_map, outputs:
     (shorter ones are quicker from stored residual vectors: ``None``).
     """
     P = np.ascontiguousarray(P, dtype=float)
-    if P.shape[0] * np.size(y) * P.itemsize <= GROUPS_MIN_BYTES and not (
-            P.shape[0] <= MAX_NORMAL_LANES and 1 <= P.shape[1] <= MAX_LANE_BASIS):
+    if P.shape[1] == 0 or P.shape[0] * np.size(y) * P.itemsize <= GROUPS_MIN_BYTES and not (
+            P.shape[0] <= MAX_NORMAL_LANES and P.shape[1] <= MAX_LANE_BASIS):
         return None
     return _lane_pass_or_groups(num, den, dt, y, P, x0, offset, intersample, output_map, np.size(y), outputs)
 
@@ -908,7 +913,8 @@ class _LaneGroups:
             lane_rows = rows if len(rows) > 1 else rows * 2       # a pass has two lanes at least
             Pg = P[lane_rows][:, cols]
             if relative:
-                Pg = np.column_stack([np.ones(len(lane_rows)), Pg - P[0, cols]])
+                with np.errstate(all="ignore"):         # a parameter at inf: its lanes' signals are not finite
+                    Pg = np.column_stack([np.ones(len(lane_rows)), Pg - P[0, cols]])
             linear = [r if r < den.shape[0] else 0 for r in lane_rows]    # past the given blocks: row 0's
             group = _LanePass.prepare(num[linear], den[linear], dt, self.y, Pg, X[lane_rows], Y0[lane_rows],
                                       intersample, None if HP is None else (output_map[0], HP[lane_rows]),
@@ -933,7 +939,8 @@ class _LaneGroups:
                 part, reference = Phi[:, a:b], None
                 for (rows, cols, relative, group), buffer in zip(self.groups, buffers):
                     if relative and reference is None:
-                        reference = self.P[0] @ part
+                        with np.errstate(all="ignore"):     # an overflowing signal: its sums are not finite
+                            reference = self.P[0] @ part
                     signals = np.vstack([reference, part[cols]]) if relative else np.ascontiguousarray(part[cols])
                     Yg = buffer[:b - a]
                     group.run(signals, y_block[a:b], begin + a, Yg)
