@@ -47,7 +47,7 @@ import numpy as np
 import scipy.optimize
 
 from .exceptions import ParameterError
-from .simulate import free_response, response_blocks, simulate_batch, unstable
+from .simulate import MAX_UNROLLED_STATES, free_response, response_blocks, simulate_batch, unstable
 from . import streamed_lstsq
 from .streamed_lstsq import (constant_column, factor_of_blocks, factor_sse, residual, solve_minimum_norm, solve_scaled,
                              triangular_factor)
@@ -57,10 +57,10 @@ __all__ = ["initial_points", "stabilize", "nuisance_estimate", "estimate_initial
 
 #: Frequencies scanned per pole pattern (at least; see :data:`SCAN_PER_DECADE`).
 SCAN_FREQUENCIES = 12
-#: Density of the scanned frequencies on long records, whose band spans more decades: the band of a
-#: 1e6-sample record (five decades) had 2.9 times between scanned frequencies where a 1e4-sample
-#: record's had 1.9, and no candidate came near a plant's poles.
-SCAN_PER_DECADE = 3.5
+#: Density of the scanned frequencies on long records, whose band spans more decades (past four): the
+#: band of a 1e6-sample record (five decades) had 2.9 times between scanned frequencies where a
+#: 1e4-sample record's had 1.9, and no candidate came near a plant's poles.
+SCAN_PER_DECADE = 3
 #: Lowest scanned frequency: this many periods fit in the record.
 MIN_PERIODS = 2.0
 #: Highest scanned frequency as a fraction of the Nyquist frequency.
@@ -257,6 +257,13 @@ class _Drives:
         return cls(np.shape(probe)[0], signal.size,
                    part=lambda begin, stop: np.asarray(nonlinearity.basis(signal[begin:stop]), dtype=float))
 
+    @classmethod
+    def signal_of(cls, nonlinearity, signal, params, reg) -> "_Drives":
+        """The one signal ``nonlinearity(signal, params)``; by blocks where ``reg`` streams it."""
+        if not reg.streams(1):
+            return cls.rows(nonlinearity(signal, params)[None, :])
+        return cls(1, signal.size, part=lambda begin, stop: nonlinearity(signal[begin:stop], params)[None, :])
+
     def part(self, begin: int, stop: int) -> np.ndarray:
         """Samples ``begin:stop`` of every signal, ``(count, stop - begin)``."""
         return self._part(begin, stop)
@@ -351,8 +358,16 @@ class _Regression:
         self.constant = structure.offset or affine_output
 
     def streams(self, count: int) -> bool:
-        """Whether ``count`` drives (with their responses) are formed a block of samples at a time."""
-        return self.y.size * self.y.itemsize * count > STREAMED_COLUMNS_BYTES
+        """Whether ``count`` drives and the columns of their regression are formed a block of samples at a time.
+
+        The columns are the drives' responses and the free responses of an
+        estimated initial state; blocks of more than
+        :data:`~hammerstein_ctrl.simulate.MAX_UNROLLED_STATES` states (which
+        the compiled passes do not take) are held whole.
+        """
+        n = self.structure.linear.den_order
+        columns = count + (n if self.free_columns else 0)
+        return 1 <= n <= MAX_UNROLLED_STATES and self.y.size * self.y.itemsize * columns > STREAMED_COLUMNS_BYTES
 
     def simulate(self, theta, drives) -> np.ndarray:
         """Responses ``(k, N)`` of ``H(theta)`` to each drive (``k`` counted evaluations)."""
@@ -476,7 +491,7 @@ def _fit_static(reg: _Regression, nl, signal, columns) -> tuple[np.ndarray, np.n
         return None if w is None else (w[:nl.n_params], w[nl.n_params:])
     best = None
     for p in nl.shape_grid(signal):
-        w, sse = reg.fit(columns(nl(signal, p)[None, :]))
+        w, sse = reg.fit(columns(_Drives.signal_of(nl, signal, p, reg)))
         if w is not None and (best is None or sse < best[0]):
             q = p.copy()
             q[nl.scale_index] = w[0]
@@ -540,6 +555,21 @@ def _static_blocks(reg: _Regression, theta, u):
     return g_free, h, np.concatenate([offset, state])
 
 
+def _static_evaluations(reg: _Regression, u) -> int:
+    """Evaluations one :func:`_static_blocks` call charges: the fit (or scan) of ``g``, then one simulation per
+    candidate signal of an output nonlinearity."""
+    s = reg.structure
+    free = s.linear.den_order if reg.free_columns else 0
+    g, evaluations, candidates = s.input_nonlinearity, 0, 1
+    if g is not None:
+        basis = g.basis(u[:1])
+        grid = g.shape_grid(u) if basis is None or s.output_nonlinearity is not None else None
+        shapes = 0 if grid is None else len(grid)
+        evaluations = np.shape(basis)[0] + free if basis is not None else shapes * (1 + free)
+        candidates = 1 + shapes
+    return evaluations + (candidates if s.output_nonlinearity is not None else 0)
+
+
 def _assemble(structure, theta, g_params, h_params, nuisance) -> np.ndarray:
     return structure.normalize(np.concatenate([theta, g_params, h_params, nuisance]))
 
@@ -569,18 +599,20 @@ def _ranked_starts(reg: _Regression, groups: dict, drives: _Drives, count: int) 
     return [group[rank] for rank in range(count) for group in ranked if rank < len(group)]
 
 
-def _refine_in_turn(reg: _Regression, starts: list, drives: _Drives) -> list:
+def _refine_in_turn(reg: _Regression, starts: list, drives: _Drives, reserve: int = 0) -> list:
     """``(theta, sse)`` of each start refined in turn, best first, each with up to :data:`REFINE_EVALUATIONS`.
 
-    The refinements share :data:`REFINE_SHARE` of what is left; a start
-    that needs many steps to converge (a scan candidate far from the
-    optimum) gets them, where an even split of the share left each a few
-    steps and none converged.  Starts past the share keep their scan value.
+    The refinements share :data:`REFINE_SHARE` of what is left, less
+    ``reserve`` (the static fits that follow); a start that needs many
+    steps to converge (a scan candidate far from the optimum) gets them,
+    where an even split of the share left each a few steps and none
+    converged.  Starts past the share keep their scan value.
     """
-    pool, begin = REFINE_SHARE * reg.budget.remaining, reg.budget.nfev
+    remaining = reg.budget.remaining
+    pool, begin = min(REFINE_SHARE * remaining, remaining - reserve), reg.budget.nfev
     refined = []
     for theta, sse in starts:
-        left = int((pool - (reg.budget.nfev - begin)) // reg.evaluations(drives))
+        left = REFINE_EVALUATIONS if pool == np.inf else int((pool - (reg.budget.nfev - begin)) // reg.evaluations(drives))
         if left <= theta.size + 1:          # no step fits: the scan's value stands
             refined.append((theta, sse))
         else:
@@ -621,7 +653,7 @@ def initial_points(data, structure, budget: Budget, *, count: int = REFINED_CAND
     points = []
     try:
         starts = _ranked_starts(reg, _candidate_linear(structure.linear, data, drives), drives, count)
-        refined = _refine_in_turn(reg, starts, drives)
+        refined = _refine_in_turn(reg, starts, drives, _static_evaluations(reg, u))    # the best start's static fit
         del drives  # the static fits form their own basis
         reg.constant = structure.offset
         for theta, _ in refined[:count]:

@@ -368,7 +368,7 @@ def _discretized(num, den, dt: float):
         import scipy.linalg
 
         M = tf_augmented(num[big], den[big], float(dt))[0]
-        with single_threaded_blas():
+        with single_threaded_blas(), np.errstate(all="ignore"):      # a fast unstable pole overflows: not finite
             E[big] = scipy.linalg.expm(M)
     return E, C, D, ok, clean
 
@@ -856,10 +856,10 @@ def _checked_blocks(blocks, K: int, y, n_samples: int):
     begin = 0
     for Phi in blocks:
         Phi = np.ascontiguousarray(Phi, dtype=float)
-        stop = begin + Phi.shape[1]
-        if Phi.shape[0] != K or stop > n_samples:
+        if Phi.ndim != 2 or Phi.shape[0] != K or begin + Phi.shape[1] > n_samples:
             raise DataError(f"a block of the basis of shape {Phi.shape} does not fit {K} basis signals "
                             f"and a record of {n_samples} samples (at sample {begin})")
+        stop = begin + Phi.shape[1]
         yield begin, Phi, np.zeros(Phi.shape[1]) if y is None else y[begin:stop]
         begin = stop
     if begin != n_samples:
@@ -1029,15 +1029,19 @@ def response_blocks(num, den, dt: float, signals, n_signals: int, n_samples: int
     num, den = check_transfer_function(num, den, name="linear block")
     n = den.size - 1
     extra = n if free else 0
+    K = max(n_signals, 1)               # no signal (free responses alone): one zero signal drives no lane
+    if n_signals == 0:
+        signals = (np.zeros((1, np.shape(block)[-1])) for block in signals)
     lanes = max(n_signals + extra, 2)                   # a pass has two lanes at least
-    P = np.zeros((lanes, n_signals))
+    P = np.zeros((lanes, K))
     P[np.arange(n_signals), np.arange(n_signals)] = 1.0
-    X = np.zeros((lanes, max(n, 1)))[:, :n]
+    X = np.zeros((lanes, n))
     X[n_signals:n_signals + extra] = np.eye(n)[:extra]
     passes = _lane_pass_or_groups(num[None, :], den[None, :], dt, None, P, X, None, intersample, None,
-                                  n_samples) if n_signals >= 1 and n >= 1 else None
+                                  n_samples) if 1 <= n <= MAX_UNROLLED_STATES else None
     if passes is None:
-        raise ParameterError(f"the linear block {num} / {den} cannot be simulated a block at a time")
+        raise ParameterError(f"the linear block {num} / {den} cannot be simulated a block at a time "
+                             f"(1 to {MAX_UNROLLED_STATES} states and finite coefficients)")
     for _, Y in passes.output_blocks(signals):
         yield Y[:, :n_signals + extra]
 
