@@ -156,8 +156,13 @@ def _arx_poles(data, drives, m: int) -> np.ndarray | None:
     if not np.all(np.isfinite(R)):
         return None
     coef = solve_minimum_norm(R, N - m)
+    z = np.roots(np.concatenate([[1.0], -coef[:m]])).astype(complex)
+    # a negative real discrete pole (an oscillation at the Nyquist rate, typical of a noisy fit) has no
+    # continuous-time image: its log has the imaginary part pi/dt and no conjugate, which made the
+    # candidate's real polynomial unstable.  Its decay rate stands in for it.
+    nyquist = (np.abs(z.imag) <= 1e-12 * np.abs(z)) & (z.real < 0)
     with np.errstate(all="ignore"):
-        s = np.log(np.roots(np.concatenate([[1.0], -coef[:m]])).astype(complex)) / data.dt
+        s = np.where(nyquist, np.log(np.abs(z)) + 0j, np.log(z)) / data.dt
     if not np.all(np.isfinite(s)):
         return None
     return np.where(s.real > 0, -s.real + 1j * s.imag, s)
