@@ -762,11 +762,13 @@ def _lane_pass(num, den, dt, y, P, x0, offset, intersample, output_map, outputs:
     whose candidates' outputs would take more than :data:`GROUPS_MIN_BYTES`
     (shorter ones are quicker from stored residual vectors: ``None``).
     """
-    P = np.ascontiguousarray(P, dtype=float)
-    if P.shape[1] == 0 or P.shape[0] * np.size(y) * P.itemsize <= GROUPS_MIN_BYTES and not (
-            P.shape[0] <= MAX_NORMAL_LANES and P.shape[1] <= MAX_LANE_BASIS):
+    lanes, K = np.shape(P)
+    if lanes <= MAX_NORMAL_LANES and 1 <= K <= MAX_LANE_BASIS:       # one pass (the common case first)
+        return _LanePass.prepare(num, den, dt, y, P, x0, offset, intersample, output_map, outputs)
+    if K == 0 or lanes * np.size(y) * np.dtype(float).itemsize <= GROUPS_MIN_BYTES:
         return None
-    return _lane_pass_or_groups(num, den, dt, y, P, x0, offset, intersample, output_map, np.size(y), outputs)
+    return _LaneGroups.prepare(num, den, dt, y, np.ascontiguousarray(P, dtype=float), x0, offset, intersample,
+                               output_map)
 
 
 def _lane_pass_or_groups(num, den, dt, y, P, x0, offset, intersample, output_map, n_samples: int,
@@ -802,6 +804,8 @@ class _LanePass:
         # an output map without a compiled form: the lanes' linear outputs leave the pass, and the map
         # (then the offset) is applied to them a block at a time (python_map)
         self.python_map = fallback
+        # whether the lanes' outputs leave the pass (difference_blocks) instead of being summed in it
+        self.streams_outputs = fallback is not None
         self.kernel = get_normal_kernel(n, hold, lanes, K, direct, has_offset and not fallback, outmap,
                                         outputs or bool(fallback))
         self.E, self.C, self.D = E, C, D
@@ -810,11 +814,6 @@ class _LanePass:
         self.y = None if y is None else _measured(y, np.size(y))
         self.n_samples = n_samples if y is None else self.y.size
         return self
-
-    @property
-    def streams_outputs(self) -> bool:
-        """Whether the lanes' outputs leave the pass (:meth:`difference_blocks`) instead of being summed in it."""
-        return self.python_map is not None
 
     def signals_finite(self) -> bool:
         """Whether every lane's last signal sample is finite (one that reached no output yet may not be)."""
