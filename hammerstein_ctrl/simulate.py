@@ -924,6 +924,7 @@ class _LaneGroups:
         return self
 
     def signals_finite(self) -> bool:
+        """Whether every group's lanes have a finite last signal sample (see :meth:`_LanePass.signals_finite`)."""
         return all(group.signals_finite() for *_, group in self.groups)
 
     def output_blocks(self, blocks):
