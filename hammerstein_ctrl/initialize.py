@@ -47,7 +47,7 @@ import numpy as np
 import scipy.optimize
 
 from .exceptions import ParameterError
-from .simulate import MAX_UNROLLED_STATES, free_response, response_blocks, simulate_batch, unstable
+from .simulate import MAX_PASS_STATES, free_response, response_blocks, simulate_batch, unstable
 from . import streamed_lstsq
 from .streamed_lstsq import (constant_column, factor_of_blocks, factor_sse, residual, solve_minimum_norm, solve_scaled,
                              triangular_factor)
@@ -367,12 +367,12 @@ class _Regression:
 
         The columns are the drives' responses and the free responses of an
         estimated initial state; blocks of more than
-        :data:`~hammerstein_ctrl.simulate.MAX_UNROLLED_STATES` states (which
+        :data:`~hammerstein_ctrl.simulate.MAX_PASS_STATES` states (which
         the compiled passes do not take) are held whole.
         """
         n = self.structure.linear.den_order
         columns = count + (n if self.free_columns else 0)
-        return 1 <= n <= MAX_UNROLLED_STATES and self.y.size * self.y.itemsize * columns > STREAMED_COLUMNS_BYTES
+        return 1 <= n <= MAX_PASS_STATES and self.y.size * self.y.itemsize * columns > STREAMED_COLUMNS_BYTES
 
     def simulate(self, theta, drives) -> np.ndarray:
         """Responses ``(k, N)`` of ``H(theta)`` to each drive (``k`` counted evaluations)."""

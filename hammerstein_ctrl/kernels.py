@@ -63,13 +63,19 @@ from pathlib import Path
 import numba
 import numpy as np
 
+from ._checks import MAX_ORDER
+
 __all__ = ["get_kernel", "get_coefficient_kernel", "get_normal_kernel", "get_lane_kernel", "lane_source",
            "has_output_maps", "kernel_source", "normal_source", "cache_dir", "OUTPUT_TERMS",
-           "MAX_UNROLLED_STATES", "MAX_NORMAL_LANES", "LANE_WIDTHS", "LANE_MIN",
+           "MAX_UNROLLED_STATES", "MAX_PASS_STATES", "MAX_NORMAL_LANES", "LANE_WIDTHS", "LANE_MIN",
            "MAX_LANE_BASIS", "INTERLEAVE", "MODES", "HOLDS", "ENV_CACHE"]
 
 #: State dimensions up to this get a generated kernel with the state in registers.
 MAX_UNROLLED_STATES = 8
+#: State dimensions up to this get the normal-equation pass (and its outputs mode): every order a
+#: linear block may have, so that LM's Jacobian sums and the automatic starts' regressions stay
+#: bounded in memory on long records whatever the block (a 10-state pass compiles in ~6 s, once).
+MAX_PASS_STATES = MAX_ORDER
 #: Candidates simulated side by side in one loop of a generated kernel.
 INTERLEAVE = 2
 #: ``"sse"``: sum of squared errors only; ``"outputs"``: the simulated output.
@@ -588,7 +594,8 @@ def get_normal_kernel(n: int, hold: str, lanes: int, K: int, direct: bool = True
     Parameters
     ----------
     n : int
-        State dimension (at most :data:`MAX_UNROLLED_STATES`).
+        State dimension (at most :data:`MAX_PASS_STATES`; an output map in the
+        pass needs at most :data:`MAX_UNROLLED_STATES`).
     hold : {"foh", "zoh"}
     lanes : int
         Number of candidates, ``2 .. MAX_NORMAL_LANES``.
@@ -634,7 +641,7 @@ def get_normal_kernel(n: int, hold: str, lanes: int, K: int, direct: bool = True
     """
     if hold not in HOLDS:
         raise ValueError(f"unknown hold {hold!r}")
-    _check_sizes(n, K)
+    _check_sizes(n, K, MAX_PASS_STATES)
     if not 2 <= lanes <= MAX_NORMAL_LANES:
         raise ValueError(f"normal-equation passes are compiled for 2..{MAX_NORMAL_LANES} lanes, not {lanes}")
     if outmap is not None and not has_output_maps(n):
@@ -676,10 +683,10 @@ def cache_dir() -> Path | None:
     return path
 
 
-def _check_sizes(n: int, K: int):
+def _check_sizes(n: int, K: int, max_states: int = MAX_UNROLLED_STATES):
     """Raise unless kernels forming the signal from a basis are compiled for ``n`` states and ``K`` basis signals."""
-    if not (1 <= n <= MAX_UNROLLED_STATES and 1 <= K <= MAX_LANE_BASIS):
-        raise ValueError(f"kernels forming the signal from a basis are compiled for 1..{MAX_UNROLLED_STATES} "
+    if not (1 <= n <= max_states and 1 <= K <= MAX_LANE_BASIS):
+        raise ValueError(f"kernels forming the signal from a basis are compiled for 1..{max_states} "
                          f"states and 1..{MAX_LANE_BASIS} basis signals, not n = {n}, K = {K}")
 
 

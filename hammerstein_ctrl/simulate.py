@@ -48,7 +48,8 @@ import numpy as np
 from ._checks import as_signal, check_dt, check_intersample, check_transfer_function, uniform_grid
 from ._linalg import expm_batch, single_threaded_blas, tf_augmented, tf_discrete
 from .exceptions import DataError, ParameterError
-from .kernels import (LANE_MIN, MAX_LANE_BASIS, MAX_NORMAL_LANES, MAX_UNROLLED_STATES, get_coefficient_kernel,
+from .kernels import (LANE_MIN, MAX_LANE_BASIS, MAX_NORMAL_LANES, MAX_PASS_STATES, MAX_UNROLLED_STATES,
+                      get_coefficient_kernel,
                       get_kernel, get_lane_kernel, get_normal_kernel, has_output_maps)
 from .normal_equations import NormalEquations, from_difference_sums, from_factor
 
@@ -69,6 +70,7 @@ __all__ = [
     "COMPILED_EXPM_MAX_NORM",
     "GROUPS_MIN_BYTES",
     "MAX_UNROLLED_STATES",
+    "MAX_PASS_STATES",
 ]
 
 
@@ -659,7 +661,7 @@ def normal_pass(num, den, dt: float, y, P, blocks, steps, *, x0=None, offset=Non
     -------
     NormalEquations or None
         ``None`` if the pass does not apply (no state or more than
-        :data:`MAX_UNROLLED_STATES` states, a candidate whose coefficients
+        :data:`MAX_PASS_STATES` states, a candidate whose coefficients
         cannot be discretised, or, past one pass, a candidate whose signal
         needs more than :data:`~hammerstein_ctrl.kernels.MAX_LANE_BASIS`
         basis rows).  More than :data:`~hammerstein_ctrl.kernels.MAX_NORMAL_LANES`
@@ -791,7 +793,7 @@ class _LanePass:
         hold = check_intersample(intersample)
         P = np.ascontiguousarray(P, dtype=float)
         lanes, n, K = P.shape[0], np.shape(den)[-1] - 1, P.shape[-1]
-        if not 2 <= lanes <= MAX_NORMAL_LANES or not 1 <= n <= MAX_UNROLLED_STATES or not 1 <= K <= MAX_LANE_BASIS:
+        if not 2 <= lanes <= MAX_NORMAL_LANES or not 1 <= n <= MAX_PASS_STATES or not 1 <= K <= MAX_LANE_BASIS:
             return None
         E, C, D, ok, clean = _discretized(num, den, dt)
         if not clean and not ok.all():
@@ -898,7 +900,7 @@ class _LaneGroups:
         """The groups, or ``None`` where a candidate fits no group or a pass does not apply (``y``: as :class:`_LanePass`)."""
         plan = _lane_groups(P)
         num, den = _coefficient_rows(num, den)
-        if plan is None or not 1 <= den.shape[1] - 1 <= MAX_UNROLLED_STATES:
+        if plan is None or not 1 <= den.shape[1] - 1 <= MAX_PASS_STATES:
             return None
         lanes, n = P.shape[0], den.shape[1] - 1
         X, Y0 = _state_rows(x0, lanes, n), _offset_rows(offset, lanes)
@@ -1013,7 +1015,7 @@ def response_blocks(num, den, dt: float, signals, n_signals: int, n_samples: int
     ------
     ParameterError
         If the block cannot be simulated in a compiled pass (no state, more
-        than :data:`MAX_UNROLLED_STATES` states, coefficients that cannot be
+        than :data:`MAX_PASS_STATES` states, coefficients that cannot be
         discretised).
 
     Examples
@@ -1038,10 +1040,10 @@ def response_blocks(num, den, dt: float, signals, n_signals: int, n_samples: int
     X = np.zeros((lanes, n))
     X[n_signals:n_signals + extra] = np.eye(n)[:extra]
     passes = _lane_pass_or_groups(num[None, :], den[None, :], dt, None, P, X, None, intersample, None,
-                                  n_samples) if 1 <= n <= MAX_UNROLLED_STATES else None
+                                  n_samples) if 1 <= n <= MAX_PASS_STATES else None
     if passes is None:
         raise ParameterError(f"the linear block {num} / {den} cannot be simulated a block at a time "
-                             f"(1 to {MAX_UNROLLED_STATES} states and finite coefficients)")
+                             f"(1 to {MAX_PASS_STATES} states and finite coefficients)")
     for _, Y in passes.output_blocks(signals):
         yield Y[:, :n_signals + extra]
 

@@ -364,3 +364,27 @@ def test_lm_on_the_qr_factor_reaches_minpacks_optimum(case, request, monkeypatch
     assert factored.fun <= minpack.fun * (1 + 1e-12)
     if case.name == "emps":             # TRS's tanh has a nearly flat direction (d0 d1 fixed): J, not x
         np.testing.assert_allclose(factored.x, minpack.x, rtol=1e-5)
+
+
+def test_blocks_past_the_unrolled_kernels_take_the_pass():
+    """A 10-state block (the most a LinearStructure takes; J's kernels unroll 8): the normal-equation pass
+    applies, with the stored Jacobian's sums, so LM stores no p + 1 residual vectors for it either."""
+    import control
+
+    from hammerstein_ctrl.kernels import MAX_PASS_STATES, MAX_UNROLLED_STATES
+
+    t = 0.01 * np.arange(3000)
+    u = np.sin(t) + 0.5 * np.sin(3.3 * t)
+    den = np.real(np.poly(-np.linspace(0.5, 3.0, 10)))
+    y = control.forced_response(control.tf([1.0], den), t, 0.8 * u + 0.2 * np.sign(u)).outputs
+    s = hc.HammersteinStructure(hc.LinearStructure(0, 10), hc.Coulomb())
+    assert s.linear.den_order == MAX_PASS_STATES > MAX_UNROLLED_STATES
+    cost = HammersteinCost(hc.IOData(u, y, dt=0.01), s)
+    x = np.r_[den[1:][::-1], 0.8, 0.2, 0.0] * 1.01
+    h = forward_steps(x)
+    ne = cost._fused_normal_equations(neighbours(x, h), h)
+    assert ne is not None
+    ref = from_residuals(cost.residuals_batch(neighbours(x, h)), h)
+    assert ne.fun == pytest.approx(ref.fun, rel=1e-9)
+    scale = np.sqrt(np.outer(np.diag(ref.gram), np.diag(ref.gram)))
+    assert np.max(np.abs(ne.gram - ref.gram) / scale) < 1e-4        # forward differences of a 10-state block
