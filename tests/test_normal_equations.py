@@ -299,7 +299,7 @@ def test_lane_groups_keep_memory_bounded_on_long_records():
     for n in (1_000_000, 2_000_000):
         t = 0.01 * np.arange(n)
         cost = HammersteinCost(hc.IOData(np.sin(0.3 * t) + 0.5 * np.sin(3.3 * t), np.cos(t), dt=0.01), s)
-        cost.normal_equations(x)                            # compile, allocate caches
+        cost.normal_equations(x), cost.normal_factor(x)     # compile, allocate caches
         for method in (cost.normal_equations, cost.normal_factor):
             tracemalloc.start()
             try:
