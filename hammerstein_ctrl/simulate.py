@@ -765,20 +765,26 @@ def _lane_pass(num, den, dt, y, P, x0, offset, intersample, output_map, outputs:
     (shorter ones are quicker from stored residual vectors: ``None``).
     """
     lanes, K = np.shape(P)
-    if lanes <= MAX_NORMAL_LANES and 1 <= K <= MAX_LANE_BASIS:       # one pass (the common case first)
-        return _LanePass.prepare(num, den, dt, y, P, x0, offset, intersample, output_map, outputs)
-    if K == 0 or lanes * np.size(y) * np.dtype(float).itemsize <= GROUPS_MIN_BYTES:
+    if not _fits_one_pass(lanes, K) and lanes * np.size(y) * np.dtype(float).itemsize <= GROUPS_MIN_BYTES:
         return None
-    return _LaneGroups.prepare(num, den, dt, y, np.ascontiguousarray(P, dtype=float), x0, offset, intersample,
-                               output_map)
+    return _lane_pass_or_groups(num, den, dt, y, P, x0, offset, intersample, output_map, np.size(y), outputs)
+
+
+def _fits_one_pass(lanes: int, K: int) -> bool:
+    """Whether ``lanes`` candidates on ``K`` basis signals fit one compiled pass."""
+    return lanes <= MAX_NORMAL_LANES and 1 <= K <= MAX_LANE_BASIS
 
 
 def _lane_pass_or_groups(num, den, dt, y, P, x0, offset, intersample, output_map, n_samples: int,
                          outputs: bool = True):
     """One :class:`_LanePass` where the candidates fit one, else :class:`_LaneGroups` (``None`` if neither applies)."""
-    if P.shape[0] <= MAX_NORMAL_LANES and 1 <= P.shape[1] <= MAX_LANE_BASIS:
+    lanes, K = np.shape(P)
+    if _fits_one_pass(lanes, K):
         return _LanePass.prepare(num, den, dt, y, P, x0, offset, intersample, output_map, outputs, n_samples)
-    return _LaneGroups.prepare(num, den, dt, y, P, x0, offset, intersample, output_map, n_samples)
+    if K == 0:
+        return None
+    return _LaneGroups.prepare(num, den, dt, y, np.ascontiguousarray(P, dtype=float), x0, offset, intersample,
+                               output_map, n_samples)
 
 
 class _LanePass:
