@@ -49,8 +49,8 @@ import scipy.optimize
 from .exceptions import ParameterError
 from .simulate import MAX_PASS_STATES, free_response, response_blocks, simulate_batch, unstable
 from . import streamed_lstsq
-from .streamed_lstsq import (constant_column, factor_of_blocks, factor_sse, residual, solve_minimum_norm, solve_scaled,
-                             triangular_factor)
+from .streamed_lstsq import (constant_column, factor_of_blocks, factor_of_columns, factor_sse, residual,
+                             residual_of_columns, solve_minimum_norm, solve_scaled, triangular_factor)
 
 __all__ = ["initial_points", "stabilize", "nuisance_estimate", "estimate_initial_state", "static_affine_sse",
            "Budget", "BudgetSpent", "POLE_PATTERNS"]
@@ -328,24 +328,14 @@ class _StreamedColumns:
 
     def factor(self, y) -> np.ndarray:
         """The triangular factor of ``[X y]`` (:func:`~hammerstein_ctrl.streamed_lstsq.triangular_factor`); NaN if not finite."""
-        def rows():
-            block = np.empty((min(streamed_lstsq.BLOCK_SAMPLES, y.size), self.width + 1), order="F")
-            for begin, X in self.blocks():
-                part = block[:X.shape[0]]
-                part[:, :-1] = X
-                part[:, -1] = y[begin:begin + X.shape[0]]
-                yield part
         try:
-            return factor_of_blocks(rows(), self.width + 1)
+            return factor_of_columns(self.blocks(), y, self.width)
         except ParameterError:          # a block that cannot be simulated: no fit, as a non-finite column
             return np.full((self.width + 1, self.width + 1), np.nan)
 
     def residual(self, w, y) -> np.ndarray:
         """``y - X w``, formed block by block."""
-        out = np.empty(y.size)
-        for begin, X in self.blocks():
-            np.subtract(y[begin:begin + X.shape[0]], X @ w, out=out[begin:begin + X.shape[0]])
-        return out
+        return residual_of_columns(self.blocks(), w, y)
 
 
 class _Regression:

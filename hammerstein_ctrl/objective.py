@@ -423,25 +423,23 @@ class HammersteinCost:
         ne = self._fused_normal_equations(X, h)
         if ne is not None and ne.finite:
             return ne
-        # no p + 1 stored residual vectors for a point no solver can use
-        if ne is not None and self._point_scored_inf(ne, b) or ne is None and self._long_and_inf(X, b):
+        if self._point_scored_inf(ne, X, b):    # no p + 1 stored residual vectors for a point no solver can use
             return scored_inf(h)
         return from_residuals(self.residuals_batch(X), h)
 
-    def _long_and_inf(self, X, b) -> bool:
-        """Whether ``X``'s residual vectors would be large (past ``GROUPS_MIN_BYTES``) and the cost scores ``b`` inf.
+    def _point_scored_inf(self, ne, X, b) -> bool:
+        """Whether the cost scores the point ``b`` itself inf, asked where the pass ``ne`` gave no finite sums.
 
-        Checked before storing them: the point alone is one evaluation.
+        A pass that came out non-finite cannot tell which lane failed: a
+        finite point with a non-finite neighbour (a parameter at inf) takes the
+        residuals' route.  Without a pass (``ne`` None) the point is checked
+        only where its neighbourhood's residual vectors ``X`` would be large
+        (past :data:`~hammerstein_ctrl.simulate.GROUPS_MIN_BYTES`): the point
+        alone is one evaluation.
         """
-        return X.shape[0] * self._y.size * self._y.itemsize > GROUPS_MIN_BYTES and not np.isfinite(self(b))
-
-    def _point_scored_inf(self, ne, b) -> bool:
-        """Whether a pass that came out non-finite is so because the cost scores the point itself inf.
-
-        The pass cannot tell which lane failed; a finite point with a
-        non-finite neighbour (a parameter at inf) takes the residuals' route.
-        """
-        return not np.isfinite(ne.fun) and not np.isfinite(self(b))
+        if ne is None and X.shape[0] * self._y.size * self._y.itemsize <= GROUPS_MIN_BYTES:
+            return False
+        return (ne is None or not np.isfinite(ne.fun)) and not np.isfinite(self(b))
 
     def normal_factor(self, beta, steps=None) -> NormalEquations:
         """:meth:`normal_equations` with the Jacobian's QR factor (``factor = (R, Q.T r)``) instead of ``J.T J``.
@@ -467,9 +465,9 @@ class HammersteinCost:
         if self.reject_unstable and self._unstable(X).any():
             return self.normal_equations(b, steps)       # its rules for rejected points
         ne = self._fused_normal_equations(X, h, normal_factor)
-        if ne is not None and (ne.finite or self._point_scored_inf(ne, b)):
-            return ne if ne.finite else ne._replace(fun=np.inf)
-        if ne is None and self._long_and_inf(X, b):
+        if ne is not None and ne.finite:
+            return ne
+        if self._point_scored_inf(ne, X, b):
             return scored_inf(h)
         from .streamed_lstsq import factor_of_blocks    # scipy.linalg's LAPACK: imported on first use
 

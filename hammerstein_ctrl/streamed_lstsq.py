@@ -37,7 +37,8 @@ import numpy as np
 import scipy.linalg
 
 __all__ = ["BLOCK_SAMPLES", "triangular_factor", "factor_of_blocks", "rank_tolerance", "solve_scaled",
-           "solve_minimum_norm", "factor_sse", "residual", "constant_column"]
+           "solve_minimum_norm", "factor_sse", "residual", "constant_column", "column_blocks",
+           "factor_of_columns", "residual_of_columns"]
 
 #: Samples per block of the streamed factorisation and residual (a block of
 #: ``p + 1`` columns takes ``8 (p + 1) BLOCK_SAMPLES`` bytes).
@@ -109,22 +110,53 @@ def triangular_factor(columns, y) -> np.ndarray:
     ndarray
         ``R``; all NaN if a column or ``y`` holds a non-finite value.
     """
-    rows = _rows(columns)
     y = np.asarray(y, dtype=float)
-    p1 = sum(a.shape[0] for a in rows) + 1
-    return factor_of_blocks(_blocks(rows, y, p1), p1)
+    rows = _rows(columns)
+    return factor_of_columns(column_blocks(rows, y.shape[0]), y, sum(a.shape[0] for a in rows))
 
 
-def _blocks(rows, y, p1: int):
-    """Consecutive ``(L, p1)`` blocks of ``[X y]``, written into one reused Fortran-ordered buffer."""
-    n = y.shape[0]
-    block = np.empty((max(min(BLOCK_SAMPLES, n), p1), p1), order="F")
-    for begin in range(0, n, BLOCK_SAMPLES):
-        stop = min(begin + BLOCK_SAMPLES, n)
-        part = block[:stop - begin]
-        _fill(rows, begin, stop, part[:, :-1])
-        part[:, -1] = y[begin:stop]
-        yield part
+def column_blocks(columns, n_samples: int):
+    """``(begin, X)``: the columns at consecutive blocks of :data:`BLOCK_SAMPLES` samples.
+
+    ``X`` (``(L, p)``) is one reused buffer: use each block before asking
+    for the next.  This is the form :func:`factor_of_columns` and
+    :func:`residual_of_columns` take; a caller whose columns are computed a
+    block at a time (never held whole) yields it itself.
+
+    Examples
+    --------
+    >>> [(begin, X.shape) for begin, X in column_blocks([np.arange(3.0), np.ones((2, 3))], 3)]
+    [(0, (3, 3))]
+    """
+    rows = _rows(columns)
+    buffer = np.empty((min(BLOCK_SAMPLES, n_samples), sum(a.shape[0] for a in rows)))
+    for begin in range(0, n_samples, BLOCK_SAMPLES):
+        stop = min(begin + BLOCK_SAMPLES, n_samples)
+        X = buffer[:stop - begin]
+        _fill(rows, begin, stop, X)
+        yield begin, X
+
+
+def factor_of_columns(blocks, y, width: int) -> np.ndarray:
+    """:func:`triangular_factor` of ``[X y]`` from ``(begin, X)`` blocks of ``width`` columns (:func:`column_blocks`).
+
+    Examples
+    --------
+    >>> t = np.arange(5.0)
+    >>> R = factor_of_columns(column_blocks([t], 5), 2.0 * t, 1)
+    >>> solve_scaled(R, 5).round(12).tolist()
+    [2.0]
+    """
+    y = np.asarray(y, dtype=float)
+
+    def parts():
+        buffer = np.empty((min(BLOCK_SAMPLES, y.shape[0]), width + 1), order="F")
+        for begin, X in blocks:
+            part = buffer[:X.shape[0]]
+            part[:, :-1] = X
+            part[:, -1] = y[begin:begin + X.shape[0]]
+            yield part
+    return factor_of_blocks(parts(), width + 1)
 
 
 def factor_of_blocks(blocks, width: int) -> np.ndarray:
@@ -229,15 +261,22 @@ def residual(columns, w, y) -> np.ndarray:
     >>> residual([np.arange(3.0)], [2.0], np.array([1.0, 2.0, 3.0])).tolist()
     [1.0, 0.0, -1.0]
     """
-    rows = _rows(columns)
+    y = np.asarray(y, dtype=float)
+    return residual_of_columns(column_blocks(columns, y.shape[0]), w, y)
+
+
+def residual_of_columns(blocks, w, y) -> np.ndarray:
+    """:func:`residual` ``y - X w`` from ``(begin, X)`` blocks (:func:`column_blocks`).
+
+    Examples
+    --------
+    >>> residual_of_columns(column_blocks([np.ones(3)], 3), [0.5], np.arange(3.0)).tolist()
+    [-0.5, 0.5, 1.5]
+    """
     y = np.asarray(y, dtype=float)
     w = np.asarray(w, dtype=float)
-    n = y.shape[0]
-    out = np.empty(n)
-    block = np.empty((min(BLOCK_SAMPLES, n), w.size))
-    for begin in range(0, n, BLOCK_SAMPLES):
-        stop = min(begin + BLOCK_SAMPLES, n)
-        part = block[:stop - begin]
-        _fill(rows, begin, stop, part)
-        np.subtract(y[begin:stop], part @ w, out=out[begin:stop])
+    out = np.empty(y.shape[0])
+    for begin, X in blocks:
+        stop = begin + X.shape[0]
+        np.subtract(y[begin:stop], X @ w, out=out[begin:stop])
     return out
