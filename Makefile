@@ -1,13 +1,14 @@
 # hammerstein_ctrl: the two commands of the README, plus helpers.
 #   make demo   create .venv, install, reproduce the paper's TRS comparison, write figures
-#   make test   create .venv, install with test extras, run the whole test suite
+#   make test   create .venv, install with test extras, run the test suite (all but the tests marked slow)
+#   make test-slow  the tests marked slow (notebooks, studies, CLI examples); .ci/run runs both
 #   make notebooks  execute notebooks/*.ipynb in place, saving their outputs (figures)
 PYTHON ?= python3
 VENV   ?= .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 
-.PHONY: demo test bench notebooks install clean
+.PHONY: demo test test-slow bench notebooks install clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -22,6 +23,9 @@ demo: $(STAMP)
 
 test: $(STAMP)
 	$(BIN)/python -m pytest -q
+
+test-slow: $(STAMP)
+	$(BIN)/python -m pytest -q -m slow
 
 notebooks: $(STAMP)
 	$(BIN)/python notebooks/run_notebooks.py

@@ -25,7 +25,7 @@ import importlib
 import sys
 import types
 
-from .exceptions import DataError, HammersteinError, ParameterError, UnknownNameError
+from .exceptions import CacheWarning, DataError, HammersteinError, ParameterError, UnknownNameError
 
 __version__ = "0.1.0"
 
@@ -57,7 +57,7 @@ __all__ = [
     "study", "control_design", "exact_export", "persistence", "display", "load_model", "save_model", "load_result",
     "save_result",
     "IOData", "load_emps", "load_trs", "make_trs_reconstruction", "read_record",
-    "DataError", "HammersteinError", "ParameterError", "UnknownNameError",
+    "DataError", "HammersteinError", "ParameterError", "UnknownNameError", "CacheWarning",
     "fit_percent", "fit_report", "nrmse", "rmse", "sse",
     "BlockModel", "HammersteinModel", "WienerModel", "HammersteinWienerModel", "identify", "IdentificationResult",
     "Nonlinearity", "Tanh", "Coulomb", "Polynomial", "Saturation", "DeadZone", "PiecewiseLinear",

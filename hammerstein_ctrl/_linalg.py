@@ -23,8 +23,9 @@ import contextlib
 import functools
 import threading
 
-import numba
 import numpy as np
+
+from ._jit import cached_njit
 
 __all__ = ["expm_batch", "expm_into", "tf_augmented", "tf_discrete", "single_threaded_blas", "solve_in_place",
            "symmetric_eigenvalues", "PADE13_THETA", "JACOBI_MAX_SWEEPS"]
@@ -41,7 +42,7 @@ _B13 = np.array([
 ])
 
 
-@numba.njit(cache=True, nogil=True)
+@cached_njit()
 def _matmul(X, Y, out):  # pragma: no cover - compiled
     n = X.shape[0]
     for i in range(n):
@@ -52,7 +53,7 @@ def _matmul(X, Y, out):  # pragma: no cover - compiled
             out[i, j] = s
 
 
-@numba.njit(cache=True, nogil=True)
+@cached_njit()
 def solve_in_place(A, B):  # pragma: no cover - compiled
     """Overwrite ``B`` (``n x m``) with ``A^-1 B``: Gaussian elimination with partial pivoting, ``A`` destroyed.
 
@@ -105,7 +106,7 @@ def solve_in_place(A, B):  # pragma: no cover - compiled
 JACOBI_MAX_SWEEPS = 60
 
 
-@numba.njit(cache=True, nogil=True)
+@cached_njit()
 def _rotate(A, p, q):  # pragma: no cover - compiled
     """One Jacobi rotation of the symmetric ``A`` zeroing ``A[p, q]``; False if it is already negligible."""
     apq = A[p, q]
@@ -130,7 +131,7 @@ def _rotate(A, p, q):  # pragma: no cover - compiled
     return True
 
 
-@numba.njit(cache=True, nogil=True)
+@cached_njit()
 def symmetric_eigenvalues(S):  # pragma: no cover - compiled
     """Eigenvalues of the symmetric, finite ``S`` in ascending order (cyclic Jacobi; ``S`` unchanged).
 
@@ -162,7 +163,7 @@ def symmetric_eigenvalues(S):  # pragma: no cover - compiled
     return np.sort(w)
 
 
-@numba.njit(cache=True, nogil=True)
+@cached_njit()
 def _one_norm(M):  # pragma: no cover - compiled
     """Largest absolute column sum of the square ``M``."""
     n = M.shape[0]
@@ -175,7 +176,7 @@ def _one_norm(M):  # pragma: no cover - compiled
     return norm
 
 
-@numba.njit(cache=True, nogil=True)
+@cached_njit()
 def _combine3(X, cx, Y, cy, Z, cz, out, add):  # pragma: no cover - compiled
     """``out = cx X + cy Y + cz Z``, or ``out + cx X + ...`` with ``add``, summed left to right as numpy would."""
     n = X.shape[0]
@@ -187,7 +188,7 @@ def _combine3(X, cx, Y, cy, Z, cz, out, add):  # pragma: no cover - compiled
             out[i, j] = (s + cy * Y[i, j]) + cz * Z[i, j]
 
 
-@numba.njit(cache=True, nogil=True)
+@cached_njit()
 def _copy(src, dst):  # pragma: no cover - compiled
     n = src.shape[0]
     for i in range(n):
@@ -199,7 +200,7 @@ def _copy(src, dst):  # pragma: no cover - compiled
 _EXPM_WORK = 9
 
 
-@numba.njit(cache=True, nogil=True)
+@cached_njit()
 def _expm_one(M, out, b):  # pragma: no cover - compiled
     """``out = expm(M)``: degree-13 Pade with scaling and squaring, in one block of work memory.
 
@@ -247,7 +248,7 @@ def _expm_one(M, out, b):  # pragma: no cover - compiled
     _copy(T, out)
 
 
-@numba.njit(cache=True, nogil=True)
+@cached_njit()
 def _expm_batch(M, b):  # pragma: no cover - compiled
     E = np.empty_like(M)
     for k in range(M.shape[0]):
@@ -255,7 +256,7 @@ def _expm_batch(M, b):  # pragma: no cover - compiled
     return E
 
 
-@numba.njit(cache=True, nogil=True)
+@cached_njit()
 def expm_into(M, out):  # pragma: no cover - compiled
     """``out[:, :] = expm(M)`` for one square matrix, callable from compiled code (NaN if ``M`` is not finite).
 
@@ -270,7 +271,7 @@ def expm_into(M, out):  # pragma: no cover - compiled
     _expm_one(M, out, _B13)
 
 
-@numba.njit(cache=True, nogil=True)
+@cached_njit()
 def tf_augmented(num, den, dt):  # pragma: no cover - compiled
     """Augmented matrices ``[[A dt, B dt, 0], [0, 0, 1], [0, 0, 0]]`` of the companion realisations of num/den rows.
 
@@ -320,7 +321,7 @@ def tf_augmented(num, den, dt):  # pragma: no cover - compiled
     return M, C, D
 
 
-@numba.njit(cache=True, nogil=True)
+@cached_njit()
 def tf_discrete(num, den, dt, max_norm):  # pragma: no cover - compiled
     """:func:`tf_augmented` and the compiled exponential in one call.
 

@@ -21,25 +21,26 @@ Examples
 
 from __future__ import annotations
 
-import numba
 import numpy as np
+
+from ._jit import cached_njit
 
 __all__ = ["tanh_map", "coulomb_map", "polynomial_map", "saturation_map", "deadzone_map",
            "piecewise_linear_map"]
 
 
-@numba.njit(cache=True, nogil=True)
+@cached_njit()
 def tanh_map(z, p, extra):  # pragma: no cover - compiled
     return p[0] * np.tanh(p[1] * z)
 
 
-@numba.njit(cache=True, nogil=True)
+@cached_njit()
 def coulomb_map(z, p, extra):  # pragma: no cover - compiled
     s = 1.0 if z > 0.0 else (-1.0 if z < 0.0 else 0.0)
     return p[0] * z + p[1] * s + p[2]
 
 
-@numba.njit(cache=True, nogil=True)
+@cached_njit()
 def polynomial_map(z, p, extra):  # pragma: no cover - compiled
     acc = 0.0
     for i in range(p.size - 1, -1, -1):
@@ -47,7 +48,7 @@ def polynomial_map(z, p, extra):  # pragma: no cover - compiled
     return acc * z
 
 
-@numba.njit(cache=True, nogil=True)
+@cached_njit()
 def _clip(z, a):  # pragma: no cover - compiled
     """``numpy.clip(z, -a, a)`` for ``a >= 0``: NaN if ``z`` or ``a`` is NaN (``min``/``max`` would drop it)."""
     if np.isnan(z) or np.isnan(a):
@@ -55,17 +56,17 @@ def _clip(z, a):  # pragma: no cover - compiled
     return min(max(z, -a), a)
 
 
-@numba.njit(cache=True, nogil=True)
+@cached_njit()
 def saturation_map(z, p, extra):  # pragma: no cover - compiled
     return p[0] * _clip(z, abs(p[1]))
 
 
-@numba.njit(cache=True, nogil=True)
+@cached_njit()
 def deadzone_map(z, p, extra):  # pragma: no cover - compiled
     return p[0] * (z - _clip(z, abs(p[1])))
 
 
-@numba.njit(cache=True, nogil=True)
+@cached_njit()
 def piecewise_linear_map(z, p, extra):  # pragma: no cover - compiled
     n = extra.size
     k = 0

@@ -5,7 +5,7 @@ and from :class:`ValueError`, so ``except ValueError`` keeps working for callers
 who do not care about the distinction.
 """
 
-__all__ = ["HammersteinError", "DataError", "ParameterError", "UnknownNameError"]
+__all__ = ["HammersteinError", "DataError", "ParameterError", "UnknownNameError", "CacheWarning"]
 
 
 class HammersteinError(ValueError):
@@ -22,3 +22,7 @@ class ParameterError(HammersteinError):
 
 class UnknownNameError(HammersteinError):
     """A method, nonlinearity or preset name is not known."""
+
+
+class CacheWarning(UserWarning):
+    """A compiled function's on-disk cache could not be read: it was compiled again and saved afresh."""

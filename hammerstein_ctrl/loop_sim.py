@@ -40,9 +40,9 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-import numba
 import numpy as np
 
+from ._jit import cached_njit
 from .exact_export import model_settings, sampled_iosys, sampled_matrices
 from .exceptions import DataError, ParameterError
 from .nonlinearities import Coulomb, DeadZone, PiecewiseLinear, Polynomial, Saturation, Tanh
@@ -98,7 +98,7 @@ def _nonlinearity_arrays(model):
     return code, np.ascontiguousarray(model.params, dtype=float), np.ascontiguousarray(bp, dtype=float)
 
 
-@numba.njit(cache=True, nogil=True)
+@cached_njit()
 def _g(code, p, bp, u):  # pragma: no cover - compiled
     if code == 0:
         return p[0] * math.tanh(p[1] * u)
@@ -121,7 +121,7 @@ def _g(code, p, bp, u):  # pragma: no cover - compiled
     return p[idx] * (1.0 - w) + p[idx + 1] * w
 
 
-@numba.njit(cache=True, nogil=True)
+@cached_njit()
 def _loops(Ad, Bd, C, x0, offset, code, p, bp, G, r, dt, lo, hi, bound, Y, U):  # pragma: no cover
     batch, N = Y.shape
     n = x0.size

@@ -28,8 +28,9 @@ from __future__ import annotations
 
 from typing import NamedTuple
 
-import numba
 import numpy as np
+
+from ._jit import cached_njit
 
 __all__ = ["NormalEquations", "from_residuals", "from_difference_sums", "from_factor", "scored_inf", "forward_steps",
            "neighbours", "FD_REL_STEP", "NONFINITE_RESIDUAL"]
@@ -69,12 +70,12 @@ class NormalEquations(NamedTuple):
         return bool(_finite(self.fun, self.gradient, self.gram))
 
 
-@numba.njit(cache=True, nogil=True)
+@cached_njit()
 def _finite(fun, gradient, gram):  # pragma: no cover - compiled
     return np.isfinite(fun) and np.isfinite(gradient).all() and np.isfinite(gram).all()
 
 
-@numba.njit(cache=True, nogil=True)
+@cached_njit()
 def _neighbour_values(fun, gradient, gram, steps):  # pragma: no cover - compiled
     values = np.empty(steps.size)
     for j in range(steps.size):
@@ -113,7 +114,7 @@ def _bound(value, x, default):
 _NO_UPPER, _NO_LOWER = np.array([np.inf]), np.array([-np.inf])
 
 
-@numba.njit(cache=True, nogil=True)
+@cached_njit()
 def _forward_steps(x, upper, lower):  # pragma: no cover - compiled
     """:func:`forward_steps` of a flat ``x`` in ``[lower, upper]`` (one value each, or one for all), in one compiled call."""
     h = np.empty_like(x)
@@ -146,7 +147,7 @@ def neighbours(x, steps) -> np.ndarray:
     return _neighbours(np.ascontiguousarray(x), np.ascontiguousarray(steps))
 
 
-@numba.njit(cache=True, nogil=True)
+@cached_njit()
 def _neighbours(x, steps):  # pragma: no cover - compiled
     X = np.empty((x.size + 1, x.size))
     for i in range(x.size + 1):
@@ -192,7 +193,7 @@ def from_difference_sums(sums, steps) -> NormalEquations:
     return NormalEquations(float(sums[0]), gradient, gram, steps)
 
 
-@numba.njit(cache=True, nogil=True, error_model="numpy")
+@cached_njit(error_model="numpy")
 def _divide_by_steps(sums, steps):  # pragma: no cover - compiled
     p = steps.size
     gradient = np.empty(p)

@@ -37,10 +37,10 @@ from __future__ import annotations
 
 import threading
 
-import numba
 import numpy as np
 
 from ._checks import as_real_array
+from ._jit import cached_njit
 from ._linalg import single_threaded_blas
 from .exceptions import ParameterError
 from .kernels import MAX_LANE_BASIS, MAX_UNROLLED_STATES, get_coefficient_kernel
@@ -75,7 +75,7 @@ BASIS_BLOCK = 1 << 16
 EVAL_BLOCK = 1 << 13
 
 
-@numba.njit(cache=True, nogil=True)
+@cached_njit()
 def _combine(P, basis, out, start):  # pragma: no cover - compiled
     """``out[:B, start:start + n] = P @ basis`` single-threaded (BLAS threads would compete with the simulation)."""
     batch, p = P.shape
@@ -91,7 +91,7 @@ def _combine(P, basis, out, start):  # pragma: no cover - compiled
                 row[i] += c * bj[i]
 
 
-@numba.njit(cache=True, nogil=True)
+@cached_njit()
 def _usable_steps(h):  # pragma: no cover - compiled
     """Whether every step is finite and non-zero."""
     for v in h:

@@ -24,10 +24,10 @@ from __future__ import annotations
 
 from typing import Mapping
 
-import numba
 import numpy as np
 
 from ._checks import MAX_ORDER, as_real_array
+from ._jit import cached_njit
 from .exceptions import ParameterError
 from .nonlinearities import Nonlinearity
 
@@ -35,7 +35,7 @@ __all__ = ["LinearStructure", "BlockStructure", "HammersteinStructure", "WienerS
            "HammersteinWienerStructure", "INITIAL_STATES"]
 
 
-@numba.njit(cache=True, nogil=True)
+@cached_njit()
 def _fill_coefficients(theta, num0, den0, num_pos, den_pos):  # pragma: no cover - compiled
     """Rows of ``num0``/``den0`` with the free coefficients of each row of ``theta`` written in (one call per batch)."""
     batch, k = theta.shape[0], num_pos.size

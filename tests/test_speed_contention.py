@@ -57,6 +57,7 @@ def test_emps_cost_unaffected_by_busy_sibling(emps_case, emps_beta, kind):
     np.testing.assert_array_equal(fn(), expected)  # same numbers under load
 
 
+@pytest.mark.slow
 def test_the_measure_sees_threads_spinning_against_the_sibling():
     """The bound can fail: a 300 x 300 product in two-thread OpenBLAS uses ~1.3 CPU seconds per wall second
     while the sibling runs (one thread: 1.0)."""

@@ -29,9 +29,9 @@ from __future__ import annotations
 
 import math
 
-import numba
 import numpy as np
 
+from .._jit import cached_njit
 from .._linalg import solve_in_place, symmetric_eigenvalues
 from ..normal_equations import NormalEquations, forward_steps, from_residuals, neighbours
 from ._common import BudgetExhausted
@@ -126,7 +126,7 @@ class _Passes:
         return self._factor is not None
 
 
-@numba.njit(cache=True, nogil=True)
+@cached_njit()
 def _scaled(gram, scale):  # pragma: no cover - compiled
     """``gram / outer(scale, scale)``."""
     p = scale.size
@@ -137,7 +137,7 @@ def _scaled(gram, scale):  # pragma: no cover - compiled
     return A
 
 
-@numba.njit(cache=True, nogil=True)
+@cached_njit()
 def _finite_matrix(A):  # pragma: no cover - compiled
     for i in range(A.shape[0]):
         for j in range(A.shape[1]):
@@ -146,7 +146,7 @@ def _finite_matrix(A):  # pragma: no cover - compiled
     return True
 
 
-@numba.njit(cache=True, nogil=True)
+@cached_njit()
 def _ill(A, limit):  # pragma: no cover - compiled
     """Whether the symmetric ``A`` has a non-finite entry or a condition number of ``limit`` or more."""
     if not _finite_matrix(A):
@@ -155,7 +155,7 @@ def _ill(A, limit):  # pragma: no cover - compiled
     return not w[0] > w[-1] / limit
 
 
-@numba.njit(cache=True, nogil=True)
+@cached_njit()
 def _cosine(gram, gradient, fun):  # pragma: no cover - compiled
     """Largest cosine between the residual vector and a Jacobian column (MINPACK's ``gtol`` measure)."""
     best = 0.0
@@ -172,7 +172,7 @@ def _cosine(gram, gradient, fun):  # pragma: no cover - compiled
     return best
 
 
-@numba.njit(cache=True, nogil=True)
+@cached_njit()
 def _iteration(gram, gradient, fun, scale, lam, x, check, limit, xtol):  # pragma: no cover - compiled
     """One iteration's linear algebra: ``(cosine, ill, solved, delta, small, predicted)``.
 
@@ -206,7 +206,7 @@ def _iteration(gram, gradient, fun, scale, lam, x, check, limit, xtol):  # pragm
     return _cosine(gram, gradient, fun), ill, solved, delta, small, predicted
 
 
-@numba.njit(cache=True, nogil=True)
+@cached_njit()
 def _step_measures(gram, gradient, scale, delta, x, xtol):  # pragma: no cover - compiled
     """MINPACK's xtol test on the step ``delta`` and the reduction of the sum of squares its linear model predicts."""
     step, size, predicted = 0.0, 0.0, 0.0
@@ -246,7 +246,7 @@ def _column_norms(gram, previous=None):
     return _norms(gram, np.zeros(gram.shape[0]) if previous is None else previous)
 
 
-@numba.njit(cache=True, nogil=True)
+@cached_njit()
 def _norms(gram, floor):  # pragma: no cover - compiled
     norms = np.empty(floor.size)
     for j in range(floor.size):
