@@ -126,3 +126,62 @@ def test_a_damaged_cache_compiled_again_on_a_full_disk_does_not_raise(tmp_path):
     assert after["error"] is None and after["h"] == healthy["h"]
     again = _full_disk_child(tmp_path)
     assert again == healthy
+
+
+_TWO_SIGNATURES_MODULE = """
+from hammerstein_ctrl._jit import cached_njit
+
+
+@cached_njit()
+def twice(x):
+    return x + x
+"""
+
+_TWO_SIGNATURES_CHILD = """
+import json, warnings
+with warnings.catch_warnings(record=True) as caught:
+    warnings.simplefilter("always")
+    from rx_two_signatures import twice
+    values = [twice(3), twice(1.5)]
+print(json.dumps({"values": values, "misses": sorted(str(k) for k in twice.stats.cache_misses),
+                  "warnings": [str(w.message) for w in caught if w.category.__name__ == "CacheWarning"]}))
+"""
+
+
+def _two_signatures_child(tmp_path):
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(REPO), str(tmp_path / "module")]),
+           "HAMMERSTEIN_CTRL_CACHE": str(tmp_path / "kernels"), "NUMBA_CACHE_DIR": str(tmp_path / "numba"),
+           "PYTHONDONTWRITEBYTECODE": "1"}
+    proc = subprocess.run([sys.executable, "-c", _TWO_SIGNATURES_CHILD], capture_output=True, text=True, env=env,
+                          timeout=600)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    return json.loads(proc.stdout.strip().splitlines()[-1])
+
+
+def test_a_damaged_data_file_costs_no_healthy_signature_of_the_same_function(tmp_path):
+    """The guard sets a damaged cache aside by deleting the whole index (``_set_aside``), even when only
+    one signature's data file is damaged and the index itself reads fine.  The version compiled again
+    is then saved under a fresh index as data file 1 -- overwriting the healthy data file of another
+    signature -- so the next process, with no warning, misses that healthy signature and compiles it
+    again (seconds per generated kernel on a cold compile; the package's ``_linalg._combine3`` has two
+    signatures).  Reproduced with a cached_njit function called with int64 and float64: empty the
+    float64 data file (``.2.nbc``); the damaged run warns and compiles float64 (right), and the next
+    process reports a cache miss for int64, whose file the previous run overwrote with float64's code
+    (a process reading the old index at that moment would load one signature's machine code for
+    another).  Expected: only the damaged entry is set aside; the next process hits both signatures."""
+    (tmp_path / "module").mkdir()
+    (tmp_path / "module" / "rx_two_signatures.py").write_text(_TWO_SIGNATURES_MODULE)
+    cold = _two_signatures_child(tmp_path)
+    assert cold["values"] == [6, 3.0] and cold["warnings"] == []
+    warm = _two_signatures_child(tmp_path)
+    assert warm["misses"] == [] and warm["warnings"] == []
+    data = sorted((tmp_path / "numba").rglob("rx_two_signatures.twice-*.nbc"))
+    assert [f.name.split(".")[-2] for f in data] == ["1", "2"], data
+    data[1].write_bytes(b"")                             # the second signature compiled (float64)
+    damaged = _two_signatures_child(tmp_path)
+    assert damaged["values"] == [6, 3.0]
+    assert damaged["misses"] == ["(float64,)"]
+    assert any("twice" in w for w in damaged["warnings"]), damaged["warnings"]
+    after = _two_signatures_child(tmp_path)
+    assert after["warnings"] == []
+    assert after["misses"] == [], "a healthy signature was compiled again after the damaged one was repaired"
