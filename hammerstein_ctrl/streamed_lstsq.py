@@ -167,7 +167,7 @@ def factor_of_columns(blocks, y, width: int) -> np.ndarray:
 
 
 def _next_block(begin: int, X: np.ndarray, done: int, width: int, n_samples: int) -> int:
-    """The samples covered after block ``(begin, X)``; raise unless it has ``width`` columns and continues ``0:done``."""
+    """The samples covered after block ``(begin, X)``; raise unless it has ``width`` columns and follows ``0:done``."""
     if X.ndim != 2 or X.shape[1] != width:
         raise DataError(f"a block of columns has shape {X.shape}: expected (samples, {width}) for {width} columns")
     if begin != done or begin + X.shape[0] > n_samples:
