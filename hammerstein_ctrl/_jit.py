@@ -54,32 +54,58 @@ def cached_njit(*, cache: bool = True, **options):
 def tolerate_damaged_cache(dispatcher):
     """Make a cache file of ``dispatcher`` that cannot be read a cache miss: compiled again, with a warning.
 
-    The guard wraps the one method numba calls to load a cached version (once
-    per signature and process), so calls cost nothing more.  A dispatcher
-    without a disk cache is returned unchanged.
+    The guard wraps the two methods numba calls to load and to save a cached
+    version (once per signature and process), so calls cost nothing more.  A
+    version that cannot be saved (a full disk, a cache folder no longer
+    writable) runs from memory in this process, with a warning.  A
+    dispatcher without a disk cache is returned unchanged.
     """
     cache = getattr(dispatcher, "_cache", None)
-    load = getattr(cache, "load_overload", None)
-    if load is None:
+    load, save = getattr(cache, "load_overload", None), getattr(cache, "save_overload", None)
+    if load is None or save is None:
         return dispatcher
+    name = f"{dispatcher.py_func.__module__}.{dispatcher.py_func.__qualname__}"
 
     def load_overload(sig, target_context):
         try:
             return load(sig, target_context)
         except Exception as exc:       # any failure to read back cached code: compile it again
-            _set_aside(cache)
-            warnings.warn(f"numba's cache of {dispatcher.py_func.__module__}.{dispatcher.py_func.__qualname__} "
-                          f"could not be read ({type(exc).__name__}: {exc}); compiled again and saved afresh",
-                          CacheWarning, stacklevel=2)
+            _set_aside(cache, sig, target_context)
+            _warn(f"numba's cache of {name} could not be read ({type(exc).__name__}: {exc}); "
+                  "compiled again and saved afresh")
             return None
 
-    cache.load_overload = load_overload
+    def save_overload(sig, data):
+        try:
+            save(sig, data)
+        except OSError as exc:         # the compiled version still runs: only the disk copy is missing
+            _warn(f"numba's cache of {name} could not be saved ({type(exc).__name__}: {exc}); "
+                  "compiled for this process only")
+
+    cache.load_overload, cache.save_overload = load_overload, save_overload
     return dispatcher
 
 
-def _set_aside(cache):
-    """Remove the cache's index file, so the next save writes a new index and data file instead of reading it."""
-    index = getattr(getattr(cache, "_cache_file", None), "_index_path", None)
+def _warn(message: str):
+    """A :class:`CacheWarning` attributed to numba's dispatcher (the caller of the guarded method)."""
+    warnings.warn(message, CacheWarning, stacklevel=3)
+
+
+def _set_aside(cache, sig, target_context):
+    """Drop what could not be read: the entry of ``sig`` where the index reads, else the index file.
+
+    Other signatures keep their entries and data files; the next save writes
+    the entry (or a new index) instead of reading the damaged file again.
+    """
+    files = getattr(cache, "_cache_file", None)
+    try:
+        overloads = files._load_index()
+        if overloads.pop(cache._index_key(sig, target_context.codegen()), None) is not None:
+            files._save_index(overloads)
+        return
+    except Exception:                  # the index itself cannot be read or written (or numba's layout changed)
+        pass
+    index = getattr(files, "_index_path", None)
     if index:
         try:
             os.remove(index)

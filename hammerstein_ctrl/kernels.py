@@ -695,8 +695,8 @@ def _check_sizes(n: int, K: int, max_states: int = MAX_UNROLLED_STATES):
 
 
 def _write_once(path: Path, text: str):
-    """Write ``text`` atomically unless the file already holds it (keeps numba's cache valid)."""
-    if path.is_file() and path.read_text() == text:
+    """Write ``text`` atomically unless the file already holds it (keeps numba's cache valid); a damaged file is rewritten."""
+    if path.is_file() and path.read_text(errors="replace") == text:
         return
     fd, tmp = tempfile.mkstemp(dir=path.parent, suffix=".tmp")
     with os.fdopen(fd, "w") as fh:

@@ -36,6 +36,8 @@ from __future__ import annotations
 import numpy as np
 import scipy.linalg
 
+from .exceptions import DataError
+
 __all__ = ["BLOCK_SAMPLES", "triangular_factor", "factor_of_blocks", "rank_tolerance", "solve_scaled",
            "solve_minimum_norm", "factor_sse", "residual", "constant_column", "column_blocks",
            "factor_of_columns", "residual_of_columns"]
@@ -151,12 +153,33 @@ def factor_of_columns(blocks, y, width: int) -> np.ndarray:
 
     def parts():
         buffer = np.empty((min(BLOCK_SAMPLES, y.shape[0]), width + 1), order="F")
+        done = 0
         for begin, X in blocks:
+            done = _next_block(begin, X, done, width, y.shape[0])
+            if X.shape[0] > buffer.shape[0]:
+                buffer = np.empty((X.shape[0], width + 1), order="F")
             part = buffer[:X.shape[0]]
             part[:, :-1] = X
-            part[:, -1] = y[begin:begin + X.shape[0]]
+            part[:, -1] = y[begin:done]
             yield part
+        _check_covered(done, y.shape[0])
     return factor_of_blocks(parts(), width + 1)
+
+
+def _next_block(begin: int, X: np.ndarray, done: int, width: int, n_samples: int) -> int:
+    """The samples covered after block ``(begin, X)``; raise unless it has ``width`` columns and follows ``0:done``."""
+    if X.ndim != 2 or X.shape[1] != width:
+        raise DataError(f"a block of columns has shape {X.shape}: expected (samples, {width}) for {width} columns")
+    if begin != done or begin + X.shape[0] > n_samples:
+        raise DataError(f"blocks must cover the {n_samples} samples of y in order: a block of {X.shape[0]} samples "
+                        f"starts at sample {begin}, expected {done}")
+    return done + X.shape[0]
+
+
+def _check_covered(done: int, n_samples: int):
+    """Raise unless the blocks covered all ``n_samples`` samples of ``y``."""
+    if done != n_samples:
+        raise DataError(f"the blocks cover {done} of the {n_samples} samples of y")
 
 
 def factor_of_blocks(blocks, width: int) -> np.ndarray:
@@ -276,7 +299,9 @@ def residual_of_columns(blocks, w, y) -> np.ndarray:
     y = np.asarray(y, dtype=float)
     w = np.asarray(w, dtype=float)
     out = np.empty(y.shape[0])
+    done = 0
     for begin, X in blocks:
-        stop = begin + X.shape[0]
-        np.subtract(y[begin:stop], X @ w, out=out[begin:stop])
+        done = _next_block(begin, X, done, w.size, y.shape[0])
+        np.subtract(y[begin:done], X @ w, out=out[begin:done])
+    _check_covered(done, y.shape[0])
     return out
