@@ -32,7 +32,7 @@ import numpy as np
 
 from .exceptions import ParameterError
 from .initialize import Budget, initial_points, nuisance_estimate, stabilize
-from .optimize import COMPLETED, SOLVER_FAILED, History, as_rng, as_x0, levenberg_marquardt
+from .optimize import BUDGET_EXHAUSTED, COMPLETED, SOLVER_FAILED, History, as_rng, as_x0, levenberg_marquardt
 from .simulate import unstable
 
 __all__ = ["auto_minimize", "AUTO_MAXFEV", "RESTART_SPREAD", "MAX_RESTARTS"]
@@ -197,10 +197,15 @@ def _unrefined(cost, starts, found, budget, merged, started):
                           elapsed=time.perf_counter() - started)
 
 
+def _unconverged_status(best) -> int:
+    """The status of a run whose best refinement did not converge: the budget's end, or a solver's failure."""
+    return BUDGET_EXHAUSTED if best.status == BUDGET_EXHAUSTED else SOLVER_FAILED
+
+
 def _result(cost, best, budget, runs, n_starts, merged, allow_unstable, started):
     from scipy.optimize import OptimizeResult
 
-    converged = best.status == COMPLETED and "budget" not in str(best.message)
+    converged = best.status == COMPLETED
     x = cost.structure.normalize(best.x)
     ok = _acceptable(cost, x, best.fun, allow_unstable)
     if converged and ok:
@@ -211,7 +216,7 @@ def _result(cost, best, budget, runs, n_starts, merged, allow_unstable, started)
     else:
         message = f"no acceptable model (unstable or no better than a constant) after {runs} refinement(s)"
     return OptimizeResult(x=x, fun=float(best.fun), nfev=budget.nfev, nit=runs, success=bool(converged and ok),
-                          status=COMPLETED if converged else SOLVER_FAILED, message=message,
+                          status=COMPLETED if converged else _unconverged_status(best), message=message,
                           history=merged.history.as_dict(), method="auto", starts=n_starts,
                           best_x=x.copy(), best_fun=float(best.fun), nfev_monitor=0,
                           elapsed=time.perf_counter() - started)

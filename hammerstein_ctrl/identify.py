@@ -321,8 +321,6 @@ def _assess(cost, res, key: str, x0, report: dict, allow_unstable: bool) -> tupl
     """``(success, message)`` after the checks that make a result trustworthy."""
     problems = []
     message = str(res.message)
-    if key in _CONVERGING and "budget" in message and "exhausted" in message:
-        problems.append(f"evaluation budget of {res.nfev} exhausted before convergence")
     x = np.asarray(res.x, dtype=float)
     _, den = cost.structure.linear.coefficients(x[:cost.structure.linear.n_params])
     if not allow_unstable and np.all(np.isfinite(x)) and unstable(den)[0]:

@@ -11,10 +11,11 @@ from scipy.optimize import least_squares
 from scipy.optimize._numdiff import approx_derivative
 
 import hammerstein_ctrl as hc
+from hammerstein_ctrl import identify
 from hammerstein_ctrl import objective
 from hammerstein_ctrl.normal_equations import forward_steps, from_residuals, neighbours
 from hammerstein_ctrl.objective import HammersteinCost
-from hammerstein_ctrl.optimize import levenberg_marquardt, normal_lm
+from hammerstein_ctrl.optimize import BUDGET_EXHAUSTED, COMPLETED, levenberg_marquardt, minimize, normal_lm
 
 
 def _stored(cost, x):
@@ -388,3 +389,30 @@ def test_blocks_past_the_unrolled_kernels_take_the_pass():
     assert ne.fun == pytest.approx(ref.fun, rel=1e-9)
     scale = np.sqrt(np.outer(np.diag(ref.gram), np.diag(ref.gram)))
     assert np.max(np.abs(ne.gram - ref.gram) / scale) < 1e-4        # forward differences of a 10-state block
+
+
+@pytest.mark.parametrize("maxfev", [5, 10, 14, 20, 44])
+def test_a_budget_that_ends_before_convergence_fails_with_the_steps_taken(emps_case, maxfev):
+    """status BUDGET_EXHAUSTED and success False, as scipy's own methods report running out of evaluations.
+
+    From the N-SPSA vector every step's trial point is a full pass (the point and its p = 4 neighbours,
+    5 evaluations) and every trial is accepted on the way to the optimum, which a budget of 45 reaches
+    in 8 steps: so a budget of ``maxfev`` evaluates ``(maxfev - 5) // 5`` steps.
+    """
+    x = np.asarray(emps_case.paper["nspsa"]["beta"])
+    p1 = x.size + 1
+    full = levenberg_marquardt(emps_case.cost, x, maxfev=45)
+    assert full.success and full.status == COMPLETED and full.nfev == 45 and full.nit == (45 - p1) // p1
+    r = levenberg_marquardt(emps_case.cost, x, maxfev=maxfev)
+    assert r.status == BUDGET_EXHAUSTED and not r.success and "exhausted before convergence" in r.message
+    assert r.nit == (maxfev - p1) // p1 and r.nfev == maxfev
+
+
+def test_scipy_methods_and_identify_report_the_budgets_end(emps_case):
+    """The same status from scipy's methods stopped by our budget, and a failed identification that says why."""
+    r = minimize(emps_case.cost, np.asarray(emps_case.paper["nspsa"]["beta"]), method="l-bfgs-b", maxfev=12)
+    assert r.status == BUDGET_EXHAUSTED and not r.success and r.nfev == 12
+    res = identify(emps_case.data, "emps", method="lm", maxfev=20)
+    assert not res.success and "exhausted before convergence" in res.message
+    auto = identify(emps_case.data, "emps", maxfev=60, seed=0)
+    assert not auto.success and auto.optimize_result.status == BUDGET_EXHAUSTED

@@ -14,12 +14,13 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from hammerstein_ctrl.exceptions import ParameterError
-from hammerstein_ctrl.optimize import COMPLETED, CALLBACK_STOP, DIVERGED, NO_FINITE_VALUE, SOLVER_FAILED, minimize
+from hammerstein_ctrl.optimize import (BUDGET_EXHAUSTED, CALLBACK_STOP, COMPLETED, DIVERGED, NO_FINITE_VALUE,
+                                       SOLVER_FAILED, minimize)
 from hammerstein_ctrl.simulate import lsim
 
 FAST = settings(max_examples=25, deadline=None, derandomize=True,
                 suppress_health_check=[HealthCheck.too_slow])
-STATUSES = {COMPLETED, CALLBACK_STOP, DIVERGED, NO_FINITE_VALUE, SOLVER_FAILED}
+STATUSES = {COMPLETED, CALLBACK_STOP, DIVERGED, NO_FINITE_VALUE, SOLVER_FAILED, BUDGET_EXHAUSTED}
 
 
 @st.composite

@@ -3,9 +3,22 @@
 Use :func:`minimize` (``scipy.optimize.minimize`` style) or the individual
 functions.  Every routine takes a ``seed`` (int or ``numpy.random.Generator``),
 counts every objective evaluation in ``nfev`` and never exceeds ``maxfev``.
+
+Result status (``OptimizeResult.status``; ``success`` is true for the first two
+with a finite ``fun``):
+
+=====================  ==  =====================================================
+``COMPLETED``           0  ran its budget (SPSA family, AMVO-SCA) or converged
+``CALLBACK_STOP``       1  the callback asked to stop
+``DIVERGED``            2  the iterates or J blew up (SPSA's failure mode)
+``NO_FINITE_VALUE``     3  every evaluation was non-finite
+``SOLVER_FAILED``       4  a solver stopped without converging (scipy's message)
+``BUDGET_EXHAUSTED``    5  LM or a scipy method ran out of ``maxfev`` first
+=====================  ==  =====================================================
 """
 
-from ._common import CALLBACK_STOP, COMPLETED, DIVERGED, NO_FINITE_VALUE, SOLVER_FAILED, History, as_rng, as_x0
+from ._common import (BUDGET_EXHAUSTED, CALLBACK_STOP, COMPLETED, DIVERGED, NO_FINITE_VALUE, SOLVER_FAILED, History,
+                      as_rng, as_x0)
 from .amvo_sca import amvo_sca
 from .least_squares import levenberg_marquardt
 from .gains import SPALL_ALPHA, SPALL_GAMMA, GainSequence, PerturbationGain, StepGain
@@ -16,5 +29,6 @@ __all__ = [
     "minimize", "canonical_method", "METHODS", "SCIPY_METHODS",
     "spsa", "nlspsa", "nspsa", "amvo_sca", "levenberg_marquardt", "normalized_difference",
     "GainSequence", "StepGain", "PerturbationGain", "SPALL_ALPHA", "SPALL_GAMMA",
-    "COMPLETED", "CALLBACK_STOP", "DIVERGED", "NO_FINITE_VALUE", "SOLVER_FAILED", "History", "as_rng", "as_x0",
+    "COMPLETED", "CALLBACK_STOP", "DIVERGED", "NO_FINITE_VALUE", "SOLVER_FAILED", "BUDGET_EXHAUSTED", "History",
+    "as_rng", "as_x0",
 ]

@@ -16,6 +16,7 @@ CALLBACK_STOP = 1  #: the callback asked to stop
 DIVERGED = 2  #: the iterates or objective blew up (SPSA's expected failure mode)
 NO_FINITE_VALUE = 3  #: every evaluation was non-finite
 SOLVER_FAILED = 4  #: a delegated scipy solver reported failure
+BUDGET_EXHAUSTED = 5  #: a converging method (LM, scipy's) ran out of evaluations before its convergence test
 
 #: Arithmetic errors raised by an objective that are scored as ``inf`` instead
 #: of aborting the search (e.g. Python-float overflow in ``x ** 3``).
@@ -23,7 +24,13 @@ _SCORED_AS_INF = (OverflowError, ZeroDivisionError, FloatingPointError)
 
 
 class BudgetExhausted(RuntimeError):
-    """Raised by :class:`CountedObjective` instead of exceeding ``maxfev``."""
+    """Raised by :class:`CountedObjective` instead of exceeding ``maxfev``.
+
+    ``nit`` is set by a solver that counts its iterations on the way out
+    (``None`` otherwise).
+    """
+
+    nit: int | None = None
 
 
 class CountedObjective:

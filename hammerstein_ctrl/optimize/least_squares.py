@@ -21,6 +21,7 @@ exceeded.  It is deterministic (``seed`` is accepted and ignored).
 
 from __future__ import annotations
 
+import contextlib
 import time
 
 import numpy as np
@@ -30,6 +31,7 @@ from .._linalg import single_threaded_blas
 from ..exceptions import ParameterError
 from ..normal_equations import forward_steps
 from ._common import (
+    BUDGET_EXHAUSTED,
     COMPLETED,
     SOLVER_FAILED,
     BudgetExhausted,
@@ -78,6 +80,7 @@ class _CountedResiduals(CountedObjective):
         super().__init__(residuals, (), maxfev)
         self.history = History()
         self._last = (None, None)
+        self.calls = 0          # charged residual vectors the solver asked for (its trial points), not Jacobian columns
 
     def record(self, x, r):
         """Book one charged evaluation of the residual vector ``r``."""
@@ -95,6 +98,7 @@ class _CountedResiduals(CountedObjective):
         if last_x is not None and np.array_equal(last_x, x):
             return last_r
         self._charge(1)
+        self.calls += 1
         with np.errstate(all="ignore"):
             r = np.asarray(self.fun(x), dtype=float)
         self.record(x, r)
@@ -165,7 +169,8 @@ def _solve(fun, counted, jac, x0, box, tolerances):
     Returns ``(x, J, success, message, iterations)``.
     """
     if box is not None:
-        res = scipy.optimize.least_squares(counted, x0, jac=jac, method="trf", bounds=box, **tolerances)
+        with _steps_on_exhaustion(counted, 0):
+            res = scipy.optimize.least_squares(counted, x0, jac=jac, method="trf", bounds=box, **tolerances)
         return res.x, float(2.0 * res.cost), bool(res.success), str(res.message), int(res.nfev)
     # past MINPACK_MAX_BYTES of Jacobian the solver goes on with a streamed QR factor instead of MINPACK
     factor = getattr(fun, "n_samples", 0) * x0.size * np.dtype(float).itemsize > MINPACK_MAX_BYTES
@@ -177,12 +182,27 @@ def _solve(fun, counted, jac, x0, box, tolerances):
     # lmder through leastsq: the Jacobian goes in as rows (col_deriv), copied once into MINPACK's own
     # array, and no extra Jacobian is formed at the solution (least_squares does both, at n evaluations
     # and two more Jacobian-sized copies)
-    x, _, info, _, ier = scipy.optimize.leastsq(
-        counted, x0, Dfun=jac.columns, full_output=True, col_deriv=True,
-        maxfev=_MINPACK_MAXFEV_PER_PARAM * x0.size, **tolerances)
+    with _steps_on_exhaustion(counted, iterations):
+        x, _, info, _, ier = scipy.optimize.leastsq(
+            counted, x0, Dfun=jac.columns, full_output=True, col_deriv=True,
+            maxfev=_MINPACK_MAXFEV_PER_PARAM * x0.size, **tolerances)
     f = info["fvec"]
     message = _MINPACK_MESSAGES.get(ier, f"MINPACK exit code {ier}")
     return x, float(f @ f), ier in _MINPACK_CONVERGED, message, iterations + int(info["nfev"])
+
+
+@contextlib.contextmanager
+def _steps_on_exhaustion(counted: _CountedResiduals, before: int):
+    """On :class:`BudgetExhausted` inside scipy's solver, set its ``nit``: ``before`` plus the trial points asked for.
+
+    Counted as on a normal return (scipy's ``nfev``: residual vectors, not Jacobian columns).
+    """
+    calls = counted.calls
+    try:
+        yield
+    except BudgetExhausted as exc:
+        exc.nit = before + counted.calls - calls
+        raise
 
 
 def _trf_box(bounds, x0):
@@ -268,9 +288,9 @@ def levenberg_marquardt(fun, x0, *, maxfev: int | None = None, maxiter=None, see
             x, fun_x, success, message, nit = _solve(fun, counted, jac, x0, box,
                                                      dict(ftol=ftol, xtol=xtol, gtol=gtol))
         status = COMPLETED if success else SOLVER_FAILED
-    except BudgetExhausted:
-        x, fun_x, nit = counted.best_x, counted.best_fun, counted.nfev
-        status, message = COMPLETED, f"evaluation budget of {maxfev} exhausted"
+    except BudgetExhausted as exc:    # nit: the steps tried before it (see _steps_on_exhaustion)
+        x, fun_x, nit = counted.best_x, counted.best_fun, counted.calls if exc.nit is None else exc.nit
+        status, message = BUDGET_EXHAUSTED, f"evaluation budget of {maxfev} exhausted before convergence"
     if x is None:
         x, fun_x = x0, np.nan
     return make_result(x=x, fun=fun_x, obj=counted, nit=nit, status=status,

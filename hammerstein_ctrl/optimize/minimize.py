@@ -21,6 +21,7 @@ import scipy.optimize
 from .._linalg import single_threaded_blas
 from ..exceptions import ParameterError, UnknownNameError
 from ._common import (
+    BUDGET_EXHAUSTED,
     COMPLETED,
     SOLVER_FAILED,
     BudgetExhausted,
@@ -192,7 +193,7 @@ def _scipy_minimize(method, fun, x0, *, args, maxfev, maxiter, options, callback
         status = COMPLETED if res.success else SOLVER_FAILED
     except BudgetExhausted:
         x, fun_x = obj.best_x, obj.best_fun
-        status, message = COMPLETED, f"evaluation budget of {maxfev} exhausted"
+        status, message = BUDGET_EXHAUSTED, f"evaluation budget of {maxfev} exhausted before convergence"
     if x is None:  # budget exhausted before any evaluation
         x, fun_x = x0, np.nan
     return make_result(x=x, fun=fun_x, obj=obj, nit=nit, status=status, message=message,

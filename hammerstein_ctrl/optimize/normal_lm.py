@@ -76,6 +76,7 @@ class _Passes:
 
     def __init__(self, fun, counted):
         self.counted = counted
+        self.steps = 0                  # steps tried by the solver (its iterations)
         self._normal = getattr(fun, "normal_equations", None)
         self._factor = getattr(fun, "normal_factor", None)
         self.factored = False           # True: passes give the Jacobian's QR factor (normal_factor)
@@ -291,25 +292,33 @@ def normal_equations_lm(fun, counted, x0, *, ftol, xtol, gtol, max_steps: int, f
     the budget ends first (the counted object then holds the best point).
     """
     passes = _Passes(fun, counted)
-    x = np.array(x0, dtype=float)
+    try:
+        return _iterate(passes, np.array(x0, dtype=float), ftol, xtol, gtol, max_steps, factor)
+    except BudgetExhausted as exc:
+        exc.nit = passes.steps
+        raise
+
+
+def _iterate(passes, x, ftol, xtol, gtol, max_steps: int, factor: bool):
+    """The loop of :func:`normal_equations_lm`; ``passes.steps`` counts the steps tried."""
     ne = passes.full(x)
     if not np.isfinite(ne.fun):
         return x, ne.fun, 7, 0
     scale = _column_norms(ne.gram)
     damping = _Damping()
-    iterations, alone = 0, False
+    alone = False
     while True:
         if ne.fun == 0.0:
-            return x, ne.fun, 1, iterations
+            return x, ne.fun, 1, passes.steps
         if ne.factor is not None:
             cosine, ill, solved, delta, small, predicted = _factor_iteration(ne, scale, damping.lam, x, xtol)
         else:
             cosine, ill, solved, delta, small, predicted = _iteration(
                 ne.gram, ne.gradient, ne.fun, scale, damping.lam, x, not alone, ILL_CONDITIONED, xtol)
         if cosine <= gtol:
-            return x, ne.fun, 4, iterations
+            return x, ne.fun, 4, passes.steps
         if ill and not (factor and passes.can_factor):
-            return x, ne.fun, ILL_CONDITIONED_CODE, iterations
+            return x, ne.fun, ILL_CONDITIONED_CODE, passes.steps
         if ill:                                 # from here on, the QR factor of each pass
             passes.factored = True
             ne, alone = passes.full(x), False
@@ -317,14 +326,14 @@ def normal_equations_lm(fun, counted, x0, *, ftol, xtol, gtol, max_steps: int, f
         if not solved:
             damping.reject()
             if damping.lam > MAX_DAMPING:
-                return x, ne.fun, 6, iterations
+                return x, ne.fun, 6, passes.steps
             continue
-        if iterations >= max_steps:
-            return x, ne.fun, 5, iterations
-        iterations += 1
+        if passes.steps >= max_steps:
+            return x, ne.fun, 5, passes.steps
         trial = x + delta
         trial_ne = None if alone else passes.full(trial)
         f_trial = passes.value(trial) if alone else trial_ne.fun
+        passes.steps += 1                       # a step counts once its trial point is evaluated
         if f_trial < ne.fun and predicted > 0:
             actual, f_old = ne.fun - f_trial, ne.fun
             damping.accept(actual / predicted)
@@ -333,11 +342,11 @@ def normal_equations_lm(fun, counted, x0, *, ftol, xtol, gtol, max_steps: int, f
             scale = _column_norms(ne.gram, scale)
             converged_f = actual <= ftol * f_old and predicted <= ftol * f_old
             if converged_f or small:
-                return x, ne.fun, 3 if converged_f and small else (1 if converged_f else 2), iterations
+                return x, ne.fun, 3 if converged_f and small else (1 if converged_f else 2), passes.steps
         else:
             damping.reject()
             alone = True
             if small:
-                return x, ne.fun, 2, iterations
+                return x, ne.fun, 2, passes.steps
             if damping.lam > MAX_DAMPING:
-                return x, ne.fun, 6, iterations
+                return x, ne.fun, 6, passes.steps
