@@ -46,6 +46,10 @@ METHODS = {"spsa": spsa, "nlspsa": nlspsa, "nspsa": nspsa, "amvo-sca": amvo_sca,
 #: :func:`minimize` with the same counting and budget rules.
 SCIPY_METHODS = ("nelder-mead", "powell", "l-bfgs-b", "bfgs", "tnc", "slsqp", "cobyla", "trust-constr")
 
+#: scipy methods handed ``maxfev`` (they stop on it themselves), and the status they then report.
+_OWN_MAXFEV = ("nelder-mead", "powell")
+_SCIPY_MAXFEV_STATUS = 1
+
 _ALIASES = {
     "nl-spsa": "nlspsa", "n-spsa": "nspsa", "amvosca": "amvo-sca", "amvo_sca": "amvo-sca",
     "mvo-sca": "amvo-sca", "neldermead": "nelder-mead", "nelder_mead": "nelder-mead",
@@ -182,7 +186,7 @@ def _scipy_minimize(method, fun, x0, *, args, maxfev, maxiter, options, callback
             raise StopIteration
 
     opts = dict(options)
-    if maxfev is not None and method in ("nelder-mead", "powell"):
+    if maxfev is not None and method in _OWN_MAXFEV:
         opts.setdefault("maxfev", maxfev)
     if maxiter is not None:
         opts.setdefault("maxiter", maxiter)
@@ -191,6 +195,8 @@ def _scipy_minimize(method, fun, x0, *, args, maxfev, maxiter, options, callback
                                       callback=step)
         x, fun_x, message = res.x, float(res.fun), str(res.message)
         status = COMPLETED if res.success else SOLVER_FAILED
+        if _stopped_by_budget(method, res, obj):     # scipy's own stop on our maxfev
+            status, message = BUDGET_EXHAUSTED, f"evaluation budget of {maxfev} exhausted before convergence"
     except BudgetExhausted:
         x, fun_x = obj.best_x, obj.best_fun
         status, message = BUDGET_EXHAUSTED, f"evaluation budget of {maxfev} exhausted before convergence"
@@ -198,3 +204,9 @@ def _scipy_minimize(method, fun, x0, *, args, maxfev, maxiter, options, callback
         x, fun_x = x0, np.nan
     return make_result(x=x, fun=fun_x, obj=obj, nit=nit, status=status, message=message,
                        history=history, method=method, started=started)
+
+
+def _stopped_by_budget(method, res, obj: CountedObjective) -> bool:
+    """Whether a method of :data:`_OWN_MAXFEV` stopped on its maxfev with the whole budget spent."""
+    return (method in _OWN_MAXFEV and not res.success and res.status == _SCIPY_MAXFEV_STATUS
+            and obj.maxfev is not None and obj.nfev >= obj.maxfev)
