@@ -397,7 +397,8 @@ def test_a_budget_that_ends_before_convergence_fails_with_the_steps_taken(emps_c
 
     From the N-SPSA vector every step's trial point is a full pass (the point and its p = 4 neighbours,
     5 evaluations) and every trial is accepted on the way to the optimum, which a budget of 45 reaches
-    in 8 steps: so a budget of ``maxfev`` evaluates ``(maxfev - 5) // 5`` steps.
+    in 8 steps: so a budget of ``maxfev`` evaluates the trial points (row 0 of a pass) of
+    ``(maxfev - 1) // 5`` steps.
     """
     x = np.asarray(emps_case.paper["nspsa"]["beta"])
     p1 = x.size + 1
@@ -405,7 +406,7 @@ def test_a_budget_that_ends_before_convergence_fails_with_the_steps_taken(emps_c
     assert full.success and full.status == COMPLETED and full.nfev == 45 and full.nit == (45 - p1) // p1
     r = levenberg_marquardt(emps_case.cost, x, maxfev=maxfev)
     assert r.status == BUDGET_EXHAUSTED and not r.success and "exhausted before convergence" in r.message
-    assert r.nit == (maxfev - p1) // p1 and r.nfev == maxfev
+    assert r.nit == (maxfev - 1) // p1 and r.nfev == maxfev
 
 
 def test_scipy_methods_and_identify_report_the_budgets_end(emps_case):

@@ -331,9 +331,10 @@ def _iterate(passes, x, ftol, xtol, gtol, max_steps: int, factor: bool):
         if passes.steps >= max_steps:
             return x, ne.fun, 5, passes.steps
         trial = x + delta
+        if passes.counted.remaining >= 1:       # a step counts once its trial point (a pass's row 0) is evaluated,
+            passes.steps += 1                   # also by a pass the budget cuts short
         trial_ne = None if alone else passes.full(trial)
         f_trial = passes.value(trial) if alone else trial_ne.fun
-        passes.steps += 1                       # a step counts once its trial point is evaluated
         if f_trial < ne.fun and predicted > 0:
             actual, f_old = ne.fun - f_trial, ne.fun
             damping.accept(actual / predicted)
