@@ -191,7 +191,7 @@ def _unrefined(cost, starts, found, budget, merged, started):
         x, fun = np.full(cost.n_params, np.nan), np.inf
         message = (f"the search for starting points used up its share of the budget without finding one "
                    f"({hint})")
-    return OptimizeResult(x=x, fun=fun, nfev=budget.nfev, nit=0, success=False, status=SOLVER_FAILED,
+    return OptimizeResult(x=x, fun=fun, nfev=budget.nfev, nit=0, success=False, status=BUDGET_EXHAUSTED,
                           message=message, history=merged.history.as_dict(), method="auto",
                           starts=len(starts), best_x=x.copy() if starts else None, best_fun=fun, nfev_monitor=0,
                           elapsed=time.perf_counter() - started)
