@@ -119,19 +119,23 @@ def test_quickstart_notebook_shows_the_lm_message_the_code_gives(trs_case):
     assert tail.search(shown).group(1) == tail.search(lm.summary().splitlines()[0]).group(1)
 
 
-def test_resumed_study_does_not_mix_lm_records_of_the_old_status(trs_case, tmp_path):
+def test_resumed_study_does_not_mix_lm_records_of_the_old_status(trs_case, tmp_path, monkeypatch):
     """A results file written before the change is resumed as is: one LM run with two statuses.
 
     The fingerprint (RECORD_VERSION 3) did not change with the meaning of status/success/nit, so a
     rerun of ``reproduce`` keeps the parent commit's TRS LM trial (status 0, success True, nit = nfev
     = 2001, "evaluation budget of 2001 exhausted") beside new trials of the same deterministic run
-    (status 5, success False, nit 346).  The old record is rebuilt here as 8c2b3cb wrote it (checked
-    against a real run of that commit: config b29493283d3cc5c2, the same seed and fields).
+    (status 5, success False, nit 346).  The old record is rebuilt here as 8c2b3cb wrote it, with its
+    RECORD_VERSION 3 (checked against a real run of that commit: config b29493283d3cc5c2, the same
+    seed and fields).
     """
+    from hammerstein_ctrl import study as study_module
     from hammerstein_ctrl.study import record_digest, run_study
 
     path = tmp_path / "results.jsonl"
-    new = run_study(trs_case, ["lm"], trials=1, seed=0).records[0]
+    with monkeypatch.context() as m:
+        m.setattr(study_module, "RECORD_VERSION", 3)        # the parent commit's
+        new = run_study(trs_case, ["lm"], trials=1, seed=0).records[0]
     assert new["status"] == BUDGET_EXHAUSTED and new["nfev"] == 2001
     old = {**new, "status": COMPLETED, "success": True, "nit": new["nfev"],
            "message": f"evaluation budget of {new['nfev']} exhausted"}
