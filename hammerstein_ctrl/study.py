@@ -57,9 +57,10 @@ __all__ = ["run_study", "StudyResult", "trial_seed", "ranksum", "validate_record
 
 #: Points kept from each trial's convergence curve (for plots).
 CURVE_POINTS = 200
-#: Version of the JSON-lines record layout; part of every fingerprint, so files
-#: written by an older layout are never mixed into a resumed study.
-RECORD_VERSION = 3
+#: Version of the JSON-lines record layout and of the meaning of its fields; part of every
+#: fingerprint, so files written by an older layout are never mixed into a resumed study
+#: (4: status 5, BUDGET_EXHAUSTED, and nit as steps for LM and scipy's methods stopped by maxfev).
+RECORD_VERSION = 4
 #: Seconds between a worker's checks that the process that started it is alive.
 PARENT_WATCH_INTERVAL = 0.5
 #: ``prctl`` option asking Linux to signal a process when its parent dies.
