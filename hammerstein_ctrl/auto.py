@@ -210,9 +210,11 @@ def _result(cost, best, budget, runs, n_starts, merged, allow_unstable, started)
     ok = _acceptable(cost, x, best.fun, allow_unstable)
     if converged and ok:
         message = f"converged ({best.message.rstrip('.')}) after {runs} refinement(s) from {n_starts} start(s)"
-    elif not converged:
+    elif best.status == BUDGET_EXHAUSTED:
         message = (f"best of {runs} refinement(s) did not converge within maxfev = {budget.maxfev} "
                    f"(raise it): {best.message}")
+    elif not converged:     # the solver stopped on its own limits: more evaluations would not help
+        message = f"best of {runs} refinement(s) did not converge: {best.message}"
     else:
         message = f"no acceptable model (unstable or no better than a constant) after {runs} refinement(s)"
     return OptimizeResult(x=x, fun=float(best.fun), nfev=budget.nfev, nit=runs, success=bool(converged and ok),

@@ -417,3 +417,22 @@ def test_scipy_methods_and_identify_report_the_budgets_end(emps_case):
     assert not res.success and "exhausted before convergence" in res.message
     auto = identify(emps_case.data, "emps", maxfev=60, seed=0)
     assert not auto.success and auto.optimize_result.status == BUDGET_EXHAUSTED
+
+
+def test_auto_asks_for_more_evaluations_only_when_the_budget_ended(trs_case):
+    """A refinement stopped by a solver's own limit is not cured by a larger maxfev: the message says only that."""
+    from types import SimpleNamespace
+
+    from scipy.optimize import OptimizeResult
+
+    from hammerstein_ctrl.auto import _result
+    from hammerstein_ctrl.initialize import Budget
+    from hammerstein_ctrl.optimize import SOLVER_FAILED, History
+
+    x = np.asarray(trs_case.true_beta, dtype=float)
+    merged = SimpleNamespace(history=History())
+    for status, asks in ((SOLVER_FAILED, False), (BUDGET_EXHAUSTED, True)):
+        best = OptimizeResult(x=x, fun=trs_case.cost(x), status=status, message="the solver's own words")
+        r = _result(trs_case.cost, best, Budget(500), 2, 3, merged, False, 0.0)
+        assert r.status == status and not r.success and "the solver's own words" in r.message
+        assert ("raise it" in r.message) is asks
