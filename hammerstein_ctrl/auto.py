@@ -197,20 +197,17 @@ def _unrefined(cost, starts, found, budget, merged, started):
                           elapsed=time.perf_counter() - started)
 
 
-def _unconverged_status(best) -> int:
-    """The status of a run whose best refinement did not converge: the budget's end, or a solver's failure."""
-    return BUDGET_EXHAUSTED if best.status == BUDGET_EXHAUSTED else SOLVER_FAILED
-
-
 def _result(cost, best, budget, runs, n_starts, merged, allow_unstable, started):
     from scipy.optimize import OptimizeResult
 
-    converged = best.status == COMPLETED
+    # the best refinement's own status: converged, out of budget, or any other stop (a solver's failure)
+    status = best.status if best.status in (COMPLETED, BUDGET_EXHAUSTED) else SOLVER_FAILED
+    converged = status == COMPLETED
     x = cost.structure.normalize(best.x)
     ok = _acceptable(cost, x, best.fun, allow_unstable)
     if converged and ok:
         message = f"converged ({best.message.rstrip('.')}) after {runs} refinement(s) from {n_starts} start(s)"
-    elif best.status == BUDGET_EXHAUSTED:
+    elif status == BUDGET_EXHAUSTED:
         message = (f"best of {runs} refinement(s) did not converge within maxfev = {budget.maxfev} "
                    f"(raise it): {best.message}")
     elif not converged:     # the solver stopped on its own limits: more evaluations would not help
@@ -218,7 +215,7 @@ def _result(cost, best, budget, runs, n_starts, merged, allow_unstable, started)
     else:
         message = f"no acceptable model (unstable or no better than a constant) after {runs} refinement(s)"
     return OptimizeResult(x=x, fun=float(best.fun), nfev=budget.nfev, nit=runs, success=bool(converged and ok),
-                          status=COMPLETED if converged else _unconverged_status(best), message=message,
+                          status=status, message=message,
                           history=merged.history.as_dict(), method="auto", starts=n_starts,
                           best_x=x.copy(), best_fun=float(best.fun), nfev_monitor=0,
                           elapsed=time.perf_counter() - started)

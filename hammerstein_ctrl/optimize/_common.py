@@ -18,6 +18,12 @@ NO_FINITE_VALUE = 3  #: every evaluation was non-finite
 SOLVER_FAILED = 4  #: a delegated scipy solver reported failure
 BUDGET_EXHAUSTED = 5  #: a converging method (LM, scipy's) ran out of evaluations before its convergence test
 
+
+def budget_exhausted_message(maxfev) -> str:
+    """The message of a :data:`BUDGET_EXHAUSTED` result."""
+    return f"evaluation budget of {maxfev} exhausted before convergence"
+
+
 #: Arithmetic errors raised by an objective that are scored as ``inf`` instead
 #: of aborting the search (e.g. Python-float overflow in ``x ** 3``).
 _SCORED_AS_INF = (OverflowError, ZeroDivisionError, FloatingPointError)

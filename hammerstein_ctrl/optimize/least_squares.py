@@ -39,6 +39,7 @@ from ._common import (
     History,
     as_bounds,
     as_x0,
+    budget_exhausted_message,
     check_budget,
     make_result,
 )
@@ -290,7 +291,7 @@ def levenberg_marquardt(fun, x0, *, maxfev: int | None = None, maxiter=None, see
         status = COMPLETED if success else SOLVER_FAILED
     except BudgetExhausted as exc:    # nit: the steps tried before it (see _steps_on_exhaustion)
         x, fun_x, nit = counted.best_x, counted.best_fun, counted.calls if exc.nit is None else exc.nit
-        status, message = BUDGET_EXHAUSTED, f"evaluation budget of {maxfev} exhausted before convergence"
+        status, message = BUDGET_EXHAUSTED, budget_exhausted_message(maxfev)
     if x is None:
         x, fun_x = x0, np.nan
     return make_result(x=x, fun=fun_x, obj=counted, nit=nit, status=status,

@@ -28,6 +28,7 @@ from ._common import (
     CountedObjective,
     History,
     as_x0,
+    budget_exhausted_message,
     check_budget,
     check_options,
     make_result,
@@ -196,10 +197,10 @@ def _scipy_minimize(method, fun, x0, *, args, maxfev, maxiter, options, callback
         x, fun_x, message = res.x, float(res.fun), str(res.message)
         status = COMPLETED if res.success else SOLVER_FAILED
         if _stopped_by_budget(method, res, obj):     # scipy's own stop on our maxfev
-            status, message = BUDGET_EXHAUSTED, f"evaluation budget of {maxfev} exhausted before convergence"
+            status, message = BUDGET_EXHAUSTED, budget_exhausted_message(maxfev)
     except BudgetExhausted:
         x, fun_x = obj.best_x, obj.best_fun
-        status, message = BUDGET_EXHAUSTED, f"evaluation budget of {maxfev} exhausted before convergence"
+        status, message = BUDGET_EXHAUSTED, budget_exhausted_message(maxfev)
     if x is None:  # budget exhausted before any evaluation
         x, fun_x = x0, np.nan
     return make_result(x=x, fun=fun_x, obj=obj, nit=nit, status=status, message=message,
