@@ -94,6 +94,16 @@ class _CountedResiduals(CountedObjective):
             self.best_fun, self.best_x = f, np.array(x, dtype=float)
         self.history.append(self.nfev, self.nfev, f, self.best_fun, self.best_fun)
 
+    def record_values(self, X, values):
+        """Book charged evaluations of the rows of ``X`` with sums of squares ``values``, as :meth:`record_value` row by row."""
+        best = None
+        for i, f in enumerate(values):
+            if f < self.best_fun:
+                self.best_fun, best = f, i
+            self.history.append(self.nfev, self.nfev, f, self.best_fun, self.best_fun)
+        if best is not None:
+            self.best_x = np.array(X[best], dtype=float)
+
     def __call__(self, x):
         last_x, last_r = self._last
         if last_x is not None and np.array_equal(last_x, x):

@@ -70,7 +70,7 @@ class _Passes:
     """Counted evaluations for the solver: a point with its neighbours, or a point alone.
 
     ``counted`` is a :class:`~hammerstein_ctrl.optimize.least_squares._CountedResiduals`-like
-    object (``charge``, ``record_value``, ``remaining``); ``fun`` supplies
+    object (``charge``, ``record_value``, ``record_values``, ``remaining``); ``fun`` supplies
     ``normal_equations(x, steps)``, or residuals from which they are formed.
     """
 
@@ -117,8 +117,7 @@ class _Passes:
                 ne = from_residuals(R, h)
         values = [ne.fun] + ne.neighbour_values().tolist()
         values = [f if math.isfinite(f) else math.inf for f in values]
-        for row, f in zip(X, values):
-            self.counted.record_value(row, f)
+        self.counted.record_values(X, values)
         return ne if values[0] == ne.fun else ne._replace(fun=values[0])
 
     @property
