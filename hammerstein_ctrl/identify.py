@@ -103,6 +103,11 @@ class IdentificationResult:
         """The fitted parameters by name."""
         return dict(zip(self.structure.param_names, self.x.tolist()))
 
+    @property
+    def status(self) -> int:
+        """The optimiser's termination code (the table in :mod:`hammerstein_ctrl.optimize`; 5: the budget ran out first)."""
+        return int(self.optimize_result.status)
+
     def validate(self, data: IOData, *, initial_state: str | None = None) -> dict:
         """Goodness of fit (``sse``, ``rmse``, ``nrmse``, ``fit_percent``) on another record.
 
@@ -149,7 +154,7 @@ class IdentificationResult:
             "method": self.method, "data": self.data.name, "structure": self.structure.describe(),
             "params": self.params, "beta": self.x.tolist(), "J": self.fun, "nfev": self.nfev,
             "fit_percent": self.fit_percent, "rmse": self.rmse, "nrmse": self.nrmse,
-            "success": self.success, "message": self.message, "elapsed_s": self.elapsed,
+            "success": self.success, "status": self.status, "message": self.message, "elapsed_s": self.elapsed,
             "linear": {"num": num, "den": den},
             **{key: {"name": nl.name, "params": dict(zip(nl.param_names, np.asarray(p).tolist()))}
                for key, nl, p in (("nonlinearity", self.model.input_nonlinearity, self.model.input_params),

@@ -17,10 +17,10 @@ The files are plain JSON (RFC 8259), read strictly and never evaluated:
 Floats are written with Python's shortest round-trip representation, so a
 loaded model reproduces the saved one bit for bit.
 
-Schema, version 2 (a model file; a result file has ``"format":
+Schema, version 3 (a model file; a result file has ``"format":
 "hammerstein_ctrl/result"`` and the keys of :func:`result_to_dict`)::
 
-    {"format": "hammerstein_ctrl/model", "schema_version": 2,
+    {"format": "hammerstein_ctrl/model", "schema_version": 3,
      "model": {"name": "emps", "kind": "hammerstein",
                "linear": {"num": [1.0], "den": [1.0, 3.1388, 0.0]},
                "input_nonlinearity": {"family": "coulomb", "options": {},
@@ -60,14 +60,18 @@ from .nonlinearities import NONLINEARITIES, PiecewiseLinear, Polynomial
 __all__ = [
     "SCHEMA_VERSION", "MODEL_FORMAT", "RESULT_FORMAT",
     "model_to_dict", "model_from_dict", "save_model", "load_model",
-    "result_to_dict", "result_from_dict", "save_result", "load_result", "SavedResult",
+    "result_to_dict", "result_from_dict", "save_result", "load_result", "SavedResult", "READABLE_SCHEMA_VERSIONS",
 ]
 
-#: Version of the JSON schema written by this module (files of other versions are refused).
-SCHEMA_VERSION = 2
+#: Version of the JSON schema written by this module.
+SCHEMA_VERSION = 3
+#: Versions it reads (others are refused): 3 added a result's ``status``, the optimiser's termination code.
+READABLE_SCHEMA_VERSIONS = (2, 3)
 MODEL_FORMAT = "hammerstein_ctrl/model"
 RESULT_FORMAT = "hammerstein_ctrl/result"
 
+#: The first schema version whose result files carry ``status``.
+_STATUS_VERSION = 3
 #: Strings standing for non-finite figures of a run.
 _NONFINITE = {"inf": math.inf, "-inf": -math.inf, "nan": math.nan}
 
@@ -133,7 +137,8 @@ def _boolean(value, where: str) -> bool:
     return value
 
 
-def _header(obj, fmt: str, where: str) -> None:
+def _header(obj, fmt: str, where: str) -> int:
+    """Check the format and schema version of a file's top-level object; return the version."""
     if not isinstance(obj, dict):
         raise ParameterError(f"{where}: not a hammerstein_ctrl file (top level is not a JSON object)")
     if obj.get("format") != fmt:
@@ -141,11 +146,13 @@ def _header(obj, fmt: str, where: str) -> None:
     if "schema_version" not in obj:
         raise ParameterError(f"{where} is missing the field(s) ['schema_version']")
     version = obj["schema_version"]
-    if version != SCHEMA_VERSION or isinstance(version, bool):
+    if version not in READABLE_SCHEMA_VERSIONS or isinstance(version, bool):
+        readable = " and ".join(str(v) for v in READABLE_SCHEMA_VERSIONS)
         raise ParameterError(
             f"{where}: unsupported schema_version {version!r}; this version of hammerstein_ctrl "
-            f"reads version {SCHEMA_VERSION}"
+            f"reads versions {readable}"
         )
+    return version
 
 
 def _encode(value):
@@ -381,6 +388,9 @@ class SavedResult:
     message: str
     elapsed: float
     data: dict = field(default_factory=dict)
+    #: The optimiser's termination code (the table in :mod:`hammerstein_ctrl.optimize`; 5: the
+    #: budget ran out first); ``None`` when the file does not say (schema version 2).
+    status: int | None = None
 
     @property
     def params(self) -> dict:
@@ -411,8 +421,12 @@ def result_to_dict(result) -> dict:
         "rmse": _encode(getattr(result, "rmse", math.nan)), "nrmse": _encode(getattr(result, "nrmse", math.nan)),
         "nfev": int(getattr(result, "nfev", 0)), "method": str(getattr(result, "method", "")),
         "success": bool(getattr(result, "success", False)), "message": str(getattr(result, "message", "")),
-        "elapsed_s": _encode(getattr(result, "elapsed", math.nan)),
+        "status": _status(getattr(result, "status", None)), "elapsed_s": _encode(getattr(result, "elapsed", math.nan)),
     }
+
+
+def _status(status) -> int | None:
+    return None if status is None else int(status)
 
 
 def _data_from_dict(obj, where: str) -> dict:
@@ -427,8 +441,8 @@ def _data_from_dict(obj, where: str) -> dict:
 
 def result_from_dict(obj, where: str = "result") -> SavedResult:
     """Build a :class:`SavedResult` from the object written by :func:`result_to_dict`."""
-    _header(obj, RESULT_FORMAT, where)
-    _keys(obj, where, _RESULT_KEYS)
+    version = _header(obj, RESULT_FORMAT, where)
+    _keys(obj, where, _RESULT_KEYS + (("status",) if version >= _STATUS_VERSION else ()))
     model = model_from_dict(obj["model"], f"{where}: model")
     structure = _structure_from_dict(obj["structure"], f"{where}: structure")
     beta = _numbers(obj["beta"], f"{where}: beta")
@@ -450,6 +464,7 @@ def result_from_dict(obj, where: str = "result") -> SavedResult:
         message=_string(obj["message"], f"{where}: message"),
         elapsed=_number(obj["elapsed_s"], f"{where}: elapsed_s", finite=False),
         data=_data_from_dict(obj["data"], f"{where}: data"),
+        status=None if obj.get("status") is None else _integer(obj["status"], f"{where}: status"),
     )
 
 

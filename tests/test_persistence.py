@@ -48,6 +48,42 @@ def test_emps_result_round_trip(emps_case, tmp_path):
     assert hc.load_model(path).params.tolist() == res.model.params.tolist()
 
 
+def test_result_keeps_the_optimisers_status_and_reads_version_2_files(emps_case, tmp_path):
+    """Schema 3 stores ``status`` (5: the budget ran out first); a version-2 file, which has none, still loads."""
+    from hammerstein_ctrl.optimize import BUDGET_EXHAUSTED
+
+    x0 = [3.0, 0.5, -0.4, 0.0]
+    res = hc.identify(emps_case.data, emps_case.structure, method="lm", x0=x0, maxfev=12)
+    assert res.status == res.optimize_result.status == BUDGET_EXHAUSTED and not res.success
+    assert res.to_dict()["status"] == BUDGET_EXHAUSTED
+    path = tmp_path / "result.json"
+    hc.save_result(res, path)
+    doc = json.loads(path.read_text())
+    assert doc["schema_version"] == 3 and doc["status"] == BUDGET_EXHAUSTED
+    assert hc.load_result(path).status == BUDGET_EXHAUSTED
+    old = dict(doc, schema_version=2)
+    del old["status"]
+    path.write_text(json.dumps(old))
+    saved = hc.load_result(path)
+    assert saved.status is None and saved.fun == res.fun and not saved.success
+    assert hc.load_model(path).params.tolist() == res.model.params.tolist()
+    for bad, message in ((dict(old, status=5), r"unexpected field\(s\) \['status'\]"),
+                         ({k: v for k, v in doc.items() if k != "status"}, r"missing the field\(s\) \['status'\]"),
+                         (dict(doc, status="5"), "status must be an integer")):
+        path.write_text(json.dumps(bad))
+        with pytest.raises(ParameterError, match=message):
+            hc.load_result(path)
+
+
+def test_version_2_model_files_still_load(tmp_path):
+    model = hc.HammersteinModel(ct.tf([1], [1, 3.138764, 0]), hc.Coulomb(), [0.544501, -0.398365, 0.045066])
+    path = tmp_path / "m.json"
+    model.save(path)
+    doc = json.loads(path.read_text())
+    path.write_text(json.dumps(dict(doc, schema_version=2)))
+    assert hc.load_model(path).params.tolist() == model.params.tolist()
+
+
 def test_trs_round_trip_is_bitwise(trs_case, tmp_path):
     model = trs_case.structure.model(trs_case.true_beta)
     hc.save_model(model, tmp_path / "trs.json")
