@@ -43,9 +43,10 @@ from ._checks import as_real_array
 from ._jit import cached_njit
 from ._linalg import single_threaded_blas
 from .exceptions import ParameterError
-from .kernels import MAX_LANE_BASIS, MAX_UNROLLED_STATES, get_coefficient_kernel
-from .normal_equations import (NONFINITE_RESIDUAL, NormalEquations, forward_steps, from_factor, from_residuals,
-                               neighbours, scored_inf)
+from .kernels import (MAX_LANE_BASIS, MAX_NORMAL_LANES, MAX_UNROLLED_STATES, get_coefficient_kernel,
+                      get_coefficient_normal_kernel)
+from .normal_equations import (NONFINITE_RESIDUAL, NormalEquations, forward_steps, from_difference_sums, from_factor,
+                               from_residuals, neighbours, scored_inf)
 from .simulate import (COMPILED_EXPM_MAX_NORM, GROUPS_MIN_BYTES, normal_factor, normal_pass, simulate_batch,
                        sse_basis_batch, sse_batch, unstable)
 from .structure import BlockStructure
@@ -503,6 +504,10 @@ class HammersteinCost:
         """The compiled pass of :func:`~hammerstein_ctrl.simulate.normal_pass` (or ``driver``), or ``None`` where it does not apply."""
         s = self.structure
         form = self._basis_form(X)
+        if form is not None and driver is normal_pass and self._direct is not None:
+            ne = self._direct_normal_equations(X, h, *form)
+            if ne is not None:
+                return ne
         if form is not None:
             P, blocks = form[0], [form[1]]
         elif self._linear_in_params:
@@ -516,6 +521,24 @@ class HammersteinCost:
         return driver(num, den, self.data.dt, self._y, P, blocks, h, x0=x0, offset=offset,
                       intersample=self.data.intersample,
                       output_map=None if h_params is None else (s.output_nonlinearity, h_params))
+
+    def _direct_normal_equations(self, X, h, P, basis):
+        """:meth:`_fused_normal_equations` of a plain structure in one compiled call from the coefficients (:attr:`_direct`).
+
+        ``None`` where the candidates do not fit one pass or a row needs
+        scipy's exponential: the general pass then takes them, with the
+        same kernel and so the same sums.
+        """
+        lanes, K = P.shape
+        if not 2 <= lanes <= MAX_NORMAL_LANES or K > MAX_LANE_BASIS:
+            return None
+        num, den = self.structure.linear._coefficients(X[:1 + self._n_linear, :self._n_linear])
+        pass_ = get_coefficient_normal_kernel(self._direct[0], self.data.intersample, lanes, K,
+                                              num.shape[1] == den.shape[1])
+        acc = np.zeros(1 + (lanes - 1) * lanes)
+        if not pass_(num, den, self.data.dt, COMPILED_EXPM_MAX_NORM, np.ascontiguousarray(P), basis, self._y, acc):
+            return None
+        return from_difference_sums(acc, h)
 
     def _signal_selection(self, params):
         """``(P, blocks)`` for a ``g`` without a basis: its distinct signals as the basis, each lane selecting one.

@@ -499,3 +499,55 @@ def test_pass_sums_match_the_recursion_written_out(n, hold, lanes, direct, offse
     assert np.all(H[-1] == 0) and acc[p] == 0        # the neighbour equal to the point: exact zeros
     np.testing.assert_allclose(Xk, last, rtol=1e-10, atol=1e-12)        # carried to a next block
     np.testing.assert_allclose(VP, P @ Phi[:, -1], rtol=1e-12)
+
+
+def _plain_case(name):
+    """``(cost, x)`` of a plain structure (no offset, initial state or output map), by name."""
+    cases = {"zoh, 3 states": (hc.LinearStructure(1, 3), [0.5, 1.0, 3.0, 3.0], "zoh"),
+             "biproper, direct term": (hc.LinearStructure(2, 2), [1.0, 0.5, 2.0, 3.0], "foh"),
+             "6 states, array pass": (hc.LinearStructure(0, 6), np.poly(-np.arange(1.0, 7.0))[1:][::-1], "foh"),
+             "fast pole, scipy's expm": (hc.LinearStructure(0, 1), [1e4], "foh")}
+    linear, lin_x, hold = cases[name]
+    structure = hc.HammersteinStructure(linear, hc.Polynomial(2))
+    x = np.r_[lin_x, 0.3, 1.2]
+    return HammersteinCost(_synthetic(hold), structure), x
+
+
+@pytest.mark.parametrize("name", ["emps", "zoh, 3 states", "biproper, direct term", "6 states, array pass",
+                                  "fast pole, scipy's expm"])
+def test_plain_structures_pass_from_the_coefficients_with_the_general_passs_sums(name, emps_case):
+    """One compiled call from the coefficients (discretisation and pass) gives the bits of the general
+    pass (simulate.normal_pass, the same kernel); a row the compiled Pade cannot take goes the general way."""
+    from hammerstein_ctrl.simulate import normal_pass
+
+    cost, x = (emps_case.cost, np.asarray(emps_case.paper["nspsa"]["beta"])) if name == "emps" else _plain_case(name)
+    h = forward_steps(x)
+    X = neighbours(x, h)
+    P, basis = cost._basis_form(X)
+    direct = cost._direct_normal_equations(X, h, P, basis)
+    assert (direct is None) == (name == "fast pole, scipy's expm")
+    num, den = cost.structure.linear._coefficients(X[:, :cost.structure.linear.n_params])
+    general = normal_pass(num, den, cost.data.dt, cost.data.y, P, [basis], h, intersample=cost.data.intersample)
+    ne = cost.normal_equations(x, h)
+    assert ne.fun == general.fun and np.isfinite(ne.fun) and ne.fun > 0
+    np.testing.assert_array_equal(ne.gradient, general.gradient)
+    np.testing.assert_array_equal(ne.gram, general.gram)
+    if direct is not None:
+        _check(cost, x, rtol=1e-4)          # and both are the stored Jacobian's sums
+
+
+def test_a_pass_books_its_best_neighbour_as_the_row_of_neighbours():
+    """LM's pass books p + 1 evaluations; a neighbour that becomes the best point is the row neighbours() gives."""
+    from hammerstein_ctrl.optimize.least_squares import _CountedResiduals
+
+    counted = _CountedResiduals(lambda x: x, maxfev=100)
+    x = np.array([0.1, -3.0, 7.0])
+    h = forward_steps(x)
+    counted.charge(4)
+    counted.record_neighbourhood(x, h, [5.0, 6.0, 2.0, 3.0])
+    assert counted.best_fun == 2.0
+    np.testing.assert_array_equal(counted.best_x, neighbours(x, h)[2])
+    assert counted.best_x[1] != x[1]
+    counted.record_neighbourhood(x, h, [1.0, np.inf, 4.0, 3.0])          # the point itself
+    np.testing.assert_array_equal(counted.best_x, x)
+    assert counted.history.as_dict()["best"].tolist() == [5.0, 5.0, 2.0, 2.0, 1.0, 1.0, 1.0, 1.0]

@@ -94,15 +94,21 @@ class _CountedResiduals(CountedObjective):
             self.best_fun, self.best_x = f, np.array(x, dtype=float)
         self.history.append(self.nfev, self.nfev, f, self.best_fun, self.best_fun)
 
-    def record_values(self, X, values):
-        """Book charged evaluations of the rows of ``X`` with sums of squares ``values``, as :meth:`record_value` row by row."""
+    def record_neighbourhood(self, x, steps, values):
+        """Book charged evaluations of ``x`` and its neighbours ``x + steps[j] e_j`` with sums of squares ``values``.
+
+        As :meth:`record_value` point by point (``values[0]`` is ``x``'s); the
+        best neighbour's row is formed only if it becomes the best point.
+        """
         best = None
         for i, f in enumerate(values):
             if f < self.best_fun:
                 self.best_fun, best = f, i
             self.history.append(self.nfev, self.nfev, f, self.best_fun, self.best_fun)
         if best is not None:
-            self.best_x = np.array(X[best], dtype=float)
+            self.best_x = np.array(x, dtype=float)
+            if best > 0:
+                self.best_x[best - 1] += steps[best - 1]     # the row neighbours(x, steps)[best], bit for bit
 
     def __call__(self, x):
         last_x, last_r = self._last

@@ -70,7 +70,7 @@ class _Passes:
     """Counted evaluations for the solver: a point with its neighbours, or a point alone.
 
     ``counted`` is a :class:`~hammerstein_ctrl.optimize.least_squares._CountedResiduals`-like
-    object (``charge``, ``record_value``, ``record_values``, ``remaining``); ``fun`` supplies
+    object (``charge``, ``record_value``, ``record_neighbourhood``, ``remaining``); ``fun`` supplies
     ``normal_equations(x, steps)``, or residuals from which they are formed.
     """
 
@@ -100,24 +100,23 @@ class _Passes:
     def full(self, x) -> NormalEquations:
         """Normal equations at ``x`` (``p + 1`` evaluations); a partial budget is spent on ``x`` and the neighbours that fit."""
         h = forward_steps(x)
-        X = neighbours(x, h)
-        if self.counted.remaining < X.shape[0]:
+        if self.counted.remaining < h.size + 1:
             # spend what is left on the point and the neighbours that fit, as separate differences would
-            for row in X[:int(self.counted.remaining)]:
+            for row in neighbours(x, h)[:int(self.counted.remaining)]:
                 self.value(row)
             raise BudgetExhausted("evaluation budget exhausted")
-        self.counted.charge(X.shape[0])
+        self.counted.charge(h.size + 1)
         if self.factored:
             ne = self._factor(x, h)
         elif self._normal is not None:
             ne = self._normal(x, h)
         else:
+            X = neighbours(x, h)
             with np.errstate(all="ignore"):
                 R = self._batch(X) if self._batch is not None else [self._residuals(row) for row in X]
                 ne = from_residuals(R, h)
-        values = [ne.fun] + ne.neighbour_values().tolist()
-        values = [f if math.isfinite(f) else math.inf for f in values]
-        self.counted.record_values(X, values)
+        values = [f if math.isfinite(f) else math.inf for f in [ne.fun, *ne.neighbour_values().tolist()]]
+        self.counted.record_neighbourhood(x, h, values)
         return ne if values[0] == ne.fun else ne._replace(fun=values[0])
 
     @property
