@@ -382,13 +382,15 @@ def expm_batch(M) -> np.ndarray:
 
 @functools.lru_cache(maxsize=1)
 def _controller():
+    import scipy.linalg  # noqa: F401  (scipy's OpenBLAS, a library apart from numpy's, must be loaded to be found)
     from threadpoolctl import ThreadpoolController
 
     return ThreadpoolController()
 
 
-#: How many :func:`single_threaded_blas` blocks are open in the process, and the limiter of the first.
-_BLAS_LIMIT = {"depth": 0, "limiter": None}
+#: How many :func:`single_threaded_blas` blocks are open in the process, and the pools the first one
+#: limited, with the thread counts to restore.
+_BLAS_LIMIT = {"depth": 0, "saved": []}
 _BLAS_LOCK = threading.Lock()
 
 
@@ -399,10 +401,11 @@ def single_threaded_blas():
     Small dense linear algebra gains nothing from threads, and on a busy
     machine the spinning worker threads of OpenBLAS made each call tens of
     times slower.  The controller is built once per process (inspecting the
-    loaded libraries is the expensive part).  The limits are process-wide, so
-    blocks are counted across threads: the first to open sets them (about
-    20 us), the last to close restores them, and blocks nested in those
-    (``identify`` calls ``minimize``, which calls its solver) cost nothing.
+    loaded libraries is the expensive part; numpy's and scipy's BLAS are both
+    among them).  The limits are process-wide, so blocks are counted across
+    threads: the first to open sets each pool that has more than one thread
+    (a few microseconds), the last to close restores them, and blocks nested
+    in those (``identify`` calls ``minimize``, which calls its solver) cost nothing.
 
     Examples
     --------
@@ -414,7 +417,7 @@ def single_threaded_blas():
     with _BLAS_LOCK:
         if _BLAS_LIMIT["depth"] == 0:
             with _controlling_this_thread():
-                _BLAS_LIMIT["limiter"] = _controller().limit(limits=1)
+                _BLAS_LIMIT["saved"] = _limit_pools(_controller().lib_controllers)
         _BLAS_LIMIT["depth"] += 1
     try:
         yield
@@ -423,8 +426,20 @@ def single_threaded_blas():
             _BLAS_LIMIT["depth"] -= 1
             if _BLAS_LIMIT["depth"] == 0:
                 with _controlling_this_thread():
-                    _BLAS_LIMIT["limiter"].restore_original_limits()
-                _BLAS_LIMIT["limiter"] = None
+                    for pool, threads in _BLAS_LIMIT["saved"]:
+                        pool.set_num_threads(threads)
+                _BLAS_LIMIT["saved"] = []
+
+
+def _limit_pools(pools) -> list:
+    """Set each of threadpoolctl's library controllers ``pools`` to one thread; ``[(pool, threads before)]`` of those changed."""
+    saved = []
+    for pool in pools:
+        threads = pool.get_num_threads()
+        if threads is not None and threads != 1:
+            pool.set_num_threads(1)
+            saved.append((pool, threads))
+    return saved
 
 
 @contextlib.contextmanager

@@ -28,6 +28,7 @@ def test_symmetric_eigenvalues_of_large_entries():
 
 _TWO_THREADS = """
 import json, threading
+import scipy.linalg  # both BLAS libraries (numpy's, scipy's) loaded before the first count
 import threadpoolctl
 from hammerstein_ctrl._linalg import single_threaded_blas
 
@@ -77,6 +78,38 @@ def test_single_threaded_blas_restores_the_limits_after_two_threads():
     if not r["before"] or set(r["before"]) <= {1}:
         pytest.skip("no BLAS pool with more than one thread in the child")
     assert r["after"] == r["before"]
+
+
+_FIRST_BLOCK_BEFORE_SCIPY = """
+import json, sys
+import numpy as np
+from hammerstein_ctrl._linalg import single_threaded_blas
+loaded = "scipy.linalg" in sys.modules
+with single_threaded_blas():
+    import threadpoolctl
+    inside = {lib["filepath"]: lib["num_threads"] for lib in threadpoolctl.threadpool_info() if lib["user_api"] == "blas"}
+after = {lib["filepath"]: lib["num_threads"] for lib in threadpoolctl.threadpool_info() if lib["user_api"] == "blas"}
+print(json.dumps({"loaded": loaded, "inside": inside, "after": after}))
+"""
+
+
+def test_the_first_block_before_scipy_linalg_also_holds_scipys_blas():
+    """numpy and scipy wheels each bring their own OpenBLAS; a block opened before scipy.linalg was
+    imported must still hold both (scipy's serves expm, lstsq and MINPACK's neighbours), and restore both."""
+    import json
+    import os
+    import subprocess
+    import sys
+
+    pytest.importorskip("threadpoolctl")
+    env = dict(os.environ, OPENBLAS_NUM_THREADS="2", OMP_NUM_THREADS="2")
+    r = json.loads(subprocess.run([sys.executable, "-c", _FIRST_BLOCK_BEFORE_SCIPY], capture_output=True, text=True,
+                                  env=env, check=True, timeout=300).stdout.strip().splitlines()[-1])
+    assert not r["loaded"]
+    if set(r["after"].values()) <= {1}:
+        pytest.skip("no BLAS pool with more than one thread in the child")
+    assert len(r["inside"]) >= 2 and set(r["inside"].values()) == {1}, r
+    assert r["after"] == {k: 2 for k in r["inside"]}, r
 
 
 def test_auto_does_not_say_the_budget_ran_out_with_half_of_it_left(trs_case):
