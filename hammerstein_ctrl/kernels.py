@@ -67,7 +67,7 @@ from ._checks import MAX_ORDER
 from ._jit import cached_njit
 from ._simd import WIDTH
 
-__all__ = ["get_kernel", "get_coefficient_kernel", "get_normal_kernel", "get_coefficient_normal_kernel", "get_lane_kernel", "lane_source",
+__all__ = ["get_kernel", "get_coefficient_kernel", "get_normal_kernel", "get_lane_kernel", "lane_source",
            "has_output_maps", "kernel_source", "normal_source", "vector_normal_source", "cache_dir", "OUTPUT_TERMS",
            "MAX_UNROLLED_STATES", "MAX_PASS_STATES", "MAX_VECTOR_STATES", "MAX_NORMAL_LANES", "LANE_WIDTHS", "LANE_MIN",
            "MAX_LANE_BASIS", "INTERLEAVE", "MODES", "HOLDS", "ENV_CACHE"]
@@ -782,69 +782,13 @@ def get_normal_kernel(n: int, hold: str, lanes: int, K: int, direct: bool = True
         raise ValueError(f"normal-equation passes are compiled for 2..{MAX_NORMAL_LANES} lanes, not {lanes}")
     if outmap is not None and not has_output_maps(n):
         raise ValueError(f"output maps are compiled for up to {MAX_UNROLLED_STATES} states, not {n}")
-    return _load_source(*_normal_module(n, hold, lanes, K, direct, offset, outmap, outputs))
-
-
-def _normal_module(n: int, hold: str, lanes: int, K: int, direct: bool, offset: bool, outmap, outputs: bool):
-    """``(source, module name)`` of a normal-equation pass; a summing pass without a map also has ``from_coefficients``."""
     name = (f"hc_normal_n{n}_{hold}_l{lanes}_k{K}" + "".join(f"_{t}" for t in _terms(direct, offset))
             + (f"_{outmap}" if outmap else "") + ("_outputs" if outputs else ""))
     if outmap is None and not outputs and n <= MAX_VECTOR_STATES:
         src = vector_normal_source(int(n), hold, int(lanes), int(K), bool(direct), bool(offset))
     else:
         src = normal_source(int(n), hold, int(lanes), int(K), bool(direct), bool(offset), outmap, bool(outputs))
-    return (src + _NORMAL_FROM_COEFFICIENTS if outmap is None and not outputs else src), name
-
-
-_NORMAL_FROM_COEFFICIENTS = '''
-
-from hammerstein_ctrl._linalg import tf_discrete
-
-
-@cached_njit()
-def from_coefficients(num, den, dt, max_norm, P, Phi, y, acc):
-    """Discretise the transfer functions and run ``kernel`` over the record from rest, in one call; False (nothing done) unless every row is clean."""
-    E, C, D, ok, big, clean = tf_discrete(num, den, dt, max_norm)
-    if clean:
-        lanes = P.shape[0]
-        kernel(E, C, D, np.zeros((lanes, E.shape[1] - 2)), np.zeros(lanes), np.zeros(lanes), P, Phi,
-               np.zeros((lanes, 0)), np.zeros(0), y, 0, acc)
-    return clean
-'''
-
-
-@functools.lru_cache(maxsize=None)
-def get_coefficient_normal_kernel(n: int, hold: str, lanes: int, K: int, direct: bool = True):
-    """:func:`get_normal_kernel`'s summing pass over a whole record from rest, preceded by the discretisation, in one call.
-
-    As :func:`get_coefficient_kernel` is to single evaluations: a plain
-    structure (no output map, offset or initial state) takes its
-    normal-equation pass from the coefficients with no Python in between.
-
-    Returns
-    -------
-    callable
-        ``from_coefficients(num, den, dt, max_norm, P, Phi, y, acc) -> bool``:
-        the candidates' transfer functions ``num/den`` (rows, descending
-        powers; candidates past the rows share row 0's) are realised and
-        discretised (:func:`hammerstein_ctrl._linalg.tf_discrete`), and the
-        pass of :func:`get_normal_kernel` runs over all of ``Phi`` and ``y``
-        from a zero state, adding its sums to ``acc``; ``False`` (``acc``
-        untouched) if a row is not usable or its exponential needs more than
-        the compiled Pade (1-norm above ``max_norm``), for the caller's general path.
-
-    Examples
-    --------
-    >>> import numpy as np
-    >>> from hammerstein_ctrl.simulate import COMPILED_EXPM_MAX_NORM
-    >>> f = get_coefficient_normal_kernel(1, "zoh", 2, 1, direct=False)
-    >>> acc = np.zeros(3)         # an integrator, gains 2 and 2.5 (h = 0.5), dt = 0.5 and y = 0
-    >>> f(np.ones((1, 1)), np.array([[1.0, 0.0]]), 0.5, COMPILED_EXPM_MAX_NORM, np.array([[2.0], [2.5]]),
-    ...   np.ones((1, 3)), np.zeros(3), acc), acc       # r = -(0, 1, 2) and d = -(0, 1, 2) / 4
-    (True, array([5.    , 1.25  , 0.3125]))
-    """
-    get_normal_kernel(n, hold, lanes, K, direct, False)        # checks the arguments
-    return _load_source(*_normal_module(n, hold, lanes, K, direct, False, None, False), "from_coefficients")
+    return _load_source(src, name)
 
 
 #: Package modules whose compiled functions the generated kernels call.

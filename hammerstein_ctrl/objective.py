@@ -41,10 +41,9 @@ import numpy as np
 
 from ._checks import as_real_array
 from ._jit import cached_njit
-from ._linalg import single_threaded_blas
+from ._linalg import single_threaded_blas, tf_discrete
 from .exceptions import ParameterError
-from .kernels import (MAX_LANE_BASIS, MAX_NORMAL_LANES, MAX_UNROLLED_STATES, get_coefficient_kernel,
-                      get_coefficient_normal_kernel)
+from .kernels import MAX_LANE_BASIS, MAX_NORMAL_LANES, MAX_UNROLLED_STATES, get_coefficient_kernel, get_normal_kernel
 from .normal_equations import (NONFINITE_RESIDUAL, NormalEquations, forward_steps, from_difference_sums, from_factor,
                                from_residuals, neighbours, scored_inf)
 from .simulate import (COMPILED_EXPM_MAX_NORM, GROUPS_MIN_BYTES, normal_factor, normal_pass, simulate_batch,
@@ -523,21 +522,26 @@ class HammersteinCost:
                       output_map=None if h_params is None else (s.output_nonlinearity, h_params))
 
     def _direct_normal_equations(self, X, h, P, basis):
-        """:meth:`_fused_normal_equations` of a plain structure in one compiled call from the coefficients (:attr:`_direct`).
+        """:meth:`_fused_normal_equations` of a plain structure (:attr:`_direct`): the compiled pass run straight from the coefficients.
 
-        ``None`` where the candidates do not fit one pass or a row needs
-        scipy's exponential: the general pass then takes them, with the
-        same kernel and so the same sums.
+        No offset, initial state or output map, and the basis whole: the
+        checks and lane set-up of :func:`~hammerstein_ctrl.simulate.normal_pass`
+        have nothing to do.  ``None`` where the candidates do not fit one
+        pass or a row needs scipy's exponential; the general pass then takes
+        them, with the same kernel, and so gives the same sums.
         """
         lanes, K = P.shape
         if not 2 <= lanes <= MAX_NORMAL_LANES or K > MAX_LANE_BASIS:
             return None
         num, den = self.structure.linear._coefficients(X[:1 + self._n_linear, :self._n_linear])
-        pass_ = get_coefficient_normal_kernel(self._direct[0], self.data.intersample, lanes, K,
-                                              num.shape[1] == den.shape[1])
-        acc = np.zeros(1 + (lanes - 1) * lanes)
-        if not pass_(num, den, self.data.dt, COMPILED_EXPM_MAX_NORM, np.ascontiguousarray(P), basis, self._y, acc):
+        E, C, D, _, _, clean = tf_discrete(num, den, self.data.dt, COMPILED_EXPM_MAX_NORM)
+        if not clean:
             return None
+        n = self._direct[0]
+        kernel = get_normal_kernel(n, self.data.intersample, lanes, K, num.shape[1] == den.shape[1], False)
+        acc = np.zeros(1 + (lanes - 1) * lanes)
+        kernel(E, C, D, np.zeros((lanes, n)), np.zeros(lanes), np.zeros(lanes), np.ascontiguousarray(P), basis,
+               np.zeros((lanes, 0)), np.zeros(0), self._y, 0, acc)
         return from_difference_sums(acc, h)
 
     def _signal_selection(self, params):
