@@ -531,9 +531,7 @@ def test_plain_structures_pass_from_the_coefficients_with_the_general_passs_sums
     ne = cost.normal_equations(x, h)
     assert ne.fun == general.fun and np.isfinite(ne.fun) and ne.fun > 0
     np.testing.assert_array_equal(ne.gradient, general.gradient)
-    np.testing.assert_array_equal(ne.gram, general.gram)
-    if direct is not None:
-        _check(cost, x, rtol=1e-4)          # and both are the stored Jacobian's sums
+    np.testing.assert_array_equal(ne.gram, general.gram)     # (the general pass against stored Jacobians: above)
 
 
 def test_a_pass_books_its_best_neighbour_as_the_row_of_neighbours():
