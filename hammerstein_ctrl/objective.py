@@ -538,7 +538,8 @@ class HammersteinCost:
         if not clean:
             return None
         n = self._direct[0]
-        kernel = get_normal_kernel(n, self.data.intersample, lanes, K, num.shape[1] == den.shape[1], False)
+        direct = num.shape[1] == den.shape[1] and bool(D.any())      # as the general pass decides (same kernel, same bits)
+        kernel = get_normal_kernel(n, self.data.intersample, lanes, K, direct, False)
         acc = np.zeros(1 + (lanes - 1) * lanes)
         kernel(E, C, D, np.zeros((lanes, n)), np.zeros(lanes), np.zeros(lanes), np.ascontiguousarray(P), basis,
                np.zeros((lanes, 0)), np.zeros(0), self._y, 0, acc)

@@ -550,3 +550,28 @@ def test_a_pass_books_its_best_neighbour_as_the_row_of_neighbours():
     counted.record_neighbourhood(x, h, [1.0, np.inf, 4.0, 3.0])          # the point itself
     np.testing.assert_array_equal(counted.best_x, x)
     assert counted.history.as_dict()["best"].tolist() == [5.0, 5.0, 2.0, 2.0, 1.0, 1.0, 1.0, 1.0]
+
+
+@pytest.mark.parametrize("hold", ["foh", "zoh"])
+def test_a_biproper_block_whose_direct_term_is_fixed_at_zero_passes_with_the_general_passs_bits(hold):
+    """num and den of one width, but b_n fixed at 0 (D = 0 in every lane): the general pass leaves the
+    direct term out (simulate._output_terms: D.any() is False), and so must the one call from the
+    coefficients.  With the term in, d v = 0 is added to each output, which changes how the compiled
+    pass fuses ``r = y - c x`` (one state: a lone product) and so the rounding of the sums.
+    Review of 9464198: the direct flag was chosen from the widths alone."""
+    from hammerstein_ctrl.simulate import normal_pass
+
+    linear = hc.LinearStructure(1, 1, monic_numerator=False, fixed={"b1": 0.0})     # b0 / (p + a0)
+    cost = HammersteinCost(_synthetic(hold), hc.HammersteinStructure(linear, hc.Polynomial(2)))
+    x = np.array([1.5, 2.0, 0.3, 1.2])                                               # b0, a0, d1, d2
+    h = forward_steps(x)
+    X = neighbours(x, h)
+    P, basis = cost._basis_form(X)
+    direct = cost._direct_normal_equations(X, h, P, basis)
+    num, den = linear._coefficients(X[:, :linear.n_params])
+    general = normal_pass(num, den, cost.data.dt, cost.data.y, P, [basis], h, intersample=hold)
+    assert direct is not None and general is not None
+    assert direct.fun == general.fun
+    np.testing.assert_array_equal(direct.gradient, general.gradient)
+    np.testing.assert_array_equal(direct.gram, general.gram)
+    np.testing.assert_allclose(direct.gram, from_residuals(cost.residuals_batch(X), h).gram, rtol=1e-5)
