@@ -157,6 +157,32 @@ def _neighbours(x, steps):  # pragma: no cover - compiled
     return X
 
 
+@cached_njit()
+def compiled_neighbourhood(x):  # pragma: no cover - compiled
+    """``(h, X)``: :func:`forward_steps` (no bounds) and :func:`neighbours` of a flat ``x``, for compiled callers."""
+    h = _forward_steps(x, np.full(1, np.inf), np.full(1, -np.inf))
+    return h, _neighbours(x, h)
+
+
+@cached_njit()
+def compiled_sums(sums, steps):  # pragma: no cover - compiled
+    """:func:`from_difference_sums` for compiled callers: ``(finite, fun, gradient, gram, values)``.
+
+    ``finite`` as :attr:`NormalEquations.finite`; ``values`` are the point's
+    and its neighbours' sums of squares (:meth:`NormalEquations.neighbour_values`),
+    each non-finite one as ``inf``.
+    """
+    gradient, gram = _divide_by_steps(sums, steps)
+    fun = sums[0]
+    values = np.empty(steps.size + 1)
+    values[0] = fun
+    values[1:] = _neighbour_values(fun, gradient, gram, steps)
+    for j in range(values.size):
+        if not np.isfinite(values[j]):
+            values[j] = np.inf
+    return _finite(fun, gradient, gram), fun, gradient, gram, values
+
+
 def from_difference_sums(sums, steps) -> NormalEquations:
     """Normal equations from ``[r @ r, D.T @ r, D.T @ D]`` (flattened), ``D[:, j] = h_j J[:, j]`` the neighbours' differences.
 

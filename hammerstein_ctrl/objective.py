@@ -35,7 +35,9 @@ Examples
 
 from __future__ import annotations
 
+import functools
 import threading
+from typing import NamedTuple
 
 import numpy as np
 
@@ -50,7 +52,8 @@ from .simulate import (COMPILED_EXPM_MAX_NORM, GROUPS_MIN_BYTES, normal_factor, 
                        sse_basis_batch, sse_batch, unstable)
 from .structure import BlockStructure
 
-__all__ = ["HammersteinCost", "CHUNK_BYTES", "BASIS_MAX_BYTES", "BASIS_BLOCK", "EVAL_BLOCK", "NONFINITE_RESIDUAL"]
+__all__ = ["HammersteinCost", "DirectPass", "CHUNK_BYTES", "BASIS_MAX_BYTES", "BASIS_BLOCK", "EVAL_BLOCK",
+           "NONFINITE_RESIDUAL"]
 
 
 #: Largest block of per-candidate signals ``g(u)`` (and simulated outputs) formed
@@ -98,6 +101,32 @@ def _usable_steps(h):  # pragma: no cover - compiled
         if not (np.isfinite(v) and v != 0.0):
             return False
     return True
+
+
+class DirectPass(NamedTuple):
+    """A plain cost's normal-equation pass, as compiled code runs it from the parameters (:meth:`HammersteinCost.direct_pass`).
+
+    The linear block's coefficients are ``num0``/``den0`` with the free ones
+    written at ``num_pos``/``den_pos`` (:meth:`~hammerstein_ctrl.structure.LinearStructure.coefficient_template`),
+    the signal is ``P @ basis`` with ``P`` the parameters of ``g`` that follow
+    them (``has_g``; else ``basis`` is ``u``), and the pass kernel is
+    :func:`~hammerstein_ctrl.kernels.get_normal_kernel`'s for ``n`` states,
+    ``hold``, ``K`` basis signals and a ``direct`` term or not.
+    """
+
+    n: int
+    hold: str
+    K: int
+    direct: bool
+    num0: np.ndarray
+    den0: np.ndarray
+    num_pos: np.ndarray
+    den_pos: np.ndarray
+    has_g: bool
+    dt: float
+    max_norm: float
+    basis: np.ndarray
+    y: np.ndarray
 
 
 class HammersteinCost:
@@ -544,6 +573,37 @@ class HammersteinCost:
         kernel(E, C, D, np.zeros((lanes, n)), np.zeros(lanes), np.zeros(lanes), np.ascontiguousarray(P), basis,
                np.zeros((lanes, 0)), np.zeros(0), self._y, 0, acc)
         return from_difference_sums(acc, h)
+
+    def direct_pass(self) -> DirectPass | None:
+        """The normal-equation pass as compiled code runs it from the parameters, or ``None`` where the cost has none.
+
+        For the compiled Levenberg-Marquardt loop (:func:`~hammerstein_ctrl.optimize.normal_lm.get_loop`):
+        a plain structure (as :meth:`_direct_normal_equations` takes) whose
+        signal has a stored basis, unstable candidates not rejected, and a
+        pass of at most :data:`~hammerstein_ctrl.kernels.MAX_NORMAL_LANES` lanes.
+
+        Examples
+        --------
+        >>> from hammerstein_ctrl import presets
+        >>> d = presets.emps().cost.direct_pass()
+        >>> d.n, d.hold, d.K, d.direct, d.basis.shape
+        (2, 'foh', 3, False, (3, 12000))
+        """
+        return None if self.reject_unstable else self._plain_pass
+
+    @functools.cached_property
+    def _plain_pass(self) -> DirectPass | None:
+        """:meth:`direct_pass`, whether or not unstable candidates are rejected (formed once)."""
+        if self._direct is None:
+            return None
+        form = self._basis_form(np.zeros((1, self.n_params)))
+        if form is None or not self.n_params + 1 <= MAX_NORMAL_LANES or form[0].shape[1] > MAX_LANE_BASIS:
+            return None
+        num0, den0, num_pos, den_pos = self.structure.linear.coefficient_template()
+        direct = num0.size == den0.size and (0 in num_pos or num0[0] != 0)      # b_n free, or fixed off zero
+        return DirectPass(self._direct[0], self.data.intersample, form[0].shape[1], bool(direct), num0, den0,
+                          num_pos, den_pos, self.structure.input_nonlinearity is not None, float(self.data.dt),
+                          COMPILED_EXPM_MAX_NORM, np.ascontiguousarray(form[1]), self._y)
 
     def _signal_selection(self, params):
         """``(P, blocks)`` for a ``g`` without a basis: its distinct signals as the basis, each lane selecting one.

@@ -36,7 +36,7 @@ __all__ = ["LinearStructure", "BlockStructure", "HammersteinStructure", "WienerS
 
 
 @cached_njit()
-def _fill_coefficients(theta, num0, den0, num_pos, den_pos):  # pragma: no cover - compiled
+def fill_coefficients(theta, num0, den0, num_pos, den_pos):  # pragma: no cover - compiled
     """Rows of ``num0``/``den0`` with the free coefficients of each row of ``theta`` written in (one call per batch)."""
     batch, k = theta.shape[0], num_pos.size
     num = np.empty((batch, num0.size))
@@ -163,9 +163,22 @@ class LinearStructure:
             )
         return self._coefficients(theta)
 
+    def coefficient_template(self):
+        """``(num0, den0, num_pos, den_pos)``: the coefficients with the fixed ones in, and where the free ones go.
+
+        Row ``b`` of :meth:`coefficients` is ``num0``/``den0`` with ``theta[b, j]``
+        written at ``num_pos[j]`` (then ``den_pos``), as :func:`fill_coefficients` does.
+
+        Examples
+        --------
+        >>> LinearStructure(0, 2, fixed={"a0": 0.0}).coefficient_template()
+        (array([1.]), array([1., 0., 0.]), array([], dtype=int64), array([1]))
+        """
+        return self._num0, self._den0, self._num_pos, self._den_pos
+
     def _coefficients(self, theta: np.ndarray):
         """:meth:`coefficients` for a validated ``(B, n_params)`` float array."""
-        return _fill_coefficients(np.ascontiguousarray(theta), self._num0, self._den0, self._num_pos, self._den_pos)
+        return fill_coefficients(np.ascontiguousarray(theta), self._num0, self._den0, self._num_pos, self._den_pos)
 
     def free_parameters(self, num, den) -> np.ndarray:
         """The free coefficients of ``num/den`` (descending powers), fixed ones ignored.

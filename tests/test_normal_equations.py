@@ -575,3 +575,38 @@ def test_a_biproper_block_whose_direct_term_is_fixed_at_zero_passes_with_the_gen
     np.testing.assert_array_equal(direct.gradient, general.gradient)
     np.testing.assert_array_equal(direct.gram, general.gram)
     np.testing.assert_allclose(direct.gram, from_residuals(cost.residuals_batch(X), h).gram, rtol=1e-5)
+
+
+@pytest.mark.parametrize("name", ["emps", "zoh, 3 states", "biproper, direct term", "fast pole, scipy's expm"])
+def test_the_compiled_lm_loop_gives_the_python_loops_bits(name, emps_case, monkeypatch):
+    """LM with its loop compiled around the pass (normal_lm.get_loop) against the Python loop alone (the
+    cost's direct_pass hidden): the same x, J, steps, evaluations, message and history, bit for bit,
+    from starts that converge and that reject steps (the Python loop takes over after each), and with
+    budgets that end inside the compiled loop.  A row for scipy's exponential never enters the loop."""
+    from hammerstein_ctrl.optimize import least_squares
+
+    cost, x = (emps_case.cost, np.asarray(emps_case.paper["nspsa"]["beta"])) if name == "emps" else _plain_case(name)
+    rng = np.random.default_rng(7)
+    starts = [x] + [x * np.exp(rng.normal(0.0, 0.3, x.size)) for _ in range(3)]
+    booked, codes = [], []
+    record, loop = least_squares._CountedResiduals.record_passes, normal_lm._Passes.loop
+    monkeypatch.setattr(least_squares._CountedResiduals, "record_passes",
+                        lambda self, xs, *a: booked.append(len(xs)) or record(self, xs, *a))
+
+    def spy(self, *args):
+        out = loop(self, *args)
+        codes.append(out[3])
+        return out
+    monkeypatch.setattr(normal_lm._Passes, "loop", spy)
+    for x0 in starts:
+        for maxfev in (None, 6 * (x.size + 1) + 2):
+            compiled = levenberg_marquardt(cost, x0, maxfev=maxfev)
+            with monkeypatch.context() as m:
+                m.setattr(HammersteinCost, "direct_pass", lambda self: None)
+                python = levenberg_marquardt(cost, x0, maxfev=maxfev)
+            for key in ("x", "fun", "nit", "nfev", "status", "message", "best_x", "best_fun"):
+                np.testing.assert_array_equal(compiled[key], python[key], err_msg=key)
+            for key, column in python.history.items():
+                np.testing.assert_array_equal(compiled.history[key], column, err_msg=key)
+    assert sum(booked) > 0 and normal_lm.HAND_BACK in codes, (codes, booked)
+    assert normal_lm.HAND_BACK_ALONE in codes or name == "fast pole, scipy's expm", codes

@@ -212,6 +212,10 @@ class History:
     def append(self, nit: int, nfev: int, fun: float, best: float, estimate: float = np.nan):
         self._rows.append((nit, nfev, float(fun), float(best), float(estimate)))
 
+    def extend(self, rows):
+        """Append rows ``(nit, nfev, fun, best, estimate)`` of Python numbers, as :meth:`append` does one by one."""
+        self._rows.extend(rows)
+
     def set_last_estimate(self, estimate: float):
         """Record the objective at the final estimate on the last row."""
         if self._rows:

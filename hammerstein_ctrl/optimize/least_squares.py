@@ -110,6 +110,26 @@ class _CountedResiduals(CountedObjective):
             if best > 0:
                 self.best_x[best - 1] += steps[best - 1]     # the row neighbours(x, steps)[best], bit for bit
 
+    def record_passes(self, xs, steps, values):
+        """Book whole passes in their order: :meth:`record_neighbourhood` of the rows of ``xs``, ``steps``, ``values``, each charged first.
+
+        The best point's row is formed once, at the end.
+        """
+        self._charge(values.size)
+        nfev, best, where, rows = self.nfev - values.size, self.best_fun, None, []
+        for i, row in enumerate(values.tolist()):
+            nfev += len(row)
+            for j, f in enumerate(row):
+                if f < best:
+                    best, where = f, (i, j)
+                rows.append((nfev, nfev, f, best, best))
+        self.history.extend(rows)
+        if where is not None:
+            i, j = where
+            self.best_fun, self.best_x = best, np.array(xs[i], dtype=float)
+            if j > 0:
+                self.best_x[j - 1] += steps[i, j - 1]     # the row neighbours(x, steps)[j], bit for bit
+
     def __call__(self, x):
         last_x, last_r = self._last
         if last_x is not None and np.array_equal(last_x, x):
