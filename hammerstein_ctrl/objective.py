@@ -39,6 +39,7 @@ import functools
 import threading
 from typing import NamedTuple
 
+import numba
 import numpy as np
 
 from ._checks import as_real_array
@@ -127,6 +128,9 @@ class DirectPass(NamedTuple):
     max_norm: float
     basis: np.ndarray
     y: np.ndarray
+    #: numba types of ``basis`` and ``y`` (the compiled kernel's address is looked up for them).
+    basis_type: object
+    y_type: object
 
 
 class HammersteinCost:
@@ -577,7 +581,7 @@ class HammersteinCost:
     def direct_pass(self) -> DirectPass | None:
         """The normal-equation pass as compiled code runs it from the parameters, or ``None`` where the cost has none.
 
-        For the compiled Levenberg-Marquardt loop (:func:`~hammerstein_ctrl.optimize.normal_lm.get_loop`):
+        For the compiled Levenberg-Marquardt loop (:func:`~hammerstein_ctrl.optimize.normal_lm.compiled_loop`):
         a plain structure (as :meth:`_direct_normal_equations` takes) whose
         signal has a stored basis, unstable candidates not rejected, and a
         pass of at most :data:`~hammerstein_ctrl.kernels.MAX_NORMAL_LANES` lanes.
@@ -601,9 +605,10 @@ class HammersteinCost:
             return None
         num0, den0, num_pos, den_pos = self.structure.linear.coefficient_template()
         direct = num0.size == den0.size and (0 in num_pos or num0[0] != 0)      # b_n free, or fixed off zero
+        basis, y = np.ascontiguousarray(form[1]), np.ascontiguousarray(self._y)
         return DirectPass(self._direct[0], self.data.intersample, form[0].shape[1], bool(direct), num0, den0,
                           num_pos, den_pos, self.structure.input_nonlinearity is not None, float(self.data.dt),
-                          COMPILED_EXPM_MAX_NORM, np.ascontiguousarray(form[1]), self._y)
+                          COMPILED_EXPM_MAX_NORM, basis, y, numba.typeof(basis), numba.typeof(y))
 
     def _signal_selection(self, params):
         """``(P, blocks)`` for a ``g`` without a basis: its distinct signals as the basis, each lane selecting one.

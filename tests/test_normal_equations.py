@@ -581,8 +581,8 @@ def test_a_biproper_block_whose_direct_term_is_fixed_at_zero_passes_with_the_gen
 def test_the_compiled_lm_loop_gives_the_python_loops_bits(name, emps_case, monkeypatch):
     """LM with its loop compiled around the pass (normal_lm.get_loop) against the Python loop alone (the
     cost's direct_pass hidden): the same x, J, steps, evaluations, message and history, bit for bit,
-    from starts that converge and that reject steps (the Python loop takes over after each), and with
-    budgets that end inside the compiled loop.  A row for scipy's exponential never enters the loop."""
+    from starts that converge and that reject steps (the Python loop takes over after each), with
+    budgets that end inside the compiled loop, and with calls of the loop cut short (LOOP_MAX_SAMPLES)."""
     from hammerstein_ctrl.optimize import least_squares
 
     cost, x = (emps_case.cost, np.asarray(emps_case.paper["nspsa"]["beta"])) if name == "emps" else _plain_case(name)
@@ -598,8 +598,10 @@ def test_the_compiled_lm_loop_gives_the_python_loops_bits(name, emps_case, monke
         codes.append(out[3])
         return out
     monkeypatch.setattr(normal_lm._Passes, "loop", spy)
+    whole = normal_lm.LOOP_MAX_SAMPLES
     for x0 in starts:
-        for maxfev in (None, 6 * (x.size + 1) + 2):
+        for maxfev, loop_samples in ((None, whole), (6 * (x.size + 1) + 2, whole), (None, 3 * cost.n_samples)):
+            monkeypatch.setattr(normal_lm, "LOOP_MAX_SAMPLES", loop_samples)    # 3N: 3 passes per call
             compiled = levenberg_marquardt(cost, x0, maxfev=maxfev)
             with monkeypatch.context() as m:
                 m.setattr(HammersteinCost, "direct_pass", lambda self: None)
@@ -610,3 +612,29 @@ def test_the_compiled_lm_loop_gives_the_python_loops_bits(name, emps_case, monke
                 np.testing.assert_array_equal(compiled.history[key], column, err_msg=key)
     assert sum(booked) > 0 and normal_lm.HAND_BACK in codes, (codes, booked)
     assert normal_lm.HAND_BACK_ALONE in codes or name == "fast pole, scipy's expm", codes
+
+
+def test_a_kernel_called_through_its_address_gives_its_sums_and_takes_only_its_own_types():
+    """kernels.call_normal_kernel calls the compiled kernel through its pointer (the LM loop is compiled
+    once, not once per kernel): the sums of the kernel's docstring example; arguments of other types
+    (a strided array, a float32 record) are refused when the caller is compiled, never passed on."""
+    import numba
+
+    from hammerstein_ctrl.kernels import call_normal_kernel, normal_kernel_address
+
+    E = np.array([[[0.5, 1.0, 0.0], [0.0, 1.0, 1.0], [0.0, 0.0, 1.0]]] * 2)        # x+ = x/2 + 2 theta u
+    P, Phi, y = np.array([[2.0], [2.5]]), np.ones((1, 3)), np.zeros(3)
+
+    @numba.njit
+    def through(address, E, P, Phi, y):
+        acc, begin = np.zeros(3), y.size - y.size
+        call_normal_kernel(address, E, np.ones((2, 1)), np.zeros(2), np.zeros((2, 1)), np.zeros(2), np.zeros(2), P,
+                           Phi, np.zeros((2, 0)), np.zeros(0), y, begin, acc)
+        return acc
+
+    address = normal_kernel_address(1, "zoh", 2, 1, False, numba.typeof(Phi), numba.typeof(y))
+    np.testing.assert_array_equal(through(address, E, P, Phi, y), [13.0, 3.25, 0.8125])
+    for bad in ({"E": E.transpose(0, 2, 1)}, {"y": y.astype(np.float32)}, {"P": np.ones((4, 1))[::2]}):
+        args = {"E": E, "P": P, "Phi": Phi, "y": y, **bad}
+        with pytest.raises(numba.core.errors.TypingError, match="call_normal_kernel takes"):
+            through(address, **args)
