@@ -502,23 +502,33 @@ def normal_equations_lm(fun, counted, x0, *, ftol, xtol, gtol, max_steps: int, f
         raise
 
 
+def _start(passes, x, damping, max_steps: int, tolerances):
+    """The first pass, and the compiled loop's steps after it where the objective has one: ``(x, ne, scale, code)``.
+
+    ``code`` is ``None`` after the first pass alone, else as :meth:`_Passes.loop` returns it
+    (7 if the sum of squares at ``x`` is not finite).
+    """
+    if passes.direct is not None:
+        x, ne, scale, code = passes.loop(x, None, None, damping, max_steps, tolerances)
+        if ne is not None:
+            return x, ne, scale, code
+    ne = passes.full(x)
+    if not np.isfinite(ne.fun):
+        return x, ne, None, 7
+    return x, ne, _column_norms(ne.gram), None
+
+
 def _iterate(passes, x, ftol, xtol, gtol, max_steps: int, factor: bool):
     """The loop of :func:`normal_equations_lm`; ``passes.steps`` counts the steps tried.
 
     Where the objective has a :meth:`_Passes.loop`, the steps run there from
     the start, and after each hand-back this loop takes one iteration.
     """
-    damping, code, ne, scale = _Damping(), HAND_BACK, None, None
-    if passes.direct is not None:
-        x, ne, scale, code = passes.loop(x, None, None, damping, max_steps, (ftol, xtol, gtol))
-        if code not in (HAND_BACK, HAND_BACK_ALONE):
-            return x, ne.fun, code, passes.steps
-    alone, python = code == HAND_BACK_ALONE, ne is not None     # python: the next iteration in Python
-    if ne is None:
-        ne = passes.full(x)
-        if not np.isfinite(ne.fun):
-            return x, ne.fun, 7, 0
-        scale = _column_norms(ne.gram)
+    damping = _Damping()
+    x, ne, scale, code = _start(passes, x, damping, max_steps, (ftol, xtol, gtol))
+    if code not in (None, HAND_BACK, HAND_BACK_ALONE):
+        return x, ne.fun, code, passes.steps
+    alone, python = code == HAND_BACK_ALONE, code is not None     # python: the next iteration in Python
     while True:
         if ne.fun == 0.0:
             return x, ne.fun, 1, passes.steps
