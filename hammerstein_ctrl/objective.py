@@ -132,6 +132,11 @@ class DirectPass(NamedTuple):
     basis_type: object
     y_type: object
 
+    @property
+    def n_params(self) -> int:
+        """Length of the parameter vectors the pass takes: the free coefficients, then the ``K`` of ``g``."""
+        return self.num_pos.size + self.den_pos.size + (self.K if self.has_g else 0)
+
 
 class HammersteinCost:
     """Sum of squared output errors of a Hammerstein structure on a record.

@@ -145,7 +145,7 @@ class _Passes:
         p, d, start = x.size, self.direct, ne is None
         rows = int(min(max_steps - self.steps + start, self.counted.remaining // (p + 1),
                        max(1, LOOP_MAX_SAMPLES // d.y.size)))
-        if rows < 1:
+        if rows < 1 or p != d.n_params:     # a point of another length: the general pass refuses it
             return x, ne, scale, HAND_BACK
         address = normal_kernel_address(d.n, d.hold, p + 1, d.K, d.direct, d.basis_type, d.y_type)
         x = np.array(x, dtype=float)
