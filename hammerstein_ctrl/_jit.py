@@ -21,8 +21,11 @@ Examples
 
 from __future__ import annotations
 
+import functools
+import hashlib
 import os
 import warnings
+from pathlib import Path
 
 import numba
 
@@ -31,13 +34,18 @@ from .exceptions import CacheWarning
 __all__ = ["cached_njit", "tolerate_damaged_cache"]
 
 
-def cached_njit(*, cache: bool = True, **options):
+def cached_njit(*, cache: bool = True, depends: tuple[str, ...] = (), **options):
     """``numba.njit(cache=cache, nogil=True, **options)``, its cache made tolerant (:func:`tolerate_damaged_cache`).
 
     Parameters
     ----------
     cache : bool, default True
         Keep the compiled code on disk (numba's cache).
+    depends : tuple of str, optional
+        Modules of the package (file names, e.g. ``"kernels.py"``) whose
+        compiled code the function calls: numba keys its cache on the
+        function's own file alone, so a digest of these files joins the key
+        and an edit of one of them compiles the function again.
     **options
         Further options of ``numba.njit`` (``fastmath``, ``error_model``, ...).
 
@@ -47,8 +55,25 @@ def cached_njit(*, cache: bool = True, **options):
         A decorator.
     """
     def decorate(fn):
-        return tolerate_damaged_cache(numba.njit(cache=cache, nogil=True, **options)(fn))
+        return tolerate_damaged_cache(_keyed_on(numba.njit(cache=cache, nogil=True, **options)(fn), depends))
     return decorate
+
+
+def _keyed_on(dispatcher, depends: tuple[str, ...]):
+    """``dispatcher`` with the digest of the package files ``depends`` in the key of each cached version."""
+    cache = getattr(dispatcher, "_cache", None)
+    key = getattr(cache, "_index_key", None)
+    if not depends or key is None:
+        return dispatcher
+    cache._index_key = lambda sig, codegen: (*key(sig, codegen), _digest(tuple(depends)))
+    return dispatcher
+
+
+@functools.lru_cache(maxsize=None)
+def _digest(names: tuple[str, ...]) -> str:
+    """Digest of the sources of the package files ``names`` (read once per process)."""
+    here = Path(__file__).parent
+    return hashlib.sha256(b"".join((here / name).read_bytes() for name in names)).hexdigest()
 
 
 def tolerate_damaged_cache(dispatcher):

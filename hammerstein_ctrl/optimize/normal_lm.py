@@ -41,7 +41,7 @@ from ._common import BudgetExhausted
 
 __all__ = ["normal_equations_lm", "compiled_loop", "INITIAL_DAMPING", "MAX_DAMPING", "ILL_CONDITIONED", "MESSAGES",
            "CONVERGED", "ILL_CONDITIONED_CODE", "DAMPING_DECREASE_LIMIT", "HAND_BACK", "HAND_BACK_ALONE",
-           "LOOP_MAX_SAMPLES"]
+           "LOOP_MAX_SAMPLES", "LOOP_DEPENDS"]
 
 #: First damping, relative to the largest diagonal entry of the scaled Gram matrix (Nielsen's tau).
 INITIAL_DAMPING = 1e-3
@@ -325,7 +325,12 @@ class _Damping:
         self.nu *= 2.0
 
 
-@cached_njit()
+#: Package files holding compiled code that :func:`compiled_loop` calls or inlines (the pass kernel's signature
+#: among them): numba's cache of it is keyed on them too (a stale copy would call the kernel unchecked).
+LOOP_DEPENDS = ("kernels.py", "normal_equations.py", "structure.py", "_linalg.py", "_simd.py")
+
+
+@cached_njit(depends=LOOP_DEPENDS)
 def compiled_loop(address, x, fun, gradient, gram, steps, scale, damping, counts, tolerances, start, num0, den0,
                   num_pos, den_pos, has_g, dt, max_norm, direct, Phi, y, log_x, log_steps,
                   log_values):  # pragma: no cover - compiled
