@@ -33,7 +33,7 @@ import numpy as np
 from ._jit import cached_njit
 
 __all__ = ["NormalEquations", "from_residuals", "from_difference_sums", "from_factor", "scored_inf", "forward_steps",
-           "neighbours", "FD_REL_STEP", "NONFINITE_RESIDUAL"]
+           "neighbours", "compiled_neighbourhood", "compiled_sums", "FD_REL_STEP", "NONFINITE_RESIDUAL"]
 
 #: Relative step of the forward-difference Jacobian (scipy's "2-point" default, sqrt(eps)).
 FD_REL_STEP = float(np.sqrt(np.finfo(float).eps))

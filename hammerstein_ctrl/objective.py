@@ -53,7 +53,7 @@ from .simulate import (COMPILED_EXPM_MAX_NORM, GROUPS_MIN_BYTES, normal_factor, 
                        sse_basis_batch, sse_batch, unstable)
 from .structure import BlockStructure
 
-__all__ = ["HammersteinCost", "DirectPass", "CHUNK_BYTES", "BASIS_MAX_BYTES", "BASIS_BLOCK", "EVAL_BLOCK",
+__all__ = ["HammersteinCost", "DirectPass", "EVALUATING_METHODS", "CHUNK_BYTES", "BASIS_MAX_BYTES", "BASIS_BLOCK", "EVAL_BLOCK",
            "NONFINITE_RESIDUAL"]
 
 
@@ -102,6 +102,10 @@ def _usable_steps(h):  # pragma: no cover - compiled
         if not (np.isfinite(v) and v != 0.0):
             return False
     return True
+
+
+#: Methods of :class:`HammersteinCost` that evaluate it: a subclass redefining one gets no compiled LM loop.
+EVALUATING_METHODS = ("__call__", "batch", "residuals", "residuals_batch", "normal_equations", "normal_factor")
 
 
 class DirectPass(NamedTuple):
@@ -586,10 +590,12 @@ class HammersteinCost:
     def direct_pass(self) -> DirectPass | None:
         """The normal-equation pass as compiled code runs it from the parameters, or ``None`` where the cost has none.
 
-        For the compiled Levenberg-Marquardt loop (:func:`~hammerstein_ctrl.optimize.normal_lm.compiled_loop`):
+        For the compiled Levenberg-Marquardt loop of :mod:`~hammerstein_ctrl.optimize.normal_lm`:
         a plain structure (as :meth:`_direct_normal_equations` takes) whose
         signal has a stored basis, unstable candidates not rejected, and a
         pass of at most :data:`~hammerstein_ctrl.kernels.MAX_NORMAL_LANES` lanes.
+        ``None`` also for a subclass that redefines how the cost is evaluated
+        (:data:`EVALUATING_METHODS`): the compiled loop would bypass it.
 
         Examples
         --------
@@ -598,7 +604,10 @@ class HammersteinCost:
         >>> d.n, d.hold, d.K, d.direct, d.basis.shape
         (2, 'foh', 3, False, (3, 12000))
         """
-        return None if self.reject_unstable else self._plain_pass
+        cls = type(self)
+        if self.reject_unstable or any(getattr(cls, m) is not getattr(HammersteinCost, m) for m in EVALUATING_METHODS):
+            return None
+        return self._plain_pass
 
     @functools.cached_property
     def _plain_pass(self) -> DirectPass | None:

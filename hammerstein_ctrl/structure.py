@@ -32,7 +32,7 @@ from .exceptions import ParameterError
 from .nonlinearities import Nonlinearity
 
 __all__ = ["LinearStructure", "BlockStructure", "HammersteinStructure", "WienerStructure",
-           "HammersteinWienerStructure", "INITIAL_STATES"]
+           "HammersteinWienerStructure", "INITIAL_STATES", "fill_coefficients"]
 
 
 @cached_njit()

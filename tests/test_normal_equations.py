@@ -582,7 +582,7 @@ def test_the_compiled_lm_loop_gives_the_python_loops_bits(name, emps_case, monke
     """LM with its loop compiled around the pass (normal_lm.get_loop) against the Python loop alone (the
     cost's direct_pass hidden): the same x, J, steps, evaluations, message and history, bit for bit,
     from starts that converge and that reject steps (the Python loop takes over after each), with
-    budgets that end inside the compiled loop, and with calls of the loop cut short (LOOP_MAX_SAMPLES)."""
+    budgets that end inside the compiled loop, and with calls of the loop cut short (LOOP_MAX_WORK)."""
     from hammerstein_ctrl.optimize import least_squares
 
     cost, x = (emps_case.cost, np.asarray(emps_case.paper["nspsa"]["beta"])) if name == "emps" else _plain_case(name)
@@ -598,10 +598,10 @@ def test_the_compiled_lm_loop_gives_the_python_loops_bits(name, emps_case, monke
         codes.append(out[3])
         return out
     monkeypatch.setattr(normal_lm._Passes, "loop", spy)
-    whole = normal_lm.LOOP_MAX_SAMPLES
+    whole, pass_work = normal_lm.LOOP_MAX_WORK, cost.n_samples * (x.size + 1) * cost.direct_pass().n
     for x0 in starts:
-        for maxfev, loop_samples in ((None, whole), (6 * (x.size + 1) + 2, whole), (None, 3 * cost.n_samples)):
-            monkeypatch.setattr(normal_lm, "LOOP_MAX_SAMPLES", loop_samples)    # 3N: 3 passes per call
+        for maxfev, work in ((None, whole), (6 * (x.size + 1) + 2, whole), (None, 3 * pass_work)):
+            monkeypatch.setattr(normal_lm, "LOOP_MAX_WORK", work)    # 3 passes' work: 3 passes per call
             compiled = levenberg_marquardt(cost, x0, maxfev=maxfev)
             with monkeypatch.context() as m:
                 m.setattr(HammersteinCost, "direct_pass", lambda self: None)
@@ -638,3 +638,27 @@ def test_a_kernel_called_through_its_address_gives_its_sums_and_takes_only_its_o
         args = {"E": E, "P": P, "Phi": Phi, "y": y, **bad}
         with pytest.raises(numba.core.errors.TypingError, match="call_normal_kernel takes"):
             through(address, **args)
+
+
+def test_a_subclass_that_redefines_its_evaluation_gets_no_compiled_lm_loop(emps_case):
+    """The compiled LM loop runs the pass itself: for a subclass that redefines how the cost is
+    evaluated (here the normal equations, counted) it would bypass the override, so the subclass
+    gets none and LM calls the override at every pass.  A subclass that only adds keeps the loop."""
+    calls = []
+
+    class Counted(HammersteinCost):
+        def normal_equations(self, beta, steps=None):
+            calls.append(1)
+            return super().normal_equations(beta, steps)
+
+    class Named(HammersteinCost):
+        label = "mine"
+
+    data, structure = emps_case.data, emps_case.structure
+    x = np.asarray(emps_case.paper["nspsa"]["beta"])
+    assert Counted(data, structure).direct_pass() is None
+    assert Named(data, structure).direct_pass() is not None
+    res = levenberg_marquardt(Counted(data, structure), x)
+    plain = levenberg_marquardt(emps_case.cost, x)
+    assert len(calls) == res.nfev // (x.size + 1) > 0
+    assert res.fun == plain.fun and res.nit == plain.nit

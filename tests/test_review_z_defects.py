@@ -57,14 +57,14 @@ try:
     outcome = "ran"
 except Exception as exc:
     outcome = type(exc).__name__
-print(outcome, len(normal_lm.compiled_loop.stats.cache_hits))
+print(outcome, len(normal_lm._compiled_loop.stats.cache_hits))
 """
 
 
 @pytest.mark.slow
 def test_the_compiled_loop_is_not_loaded_from_numbas_cache_after_the_kernel_module_changes(tmp_path):
-    """compiled_loop calls the pass kernel through a pointer, its argument types checked by
-    kernels.call_normal_kernel only when compiled_loop is compiled.  numba's disk cache of compiled_loop
+    """_compiled_loop calls the pass kernel through a pointer, its argument types checked by
+    kernels.call_normal_kernel only when _compiled_loop is compiled.  numba's disk cache of _compiled_loop
     is keyed on normal_lm.py alone (its bytecode and the file's stamp), so after an edit of kernels.py
     (here: the check made to refuse every call, as a changed kernel signature would) a fresh process
     loaded the stale machine code and called the kernel unchecked; the generated kernels themselves
@@ -88,7 +88,7 @@ def test_the_compiled_loop_is_not_loaded_from_numbas_cache_after_the_kernel_modu
         return outcome, int(hits)
 
     run()
-    assert run() == ("ran", 1)          # the control: the second process loads compiled_loop from the cache
+    assert run() == ("ran", 1)          # the control: the second process loads _compiled_loop from the cache
     kernels = root / "hammerstein_ctrl" / "kernels.py"
     text = kernels.read_text()
     check = "    if address != numba.types.int64 or"

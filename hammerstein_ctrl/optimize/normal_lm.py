@@ -39,9 +39,9 @@ from ..normal_equations import (NormalEquations, compiled_neighbourhood, compile
 from ..structure import fill_coefficients
 from ._common import BudgetExhausted
 
-__all__ = ["normal_equations_lm", "compiled_loop", "INITIAL_DAMPING", "MAX_DAMPING", "ILL_CONDITIONED", "MESSAGES",
+__all__ = ["normal_equations_lm", "INITIAL_DAMPING", "MAX_DAMPING", "ILL_CONDITIONED", "MESSAGES",
            "CONVERGED", "ILL_CONDITIONED_CODE", "DAMPING_DECREASE_LIMIT", "HAND_BACK", "HAND_BACK_ALONE",
-           "LOOP_MAX_SAMPLES", "LOOP_DEPENDS"]
+           "LOOP_MAX_WORK", "LOOP_DEPENDS"]
 
 #: First damping, relative to the largest diagonal entry of the scaled Gram matrix (Nielsen's tau).
 INITIAL_DAMPING = 1e-3
@@ -68,14 +68,14 @@ MESSAGES = {
 CONVERGED = (1, 2, 3, 4)
 #: The code for a point too ill-conditioned for the normal equations.
 ILL_CONDITIONED_CODE = 8
-#: Codes of the compiled loop (:func:`compiled_loop`) for the Python loop to take the next iteration: at the
+#: Codes of the compiled loop (:func:`_compiled_loop`) for the Python loop to take the next iteration: at the
 #: point returned, or alone (after a rejected step, the next trials are evaluated without their neighbours).
 HAND_BACK, HAND_BACK_ALONE = 0, -1
 #: The compiled loop's code for "go on".
 GO_ON = -2
-#: Samples one call of the compiled loop passes over at most (about 0.1 s): it then hands back, so a
-#: keyboard interrupt is seen within that time.
-LOOP_MAX_SAMPLES = 20_000_000
+#: Work of one call of the compiled loop at most, in samples x lanes x states of its passes (about 0.1 s
+#: at 0.5-0.9 ns each): it then hands back, so a keyboard interrupt is seen within that time.
+LOOP_MAX_WORK = 10**8
 
 
 class _Passes:
@@ -134,7 +134,7 @@ class _Passes:
         return ne if values[0] == ne.fun else ne._replace(fun=values[0])
 
     def loop(self, x, ne, scale, damping, max_steps: int, tolerances):
-        """Steps of the compiled loop (:func:`compiled_loop`) from ``x``: ``(x, ne, scale, code)``.
+        """Steps of the compiled loop (:func:`_compiled_loop`) from ``x``: ``(x, ne, scale, code)``.
 
         Without ``ne`` (and ``scale``) the loop begins with the pass at ``x``;
         ``ne`` is returned ``None`` if that pass is left to the general one.
@@ -144,7 +144,7 @@ class _Passes:
         """
         p, d, start = x.size, self.direct, ne is None
         rows = int(min(max_steps - self.steps + start, self.counted.remaining // (p + 1),
-                       max(1, LOOP_MAX_SAMPLES // d.y.size)))
+                       max(1, LOOP_MAX_WORK // (d.y.size * (p + 1) * d.n))))
         if rows < 1 or p != d.n_params:     # a point of another length: the general pass refuses it
             return x, ne, scale, HAND_BACK
         address = normal_kernel_address(d.n, d.hold, p + 1, d.K, d.direct, d.basis_type, d.y_type)
@@ -157,7 +157,7 @@ class _Passes:
         lam_nu = np.array([damping.lam, damping.nu])
         counts = np.array([self.steps, max_steps, rows * (p + 1), 0], dtype=np.int64)
         logs = np.empty((rows, p)), np.empty((rows, p)), np.empty((rows, p + 1))
-        code, fun = compiled_loop(address, x, fun, gradient, gram, steps, scale, lam_nu, counts,
+        code, fun = _compiled_loop(address, x, fun, gradient, gram, steps, scale, lam_nu, counts,
                                   np.array([*tolerances, ILL_CONDITIONED]), start, d.num0, d.den0, d.num_pos,
                                   d.den_pos, d.has_g, d.dt, d.max_norm, d.direct, d.basis, d.y, *logs)
         passes = int(counts[3])
@@ -325,13 +325,13 @@ class _Damping:
         self.nu *= 2.0
 
 
-#: Package files holding compiled code that :func:`compiled_loop` calls or inlines (the pass kernel's signature
+#: Package files holding compiled code that :func:`_compiled_loop` calls or inlines (the pass kernel's signature
 #: among them): numba's cache of it is keyed on them too (a stale copy would call the kernel unchecked).
 LOOP_DEPENDS = ("kernels.py", "normal_equations.py", "structure.py", "_linalg.py", "_simd.py")
 
 
 @cached_njit(depends=LOOP_DEPENDS)
-def compiled_loop(address, x, fun, gradient, gram, steps, scale, damping, counts, tolerances, start, num0, den0,
+def _compiled_loop(address, x, fun, gradient, gram, steps, scale, damping, counts, tolerances, start, num0, den0,
                   num_pos, den_pos, has_g, dt, max_norm, direct, Phi, y, log_x, log_steps,
                   log_values):  # pragma: no cover - compiled
     """The Levenberg-Marquardt loop of :func:`normal_equations_lm`, compiled around the pass of a plain cost.
@@ -359,7 +359,7 @@ def compiled_loop(address, x, fun, gradient, gram, steps, scale, damping, counts
     lanes, n = x.size + 1, den0.size - 1
     begin = counts[3] - counts[3]       # 0 at run time (the kernel's type for it is int64, not a literal)
     while True:
-        code, trial, small, predicted, h, E, C, D, P = loop_prepare(
+        code, trial, small, predicted, h, E, C, D, P = _loop_prepare(
             x, fun, gradient, gram, scale, damping, counts, tolerances, start, num0, den0, num_pos, den_pos, has_g,
             dt, max_norm, direct)
         if code != GO_ON:
@@ -367,7 +367,7 @@ def compiled_loop(address, x, fun, gradient, gram, steps, scale, damping, counts
         sums = np.zeros(1 + x.size * lanes)
         call_normal_kernel(address, E, C, D, np.zeros((lanes, n)), np.zeros(lanes), np.zeros(lanes), P, Phi,
                            np.zeros((lanes, 0)), np.zeros(0), y, begin, sums)
-        code, fun = loop_absorb(x, trial, fun, sums, h, gradient, gram, steps, scale, damping, counts, small,
+        code, fun = _loop_absorb(x, trial, fun, sums, h, gradient, gram, steps, scale, damping, counts, small,
                                 predicted, tolerances, start, log_x, log_steps, log_values)
         start = False
         if code != GO_ON:
@@ -375,33 +375,33 @@ def compiled_loop(address, x, fun, gradient, gram, steps, scale, damping, counts
 
 
 @cached_njit(inline="always")
-def loop_prepare(x, fun, gradient, gram, scale, damping, counts, tolerances, start, num0, den0, num_pos, den_pos,
+def _loop_prepare(x, fun, gradient, gram, scale, damping, counts, tolerances, start, num0, den0, num_pos, den_pos,
                  has_g, dt, max_norm, direct):  # pragma: no cover - compiled
     """Before a pass of the compiled loop: ``(code, trial, small, predicted, h, E, C, D, P)``.
 
     With ``start`` the pass is at ``x`` itself, else at the step of
-    :func:`loop_trial`; ``code`` is :data:`GO_ON` with the pass's inputs
-    (:func:`loop_pass_inputs`), a termination code, or :data:`HAND_BACK`
+    :func:`_loop_trial`; ``code`` is :data:`GO_ON` with the pass's inputs
+    (:func:`_loop_pass_inputs`), a termination code, or :data:`HAND_BACK`
     where the Python loop must take the iteration.
     """
     code, trial, small, predicted = GO_ON, x.copy(), False, 0.0
     if not start:
-        code, delta, small, predicted = loop_trial(gram, gradient, fun, scale, damping, x, counts, tolerances)
+        code, delta, small, predicted = _loop_trial(gram, gradient, fun, scale, damping, x, counts, tolerances)
         trial = x + delta
     if code != GO_ON:
         return code, trial, small, predicted, np.empty(0), np.empty((0, 0, 0)), np.empty((0, 0)), np.empty(0), \
             np.empty((0, 0))
-    ok, h, E, C, D, P = loop_pass_inputs(trial, num0, den0, num_pos, den_pos, has_g, dt, max_norm, direct)
+    ok, h, E, C, D, P = _loop_pass_inputs(trial, num0, den0, num_pos, den_pos, has_g, dt, max_norm, direct)
     return GO_ON if ok else HAND_BACK, trial, small, predicted, h, E, C, D, P
 
 
 @cached_njit(inline="always")
-def loop_absorb(x, trial, fun, sums, h, gradient, gram, steps, scale, damping, counts, small, predicted, tolerances,
+def _loop_absorb(x, trial, fun, sums, h, gradient, gram, steps, scale, damping, counts, small, predicted, tolerances,
                 start, log_x, log_steps, log_values):  # pragma: no cover - compiled
     """After a pass of the compiled loop: its sums logged and charged, the state updated in place; ``(code, fun)``.
 
     The first pass (``start``) sets the point's normal equations and column
-    scales; a trial's is accepted or rejected (:func:`loop_outcome`).  A pass
+    scales; a trial's is accepted or rejected (:func:`_loop_outcome`).  A pass
     that is not finite is not logged: :data:`HAND_BACK`.
     """
     finite, new_fun, new_gradient, new_gram, values = compiled_sums(sums, h)
@@ -416,12 +416,12 @@ def loop_absorb(x, trial, fun, sums, h, gradient, gram, steps, scale, damping, c
         scale[:] = _norms(gram, np.zeros(gram.shape[0]))
         return GO_ON, new_fun
     counts[0] += 1
-    return loop_outcome(x, trial, fun, new_fun, new_gradient, new_gram, h, gradient, gram, steps, scale, damping,
+    return _loop_outcome(x, trial, fun, new_fun, new_gradient, new_gram, h, gradient, gram, steps, scale, damping,
                         small, predicted, tolerances)
 
 
 @cached_njit(inline="always")
-def loop_trial(gram, gradient, fun, scale, damping, x, counts, tolerances):  # pragma: no cover - compiled
+def _loop_trial(gram, gradient, fun, scale, damping, x, counts, tolerances):  # pragma: no cover - compiled
     """The top of an iteration of the compiled loop: ``(code, delta, small, predicted)``.
 
     ``code`` is a termination code, :data:`HAND_BACK` (an ill-conditioned or
@@ -445,7 +445,7 @@ def loop_trial(gram, gradient, fun, scale, damping, x, counts, tolerances):  # p
 
 
 @cached_njit(inline="always")
-def loop_pass_inputs(trial, num0, den0, num_pos, den_pos, has_g, dt, max_norm, direct):  # pragma: no cover - compiled
+def _loop_pass_inputs(trial, num0, den0, num_pos, den_pos, has_g, dt, max_norm, direct):  # pragma: no cover - compiled
     """What the pass at ``trial`` needs: ``(ok, h, E, C, D, P)``, as ``HammersteinCost.normal_equations`` forms them.
 
     Not ``ok`` where the general pass must take the point: a row for scipy's
@@ -460,7 +460,7 @@ def loop_pass_inputs(trial, num0, den0, num_pos, den_pos, has_g, dt, max_norm, d
 
 
 @cached_njit(inline="always")
-def loop_outcome(x, trial, fun, f_trial, new_gradient, new_gram, new_steps, gradient, gram, steps, scale, damping,
+def _loop_outcome(x, trial, fun, f_trial, new_gradient, new_gram, new_steps, gradient, gram, steps, scale, damping,
                  small, predicted, tolerances):  # pragma: no cover - compiled
     """The evaluated trial accepted or rejected as :func:`normal_equations_lm` does: ``(code, fun)``, the state updated in place."""
     if f_trial < fun and predicted > 0:
