@@ -206,23 +206,28 @@ class History:
     other methods).
     """
 
+    #: Columns per row.
+    WIDTH = 5
+
     def __init__(self):
-        self._rows: list[tuple] = []
+        self._values: list = []         # the rows' values one after another (a flat list converts fastest)
 
     def append(self, nit: int, nfev: int, fun: float, best: float, estimate: float = np.nan):
-        self._rows.append((nit, nfev, float(fun), float(best), float(estimate)))
+        self._values.extend((nit, nfev, float(fun), float(best), float(estimate)))
 
-    def extend(self, rows):
-        """Append rows ``(nit, nfev, fun, best, estimate)`` of Python numbers, as :meth:`append` does one by one."""
-        self._rows.extend(rows)
+    def extend(self, values):
+        """Append whole rows given as their values one after another: ``nit, nfev, fun, best, estimate, nit, ...``."""
+        if len(values) % self.WIDTH:
+            raise ValueError(f"history rows have {self.WIDTH} values, got {len(values)} in all")
+        self._values.extend(values)
 
     def set_last_estimate(self, estimate: float):
         """Record the objective at the final estimate on the last row."""
-        if self._rows:
-            self._rows[-1] = self._rows[-1][:4] + (float(estimate),)
+        if self._values:
+            self._values[-1] = float(estimate)
 
     def as_dict(self) -> dict:
-        a = np.array(self._rows, dtype=float).reshape(-1, 5)
+        a = np.array(self._values, dtype=float).reshape(-1, self.WIDTH)
         return {"nit": a[:, 0].astype(int), "nfev": a[:, 1].astype(int), "fun": a[:, 2], "best": a[:, 3],
                 "estimate": a[:, 4]}
 

@@ -122,7 +122,7 @@ class _CountedResiduals(CountedObjective):
             for j, f in enumerate(row):
                 if f < best:
                     best, where = f, (i, j)
-                rows.append((nfev, nfev, f, best, best))
+                rows += (nfev, nfev, f, best, best)
         self.history.extend(rows)
         if where is not None:
             i, j = where
