@@ -254,13 +254,13 @@ class _Drives:
     @classmethod
     def basis_of(cls, nonlinearity, signal, reg) -> "_Drives | None":
         """The basis of ``nonlinearity`` on ``signal`` (``None`` if it has none); by blocks where ``reg`` streams it."""
-        probe = None if nonlinearity is None else nonlinearity.basis(signal[:1])
+        probe = None if nonlinearity is None else nonlinearity.checked_basis(signal[:1])
         if probe is None:
             return None
         if not reg.streams(np.shape(probe)[0]):
-            return cls.rows(nonlinearity.basis(signal))
+            return cls.rows(nonlinearity.checked_basis(signal))
         return cls(np.shape(probe)[0], signal.size,
-                   part=lambda begin, stop: np.asarray(nonlinearity.basis(signal[begin:stop]), dtype=float))
+                   part=lambda begin, stop: np.asarray(nonlinearity.checked_basis(signal[begin:stop]), dtype=float))
 
     @classmethod
     def signal_of(cls, nonlinearity, signal, params, reg) -> "_Drives":
@@ -557,7 +557,7 @@ def _static_evaluations(reg: _Regression, u) -> int:
     free = s.linear.den_order if reg.free_columns else 0
     g, evaluations, candidates = s.input_nonlinearity, 0, 1
     if g is not None:
-        basis = g.basis(u[:1])
+        basis = g.checked_basis(u[:1])
         grid = g.shape_grid(u) if basis is None or s.output_nonlinearity is not None else None
         shapes = 0 if grid is None else len(grid)
         evaluations = np.shape(basis)[0] + free if basis is not None else shapes * (1 + free)
@@ -572,7 +572,7 @@ def _assemble(structure, theta, g_params, h_params, nuisance) -> np.ndarray:
 def _check_automatic(structure, u):
     for nl in (structure.input_nonlinearity, structure.output_nonlinearity):
         # whether there is a basis shows on one sample (the whole basis of a long record takes 8 p bytes per sample)
-        if nl is not None and nl.basis(u[:1]) is None and (nl.shape_grid(u) is None or nl.scale_index is None):
+        if nl is not None and nl.checked_basis(u[:1]) is None and (nl.shape_grid(u) is None or nl.scale_index is None):
             raise ParameterError(
                 f"no automatic initial point for the {nl.name!r} nonlinearity (it has neither a basis nor a "
                 f"scan); give x0 = [{', '.join(structure.param_names)}]")

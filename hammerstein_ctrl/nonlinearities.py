@@ -159,6 +159,33 @@ class Nonlinearity:
         """
         return None
 
+    def checked_basis(self, u) -> np.ndarray | None:
+        """:meth:`basis` checked: ``None``, or a float array of shape ``(n_params, len(u))``.
+
+        The compiled passes read :attr:`n_params` rows of the basis, so a
+        family whose :meth:`basis` gives another shape is refused here, with
+        a :class:`~hammerstein_ctrl.exceptions.ParameterError`, rather than
+        read past its rows.
+
+        Examples
+        --------
+        >>> Coulomb().checked_basis([1.0, -2.0]).shape
+        (3, 2)
+        """
+        phi = self.basis(u)
+        if phi is None:
+            return None
+        expected = (self.n_params, np.size(u))
+        try:
+            phi = np.asarray(phi, dtype=float)
+        except (TypeError, ValueError):
+            phi = None
+        if phi is None or phi.shape != expected:
+            got = "values that are not real numbers" if phi is None else f"shape {phi.shape}"
+            raise ParameterError(f"{type(self).__name__}.basis(u) must give one row per parameter and one column "
+                                 f"per sample, shape {expected} here; it gave {got}")
+        return phi
+
     def normalize(self, params) -> np.ndarray:
         """The canonical form of ``params`` among those giving the same ``g``.
 

@@ -179,12 +179,12 @@ class HammersteinCost:
         # g(u; d) = d @ basis for nonlinearities linear in their parameters: a
         # batch of signals is then one matrix product (7x cheaper than the formula).
         g = structure.input_nonlinearity
-        probe = None if g is None else g.basis(self._u[:1])
+        probe = None if g is None else g.checked_basis(self._u[:1])
         self._linear_in_params = probe is not None
         self._basis = None
         self._local = threading.local()     # each thread's signal buffer (see _signal_buffer)
         if self._linear_in_params and probe.size * self._u.size * self._u.itemsize <= BASIS_MAX_BYTES:
-            self._basis = np.ascontiguousarray(g.basis(self._u), dtype=float)
+            self._basis = np.ascontiguousarray(g.checked_basis(self._u), dtype=float)
         self._direct = self._direct_pass()
 
     @property
@@ -235,7 +235,7 @@ class HammersteinCost:
             _combine(P, self._basis, buffer, 0)
         else:
             for start in range(0, self._u.size, BASIS_BLOCK):
-                block = self.structure.input_nonlinearity.basis(self._u[start:start + BASIS_BLOCK])
+                block = self.structure.input_nonlinearity.checked_basis(self._u[start:start + BASIS_BLOCK])
                 _combine(P, np.ascontiguousarray(block, dtype=float), buffer, start)
         return buffer[:P.shape[0]]
 
@@ -649,7 +649,7 @@ class HammersteinCost:
     def _basis_blocks(self):
         """The basis of ``g``, recomputed a block of samples at a time (for records too long to store it)."""
         g = self.structure.input_nonlinearity
-        return (g.basis(self._u[start:start + BASIS_BLOCK]) for start in range(0, self._u.size, BASIS_BLOCK))
+        return (g.checked_basis(self._u[start:start + BASIS_BLOCK]) for start in range(0, self._u.size, BASIS_BLOCK))
 
     def __repr__(self):
         return f"HammersteinCost({self.data.name!r}, {self.structure.describe()})"

@@ -1,6 +1,7 @@
 import numpy as np
 import pytest
 
+import hammerstein_ctrl as hc
 from hammerstein_ctrl import (
     Coulomb, CustomNonlinearity, DeadZone, ParameterError, PiecewiseLinear, Polynomial,
     Saturation, Tanh, UnknownNameError, nonlinearity_from_name,
@@ -96,3 +97,32 @@ def test_basis_reproduces_evaluation_when_linear_in_parameters(g, p, ref, rng):
     assert phi.shape == (g.n_params, U.size)
     P = np.asarray(p) + rng.standard_normal((3, len(p)))
     np.testing.assert_allclose(P @ phi, g(U, P), rtol=1e-13, atol=1e-13)
+
+
+class _ShortBasis(hc.Polynomial):
+    """A custom family whose basis leaves out its last row (the compiled passes read one row per parameter)."""
+
+    def basis(self, u):
+        return super().basis(u)[:-1]
+
+
+class _ObjectBasis(hc.Polynomial):
+    def basis(self, u):
+        return np.array([[object()] * np.size(u)] * self.degree)
+
+
+@pytest.mark.parametrize("family", [_ShortBasis(2), _ObjectBasis(2)])
+def test_a_basis_of_the_wrong_shape_is_refused_before_any_pass(family):
+    """A basis that is not one real row per parameter would be read past its rows by the compiled
+    passes: the cost refuses it when built, naming the family and the shape it needs; identify too.
+    (Found by the review of the compiled LM loop, predating it.)"""
+    from hammerstein_ctrl.objective import HammersteinCost
+
+    t = np.arange(200) * 0.01
+    data = hc.IOData(np.sin(t), np.cos(t), dt=0.01, name="short basis")
+    structure = hc.HammersteinStructure(hc.LinearStructure(0, 1), family)
+    with pytest.raises(hc.ParameterError, match=r"basis\(u\) must give one row per parameter.*\(2, 1\)"):
+        HammersteinCost(data, structure)
+    with pytest.raises(hc.ParameterError, match=r"basis\(u\) must give one row per parameter"):
+        hc.identify(data, structure, method="lm")
+    assert hc.Polynomial(2).checked_basis(t).shape == (2, 200)
