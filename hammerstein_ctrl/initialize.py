@@ -260,7 +260,7 @@ class _Drives:
         if not reg.streams(np.shape(probe)[0]):
             return cls.rows(nonlinearity.checked_basis(signal))
         return cls(np.shape(probe)[0], signal.size,
-                   part=lambda begin, stop: np.asarray(nonlinearity.checked_basis(signal[begin:stop]), dtype=float))
+                   part=lambda begin, stop: nonlinearity.checked_basis(signal[begin:stop]))
 
     @classmethod
     def signal_of(cls, nonlinearity, signal, params, reg) -> "_Drives":

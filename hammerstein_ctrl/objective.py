@@ -49,8 +49,8 @@ from .exceptions import ParameterError
 from .kernels import MAX_LANE_BASIS, MAX_NORMAL_LANES, MAX_UNROLLED_STATES, get_coefficient_kernel, get_normal_kernel
 from .normal_equations import (NONFINITE_RESIDUAL, NormalEquations, forward_steps, from_difference_sums, from_factor,
                                from_residuals, neighbours, scored_inf)
-from .simulate import (COMPILED_EXPM_MAX_NORM, GROUPS_MIN_BYTES, normal_factor, normal_pass, simulate_batch,
-                       sse_basis_batch, sse_batch, unstable)
+from .simulate import (COMPILED_EXPM_MAX_NORM, GROUPS_MIN_BYTES, normal_factor, normal_pass, output_terms,
+                       simulate_batch, sse_basis_batch, sse_batch, unstable)
 from .structure import BlockStructure
 
 __all__ = ["HammersteinCost", "DirectPass", "EVALUATING_METHODS", "CHUNK_BYTES", "BASIS_MAX_BYTES", "BASIS_BLOCK", "EVAL_BLOCK",
@@ -580,7 +580,7 @@ class HammersteinCost:
         if not clean:
             return None
         n = self._direct[0]
-        direct = num.shape[1] == den.shape[1] and bool(D.any())      # as the general pass decides (same kernel, same bits)
+        direct, _ = output_terms(num, den, D, None, None)      # as the general pass decides (same kernel, same bits)
         kernel = get_normal_kernel(n, self.data.intersample, lanes, K, direct, False)
         acc = np.zeros(1 + (lanes - 1) * lanes)
         kernel(E, C, D, np.zeros((lanes, n)), np.zeros(lanes), np.zeros(lanes), np.ascontiguousarray(P), basis,

@@ -66,6 +66,7 @@ __all__ = [
     "response_blocks",
     "normal_pass",
     "normal_factor",
+    "output_terms",
     "unstable",
     "COMPILED_EXPM_MAX_NORM",
     "GROUPS_MIN_BYTES",
@@ -583,14 +584,14 @@ def sse_basis_batch(num, den, P, basis, dt: float, y, *, x0=None, offset=None, i
     if batch < LANE_MIN:
         kernel = get_kernel(n, "sse", hold, None, K)     # positional: the cached lookup is quicker
     else:
-        kernel = get_lane_kernel(n, hold, K, *_output_terms(num, den, D, offset, Y0))
+        kernel = get_lane_kernel(n, hold, K, *output_terms(num, den, D, offset, Y0))
     kernel(E, C, D, X0, Y0, P, basis, y, J)
     if not ok.all():
         J[~ok] = np.inf
     return J
 
 
-def _output_terms(num, den, D, offset, Y0) -> tuple[bool, bool]:
+def output_terms(num, den, D, offset, Y0) -> tuple[bool, bool]:
     """Whether the outputs have a direct term and an offset (a strictly proper block, or no offset given, needs no look)."""
     return np.shape(num)[-1] == np.shape(den)[-1] and bool(D.any()), offset is not None and bool(Y0.any())
 
@@ -808,7 +809,7 @@ class _LanePass:
         self = cls()
         self.lanes, self.K, self.P = lanes, K, P
         self.X, self.Y0 = np.array(_state_rows(x0, lanes, n)), _offset_rows(offset, lanes)  # X is written: a copy
-        direct, has_offset = _output_terms(num, den, D, offset, self.Y0)
+        direct, has_offset = output_terms(num, den, D, offset, self.Y0)
         # an output map without a compiled form: the lanes' linear outputs leave the pass, and the map
         # (then the offset) is applied to them a block at a time (python_map)
         self.python_map = fallback

@@ -555,7 +555,7 @@ def test_a_pass_books_its_best_neighbour_as_the_row_of_neighbours():
 @pytest.mark.parametrize("hold", ["foh", "zoh"])
 def test_a_biproper_block_whose_direct_term_is_fixed_at_zero_passes_with_the_general_passs_bits(hold):
     """num and den of one width, but b_n fixed at 0 (D = 0 in every lane): the general pass leaves the
-    direct term out (simulate._output_terms: D.any() is False), and so must the one call from the
+    direct term out (simulate.output_terms: D.any() is False), and so must the one call from the
     coefficients.  With the term in, d v = 0 is added to each output, which changes how the compiled
     pass fuses ``r = y - c x`` (one state: a lone product) and so the rounding of the sums.
     Review of 9464198: the direct flag was chosen from the widths alone."""

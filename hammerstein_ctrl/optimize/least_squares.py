@@ -100,24 +100,21 @@ class _CountedResiduals(CountedObjective):
         As :meth:`record_value` point by point (``values[0]`` is ``x``'s); the
         best neighbour's row is formed only if it becomes the best point.
         """
-        best = None
-        for i, f in enumerate(values):
-            if f < self.best_fun:
-                self.best_fun, best = f, i
-            self.history.append(self.nfev, self.nfev, f, self.best_fun, self.best_fun)
-        if best is not None:
-            self.best_x = np.array(x, dtype=float)
-            if best > 0:
-                self.best_x[best - 1] += steps[best - 1]     # the row neighbours(x, steps)[best], bit for bit
+        self._book_passes(np.asarray(x)[None], np.asarray(steps)[None], [list(values)])
 
     def record_passes(self, xs, steps, values):
-        """Book whole passes in their order: :meth:`record_neighbourhood` of the rows of ``xs``, ``steps``, ``values``, each charged first.
-
-        The best point's row is formed once, at the end.
-        """
+        """Book whole passes in their order: :meth:`record_neighbourhood` of the rows of ``xs``, ``steps``, ``values``, each charged first."""
         self._charge(values.size)
-        nfev, best, where, rows = self.nfev - values.size, self.best_fun, None, []
-        for i, row in enumerate(values.tolist()):
+        self._book_passes(xs, steps, values.tolist())
+
+    def _book_passes(self, xs, steps, values: list):
+        """History rows and best point of charged passes (``values[i]``: point ``xs[i]``, then its neighbours).
+
+        The best point's row is formed once, at the end, bit for bit the row of ``neighbours(xs[i], steps[i])``.
+        """
+        nfev = self.nfev - sum(len(row) for row in values)
+        best, where, rows = self.best_fun, None, []
+        for i, row in enumerate(values):
             nfev += len(row)
             for j, f in enumerate(row):
                 if f < best:
@@ -128,7 +125,7 @@ class _CountedResiduals(CountedObjective):
             i, j = where
             self.best_fun, self.best_x = best, np.array(xs[i], dtype=float)
             if j > 0:
-                self.best_x[j - 1] += steps[i, j - 1]     # the row neighbours(x, steps)[j], bit for bit
+                self.best_x[j - 1] += steps[i][j - 1]
 
     def __call__(self, x):
         last_x, last_r = self._last

@@ -317,12 +317,25 @@ class _Damping:
         self.nu = 2.0
 
     def accept(self, rho):
-        self.lam *= max(DAMPING_DECREASE_LIMIT, 1.0 - math.pow(2.0 * rho - 1.0, 3.0))    # as the compiled loop
+        self.lam = _lowered_damping(self.lam, rho)
         self.nu = 2.0
 
     def reject(self):
         self.lam *= self.nu
         self.nu *= 2.0
+
+
+@cached_njit(inline="always")
+def _lowered_damping(lam, rho):  # pragma: no cover - compiled
+    """Nielsen's rule: the damping ``lam`` after an accepted step of gain ratio ``rho`` (both loops use it)."""
+    return lam * max(DAMPING_DECREASE_LIMIT, 1.0 - math.pow(2.0 * rho - 1.0, 3.0))
+
+
+@cached_njit(inline="always")
+def _accepted_code(actual, predicted, f_old, ftol, small):  # pragma: no cover - compiled
+    """MINPACK's code after an accepted step: 1 (``ftol``), 2 (``xtol``: ``small``), 3 (both), or 0 (go on)."""
+    converged_f = actual <= ftol * f_old and predicted <= ftol * f_old
+    return (3 if small else 1) if converged_f else (2 if small else 0)
 
 
 #: Package files holding compiled code that :func:`_compiled_loop` calls or inlines (the pass kernel's signature
@@ -464,18 +477,16 @@ def _loop_outcome(x, trial, fun, f_trial, new_gradient, new_gram, new_steps, gra
                  small, predicted, tolerances):  # pragma: no cover - compiled
     """The evaluated trial accepted or rejected as :func:`normal_equations_lm` does: ``(code, fun)``, the state updated in place."""
     if f_trial < fun and predicted > 0:
-        actual, f_old = fun - f_trial, fun
-        damping[0] *= max(DAMPING_DECREASE_LIMIT, 1.0 - math.pow(2.0 * (actual / predicted) - 1.0, 3.0))
+        actual = fun - f_trial
+        damping[0] = _lowered_damping(damping[0], actual / predicted)
         damping[1] = 2.0
         x[:] = trial
         gradient[:] = new_gradient
         gram[:, :] = new_gram
         steps[:] = new_steps
         scale[:] = _norms(gram, scale)
-        converged_f = actual <= tolerances[0] * f_old and predicted <= tolerances[0] * f_old
-        if converged_f or small:
-            return 3 if converged_f and small else (1 if converged_f else 2), f_trial
-        return GO_ON, f_trial
+        code = _accepted_code(actual, predicted, fun, tolerances[0], small)
+        return (code if code else GO_ON), f_trial
     damping[0] *= damping[1]
     damping[1] *= 2.0
     if small:
@@ -575,9 +586,9 @@ def _iterate(passes, x, ftol, xtol, gtol, max_steps: int, factor: bool):
             ne = trial_ne if trial_ne is not None else passes.full(trial)
             x, alone = trial, False
             scale = _column_norms(ne.gram, scale)
-            converged_f = actual <= ftol * f_old and predicted <= ftol * f_old
-            if converged_f or small:
-                return x, ne.fun, 3 if converged_f and small else (1 if converged_f else 2), passes.steps
+            code = _accepted_code(actual, predicted, f_old, ftol, small)
+            if code:
+                return x, ne.fun, code, passes.steps
         else:
             damping.reject()
             alone = True
