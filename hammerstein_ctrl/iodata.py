@@ -257,7 +257,7 @@ class IOData:
         Examples
         --------
         >>> d = IOData(np.ones(4), [1.0, 3.0, 5.0, 7.0], dt=1.0)
-        >>> d.detrend("linear").y.round(12).tolist()
+        >>> (d.detrend("linear").y.round(12) + 0.0).tolist()    # + 0.0: no negative zeros
         [0.0, 0.0, 0.0, 0.0]
         """
         kind = _check_choice(kind, DETREND_KINDS, "kind")
