@@ -81,10 +81,31 @@ def _user_start(cost, x0, budget: Budget):
 
 
 def _acceptable(cost, x, fun, allow_unstable: bool) -> bool:
+    """Finite, better than a constant, and stable (a pole within its uncertainty of the imaginary axis counts
+    as marginal, not unstable: :func:`~hammerstein_ctrl.diagnostics.linear_verdicts`)."""
     num, den = cost.structure.linear.coefficients(x[:cost.structure.linear.n_params])
     y = np.asarray(cost.data.y, dtype=float)
     trivial = float(np.sum((y - y.mean()) ** 2))
-    return np.isfinite(fun) and fun < trivial and (allow_unstable or not unstable(den)[0])
+    if not (np.isfinite(fun) and fun < trivial):
+        return False
+    return allow_unstable or not unstable(den)[0] or _marginal(cost, x)
+
+
+def _marginal(cost, x) -> bool:
+    """Whether every right-half-plane pole at ``x`` lies within its uncertainty of the imaginary axis.
+
+    The covariance is the white one from the cost's normal equations (one
+    pass, outside the budget: it judges a refinement already made).
+    """
+    from .diagnostics import linear_verdicts
+    from .uncertainty import white_covariance
+
+    with np.errstate(all="ignore"):
+        ne = cost.normal_equations(np.asarray(x, dtype=float))
+    if not ne.finite:
+        return False
+    unc = white_covariance(ne.gram, ne.fun, cost.n_samples)
+    return linear_verdicts(cost.structure, np.asarray(x, dtype=float), unc, cost.data.dt)[1]
 
 
 def _refine(cost, start, budget: Budget, share: int, merged: _Merged):
@@ -208,8 +229,7 @@ def _result(cost, best, budget, runs, n_starts, merged, allow_unstable, started)
     if converged and ok:
         message = f"converged ({best.message.rstrip('.')}) after {runs} refinement(s) from {n_starts} start(s)"
     elif status == BUDGET_EXHAUSTED:
-        message = (f"best of {runs} refinement(s) did not converge within maxfev = {budget.maxfev} "
-                   f"(raise it): {best.message}")
+        message = f"best of {runs} refinement(s) did not converge within maxfev = {budget.maxfev}: {best.message}"
     elif not converged:     # the solver stopped on its own limits: more evaluations would not help
         message = f"best of {runs} refinement(s) did not converge: {best.message}"
     else:

@@ -37,7 +37,7 @@ from .exceptions import DataError, ParameterError
 
 __all__ = [
     "as_models", "as_iodata", "progress", "progress_enabled", "register_figure_formatter", "response",
-    "standard_errors", "result_html", "study_html", "result_frame", "study_frame", "require_pandas",
+    "result_html", "study_html", "result_frame", "study_frame", "require_pandas",
     "method_label", "PROGRESS_ENV",
 ]
 
@@ -306,40 +306,13 @@ def response(model, data_or_t, u=None):
 
 
 # -- standard errors -----------------------------------------------------------
-def standard_errors(jac, sse: float, n_samples: int) -> np.ndarray:
-    """Standard errors of least-squares parameters from the residual Jacobian.
-
-    ``cov = s² (JᵀJ)⁻¹`` with ``s² = sse / (N - p)``; NaN for every parameter
-    when ``JᵀJ`` is singular or ``N <= p``.
-
-    Examples
-    --------
-    >>> import numpy as np
-    >>> x = np.arange(5.0)
-    >>> J = np.column_stack([np.ones(5), x])      # y = a + b x
-    >>> standard_errors(J, sse=2.0, n_samples=5).round(4)
-    array([0.6325, 0.2582])
-    """
-    J = np.asarray(jac, dtype=float)
-    if J.ndim != 2:
-        raise ParameterError(f"the Jacobian must be a 2-D array, got shape {J.shape}")
-    p = J.shape[1]
-    dof = int(n_samples) - p
-    A = J.T @ J
-    if dof <= 0 or np.linalg.matrix_rank(A) < p:
-        return np.full(p, np.nan)
-    return np.sqrt(np.diag(np.linalg.inv(A)) * float(sse) / dof)
-
-
-def _result_stderr(result):
-    """Standard errors a refinement stored on the result (``stderr`` or a residual ``jac``), else None."""
-    se = getattr(result, "stderr", None)
-    opt = getattr(result, "optimize_result", None) or {}
-    if se is None and hasattr(opt, "get"):
-        se = opt.get("stderr")
-        if se is None and opt.get("jac") is not None:
-            se = standard_errors(opt["jac"], result.fun, len(result.data))
-    return None if se is None else np.asarray(se, dtype=float)
+def _uncertainty_columns(result):
+    """``(stderr, low, high)`` arrays aligned with the parameters, or ``None`` when the result has no covariance."""
+    if getattr(result, "covariance", None) is None:
+        return None
+    se = np.array(list(result.stderr.values()))
+    bounds = np.array(list(result.conf_int().values()))
+    return se, bounds[:, 0], bounds[:, 1]
 
 
 # -- HTML ----------------------------------------------------------------------
@@ -359,11 +332,13 @@ def _table(header, rows, caption: str = "") -> str:
 
 
 def result_html(result) -> str:
-    """HTML for an IdentificationResult: status line, fit numbers, the parameter table, warnings."""
-    se = _result_stderr(result)
-    rows = [[html.escape(k), _fmt(v)] + ([_fmt(se[i])] if se is not None else [])
+    """HTML for an IdentificationResult: status line, fit numbers, the parameter table with standard errors and
+    95 % intervals, warnings."""
+    unc = _uncertainty_columns(result)
+    rows = [[html.escape(k), _fmt(v)] + ([_fmt(unc[0][i]), f"[{_fmt(unc[1][i])}, {_fmt(unc[2][i])}]"]
+                                         if unc is not None else [])
             for i, (k, v) in enumerate(result.params.items())]
-    header = ["parameter", "value"] + (["std. error"] if se is not None else [])
+    header = ["parameter", "value"] + (["std. error", "95 % interval"] if unc is not None else [])
     ok = bool(result.success)
     status = (f"<b style='color:{'green' if ok else 'firebrick'}'>{'success' if ok else 'FAILED'}</b>: "
               f"{html.escape(str(result.message))}")
@@ -432,18 +407,21 @@ def require_pandas():
 
 
 def result_frame(result):
-    """The fitted parameters as a DataFrame (index: parameter names; ``value``, ``stderr``).
+    """The fitted parameters as a DataFrame (index: parameter names; ``value``, ``stderr``, ``low``, ``high``:
+    the 95 % interval; NaN without a covariance).
 
-    Run facts (method, J, fit %, NFE, success, message) are in ``frame.attrs``.
+    Run facts (method, J, fit %, NFE, success, message, warnings) are in ``frame.attrs``.
     """
     pd = require_pandas()
-    se = _result_stderr(result)
     names = list(result.params)
-    frame = pd.DataFrame({"value": list(result.params.values()),
-                          "stderr": se if se is not None else np.full(len(names), np.nan)},
+    unc = _uncertainty_columns(result)
+    nan = np.full(len(names), np.nan)
+    se, low, high = unc if unc is not None else (nan, nan, nan)
+    frame = pd.DataFrame({"value": list(result.params.values()), "stderr": se, "low": low, "high": high},
                          index=pd.Index(names, name="parameter"))
     frame.attrs.update(method=result.method, J=float(result.fun), fit_percent=float(result.fit_percent),
-                       nfev=int(result.nfev), success=bool(result.success), message=str(result.message))
+                       nfev=int(result.nfev), success=bool(result.success), message=str(result.message),
+                       warnings=list(getattr(result, "warnings", None) or []))
     return frame
 
 

@@ -5,7 +5,8 @@ and from :class:`ValueError`, so ``except ValueError`` keeps working for callers
 who do not care about the distinction.
 """
 
-__all__ = ["HammersteinError", "DataError", "ParameterError", "UnknownNameError", "CacheWarning"]
+__all__ = ["HammersteinError", "DataError", "ParameterError", "UnknownNameError", "CacheWarning",
+           "IdentificationWarning"]
 
 
 class HammersteinError(ValueError):
@@ -26,3 +27,7 @@ class UnknownNameError(HammersteinError):
 
 class CacheWarning(UserWarning):
     """A compiled function's on-disk cache could not be read: it was compiled again and saved afresh."""
+
+
+class IdentificationWarning(UserWarning):
+    """A finding about an identified model that leaves it usable but needs a look (the result's ``warnings``)."""

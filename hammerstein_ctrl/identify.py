@@ -5,11 +5,21 @@
 data and refines them by least squares.  The paper's methods remain available
 by name with their own settings.
 
-Every result says honestly whether it can be trusted: ``success`` is False,
-with a specific ``message``, when the budget ran out before a least-squares
-method converged, when the model is unstable (unless ``allow_unstable``), when
-it fits no better than the best static affine gain ``y = k u + c`` (fit %
-<= 0 included), or when a search stalled at its starting value.
+Every result says how far it can be trusted.  It carries the parameters'
+covariance (:mod:`~hammerstein_ctrl.uncertainty`: ``res.stderr``,
+``res.conf_int()``, ``res.propagate``), the verdicts of
+:mod:`~hammerstein_ctrl.diagnostics` and the residual analysis of
+:mod:`~hammerstein_ctrl.residual_analysis` (``res.warnings``, each also issued
+as an :class:`~hammerstein_ctrl.exceptions.IdentificationWarning`).
+``success`` is True only when the result can be used: it is False, with a
+specific ``message`` that says what to do, when a least-squares method did not
+converge, when the model is unstable (unless ``allow_unstable``; a pole within
+its uncertainty of the imaginary axis counts as marginal, not unstable), when
+the record does not determine a parameter, when the model fits no better than
+the best static affine gain ``y = k u + c`` (fit % <= 0 included), or when a
+search stalled at its starting value.  Residuals that the input still
+explains (a missing order, a wrong nonlinearity) are warnings: the model is
+usable, and the warning says what seems missing.
 
 Examples
 --------
@@ -29,20 +39,25 @@ Examples
 from __future__ import annotations
 
 import time
+import warnings as _warnings
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from ._linalg import single_threaded_blas
 from .datasets import IOData
-from .exceptions import ParameterError
+from .diagnostics import (FAILURE, Verdict, budget_advice, identifiability_verdicts, linear_verdicts,
+                          offset_verdict)
+from .exceptions import IdentificationWarning, ParameterError
 from .initialize import static_affine_sse
 from .metrics import fit_report
 from .model import BlockModel
 from .objective import HammersteinCost
-from .optimize import DIVERGED, SCIPY_METHODS, canonical_method, minimize
-from .simulate import unstable
+from .optimize import BUDGET_EXHAUSTED, DIVERGED, SCIPY_METHODS, canonical_method, minimize
+from .residual_analysis import RESID_LAGS, ResidualAnalysis, residual_analysis
 from .structure import BlockStructure
+from .uncertainty import (DEFAULT_LEVEL, ParameterUncertainty, Propagated, UncertainParameters,
+                          estimate_uncertainty, _check_noise)
 
 __all__ = ["identify", "IdentificationResult", "AUTO"]
 
@@ -53,7 +68,7 @@ _CONVERGING = ("lm",) + SCIPY_METHODS
 
 
 @dataclass
-class IdentificationResult:
+class IdentificationResult(UncertainParameters):
     """The outcome of :func:`identify`.
 
     Attributes
@@ -80,6 +95,16 @@ class IdentificationResult:
     data : IOData
     optimize_result : scipy.optimize.OptimizeResult
         The optimiser's full result.
+    covariance : ndarray or None
+        Covariance of ``x`` (aligned with it; ``inf`` on the diagonal of a
+        parameter the record does not determine); ``None`` when not computed.
+    warnings : list of str
+        Every verdict's message (failures and warnings), in order.
+    verdicts : list of Verdict
+        The findings behind ``warnings`` and ``success``
+        (:class:`~hammerstein_ctrl.diagnostics.Verdict`).
+    uncertainty : ParameterUncertainty or None
+        The covariance with the noise model and degrees of freedom it came from.
     """
 
     model: BlockModel
@@ -97,11 +122,21 @@ class IdentificationResult:
     structure: BlockStructure = field(repr=False)
     data: IOData = field(repr=False)
     optimize_result: object = field(repr=False)
+    covariance: np.ndarray | None = field(default=None, repr=False)
+    warnings: list = field(default_factory=list)
+    verdicts: list = field(default_factory=list, repr=False)
+    uncertainty: ParameterUncertainty | None = field(default=None, repr=False)
+    analysis: ResidualAnalysis | None = field(default=None, repr=False)
 
     @property
     def params(self) -> dict:
         """The fitted parameters by name."""
         return dict(zip(self.structure.param_names, self.x.tolist()))
+
+    @property
+    def dof(self) -> int:
+        """Degrees of freedom of the residuals, ``N - p``."""
+        return len(self.data) - len(self.x)
 
     @property
     def status(self) -> int:
@@ -136,14 +171,101 @@ class IdentificationResult:
             return {"sse": np.inf, "rmse": np.inf, "nrmse": np.inf, "fit_percent": -np.inf}
         return fit_report(data.y, yhat)
 
+    def residual_analysis(self, data=None, *, lags: int = RESID_LAGS, initial_state: str | None = None
+                          ) -> ResidualAnalysis:
+        """Residual analysis (MATLAB ``resid``) on the estimation record or on ``data``.
+
+        Parameters
+        ----------
+        data : IOData, optional
+            Another record (default: the estimation record, as analysed when
+            the result was made).
+        lags : int, default 25
+        initial_state : {"zero", "estimate"}, optional
+            For another record, as :meth:`validate` (default: as identified).
+
+        Returns
+        -------
+        ResidualAnalysis
+            Its ``plot()`` draws the correlations with their 99 % bounds.
+        """
+        if data is None and lags == RESID_LAGS and self.analysis is not None:
+            return self.analysis
+        if self.model is None:
+            raise ParameterError(f"this identification produced no model to analyse ({self.message})")
+        from .display import as_iodata
+
+        record = self.data if data is None else as_iodata(data)
+        yhat = self._simulated(record, initial_state)
+        if not np.all(np.isfinite(yhat)):
+            raise ParameterError(f"the model cannot be simulated on {record.name!r} (its output is not finite)")
+        return residual_analysis(record.y - yhat, record.u, dt=record.dt, simulated=yhat, lags=lags,
+                                 name=record.name)
+
+    def _simulated(self, record, initial_state):
+        from .initialize import estimate_initial_state
+
+        if record is self.data and initial_state is None:
+            with np.errstate(all="ignore"):
+                return self.model.simulate(record)
+        mode = initial_state or self.structure.initial_state
+        if mode not in ("zero", "estimate"):
+            raise ParameterError(f"initial_state must be 'zero' or 'estimate', got {initial_state!r}")
+        with np.errstate(all="ignore"):
+            x0 = estimate_initial_state(self.model, record) if mode == "estimate" else np.zeros(self.model.order)
+            return self.model.simulate(record, initial_state=x0)
+
+    def propagate(self, fun, *, level: float = DEFAULT_LEVEL, method: str = "linear", samples: int = 2000,
+                  seed=None) -> Propagated:
+        """The uncertainty of any quantity computed from the fitted model.
+
+        Parameters
+        ----------
+        fun : callable
+            ``fun(model) -> array_like`` of real numbers, e.g.
+            ``lambda m: m.linear.dcgain()``.
+        level, method, samples, seed
+            As :func:`hammerstein_ctrl.uncertainty.propagate` (``"linear"``
+            or seeded ``"sampling"`` from the covariance).
+
+        Returns
+        -------
+        Propagated
+            ``value``, ``stderr``, ``low``, ``high``.
+        """
+        from .uncertainty import propagate
+
+        if self.covariance is None:
+            raise ParameterError("this result carries no covariance (identify(..., uncertainty=False), or no model)")
+        structure, hold = self.structure, self.data.intersample
+        return propagate(lambda b: fun(structure.model(b, intersample=hold)), self.x, self.covariance, level=level,
+                         dof=self.dof, method=method, samples=samples, seed=seed)
+
+    def characteristics(self, level: float = DEFAULT_LEVEL):
+        """Poles, zeros, time constants, natural frequencies, damping and the DC gain of ``H``, with their uncertainty.
+
+        Returns
+        -------
+        CharacteristicsTable
+            Rows ``(quantity, value, stderr, low, high)``; renders in Jupyter,
+            ``to_frame()`` gives a DataFrame.
+        """
+        from .uncertainty import linear_characteristics
+
+        if self.covariance is None:
+            raise ParameterError("this result carries no covariance (identify(..., uncertainty=False), or no model)")
+        return linear_characteristics(self.structure, self.x, self.covariance, level=level, dof=self.dof)
+
     def summary(self) -> str:
-        """A short human-readable report."""
-        names = ", ".join(f"{k} = {v:.6g}" for k, v in self.params.items())
+        """A short human-readable report: figures, parameters with standard errors, warnings."""
+        se = self.stderr if self.covariance is not None else {}
+        names = ", ".join(f"{k} = {v:.6g}" + (f" ± {se[k]:.2g}" if k in se else "") for k, v in self.params.items())
         status = "ok" if self.success else "FAILED"
+        warned = "".join(f"\n  warning: {w}" for w in self.warnings if w not in self.message)
         return (
             f"{self.method} on {self.data.name!r}: J = {self.fun:.6g}, fit = {self.fit_percent:.2f} %, "
             f"RMSE = {self.rmse:.4g}, nfev = {self.nfev}, {self.elapsed:.2f} s [{status}: {self.message}]\n"
-            f"  {self.structure.describe()}\n  {names}\n  model: {self.model!r}"
+            f"  {self.structure.describe()}\n  {names}\n  model: {self.model!r}{warned}"
         )
 
     def to_dict(self) -> dict:
@@ -155,6 +277,7 @@ class IdentificationResult:
             "params": self.params, "beta": self.x.tolist(), "J": self.fun, "nfev": self.nfev,
             "fit_percent": self.fit_percent, "rmse": self.rmse, "nrmse": self.nrmse,
             "success": self.success, "status": self.status, "message": self.message, "elapsed_s": self.elapsed,
+            "stderr": None if self.covariance is None else list(self.stderr.values()), "warnings": list(self.warnings),
             "linear": {"num": num, "den": den},
             **{key: {"name": nl.name, "params": dict(zip(nl.param_names, np.asarray(p).tolist()))}
                for key, nl, p in (("nonlinearity", self.model.input_nonlinearity, self.model.input_params),
@@ -202,6 +325,8 @@ def identify(
     offset: bool | None = None,
     initial_state: str | None = None,
     allow_unstable: bool = False,
+    uncertainty: bool = True,
+    noise: str = "colored",
 ) -> IdentificationResult:
     """Identify a Hammerstein model from an input/output record.
 
@@ -233,6 +358,15 @@ def identify(
         Start ``H`` from rest or estimate ``x(0)`` (overrides the structure's setting).
     allow_unstable : bool, default False
         Accept a final model with a right-half-plane pole as a success.
+    uncertainty : bool, default True
+        Compute the covariance, the verdicts and the residual analysis (a few
+        per cent of an EMPS identification's time).  Without them ``success``
+        reports only the optimiser's stop and the basic checks.
+    noise : {"colored", "white"}, default "colored"
+        Noise description of the covariance
+        (:data:`~hammerstein_ctrl.uncertainty.NOISE_MODELS`): an
+        autoregressive model of the residuals whose order BIC picks (the plain
+        white formula when they are white), or the white formula regardless.
 
     Returns
     -------
@@ -244,6 +378,7 @@ def identify(
         On a bad structure, method, initial point or record.
     """
     started = time.perf_counter()
+    noise = _check_noise(noise)
     data = _as_record(data)
     structure, x0 = _resolve_structure(data, structure, method, x0)
     if offset is not None or initial_state is not None:
@@ -258,7 +393,10 @@ def identify(
             x0 = _starting_point(structure, x0, bounds)
             res = minimize(cost, x0, method=key, maxfev=maxfev, maxiter=maxiter, seed=seed,
                            options=options, callback=callback, bounds=bounds)
-        return _result(cost, res, key, x0, allow_unstable, started)
+        result = _result(cost, res, key, x0, started, _Checks(allow_unstable, uncertainty, noise, maxfev, seed))
+    for w in result.warnings:
+        _warnings.warn(w, IdentificationWarning, stacklevel=2)
+    return result
 
 
 def _as_record(data) -> IOData:
@@ -322,34 +460,103 @@ def _run_auto(cost, x0, maxfev, seed, options, bounds, maxiter, callback, allow_
     return auto_minimize(cost, x0, maxfev=maxfev, seed=seed, allow_unstable=allow_unstable, callback=callback)
 
 
-def _assess(cost, res, key: str, x0, report: dict, allow_unstable: bool) -> tuple[bool, str]:
-    """``(success, message)`` after the checks that make a result trustworthy."""
-    problems = []
-    message = str(res.message)
+@dataclass(frozen=True)
+class _Checks:
+    """What :func:`identify` was asked to check."""
+
+    allow_unstable: bool
+    uncertainty: bool
+    noise: str
+    maxfev: int | None
+    seed: object = None
+
+
+def _basic_verdicts(cost, res, key: str, x0, report: dict) -> list[Verdict]:
+    """Failures that need no uncertainty: no finite model, no better than a constant, a stalled search."""
     x = np.asarray(res.x, dtype=float)
-    _, den = cost.structure.linear.coefficients(x[:cost.structure.linear.n_params])
-    if not allow_unstable and np.all(np.isfinite(x)) and unstable(den)[0]:
-        problems.append("the model is unstable (a pole in the right half-plane); pass allow_unstable=True "
-                        "to accept it")
     if not np.all(np.isfinite(x)):
-        problems.append("no model: the optimiser returned no finite parameters")
-    elif not np.isfinite(res.fun):
-        problems.append("the final model cannot be simulated (non-finite output)")
-    elif report["fit_percent"] <= 0:
-        problems.append(f"fit {report['fit_percent']:.1f} % is no better than a constant")
+        return [Verdict("no-model", FAILURE, "no model: the optimiser returned no finite parameters")]
+    if not np.isfinite(res.fun):
+        return [Verdict("no-model", FAILURE, "the final model cannot be simulated (non-finite output)")]
+    out = []
+    if report["fit_percent"] <= 0:
+        out.append(Verdict("no-better", FAILURE, f"fit {report['fit_percent']:.1f} % is no better than a constant"))
     elif res.fun >= static_affine_sse(cost.data):
-        problems.append(f"J = {res.fun:.6g} is no better than the best static affine gain y = k u + c")
+        out.append(Verdict("no-better", FAILURE,
+                           f"J = {res.fun:.6g} is no better than the best static affine gain y = k u + c"))
     if key not in _CONVERGING and key != AUTO and x0 is not None and res.status != DIVERGED:
         f0 = cost(x0)
         if np.isfinite(f0) and res.fun >= f0:
-            problems.append(f"stalled: no improvement on the initial point (J = {f0:.6g})")
-    success = bool(res.success) and not problems
-    if problems:
-        message = "; ".join(problems) + f" [{message}]"
-    return success, message
+            out.append(Verdict("stalled", FAILURE, f"stalled: no improvement on the initial point (J = {f0:.6g})"))
+    return out
 
 
-def _result(cost, res, key, x0, allow_unstable, started) -> IdentificationResult:
+def _trust_verdicts(cost, x, yhat, model, checks: _Checks):
+    """``(verdicts, uncertainty, analysis)`` at a finite, simulable fit."""
+    structure, data = cost.structure, cost.data
+    r = np.asarray(data.y, dtype=float) - yhat
+    unc = None
+    if checks.uncertainty:
+        unc, _ = estimate_uncertainty(cost, x, noise=checks.noise, residuals=r)
+    verdicts, _ = linear_verdicts(structure, x, unc, data.dt, allow_unstable=checks.allow_unstable)
+    if unc is None:
+        return verdicts, None, None
+    explained = {n for v in verdicts for n in v.params}
+    verdicts = identifiability_verdicts(structure, x, unc, model=model, data=data, exempt=explained) + verdicts
+    offset = offset_verdict(structure, r, unc)
+    if offset is not None:
+        verdicts.append(offset)
+    analysis = residual_analysis(r, data.u, dt=data.dt, simulated=yhat, name=data.name)
+    if analysis.findings:
+        verdicts.append(Verdict("inadequate", "warning", analysis.verdict()))
+    return verdicts, unc, analysis
+
+
+#: Codes of failures after which ``auto`` tries the structure with an output offset.
+_OFFSET_PROBED = ("no-better", "unstable")
+#: The offset probe is reported when it lowers J below this fraction of the failed fit's.
+OFFSET_PROBE_GAIN = 0.5
+
+
+def _offset_probe(cost, res, verdicts, checks: _Checks, seed) -> Verdict | None:
+    """A failed ``auto`` fit of a structure without an offset, tried again with one (as ``offset=True`` would).
+
+    Asked only when the fit failed as a forgotten offset makes it fail (no
+    better than a constant, unstable, or out of budget); the verdict names
+    the offset when it lowers J to below :data:`OFFSET_PROBE_GAIN` of the failed fit's.
+    """
+    from .auto import auto_minimize
+
+    structure = cost.structure
+    failed = any(v.code in _OFFSET_PROBED for v in verdicts) or int(res.status) == BUDGET_EXHAUSTED
+    if structure.offset or not failed or any(v.code == "offset-missing" for v in verdicts):
+        return None
+    probe = HammersteinCost(cost.data, structure.with_options(offset=True), reject_unstable=cost.reject_unstable)
+    with np.errstate(all="ignore"):
+        alt = auto_minimize(probe, maxfev=checks.maxfev, seed=seed, allow_unstable=checks.allow_unstable)
+    if not (alt.success and alt.fun < OFFSET_PROBE_GAIN * res.fun):
+        return None
+    fit = fit_report(cost.data.y, probe.simulate(alt.x))["fit_percent"]
+    return Verdict("offset-missing", FAILURE,
+                   f"the output has an offset this structure cannot produce: with offset=True (--offset) the same "
+                   f"structure fits {fit:.1f} % (J = {alt.fun:.4g} against {res.fun:.4g}, y0 = {alt.x[-1]:.4g})")
+
+
+def _message(res, key: str, verdicts, checks: _Checks) -> str:
+    """The result's message: the failures (with what to do), or the optimiser's own words."""
+    message = str(res.message)
+    failures = [v.message for v in verdicts if v.severity == FAILURE]
+    if int(res.status) == BUDGET_EXHAUSTED and key in _CONVERGING + (AUTO,):
+        failures.append(budget_advice(verdicts, checks.maxfev))
+    if failures:
+        return "; ".join(dict.fromkeys(failures)) + f" [{message}]"
+    warned = [v for v in verdicts if v.severity != FAILURE]
+    if warned:
+        return message + f" ({len(warned)} warning{'s' if len(warned) > 1 else ''}: see warnings)"
+    return message
+
+
+def _result(cost, res, key, x0, started, checks: _Checks) -> IdentificationResult:
     structure, data = cost.structure, cost.data
     x = np.asarray(res.x, dtype=float)
     with np.errstate(all="ignore"):
@@ -358,11 +565,26 @@ def _result(cost, res, key, x0, allow_unstable, started) -> IdentificationResult
         report = fit_report(data.y, yhat)
     else:
         report = {"fit_percent": -np.inf, "rmse": np.inf, "nrmse": np.inf}
-    success, message = _assess(cost, res, key, x0, report, allow_unstable)
     model = structure.model(x, intersample=data.intersample) if np.all(np.isfinite(x)) else None
+    verdicts = _basic_verdicts(cost, res, key, x0, report)
+    unc = analysis = None
+    if model is not None and np.all(np.isfinite(yhat)):
+        with np.errstate(all="ignore"):
+            trust, unc, analysis = _trust_verdicts(cost, x, yhat, model, checks)
+        if not any(v.code == "no-better" for v in verdicts):     # a fit no better than a constant: its
+            verdicts += trust                                   # parameters' verdicts would be noise
+    if key == AUTO and checks.uncertainty:
+        probe = _offset_probe(cost, res, verdicts, checks, checks.seed)
+        if probe is not None:
+            verdicts.insert(0, probe)
+    success = bool(res.success) and not any(v.severity == FAILURE for v in verdicts)
+    if int(res.status) == BUDGET_EXHAUSTED and key in _CONVERGING + (AUTO,):
+        success = False
     return IdentificationResult(
         model=model, x=x, fun=float(res.fun), nfev=int(res.nfev), fit_percent=report["fit_percent"],
         rmse=report["rmse"], nrmse=report["nrmse"], method=key, success=success,
-        message=message, history=res.history, elapsed=time.perf_counter() - started,
+        message=_message(res, key, verdicts, checks), history=res.history, elapsed=time.perf_counter() - started,
         structure=structure, data=data, optimize_result=res,
+        covariance=None if unc is None else unc.covariance, warnings=[v.message for v in verdicts],
+        verdicts=verdicts, uncertainty=unc, analysis=analysis,
     )

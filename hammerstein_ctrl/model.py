@@ -205,6 +205,17 @@ class BlockModel:
         x0 = self.initial_state if initial_state is None else _state_vector(initial_state, self.order)
         return simulate_blocks(self, t, u, x0=x0, intersample=hold if intersample is None else intersample)
 
+    def linear_output(self, t, u=None) -> np.ndarray:
+        """``z = H(p) g(u)``: the linear block's output (the signal entering ``h``), from the model's ``x(0)``.
+
+        Takes a record or ``(t, u)`` as :meth:`simulate` does.
+        """
+        inner = BlockModel.build(self.linear, input_nonlinearity=self.input_nonlinearity,
+                                 input_params=self.input_params, initial_state=self.initial_state,
+                                 intersample=self.intersample)
+        with np.errstate(all="ignore"):
+            return inner.simulate(t, u)
+
     # -- python-control interop -------------------------------------------------
     def to_iosys(self, name: str | None = None, *, dt: float | None = None, inputs: str = "u",
                  outputs: str = "y"):

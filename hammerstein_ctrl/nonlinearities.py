@@ -205,6 +205,35 @@ class Nonlinearity:
         """
         return None
 
+    def unexcited(self, params, signal) -> dict:
+        """Why a signal leaves parameters undetermined: ``{parameter index: reason}``.
+
+        Used to explain an identification whose record does not determine
+        some parameters of this block.  The default knows one case, a
+        constant signal (only the single value ``g(c)`` is seen); families
+        add their own (a limit never reached, a segment never entered).
+
+        Examples
+        --------
+        >>> Coulomb().unexcited([1.0, 0.0, 0.0], [0.7, 0.7, 0.7])
+        {0: 'the signal is constant (0.7): only the value g(0.7) is seen', 1: 'the signal is constant (0.7): only the value g(0.7) is seen', 2: 'the signal is constant (0.7): only the value g(0.7) is seen'}
+        >>> Coulomb().unexcited([1.0, 0.0, 0.0], [0.7, -0.2, 0.1])
+        {}
+        """
+        u = np.asarray(signal, dtype=float)
+        u = u[np.isfinite(u)]
+        if u.size == 0:
+            return {}
+        lo, hi = float(u.min()), float(u.max())
+        if hi - lo <= 1e-12 * max(1.0, abs(hi)):
+            why = f"the signal is constant ({hi:.4g}): only the value g({hi:.4g}) is seen"
+            return {i: why for i in range(self.n_params)}
+        return self._unexcited(np.asarray(self.check_params(params), dtype=float), u)
+
+    def _unexcited(self, p: np.ndarray, u: np.ndarray) -> dict:
+        """:meth:`unexcited` for a finite, non-constant signal (families override; default: nothing known)."""
+        return {}
+
     def _evaluate(self, u: np.ndarray, p: np.ndarray) -> np.ndarray:  # pragma: no cover
         raise NotImplementedError
 
@@ -270,6 +299,22 @@ class Tanh(Nonlinearity):
         d0, d1 = self._columns(p)
         return d0 * np.tanh(d1 * u)
 
+    def _unexcited(self, p, u):
+        """Linear or saturated on the whole signal.
+
+        >>> Tanh().unexcited([2.0, 1e-3], [-1.0, 1.0])[1]
+        'tanh(d1 u) is linear on the signal (|d1 u| <= 0.001): only the product d0 d1 is seen'
+        """
+        reach = np.abs(p[1] * u)
+        if reach.max() <= 0.05:
+            why = f"tanh(d1 u) is linear on the signal (|d1 u| <= {reach.max():.2g}): only the product d0 d1 is seen"
+            return {0: why, 1: why}
+        bending = float(np.mean(reach < 2.0))
+        if bending < 0.01:
+            return {1: f"tanh(d1 u) is saturated (+-1) on {100 * (1 - bending):.0f} % of the signal: it acts as "
+                       "a sign function, whose steepness d1 the record cannot show"}
+        return {}
+
     def _derivative(self, u, p):
         d0, d1 = self._columns(p)
         return d0 * d1 / np.cosh(d1 * u) ** 2
@@ -298,6 +343,17 @@ class Coulomb(Nonlinearity):
 
     def _derivative(self, u, p):
         return np.full(np.shape(u), p[0], dtype=float)
+
+    def _unexcited(self, p, u):
+        """A signal that never changes sign.
+
+        >>> sorted(Coulomb().unexcited([1.0, 0.5, 0.0], [0.2, 0.9]))
+        [1, 2]
+        """
+        if np.all(u > 0) or np.all(u < 0):
+            why = "the signal never changes sign, so sign(u) is constant and d1, d2 merge into one offset"
+            return {1: why, 2: why}
+        return {}
 
     def basis(self, u):
         u = np.asarray(u, dtype=float)
@@ -346,6 +402,18 @@ class Polynomial(Nonlinearity):
     def basis(self, u):
         u = np.asarray(u, dtype=float)
         return np.stack([u**i for i in range(1, self.degree + 1)])
+
+    def _unexcited(self, p, u):
+        """Fewer distinct non-zero values than coefficients.
+
+        >>> Polynomial(3).unexcited([1.0, 0.0, 0.0], [-1.0, 1.0, -1.0])[0]
+        'the signal takes 2 distinct non-zero values, fewer than the 3 coefficients'
+        """
+        levels = np.unique(u[u != 0]).size
+        if levels < self.degree:
+            why = f"the signal takes {levels} distinct non-zero values, fewer than the {self.degree} coefficients"
+            return {i: why for i in range(self.degree)}
+        return {}
 
     def __repr__(self):
         return f"Polynomial(degree={self.degree})"
@@ -397,6 +465,20 @@ class Saturation(_GainAndThreshold):
         k, a = p
         return np.where(np.abs(u) < abs(a), k, 0.0)
 
+    def _unexcited(self, p, u):
+        """A limit never reached, or always exceeded.
+
+        >>> Saturation().unexcited([2.0, 1.5], [-1.0, 1.0])
+        {1: 'the signal never reaches the limit +-1.5 (max |u| = 1)'}
+        """
+        a, top, bottom = abs(p[1]), float(np.abs(u).max()), float(np.abs(u).min())
+        if top <= a:
+            return {1: f"the signal never reaches the limit +-{a:.4g} (max |u| = {top:.4g})"}
+        if bottom >= a:
+            why = f"the signal is always beyond the limit +-{a:.4g} (min |u| = {bottom:.4g}): only gain x limit is seen"
+            return {0: why, 1: why}
+        return {}
+
 
 class DeadZone(_GainAndThreshold):
     r"""Symmetric dead zone with a gain.
@@ -423,6 +505,18 @@ class DeadZone(_GainAndThreshold):
     def _derivative(self, u, p):
         k, a = p
         return np.where(np.abs(u) > abs(a), k, 0.0)
+
+    def _unexcited(self, p, u):
+        """A signal that stays inside the dead zone.
+
+        >>> DeadZone().unexcited([2.0, 1.5], [-1.0, 1.0])[0]
+        'the signal stays inside the dead zone +-1.5 (max |u| = 1): the block never passes it on'
+        """
+        a, top = abs(p[1]), float(np.abs(u).max())
+        if top <= a:
+            why = f"the signal stays inside the dead zone +-{a:.4g} (max |u| = {top:.4g}): the block never passes it on"
+            return {0: why, 1: why}
+        return {}
 
 
 class PiecewiseLinear(Nonlinearity):
@@ -484,6 +578,23 @@ class PiecewiseLinear(Nonlinearity):
 
     def map_extra(self) -> np.ndarray:
         return self.breakpoints
+
+    def _unexcited(self, p, u):
+        """Knots whose neighbouring segments the signal never enters.
+
+        >>> PiecewiseLinear([-0.4, 0.0, 0.5, 1.0]).unexcited([0.0, 0.0, 0.5, 1.5], [0.1, 0.9])[0]
+        'the signal (range 0.1 to 0.9) never enters the segments next to the breakpoint -0.4'
+        """
+        bp = self.breakpoints
+        lo, hi = float(u.min()), float(u.max())
+        out = {}
+        for i, b in enumerate(bp):
+            left = -np.inf if i == 0 else bp[i - 1]
+            right = np.inf if i == bp.size - 1 else bp[i + 1]
+            if not np.any((u > left) & (u < right)):
+                out[i] = (f"the signal (range {lo:.4g} to {hi:.4g}) never enters the segments next to the "
+                          f"breakpoint {b:g}")
+        return out
 
     def __repr__(self):
         return f"PiecewiseLinear(breakpoints={self.breakpoints.tolist()})"

@@ -37,7 +37,7 @@ from .exceptions import ParameterError
 __all__ = [
     "time_response", "error_response", "psd", "dominant_frequency", "spectral_peak", "input_signal",
     "bode", "convergence", "nonlinearity", "final_cost", "compare", "compare_fits", "result_figure",
-    "study_figure_set", "study_figures", "MIN_PEAK_BINS", "PEAK_PROMINENCE", "SMOOTH_BINS", "LOG_SPAN",
+    "study_figure_set", "study_figures", "residual_figure", "MIN_PEAK_BINS", "PEAK_PROMINENCE", "SMOOTH_BINS", "LOG_SPAN",
 ]
 
 #: Default lower edge of the PSD peak search, in Welch resolution widths (keeps the DC end out).
@@ -426,13 +426,7 @@ def _has_block(model, block: str) -> bool:
 
 def _linear_output(model, data) -> np.ndarray:
     """``z = H(p) g(u)`` on the record: the signal entering the output nonlinearity."""
-    from .model import BlockModel
-
-    inner = BlockModel.build(model.linear, input_nonlinearity=model.input_nonlinearity,
-                             input_params=model.input_params, initial_state=model.initial_state,
-                             intersample=model.intersample)
-    with np.errstate(all="ignore"):
-        return inner.simulate(data)
+    return model.linear_output(data)
 
 
 def _block_range(models, u_range, block):
@@ -765,6 +759,33 @@ def result_figure(result, *, zoom=None):
                      title=f"static {block} nonlinearity over the range seen on the record")
         c.get_lines()[-1].set_label(_describe_block(model, block))
         c.legend(loc="best", fontsize="small")
+    return fig
+
+
+def residual_figure(analysis, *, title=None):
+    """A :class:`~hammerstein_ctrl.residual_analysis.ResidualAnalysis` drawn as MATLAB's ``resid`` does.
+
+    Top: the residuals' autocorrelation at lags 0..M; bottom: their
+    cross-correlation with the input at lags -M..M (positive: the input
+    leads); each with its 99 % bound shaded, and the verdict in the title.
+    """
+    fig, axes = _new_figure(2, 1, figsize=(_WIDTH, 5.5))
+    a, b = axes[:, 0]
+    lag_s = analysis.dt
+    for ax, lags, values, bound, what in (
+            (a, analysis.lags, analysis.autocorrelation, analysis.autocorrelation_bound, "autocorrelation of e"),
+            (b, analysis.cross_lags, analysis.cross_correlation, analysis.cross_correlation_bound,
+             "cross-correlation of u and e")):
+        ax.axhspan(-bound, bound, color="C0", alpha=0.15, lw=0, label="99 % bound")
+        ax.vlines(lags * lag_s, 0.0, values, color="k", lw=1.2)
+        ax.plot(lags * lag_s, values, "o", color="k", ms=3)
+        outside = np.abs(values) > bound
+        if lags.size and outside.any():
+            ax.plot(lags[outside] * lag_s, values[outside], "o", color="firebrick", ms=4, label="outside the bound")
+        ax.axhline(0.0, color="k", lw=0.6)
+        _finish(ax, xlabel="lag (s)", ylabel="correlation", title=what)
+    verdict = "passed" if analysis.passed else "the input still explains part of the residuals"
+    fig.suptitle(title or f"Residual analysis{' of ' + analysis.name if analysis.name else ''}: {verdict}")
     return fig
 
 

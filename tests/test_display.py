@@ -7,7 +7,6 @@ from html import escape as html_escape
 import control
 import numpy as np
 import pytest
-import scipy.stats
 
 import hammerstein_ctrl as hc
 from hammerstein_ctrl import display
@@ -149,20 +148,6 @@ def test_response_plots_with_python_control():
     plt.close("all")
 
 
-# -- standard errors ----------------------------------------------------------------
-def test_standard_errors_match_linear_regression():
-    rng = np.random.default_rng(3)
-    x = rng.uniform(0, 10, 40)
-    y = 1.5 + 0.7 * x + rng.normal(0, 0.5, x.size)
-    fit = scipy.stats.linregress(x, y)
-    resid = y - (fit.intercept + fit.slope * x)
-    se = display.standard_errors(np.column_stack([np.ones_like(x), x]), resid @ resid, x.size)
-    assert se == pytest.approx([fit.intercept_stderr, fit.stderr], rel=1e-10)
-    assert np.isnan(display.standard_errors(np.ones((5, 2)), 1.0, 5)).all()  # singular
-    with pytest.raises(ParameterError, match="2-D"):
-        display.standard_errors(np.ones(5), 1.0, 5)
-
-
 # -- HTML and DataFrames --------------------------------------------------------------
 def test_result_html_lists_parameters_fit_and_status(result):
     html = result._repr_html_()
@@ -174,23 +159,28 @@ def test_result_html_lists_parameters_fit_and_status(result):
     assert html_escape(result.message) in html and "LM*" in html
 
 
-def test_result_html_and_frame_show_standard_errors_from_a_jacobian(result):
-    n, p = len(result.data), len(result.x)
-    jac = np.random.default_rng(0).normal(size=(n, p))
-    refined = dataclasses.replace(result, optimize_result={**result.optimize_result, "jac": jac})
-    expected = np.sqrt(np.diag(np.linalg.inv(jac.T @ jac)) * result.fun / (n - p))
-    assert "std. error" in refined._repr_html_()
-    assert f"{expected[0]:.6g}" in refined._repr_html_()
-    frame = refined.to_frame()
-    np.testing.assert_allclose(frame["stderr"].to_numpy(), expected)
-
-
-def test_result_to_frame(result):
+def test_result_html_and_frame_show_the_results_standard_errors_and_intervals(result):
+    se, intervals = result.stderr, result.conf_int()
+    html = result._repr_html_()
+    assert "std. error" in html and "95 % interval" in html
+    first = result.structure.param_names[0]
+    assert f"<td>{se[first]:.6g}</td>" in html
+    assert f"[{intervals[first][0]:.6g}, {intervals[first][1]:.6g}]" in html
     frame = result.to_frame()
     assert list(frame.index) == list(result.structure.param_names)
     np.testing.assert_array_equal(frame["value"].to_numpy(), result.x)
-    assert frame["stderr"].isna().all()
+    np.testing.assert_allclose(frame["stderr"].to_numpy(), list(se.values()))
+    np.testing.assert_allclose(frame[["low", "high"]].to_numpy(), list(intervals.values()))
     assert frame.attrs["J"] == result.fun and frame.attrs["method"] == "lm"
+    assert frame.attrs["warnings"] == result.warnings
+
+
+def test_a_result_without_covariance_shows_no_standard_errors(trs_case):
+    bare = hc.identify(trs_case.data, trs_case.structure, uncertainty=False)
+    assert bare.covariance is None and "std. error" not in bare._repr_html_()
+    assert bare.to_frame()["stderr"].isna().all()
+    with pytest.raises(ParameterError, match="no covariance"):
+        bare.conf_int()
 
 
 def test_study_html_and_frames(study):
