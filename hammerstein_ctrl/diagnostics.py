@@ -43,6 +43,7 @@ import numpy as np
 from .uncertainty import ParameterUncertainty, linear_roots, scaled_eigen, t_factor
 
 __all__ = ["Verdict", "identifiability_verdicts", "linear_verdicts", "offset_verdict", "budget_advice",
+           "late_improvement", "STILL_IMPROVING", "LATE_SHARE",
            "variance_inflation", "FAILURE", "WARNING", "UNDETERMINED_VIF", "FAST_POLE_FACTOR",
            "OFFSET_T", "OFFSET_SHARE", "VERDICT_LEVEL", "TRADE_OFF_CORRELATION"]
 
@@ -203,8 +204,10 @@ def identifiability_verdicts(structure, x, unc: ParameterUncertainty, *, model=N
     nuisance = {i for i in range(structure.n_core, len(names))} | {
         i for i, n in enumerate(names) if n in _state_partners(structure)}
     hints = _block_hints(structure, x, model, data) if undetermined.any() else {}
+    zero = ~(np.diag(unc.gram) > 0)
     for group in _collinear_groups(unc.gram, undetermined):
-        verdicts.append(_undetermined([names[i] for i in group], set(group) <= nuisance, hints))
+        verdicts.append(_undetermined([names[i] for i in group], set(group) <= nuisance, hints,
+                                      bool(zero[group].all())))
     poor = [i for i in np.flatnonzero(~undetermined)
             if i < structure.n_core and names[i] not in exempt and se[i] > abs(x[i])]
     if poor:
@@ -218,6 +221,13 @@ TRADE_OFF_CORRELATION = 0.99
 
 def _poorly_determined(names, x, se, corr, poor) -> Verdict:
     """One warning for the parameters whose standard error exceeds their value, naming trade-offs."""
+    if [names[i] for i in poor] == ["a0"]:
+        i = poor[0]
+        return Verdict(
+            "poorly-determined", WARNING,
+            f"a0 = {_fmt(x[i])} ± {se[i]:.2g} is not distinguishable from 0: H seems to have a pole at the origin "
+            "(an integrator); fix a0 = 0 (LinearStructure(..., fixed={'a0': 0.0}), --fix a0=0) to make it exact",
+            ("a0",))
     listed = ", ".join(f"{names[i]} = {_fmt(x[i])} ± {se[i]:.2g}" for i in poor)
     plural = len(poor) > 1
     them = "them" if plural else "it"
@@ -243,7 +253,7 @@ def _state_partners(structure) -> set:
     return {n for n in structure.linear.param_names if n == "a0"}
 
 
-def _undetermined(group: list, nuisance_only: bool, hints: dict) -> Verdict:
+def _undetermined(group: list, nuisance_only: bool, hints: dict, zero: bool) -> Verdict:
     listed = ", ".join(group)
     if nuisance_only and any(n.startswith("xi") for n in group) and "y0" in group:
         return Verdict(
@@ -259,9 +269,11 @@ def _undetermined(group: list, nuisance_only: bool, hints: dict) -> Verdict:
         why = next(iter(reasons))
     elif reasons:
         why = "; ".join(f"{', '.join(ns)}: {r}" for r, ns in reasons.items())
+    elif zero:
+        why = "the output does not depend on " + ("them" if len(group) > 1 else "it") + " on this record"
     else:
         why = ("their effects on the output cannot be told apart" if len(group) > 1 else
-               "the output does not depend on it on this record")
+               "its effect on the output is matched by the other parameters'")
     one = len(group) == 1
     return Verdict(
         "undetermined", FAILURE,
@@ -382,22 +394,52 @@ def offset_verdict(structure, residuals, unc: ParameterUncertainty | None) -> Ve
 
 #: Verdict codes that explain a least-squares method's slow progress better than a short budget.
 _SLOW_PROGRESS = ("undetermined", "offset-state", "offset-missing", "fast-pole", "cancellation")
+#: Relative fall of the best J over the last :data:`LATE_SHARE` of the evaluations past which a run out of
+#: budget was still improving (raising maxfev helps); crawling runs fall by 1e-5 or less.
+STILL_IMPROVING = 1e-3
+LATE_SHARE = 0.2
 
 
-def budget_advice(verdicts, maxfev: int | None) -> str:
-    """What to do when the budget ran out before convergence, given the other verdicts.
+def late_improvement(history) -> float:
+    """Relative fall of the best J over the last :data:`LATE_SHARE` of a run's evaluations (``inf`` when the
+    best value was not finite before).
 
     Examples
     --------
-    >>> budget_advice([], 2000)
-    'did not converge within maxfev = 2000: raise maxfev'
+    >>> round(late_improvement({"nfev": [10, 70, 90, 100], "best": [5.0, 1.1, 1.05, 1.0]}), 6)
+    0.1
+    """
+    nfev = np.asarray((history or {}).get("nfev", ()), dtype=float)
+    best = np.asarray((history or {}).get("best", ()), dtype=float)
+    if nfev.size == 0:
+        return 0.0
+    early = nfev <= (1.0 - LATE_SHARE) * nfev[-1]
+    before = best[early][-1] if early.any() else np.inf
+    last = best[-1]
+    if not np.isfinite(last) or last <= 0:
+        return 0.0
+    return float((before - last) / last) if np.isfinite(before) else np.inf
+
+
+def budget_advice(verdicts, maxfev: int | None, improvement: float = 0.0) -> str:
+    """What to do when the budget ran out before convergence, given the other verdicts and the last fifth's progress.
+
+    Examples
+    --------
+    >>> budget_advice([], 2000, improvement=0.15)
+    'did not converge within maxfev = 2000: raise maxfev (J still fell by 15 % over the last fifth of the evaluations)'
     >>> budget_advice([Verdict("cancellation", WARNING, "a pole and a zero cancel")], 2000)
     'did not converge within maxfev = 2000, and more evaluations would not help: a pole and a zero cancel'
     """
     budget = f"maxfev = {maxfev}" if maxfev else "the evaluation budget"
+    if improvement > STILL_IMPROVING:
+        fell = "more than halved" if improvement > 1.0 else f"fell by {100 * improvement:.2g} %"
+        return f"did not converge within {budget}: raise maxfev (J still {fell} over the last fifth of the evaluations)"
     causes = [v for v in verdicts if v.code in _SLOW_PROGRESS]
     if not causes:
-        return f"did not converge within {budget}: raise maxfev"
+        return (f"did not converge within {budget}, crawling (J fell by {100 * improvement:.1g} % over the last fifth "
+                "of the evaluations): raising maxfev may not help; the problem seems ill-conditioned (see the "
+                "standard errors)")
     shown = [v.message for v in causes if v.severity != FAILURE][:1]
     return (f"did not converge within {budget}, and more evaluations would not help"
             + (": " + shown[0] if shown else " (the reasons above)"))

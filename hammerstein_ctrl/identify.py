@@ -46,8 +46,8 @@ import numpy as np
 
 from ._linalg import single_threaded_blas
 from .datasets import IOData
-from .diagnostics import (FAILURE, Verdict, budget_advice, identifiability_verdicts, linear_verdicts,
-                          offset_verdict)
+from .diagnostics import (FAILURE, STILL_IMPROVING, Verdict, budget_advice, identifiability_verdicts,
+                          late_improvement, linear_verdicts, offset_verdict)
 from .exceptions import IdentificationWarning, ParameterError
 from .initialize import static_affine_sse
 from .metrics import fit_report
@@ -542,12 +542,16 @@ def _offset_probe(cost, res, verdicts, checks: _Checks, seed) -> Verdict | None:
                    f"structure fits {fit:.1f} % (J = {alt.fun:.4g} against {res.fun:.4g}, y0 = {alt.x[-1]:.4g})")
 
 
+def _out_of_budget(res, key: str) -> bool:
+    return int(res.status) == BUDGET_EXHAUSTED and key in _CONVERGING + (AUTO,)
+
+
 def _message(res, key: str, verdicts, checks: _Checks) -> str:
     """The result's message: the failures (with what to do), or the optimiser's own words."""
     message = str(res.message)
     failures = [v.message for v in verdicts if v.severity == FAILURE]
-    if int(res.status) == BUDGET_EXHAUSTED and key in _CONVERGING + (AUTO,):
-        failures.append(budget_advice(verdicts, checks.maxfev))
+    if _out_of_budget(res, key):
+        failures.append(budget_advice(verdicts, checks.maxfev, late_improvement(res.history)))
     if failures:
         return "; ".join(dict.fromkeys(failures)) + f" [{message}]"
     warned = [v for v in verdicts if v.severity != FAILURE]
@@ -571,15 +575,16 @@ def _result(cost, res, key, x0, started, checks: _Checks) -> IdentificationResul
     if model is not None and np.all(np.isfinite(yhat)):
         with np.errstate(all="ignore"):
             trust, unc, analysis = _trust_verdicts(cost, x, yhat, model, checks)
-        if not any(v.code == "no-better" for v in verdicts):     # a fit no better than a constant: its
-            verdicts += trust                                   # parameters' verdicts would be noise
+        # a fit no better than a constant, or stopped while still improving, is no optimum: verdicts on its
+        # parameters would be noise
+        still = _out_of_budget(res, key) and late_improvement(res.history) > STILL_IMPROVING
+        if not still and not any(v.code == "no-better" for v in verdicts):
+            verdicts += trust
     if key == AUTO and checks.uncertainty:
         probe = _offset_probe(cost, res, verdicts, checks, checks.seed)
         if probe is not None:
             verdicts.insert(0, probe)
-    success = bool(res.success) and not any(v.severity == FAILURE for v in verdicts)
-    if int(res.status) == BUDGET_EXHAUSTED and key in _CONVERGING + (AUTO,):
-        success = False
+    success = bool(res.success) and not any(v.severity == FAILURE for v in verdicts) and not _out_of_budget(res, key)
     return IdentificationResult(
         model=model, x=x, fun=float(res.fun), nfev=int(res.nfev), fit_percent=report["fit_percent"],
         rmse=report["rmse"], nrmse=report["nrmse"], method=key, success=success,
