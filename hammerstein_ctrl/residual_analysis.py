@@ -27,8 +27,11 @@ Three nested sets of regressors say what seems missing:
 * ``u, u^2, u^3, y^2, y^3`` (``y`` the simulated output): an output
   nonlinearity (a Wiener or Hammerstein-Wiener structure).
 
-On records measured inside a feedback loop the input also depends on past
-noise, and a finding may mean that instead.
+The sets are nested, so a residual that the input nonlinearity explains is
+also explained by the largest set; the verdict names the smallest found set
+that explains :data:`NAMED_SHARE` of what the largest explains.  On records
+measured inside a feedback loop the input also depends on past noise, and a
+finding may mean that instead.
 
 Examples
 --------
@@ -54,7 +57,7 @@ from ._jit import cached_njit
 from .exceptions import ParameterError
 
 __all__ = ["ResidualAnalysis", "CoherenceFinding", "residual_analysis", "coherence_test", "RESID_LAGS",
-           "RESID_LEVEL", "ADEQUACY_Z", "COHERENCE_SEGMENTS", "SEGMENT_MAX", "GROUPS"]
+           "RESID_LEVEL", "ADEQUACY_Z", "COHERENCE_SEGMENTS", "SEGMENT_MAX", "GROUPS", "NAMED_SHARE"]
 
 #: Lags of the correlation functions (MATLAB ``resid``'s default).
 RESID_LAGS = 25
@@ -94,6 +97,11 @@ class CoherenceFinding(NamedTuple):
     chance_max: float
     found: bool
     advice: str
+
+    @property
+    def beyond_chance(self) -> float:
+        """The share explained beyond what chance explains on average."""
+        return self.fraction - self.chance_mean
 
     def describe(self) -> str:
         """One line: the regressors, the share explained and the share by chance."""
@@ -234,6 +242,20 @@ def _coherence(R, X, names, groups) -> list[CoherenceFinding]:
     return out
 
 
+#: A smaller regressor set is named when it explains this share of what the largest found set explains
+#: (beyond chance): the larger sets' extra regressors then add little.
+NAMED_SHARE = 0.85
+
+
+def _named_first(findings: list) -> list:
+    """The found sets, the one to name first: the smallest that explains :data:`NAMED_SHARE` of the most."""
+    if not findings:
+        return []
+    most = max(f.beyond_chance for f in findings)
+    first = next(f for f in findings if f.beyond_chance >= NAMED_SHARE * most)
+    return [first] + [f for f in findings if f is not first]
+
+
 @cached_njit()
 def _lagged_sums(a, b, first, last):  # pragma: no cover - compiled
     """``sum_t (a_t - mean a)(b_{t-k} - mean b)`` for ``k = first .. last`` (over the overlapping samples).
@@ -318,7 +340,7 @@ class ResidualAnalysis:
     independence : bool
         Whether the cross-correlation stays inside its bound.
     findings : list of CoherenceFinding
-        The coherence test's sets that the residuals are found to hold (empty when none).
+        The sets found to explain part of the residuals, the one :meth:`verdict` names first (empty when none).
     coherence : list of CoherenceFinding
         The test of every set.
     passed : bool
@@ -334,7 +356,7 @@ class ResidualAnalysis:
         self.autocorrelation_bound = _normal_quantile(RESID_LEVEL) / np.sqrt(n)
         self.cross_correlation_bound = cross_bound
         self.coherence = list(coherence)
-        self.findings = [f for f in self.coherence if f.found]
+        self.findings = _named_first([f for f in self.coherence if f.found])
         self.passed = not self.findings
 
     @functools.cached_property
@@ -363,7 +385,8 @@ class ResidualAnalysis:
         return np.arange(-self.lags[-1], self.lags[-1] + 1)
 
     def verdict(self) -> str | None:
-        """What seems missing (the smallest regressor set found), or ``None`` when nothing is."""
+        """What seems missing, or ``None`` when nothing is: the smallest found set that explains nearly as much
+        as the largest (:data:`NAMED_SHARE`)."""
         if not self.findings:
             return None
         f = self.findings[0]
