@@ -25,13 +25,15 @@ import importlib
 import sys
 import types
 
-from .exceptions import CacheWarning, DataError, HammersteinError, ParameterError, UnknownNameError
+from .exceptions import (CacheWarning, DataError, HammersteinError, IdentificationWarning, ParameterError,
+                         UnknownNameError)
 
 __version__ = "0.1.0"
 
 #: Sub-modules exposed as attributes of the package.
 _SUBMODULES = ("datasets", "iodata", "metrics", "nonlinearities", "optimize", "plots", "presets", "records",
-               "simulate", "study", "control_design", "exact_export", "persistence", "display")
+               "simulate", "study", "control_design", "exact_export", "persistence", "display", "uncertainty",
+               "diagnostics", "residual_analysis", "selection")
 
 #: Public name -> the sub-module that defines it.
 _LAZY_NAMES = {
@@ -50,6 +52,7 @@ _LAZY_NAMES = {
     "load_model": "persistence", "save_model": "persistence", "load_result": "persistence",
     "save_result": "persistence",
     "StudyResult": "study", "run_study": "study",
+    "select_structure": "selection", "candidate_structures": "selection", "SelectionResult": "selection",
 }
 
 __all__ = [
@@ -65,6 +68,8 @@ __all__ = [
     "HammersteinCost", "BlockStructure", "HammersteinStructure", "WienerStructure", "HammersteinWienerStructure",
     "LinearStructure",
     "minimize", "StepGain", "PerturbationGain", "run_study", "StudyResult",
+    "uncertainty", "diagnostics", "residual_analysis", "selection", "select_structure", "candidate_structures",
+    "SelectionResult", "IdentificationWarning",
     "__version__",
 ]
 

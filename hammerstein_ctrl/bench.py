@@ -243,7 +243,7 @@ def synthetic_record(n_samples: int, *, seed: int = 0):
     return IOData(u, y, dt=_SYNTHETIC_DT, name=f"synthetic-emps-{n_samples}")
 
 
-def identify_long_record(data, method: str):
+def identify_long_record(data, method: str, **options):
     """One small-budget identification (:data:`MEMORY_BUDGETS`) of a synthetic record, as a user would call it.
 
     From :data:`SYNTHETIC_X0` (``auto`` finds its own starts); AMVO-SCA in the
@@ -258,7 +258,7 @@ def identify_long_record(data, method: str):
         kwargs["x0"] = SYNTHETIC_X0
     if method == "amvo-sca":
         kwargs.update(bounds=EMPS_BOUNDS, options={"pop_size": MEMORY_BUDGETS[method] // 2})
-    return identify(data, emps_structure(), method=method, **kwargs)
+    return identify(data, emps_structure(), method=method, **kwargs, **options)
 
 
 def _proc_status_kb(field: str) -> int:

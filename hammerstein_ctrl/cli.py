@@ -1,7 +1,8 @@
 """The ``hammerstein-ctrl`` command line.
 
 Sub-commands: ``bench`` (speed against python-control), ``reproduce`` (the
-paper's comparison tables and figures), ``identify`` (fit a user's record).
+paper's comparison tables and figures), ``identify`` (fit a user's record),
+``select`` (rank candidate structures on it), ``tune`` (a PID for a saved model).
 Every argument and output path is checked before any work starts.  Every
 failure exits with status 2 and one line ``hammerstein-ctrl: error: ...`` on
 stderr; ``--debug`` shows the traceback instead (for bug reports).
@@ -17,7 +18,7 @@ import traceback
 import warnings
 from pathlib import Path
 
-from .exceptions import HammersteinError
+from .exceptions import HammersteinError, IdentificationWarning
 
 __all__ = ["main", "build_parser", "EXIT_ERROR", "PROG"]
 
@@ -29,6 +30,8 @@ IDENTIFY_DESCRIPTION = ("Fit a Hammerstein (--nonlinearity), Wiener (--output-no
                     "one vector per variable.")
 #: One-line help of ``tune`` (its options come from :mod:`hammerstein_ctrl.cli_tune`).
 TUNE_HELP = "tune a PID for a saved model (SIMC, IMC or N-SPSA on the nonlinear loop)"
+#: One-line help of ``select`` (its options come from :mod:`hammerstein_ctrl.cli_select`).
+SELECT_HELP = "rank candidate structures (orders x nonlinearities x kinds) by AIC, BIC, FPE or validation fit"
 #: Program name used in messages.
 PROG = "hammerstein-ctrl"
 #: Exit status of every failure (argparse's convention).
@@ -285,9 +288,11 @@ def _cmd_identify(args) -> int:
                                    f"{list(structure.param_names)}), got {len(args.bounds)}")
         bounds = list(zip(args.bounds[0::2], args.bounds[1::2]))
     maxfev = args.maxfev if args.maxfev is not None else (None if args.maxiter or auto else 2501)
-    result = identify(data, structure, method=args.method, x0=x0, maxfev=maxfev, maxiter=args.maxiter,
-                      seed=args.seed, options=options or None, bounds=bounds, offset=args.offset or None,
-                      initial_state=args.initial_state, allow_unstable=args.allow_unstable)
+    with warnings.catch_warnings():     # the summary lists the verdicts' warnings
+        warnings.simplefilter("ignore", IdentificationWarning)
+        result = identify(data, structure, method=args.method, x0=x0, maxfev=maxfev, maxiter=args.maxiter,
+                          seed=args.seed, options=options or None, bounds=bounds, offset=args.offset or None,
+                          initial_state=args.initial_state, allow_unstable=args.allow_unstable)
     print(result.summary())
     if result.model is None:  # nothing finite to save or draw; the summary says why
         return 1
@@ -413,6 +418,12 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
         add_tune_parser(sub)
     else:
         sub.add_parser("tune", help=TUNE_HELP)
+    if command in (None, "select"):
+        from .cli_select import add_select_parser
+
+        add_select_parser(sub, _count, _number, _writable_file)
+    else:
+        sub.add_parser("select", help=SELECT_HELP)
     return parser
 
 

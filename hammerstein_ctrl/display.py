@@ -36,7 +36,7 @@ import numpy as np
 from .exceptions import DataError, ParameterError
 
 __all__ = [
-    "as_models", "as_iodata", "progress", "progress_enabled", "register_figure_formatter", "response",
+    "as_models", "labelled", "as_iodata", "progress", "progress_enabled", "register_figure_formatter", "response",
     "result_html", "study_html", "result_frame", "study_frame", "require_pandas",
     "method_label", "PROGRESS_ENV",
 ]
@@ -122,6 +122,18 @@ def as_models(models, *, arrays: bool = False, systems: bool = False, need=("sim
     ParameterError
         On an unsupported type, or an empty collection when not allowed.
     """
+    return {key: _check_item(key, obj, arrays=arrays, systems=systems, need=need)
+            for key, obj in labelled(models, arrays=arrays, allow_empty=allow_empty).items()}
+
+
+def labelled(models, *, arrays: bool = False, allow_empty: bool = False) -> dict:
+    """``{label: object as given}``, labelled as :func:`as_models` labels them (results are not unwrapped).
+
+    Examples
+    --------
+    >>> list(labelled([1.0, "x"]))
+    ['model 1', 'model 2']
+    """
     if models is None:
         items = []
     elif isinstance(models, Mapping):
@@ -137,7 +149,7 @@ def as_models(models, *, arrays: bool = False, systems: bool = False, need=("sim
         key, k = label, 2
         while key in out:
             key, k = f"{label} ({k})", k + 1
-        out[key] = _check_item(label, obj, arrays=arrays, systems=systems, need=need)
+        out[key] = obj
     return out
 
 

@@ -394,8 +394,9 @@ def identify(
             res = minimize(cost, x0, method=key, maxfev=maxfev, maxiter=maxiter, seed=seed,
                            options=options, callback=callback, bounds=bounds)
         result = _result(cost, res, key, x0, started, _Checks(allow_unstable, uncertainty, noise, maxfev, seed))
-    for w in result.warnings:
-        _warnings.warn(w, IdentificationWarning, stacklevel=2)
+    for v in result.verdicts:                  # failures are in success and message already
+        if v.severity != FAILURE:
+            _warnings.warn(v.message, IdentificationWarning, stacklevel=2)
     return result
 
 
@@ -491,10 +492,9 @@ def _basic_verdicts(cost, res, key: str, x0, report: dict) -> list[Verdict]:
     return out
 
 
-def _trust_verdicts(cost, x, yhat, model, checks: _Checks):
-    """``(verdicts, uncertainty, analysis)`` at a finite, simulable fit."""
+def _trust_verdicts(cost, x, r, model, checks: _Checks):
+    """``(verdicts, uncertainty, analysis)`` at a finite, simulable fit with residuals ``r``."""
     structure, data = cost.structure, cost.data
-    r = np.asarray(data.y, dtype=float) - yhat
     unc = None
     if checks.uncertainty:
         unc, _ = estimate_uncertainty(cost, x, noise=checks.noise, residuals=r)
@@ -506,7 +506,7 @@ def _trust_verdicts(cost, x, yhat, model, checks: _Checks):
     offset = offset_verdict(structure, r, unc)
     if offset is not None:
         verdicts.append(offset)
-    analysis = residual_analysis(r, data.u, dt=data.dt, simulated=yhat, name=data.name)
+    analysis = residual_analysis(r, data.u, dt=data.dt, output=data.y, name=data.name)
     if analysis.findings:
         verdicts.append(Verdict("inadequate", "warning", analysis.verdict()))
     return verdicts, unc, analysis
@@ -573,8 +573,9 @@ def _result(cost, res, key, x0, started, checks: _Checks) -> IdentificationResul
     verdicts = _basic_verdicts(cost, res, key, x0, report)
     unc = analysis = None
     if model is not None and np.all(np.isfinite(yhat)):
+        residuals = np.subtract(data.y, yhat, out=yhat)            # the simulated output is not needed again
         with np.errstate(all="ignore"):
-            trust, unc, analysis = _trust_verdicts(cost, x, yhat, model, checks)
+            trust, unc, analysis = _trust_verdicts(cost, x, residuals, model, checks)
         # a fit no better than a constant, or stopped while still improving, is no optimum: verdicts on its
         # parameters would be noise
         still = _out_of_budget(res, key) and late_improvement(res.history) > STILL_IMPROVING

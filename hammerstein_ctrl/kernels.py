@@ -646,7 +646,7 @@ def _vector_store(n: int, lanes: int, p: int) -> list:
         c, a = divmod(g - 1, WIDTH)
         value = (lambda name: f"{name}_0") if g == 0 else (lambda name, c=c, a=a: f"lane({name}_v{c}, {a})")
         lines += [f"X[{g}, {r}] = {value(f'x{r}')}" for r in range(n)] + [f"VP[{g}] = {value('vp')}"]
-        lines += [f"if not np.isfinite(VP[{g}]):", f"    f = np.nan"]
+        lines += [f"if not np.isfinite(VP[{g}]):", "    f = np.nan"]
     lines.append("acc[0] = f")
     lines += [f"acc[{1 + j}] += lane(G{j // WIDTH}, {j % WIDTH})" for j in range(p)]
     for j in range(p):

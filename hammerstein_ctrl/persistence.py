@@ -17,10 +17,10 @@ The files are plain JSON (RFC 8259), read strictly and never evaluated:
 Floats are written with Python's shortest round-trip representation, so a
 loaded model reproduces the saved one bit for bit.
 
-Schema, version 3 (a model file; a result file has ``"format":
+Schema, version 4 (a model file; a result file has ``"format":
 "hammerstein_ctrl/result"`` and the keys of :func:`result_to_dict`)::
 
-    {"format": "hammerstein_ctrl/model", "schema_version": 3,
+    {"format": "hammerstein_ctrl/model", "schema_version": 4,
      "model": {"name": "emps", "kind": "hammerstein",
                "linear": {"num": [1.0], "den": [1.0, 3.1388, 0.0]},
                "input_nonlinearity": {"family": "coulomb", "options": {},
@@ -56,6 +56,7 @@ from .exceptions import ParameterError, UnknownNameError
 from ._checks import INTERSAMPLE
 from .exact_export import model_settings
 from .nonlinearities import NONLINEARITIES, PiecewiseLinear, Polynomial
+from .uncertainty import UncertainParameters
 
 __all__ = [
     "SCHEMA_VERSION", "MODEL_FORMAT", "RESULT_FORMAT",
@@ -64,14 +65,17 @@ __all__ = [
 ]
 
 #: Version of the JSON schema written by this module.
-SCHEMA_VERSION = 3
-#: Versions it reads (others are refused): 3 added a result's ``status``, the optimiser's termination code.
-READABLE_SCHEMA_VERSIONS = (2, 3)
+SCHEMA_VERSION = 4
+#: Versions it reads (others are refused): 3 added a result's ``status``, the optimiser's termination code;
+#: 4 its ``covariance``, ``dof`` and ``warnings``.
+READABLE_SCHEMA_VERSIONS = (2, 3, 4)
 MODEL_FORMAT = "hammerstein_ctrl/model"
 RESULT_FORMAT = "hammerstein_ctrl/result"
 
-#: The first schema version whose result files carry ``status``.
+#: The first schema version whose result files carry ``status``; and ``covariance``, ``dof``, ``warnings``.
 _STATUS_VERSION = 3
+_UNCERTAINTY_VERSION = 4
+_UNCERTAINTY_KEYS = ("covariance", "dof", "warnings")
 #: Strings standing for non-finite figures of a run.
 _NONFINITE = {"inf": math.inf, "-inf": -math.inf, "nan": math.nan}
 
@@ -368,8 +372,8 @@ def load_model(path):
 # identification results
 # ---------------------------------------------------------------------------
 @dataclass
-class SavedResult:
-    """An identification result read back from JSON (the model and the run's figures).
+class SavedResult(UncertainParameters):
+    """An identification result read back from JSON (the model, the run's figures, the covariance and warnings).
 
     The estimation record itself is not stored, only its description in
     :attr:`data` (name, sampling interval, length, labels, units, intersample).
@@ -391,6 +395,12 @@ class SavedResult:
     #: The optimiser's termination code (the table in :mod:`hammerstein_ctrl.optimize`; 5: the
     #: budget ran out first); ``None`` when the file does not say (schema version 2).
     status: int | None = None
+    #: The parameters' covariance (``None`` when not computed or before schema version 4).
+    covariance: np.ndarray | None = None
+    #: Degrees of freedom of the residuals, ``N - p``.
+    dof: int | None = None
+    #: The verdicts' messages.
+    warnings: list = field(default_factory=list)
 
     @property
     def params(self) -> dict:
@@ -422,7 +432,46 @@ def result_to_dict(result) -> dict:
         "nfev": int(getattr(result, "nfev", 0)), "method": str(getattr(result, "method", "")),
         "success": bool(getattr(result, "success", False)), "message": str(getattr(result, "message", "")),
         "status": _status(getattr(result, "status", None)), "elapsed_s": _encode(getattr(result, "elapsed", math.nan)),
+        **_uncertainty_to_dict(result),
     }
+
+
+def _uncertainty_to_dict(result) -> dict:
+    cov = getattr(result, "covariance", None)
+    return {"covariance": None if cov is None else [[_encode(v) for v in row] for row in np.asarray(cov).tolist()],
+            "dof": None if getattr(result, "dof", None) is None else int(result.dof),
+            "warnings": [str(w) for w in (getattr(result, "warnings", None) or [])]}
+
+
+def _covariance_from(obj, p: int, where: str):
+    """A saved covariance: ``p`` rows of ``p`` numbers ('inf'/'nan' where a parameter is undetermined),
+    symmetric, with a non-negative diagonal."""
+    if obj is None:
+        return None
+    if not isinstance(obj, list) or len(obj) != p or any(not isinstance(r, list) or len(r) != p for r in obj):
+        raise ParameterError(f"{where} must be {p} rows of {p} numbers (one per parameter), or null")
+    cov = np.array([[_number(v, f"{where}[{i}][{j}]", finite=False) for j, v in enumerate(r)]
+                    for i, r in enumerate(obj)])
+    diag = np.diag(cov)
+    if np.any(diag < 0) or np.isnan(diag).any():
+        raise ParameterError(f"{where}: the variances (its diagonal) must be non-negative, got {diag.tolist()}")
+    finite = np.isfinite(cov) & np.isfinite(cov.T)
+    if not np.allclose(cov[finite], cov.T[finite], rtol=1e-9, atol=0):
+        raise ParameterError(f"{where} must be symmetric")
+    return cov
+
+
+def _uncertainty_from(obj, version: int, p: int, where: str) -> dict:
+    if version < _UNCERTAINTY_VERSION:
+        return {}
+    warnings = obj["warnings"]
+    if not isinstance(warnings, list):
+        raise ParameterError(f"{where}: warnings must be a list of strings, got {warnings!r}")
+    dof = None if obj["dof"] is None else _integer(obj["dof"], f"{where}: dof")
+    if dof is not None and dof < 1:
+        raise ParameterError(f"{where}: dof must be a positive integer, got {dof}")
+    return {"covariance": _covariance_from(obj["covariance"], p, f"{where}: covariance"), "dof": dof,
+            "warnings": [_string(w, f"{where}: warnings[{i}]") for i, w in enumerate(warnings)]}
 
 
 def _status(status) -> int | None:
@@ -442,7 +491,8 @@ def _data_from_dict(obj, where: str) -> dict:
 def result_from_dict(obj, where: str = "result") -> SavedResult:
     """Build a :class:`SavedResult` from the object written by :func:`result_to_dict`."""
     version = _header(obj, RESULT_FORMAT, where)
-    _keys(obj, where, _RESULT_KEYS + (("status",) if version >= _STATUS_VERSION else ()))
+    _keys(obj, where, _RESULT_KEYS + (("status",) if version >= _STATUS_VERSION else ())
+          + (_UNCERTAINTY_KEYS if version >= _UNCERTAINTY_VERSION else ()))
     model = model_from_dict(obj["model"], f"{where}: model")
     structure = _structure_from_dict(obj["structure"], f"{where}: structure")
     beta = _numbers(obj["beta"], f"{where}: beta")
@@ -465,6 +515,7 @@ def result_from_dict(obj, where: str = "result") -> SavedResult:
         elapsed=_number(obj["elapsed_s"], f"{where}: elapsed_s", finite=False),
         data=_data_from_dict(obj["data"], f"{where}: data"),
         status=None if obj.get("status") is None else _integer(obj["status"], f"{where}: status"),
+        **_uncertainty_from(obj, version, structure.n_params, where),
     )
 
 

@@ -31,7 +31,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .display import as_iodata, as_models, method_label, register_figure_formatter
+from .display import as_iodata, as_models, labelled, method_label, register_figure_formatter
 from .exceptions import ParameterError
 
 __all__ = [
@@ -376,21 +376,37 @@ def input_signal(data, *, zoom=None, nperseg: int = NPERSEG, bins: int = 40, tit
 
 
 # -- linear blocks and nonlinearities ------------------------------------------
-def bode(models, *, omega=None, u0: float | None = None, title=None):
-    """Bode plot of the identified linear blocks, overlaid (``control.bode_plot``).
+def bode(models, *, omega=None, u0: float | None = None, title=None, confidence: float | None = None,
+         method: str = "linear", seed=None):
+    """Bode plot of the identified linear blocks, overlaid (``control.bode_plot``), with confidence bands.
 
     Parameters
     ----------
     models : model, list, dict, IdentificationResult or control.TransferFunction
     omega : array_like, optional
-        Frequencies (rad/s).
+        Frequencies (rad/s); by default python-control's choice for the systems.
     u0 : float, optional
         Plot the plant's small-signal transfer function ``g'(u0) H(p)``
         (:meth:`HammersteinModel.linearize`) instead of ``H(p)``, whose gain
         is only defined up to the scale carried by ``g``.
+    confidence : float, optional
+        Shade the ``confidence`` band (e.g. 0.95) of magnitude and phase of
+        every result that carries a covariance, propagated from it
+        (:meth:`IdentificationResult.propagate`, ``method`` "linear" or seeded
+        "sampling").
+
+    Examples
+    --------
+    >>> import hammerstein_ctrl as hc
+    >>> case = hc.presets.trs()
+    >>> res = hc.identify(case.data, case.structure)
+    >>> fig = bode(res, confidence=0.95)
+    >>> len(fig.axes[0].collections)          # the shaded band on the magnitude
+    1
     """
     import control
 
+    items = labelled(models)
     models = as_models(models, systems=True, need=("linear",))
     systems, labels = [], []
     for label, m in models.items():
@@ -406,12 +422,37 @@ def bode(models, *, omega=None, u0: float | None = None, title=None):
     control.bode_plot(systems, omega, ax=axes, label=labels, dB=True, title=False)
     fig.suptitle(title or default)
     mag, phase = axes[0, 0], axes[1, 0]
+    if confidence is not None:
+        for k, (label, obj) in enumerate(items.items()):
+            if getattr(obj, "covariance", None) is not None and hasattr(obj, "propagate"):
+                _bode_band(mag, phase, obj, mag.get_lines()[k], u0, confidence, method, seed)
     mag.set_ylabel("magnitude (dB)")
     phase.set_ylabel("phase (deg)")
     phase.set_xlabel("frequency (rad/s)")
     if mag.get_legend() is None:
         mag.legend(loc="best", fontsize="small")
     return fig
+
+
+def _bode_band(mag, phase, result, line, u0, level, method, seed):
+    """Shade the ``level`` band of a result's magnitude (dB) and phase (deg) at the frequencies of ``line``."""
+    w = np.asarray(line.get_xdata(), dtype=float)
+    s = 1j * w
+
+    def response(model):
+        sys = model.linearize(float(u0)) if u0 is not None else model.linear
+        h = np.polyval(np.asarray(sys.num[0][0], float), s) / np.polyval(np.asarray(sys.den[0][0], float), s)
+        return np.r_[20 * np.log10(np.abs(h)), np.degrees(np.unwrap(np.angle(h)))]
+
+    with np.errstate(all="ignore"):
+        p = result.propagate(response, level=level, method=method, seed=seed)
+    n = w.size
+    color = line.get_color()
+    mag.fill_between(w, p.low[:n], p.high[:n], color=color, alpha=0.2, lw=0,
+                     label=f"{100 * level:g} % band")
+    plotted = phase.get_lines()[mag.get_lines().index(line)].get_ydata()
+    shift = 360.0 * np.round(np.nanmedian((np.asarray(plotted) - p.value[n:]) / 360.0))   # python-control's wrap
+    phase.fill_between(w, p.low[n:] + shift, p.high[n:] + shift, color=color, alpha=0.2, lw=0)
 
 
 #: Per static block: evaluating method, x-axis name, y-axis label.
@@ -457,8 +498,8 @@ def _results(models):
 
 
 def nonlinearity(models, u_range=None, *, block: str = "input", unit_in: str = "", title=None, ax=None,
-                 n: int = 400):
-    """The identified static nonlinearities over a range of their input.
+                 n: int = 400, confidence: float | None = None, method: str = "linear", seed=None):
+    """The identified static nonlinearities over a range of their input, with confidence bands.
 
     Parameters
     ----------
@@ -468,19 +509,37 @@ def nonlinearity(models, u_range=None, *, block: str = "input", unit_in: str = "
         of the IdentificationResults passed.
     block : {"input", "output"}
         ``g(u)`` before the linear block (Hammerstein) or ``h(z)`` after it (Wiener).
+    confidence : float, optional
+        Shade the ``confidence`` band (e.g. 0.95) of every result that carries
+        a covariance (propagated from it; ``method`` "linear" or seeded "sampling").
+
+    Examples
+    --------
+    >>> import hammerstein_ctrl as hc
+    >>> case = hc.presets.trs()
+    >>> fig = nonlinearity(hc.identify(case.data, case.structure), confidence=0.95)
+    >>> len(fig.axes[0].collections)
+    1
     """
     if block not in _BLOCKS:
         raise ParameterError(f"block must be one of {sorted(_BLOCKS)}, got {block!r}")
-    method, xname, ylabel = _BLOCKS[block]
+    attr, xname, ylabel = _BLOCKS[block]
     lo, hi = _block_range(models, u_range, block)
-    models = as_models(models, need=(method,))
+    items = labelled(models)
+    models = as_models(models, need=(attr,))
     for label, m in models.items():
         if not _has_block(m, block):
             raise ParameterError(f"model {label!r} has no {block} nonlinearity")
     x = np.linspace(lo, hi, int(n))
     fig, a = _single_axes(ax)
     for label, m in models.items():
-        a.plot(x, getattr(m, method)(x), lw=1.2, label=label)
+        line, = a.plot(x, getattr(m, attr)(x), lw=1.2, label=label)
+        obj = items[label]
+        if confidence is not None and getattr(obj, "covariance", None) is not None and hasattr(obj, "propagate"):
+            with np.errstate(all="ignore"):
+                p = obj.propagate(lambda model: getattr(model, attr)(x), level=confidence, method=method, seed=seed)
+            a.fill_between(x, p.low, p.high, color=line.get_color(), alpha=0.2, lw=0,
+                           label=f"{100 * confidence:g} % band")
     _finish(a, xlabel=_label(xname, unit_in), ylabel=ylabel, title=title or "Identified static nonlinearities")
     return fig
 

@@ -162,14 +162,15 @@ class _Segments:
         return _segment_spectra(S, self.window)
 
 
-def _regressor_segments(seg: _Segments, u, simulated) -> dict:
+def _regressor_segments(seg: _Segments, u, simulated, output=None, residuals=None) -> dict:
     """The regressors of :data:`GROUPS` on the segments (each set spans the same space however its signals are
-    centred or scaled: the test is invariant to that, so they are only centred)."""
+    centred or scaled: the test is invariant to that, so they are only centred).  The simulated output is
+    ``simulated``, or ``output - residuals`` formed on the segments alone."""
     us = seg.take(u)
     us -= us.mean()
     out = {"u": us, "u^2": us * us, "u^3": us * us * us}
-    if simulated is not None:
-        ys = seg.take(simulated)
+    if simulated is not None or output is not None:
+        ys = seg.take(simulated) if simulated is not None else seg.take(output) - seg.take(residuals)
         ys -= ys.mean()
         out.update({"y^2": ys * ys, "y^3": ys * ys * ys})
     return out
@@ -423,7 +424,7 @@ def _normal_quantile(level: float) -> float:
     return float(ndtri(0.5 + level / 2))
 
 
-def residual_analysis(residuals, u, *, dt: float, simulated=None, lags: int = RESID_LAGS,
+def residual_analysis(residuals, u, *, dt: float, simulated=None, output=None, lags: int = RESID_LAGS,
                       name: str = "") -> ResidualAnalysis:
     """Analyse residuals ``e = y - y_sim`` against the input ``u`` (see the module notes).
 
@@ -433,7 +434,10 @@ def residual_analysis(residuals, u, *, dt: float, simulated=None, lags: int = RE
     dt : float
         Sampling interval (for the figure's lag axis).
     simulated : array_like, shape (N,), optional
-        The simulated output ``y_sim``; without it the output-nonlinearity set is not tested.
+        The simulated output ``y_sim``; without it (or ``output``) the output-nonlinearity set is not tested.
+    output : array_like, shape (N,), optional
+        The measured output ``y`` instead of ``simulated`` (``y_sim = y - e`` is then formed on the
+        test's segments alone: no second record-long array).
     lags : int, default 25
     name : str
         Shown in the summary and the figure.
@@ -450,8 +454,8 @@ def residual_analysis(residuals, u, *, dt: float, simulated=None, lags: int = RE
     z = _normal_quantile(RESID_LEVEL)
     if not seg.usable:
         return ResidualAnalysis(e, u, dt, lags=int(lags), coherence=[], cross_bound=z / np.sqrt(e.size), name=name)
-    groups = GROUPS if simulated is not None else GROUPS[:2]
-    regressors = _regressor_segments(seg, u, simulated)
+    groups = GROUPS if simulated is not None or output is not None else GROUPS[:2]
+    regressors = _regressor_segments(seg, u, simulated, output, e)
     names = list(regressors)
     spectra = seg.spectra(np.stack([seg.take(e)] + [regressors[n] for n in names]))   # one FFT call
     R, X = spectra[0], spectra[1:]

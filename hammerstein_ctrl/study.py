@@ -30,15 +30,10 @@ from __future__ import annotations
 
 import concurrent.futures as cf
 import contextlib
-import ctypes
 import hashlib
 import json
 import math
-import multiprocessing
 import os
-import signal
-import sys
-import threading
 import time
 import warnings
 from concurrent.futures.process import BrokenProcessPool
@@ -49,6 +44,7 @@ import scipy.stats
 
 from ._linalg import single_threaded_blas
 from .exceptions import HammersteinError, ParameterError
+from .executors import make_executor
 from .optimize import canonical_method, minimize
 from .report import json_float, json_safe
 
@@ -61,11 +57,6 @@ CURVE_POINTS = 200
 #: fingerprint, so files written by an older layout are never mixed into a resumed study
 #: (4: status 5, BUDGET_EXHAUSTED, and nit as steps for LM and scipy's methods stopped by maxfev).
 RECORD_VERSION = 4
-#: Seconds between a worker's checks that the process that started it is alive.
-PARENT_WATCH_INTERVAL = 0.5
-#: ``prctl`` option asking Linux to signal a process when its parent dies.
-_PR_SET_PDEATHSIG = 1
-
 
 class StudyLockedError(HammersteinError):
     """Another run is writing into the same results file."""
@@ -322,43 +313,6 @@ def _locked(path: Path):
             fcntl.flock(fh, fcntl.LOCK_UN)
 
 
-def _watch_parent(parent_pid: int):
-    while os.getppid() == parent_pid:
-        time.sleep(PARENT_WATCH_INTERVAL)
-    os._exit(1)
-
-
-def _worker_init(parent_pid: int):
-    """Make a pool worker end when the study's process dies, even by SIGKILL.
-
-    Linux kills the worker at once through ``PR_SET_PDEATHSIG``; elsewhere a
-    daemon thread notices the change of parent within :data:`PARENT_WATCH_INTERVAL`.
-    """
-    if sys.platform.startswith("linux"):
-        with contextlib.suppress(OSError, AttributeError):
-            ctypes.CDLL(None, use_errno=True).prctl(_PR_SET_PDEATHSIG, int(signal.SIGKILL), 0, 0, 0)
-    threading.Thread(target=_watch_parent, args=(parent_pid,), daemon=True).start()
-    if os.getppid() != parent_pid:  # the parent died before the watch began
-        os._exit(1)
-
-
-def _make_executor(executor, jobs: int | None):
-    if jobs is not None and (isinstance(jobs, bool) or int(jobs) != jobs or jobs < 1):
-        raise ParameterError(f"jobs must be a positive integer, got {jobs!r}")
-    if executor is None:
-        workers = int(jobs or os.cpu_count() or 1)
-        if workers == 1:
-            return None, False
-        ctx = multiprocessing.get_context("fork" if "fork" in multiprocessing.get_all_start_methods() else None)
-        return cf.ProcessPoolExecutor(max_workers=workers, mp_context=ctx, initializer=_worker_init,
-                                      initargs=(os.getpid(),)), True
-    if executor == "serial":
-        return None, False
-    if not hasattr(executor, "submit"):
-        raise ParameterError(f"executor must be a concurrent.futures.Executor or 'serial', got {executor!r}")
-    return executor, False
-
-
 def run_study(case, methods, trials: int = 25, seed: int = 0, executor=None, results_path=None,
               *, jobs: int | None = None, progress: bool = False, settings: dict | None = None):
     """Run independent trials of several methods on a case.
@@ -414,7 +368,7 @@ def run_study(case, methods, trials: int = 25, seed: int = 0, executor=None, res
         kwargs = dict(settings[m]) if m in settings else case.minimize_kwargs(m)
         kwargs.setdefault("method", m)
         plan[m] = (kwargs, _fingerprint(case, m, kwargs))
-    pool, owned = _make_executor(executor, jobs)
+    pool, owned = make_executor(executor, jobs)
 
     path = Path(results_path) if results_path is not None else None
     try:

@@ -91,3 +91,41 @@ def test_bench_prints_ratios(capsys):
     code, out, err = run(capsys, "bench", "--cases", "trs")
     assert code == 0
     assert "forced_response" in out and "x" in out and "evaluations in" in out
+
+
+@pytest.fixture
+def full_trs_csv(tmp_path):
+    return load_trs().to_csv(tmp_path / "trs_full.csv")
+
+
+def test_identify_prints_standard_errors_and_warnings(capsys, full_trs_csv):
+    code, out, err = run(capsys, "identify", "--data", str(full_trs_csv), "--structure", "trs")
+    assert code == 0, err
+    assert "a1 = " in out and " ± " in out
+    assert "warning: " in out and "trade off" in out          # TRS: d0 and d1 (tanh nearly linear at 1 V)
+    assert "IdentificationWarning" not in err and "warning" not in err     # listed once, in the summary
+
+
+def test_select_ranks_structures_and_writes_the_table_and_the_best_fit(capsys, tmp_path, full_trs_csv):
+    table, best = tmp_path / "rank.csv", tmp_path / "best.json"
+    code, out, err = run(capsys, "select", "--data", str(full_trs_csv), "--orders", "0", "1", "1", "2",
+                         "--nonlinearity", "tanh", "--criterion", "bic", "--jobs", "1",
+                         "--table", str(table), "--out", str(best))
+    assert code == 0, err
+    assert out.splitlines()[0] == "structures ranked by bic (best first):"
+    assert "1. H(p) = (p + b0)/(p^2 + a1 p + a0); g = tanh(d0, d1)" in out
+    rows = table.read_text().splitlines()
+    assert rows[0].startswith("rank,structure,n_params,J") and len(rows) == 3
+    assert json.loads(best.read_text())["structure"]["linear"]["den_order"] == 2
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["select", "--data", "{csv}", "--orders", "0", "1", "1", "--nonlinearity", "tanh"], "--orders takes pairs"),
+    (["select", "--data", "{csv}", "--orders", "0", "1", "--nonlinearity", "cubic"], "unknown nonlinearity"),
+    (["select", "--data", "{csv}", "--orders", "0", "1", "--nonlinearity", "tanh", "--criterion", "validation"],
+     "needs a validation record"),
+    (["select", "--data", "{csv}", "--orders", "0", "1"], "no candidate structures"),
+])
+def test_select_refuses_bad_arguments_with_one_line(capsys, trs_csv, argv, message):
+    code, out, err = run(capsys, *[a.replace("{csv}", str(trs_csv)) for a in argv])
+    assert code == 2 and err.startswith("hammerstein-ctrl: error: ") and message in err.splitlines()[0]

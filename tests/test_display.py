@@ -1,6 +1,5 @@
 """display.py: model/record normalisation, HTML reprs, DataFrames, progress bars, TimeResponseData."""
 
-import dataclasses
 import sys
 from html import escape as html_escape
 

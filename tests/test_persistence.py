@@ -59,10 +59,11 @@ def test_result_keeps_the_optimisers_status_and_reads_version_2_files(emps_case,
     path = tmp_path / "result.json"
     hc.save_result(res, path)
     doc = json.loads(path.read_text())
-    assert doc["schema_version"] == 3 and doc["status"] == BUDGET_EXHAUSTED
+    assert doc["schema_version"] == 4 and doc["status"] == BUDGET_EXHAUSTED
     assert hc.load_result(path).status == BUDGET_EXHAUSTED
     old = dict(doc, schema_version=2)
-    del old["status"]
+    for key in ("status", "covariance", "dof", "warnings"):
+        del old[key]
     path.write_text(json.dumps(old))
     saved = hc.load_result(path)
     assert saved.status is None and saved.fun == res.fun and not saved.success
@@ -73,6 +74,43 @@ def test_result_keeps_the_optimisers_status_and_reads_version_2_files(emps_case,
         path.write_text(json.dumps(bad))
         with pytest.raises(ParameterError, match=message):
             hc.load_result(path)
+
+
+def test_a_saved_result_keeps_its_covariance_intervals_and_warnings(trs_case, tmp_path):
+    """Schema 4: the covariance (aligned with beta), the degrees of freedom and the warnings round-trip; a
+    version-3 file, which has none, loads without them."""
+    res = hc.identify(trs_case.data, trs_case.structure)
+    path = tmp_path / "result.json"
+    hc.save_result(res, path)
+    saved = hc.load_result(path)
+    np.testing.assert_array_equal(saved.covariance, res.covariance)
+    assert saved.dof == res.dof and saved.stderr == res.stderr and saved.conf_int(0.9) == res.conf_int(0.9)
+    assert saved.warnings == res.warnings and saved.warnings      # TRS: d0 and d1 trade off
+    doc = json.loads(path.read_text())
+    v3 = {k: v for k, v in doc.items() if k not in ("covariance", "dof", "warnings")}
+    path.write_text(json.dumps(dict(v3, schema_version=3)))
+    old = hc.load_result(path)
+    assert old.covariance is None and old.warnings == []
+    with pytest.raises(ParameterError, match="no covariance"):
+        old.stderr
+
+
+@pytest.mark.parametrize("change, message", [
+    (lambda d: d.update(covariance=[[1.0]]), "rows of"),
+    (lambda d: d["covariance"][0].__setitem__(0, -1.0), "non-negative"),
+    (lambda d: d["covariance"][0].__setitem__(1, 123.0), "symmetric"),
+    (lambda d: d.update(dof=0), "dof must be a positive integer"),
+    (lambda d: d.update(warnings="careful"), "warnings must be a list"),
+    (lambda d: d.update(warnings=[3]), r"warnings\[0\] must be a string"),
+])
+def test_a_damaged_covariance_or_warning_list_is_refused(trs_case, tmp_path, change, message):
+    res = hc.identify(trs_case.data, trs_case.structure)
+    doc = persistence.result_to_dict(res)
+    change(doc)
+    path = tmp_path / "bad.json"
+    path.write_text(json.dumps(doc))
+    with pytest.raises(ParameterError, match=message):
+        hc.load_result(path)
 
 
 def test_version_2_model_files_still_load(tmp_path):

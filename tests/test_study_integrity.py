@@ -139,10 +139,10 @@ def test_two_concurrent_runs_one_proceeds_the_other_reports_the_lock(capsys, tmp
 
 _POOL_WITHOUT_PDEATHSIG = """
 import sys, time, concurrent.futures as cf, multiprocessing, os
-import hammerstein_ctrl.study as study
+import hammerstein_ctrl.executors as executors
 sys.platform = "not-linux"  # the workers rely on the parent watch alone
 pool = cf.ProcessPoolExecutor(2, mp_context=multiprocessing.get_context("fork"),
-                              initializer=study._worker_init, initargs=(os.getpid(),))
+                              initializer=executors.worker_init, initargs=(os.getpid(),))
 list(pool.map(abs, range(4)))
 print("ready", flush=True)
 time.sleep(600)
@@ -156,7 +156,7 @@ def test_without_pdeathsig_the_parent_watch_ends_the_workers(tmp_path):
     import subprocess
 
     from _processes import REPO, alive, children
-    from hammerstein_ctrl.study import PARENT_WATCH_INTERVAL
+    from hammerstein_ctrl.executors import PARENT_WATCH_INTERVAL
 
     proc = subprocess.Popen([sys.executable, "-c", _POOL_WITHOUT_PDEATHSIG], stdout=subprocess.PIPE, text=True,
                             env={**os.environ, "PYTHONPATH": str(REPO)})
