@@ -611,6 +611,42 @@ def identification_routes(case, *, repeat: int = 3) -> list[dict]:
     return rows
 
 
+def uncertainty_cost(case, *, pairs: int = 30) -> list[dict]:
+    """What the covariance, verdicts and residual analysis add to ``identify`` (``auto``, and ``lm`` from the
+    paper's start): calls with and without them interleaved, medians compared."""
+    import warnings
+
+    from .exceptions import IdentificationWarning
+    from .identify import identify
+
+    rows = []
+    for method, x0 in (("auto", None), ("lm", case.x0)):
+        times = {True: [], False: []}
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", IdentificationWarning)
+            for flag in (True, False):          # warm both paths first
+                identify(case.data, case.structure, method=method, x0=x0, uncertainty=flag)
+            for _ in range(pairs):
+                for flag in (False, True):
+                    started = time.perf_counter()
+                    r = identify(case.data, case.structure, method=method, x0=x0, uncertainty=flag)
+                    times[flag].append(time.perf_counter() - started)
+        bare, full = float(np.median(times[False])), float(np.median(times[True]))
+        rows.append({"method": method, "without": bare, "with": full, "ratio": full / bare,
+                     "noise": r.uncertainty.noise.describe()})
+    return rows
+
+
+def format_uncertainty(rows) -> str:
+    lines = ["Uncertainty, verdicts and residual analysis after an EMPS fit (identify with and without them,",
+             "interleaved, medians)", "",
+             f"{'method':<8}{'without':>12}{'with':>12}{'ratio':>8}   noise model of the residuals"]
+    for r in rows:
+        lines.append(f"{r['method']:<8}{r['without'] * 1e3:>10.2f}ms{r['with'] * 1e3:>10.2f}ms{r['ratio']:>8.3f}   "
+                     f"{r['noise']}")
+    return "\n".join(lines)
+
+
 # ---------------------------------------------------------------------------
 # The whole report
 # ---------------------------------------------------------------------------
@@ -647,6 +683,7 @@ def full_report(cases, methods=("nspsa",), *, memory_samples=MEMORY_SAMPLES, ech
         if memory_samples:
             emit(format_memory([peak_memory(m, n) for n in memory_samples for m in MEMORY_BUDGETS]))
         emit(format_routes(identification_routes(case)))
+        emit(format_uncertainty(uncertainty_cost(case)))
     return "\n\n".join(sections)
 
 

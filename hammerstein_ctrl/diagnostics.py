@@ -428,18 +428,19 @@ def budget_advice(verdicts, maxfev: int | None, improvement: float = 0.0) -> str
     --------
     >>> budget_advice([], 2000, improvement=0.15)
     'did not converge within maxfev = 2000: raise maxfev (J still fell by 15 % over the last fifth of the evaluations)'
-    >>> budget_advice([Verdict("cancellation", WARNING, "a pole and a zero cancel")], 2000)
-    'did not converge within maxfev = 2000, and more evaluations would not help: a pole and a zero cancel'
+    >>> budget_advice([Verdict("cancellation", WARNING, "a pole and a zero cancel")], 2000, improvement=1e-8)
+    'did not converge within maxfev = 2000, crawling (J fell by 1e-06 % over the last fifth of the evaluations), and more evaluations would not help: a pole and a zero cancel'
     """
     budget = f"maxfev = {maxfev}" if maxfev else "the evaluation budget"
     if improvement > STILL_IMPROVING:
         fell = "more than halved" if improvement > 1.0 else f"fell by {100 * improvement:.2g} %"
         return f"did not converge within {budget}: raise maxfev (J still {fell} over the last fifth of the evaluations)"
-    causes = [v for v in verdicts if v.code in _SLOW_PROGRESS]
+    crawl = f"J fell by {100 * improvement:.1g} % over the last fifth of the evaluations"
+    causes = [v for v in verdicts if v.code in _SLOW_PROGRESS] or [v for v in verdicts
+                                                                   if v.code == "poorly-determined"]
     if not causes:
-        return (f"did not converge within {budget}, crawling (J fell by {100 * improvement:.1g} % over the last fifth "
-                "of the evaluations): raising maxfev may not help; the problem seems ill-conditioned (see the "
-                "standard errors)")
+        return (f"did not converge within {budget}, crawling ({crawl}): raising maxfev may not help; the problem "
+                "seems ill-conditioned (see the standard errors)")
     shown = [v.message for v in causes if v.severity != FAILURE][:1]
-    return (f"did not converge within {budget}, and more evaluations would not help"
+    return (f"did not converge within {budget}, crawling ({crawl}), and more evaluations would not help"
             + (": " + shown[0] if shown else " (the reasons above)"))

@@ -230,21 +230,25 @@ def fit_noise_model(r, n_params: int = 0, *, max_order: int | None = None, white
 
 
 @cached_njit(fastmath=True)
-def _backward_filter(column, ar, out, j):  # pragma: no cover - compiled
-    """``out[:, j] = H^T column``: ``w_t = column_t - sum_i ar[i] w_{t+i}``, run from the end in double precision.
+def _backward_filter(rows, ar, out, first):  # pragma: no cover - compiled
+    """``out[:, first + c] = H^T rows[c]``: ``w_t = rows_t - sum_i ar[i] w_{t+i}``, run from the end.
 
-    ``fastmath``: the sum over ``i`` may be reordered (a statistic; it lets the
-    recursion run at the multiply-add rate instead of its latency).
+    The rows are filtered side by side (independent recursions interleave);
+    the recursion runs in double precision whatever ``out`` holds.
+    ``fastmath``: the sum over ``i`` may be reordered (a statistic).
     """
-    n, order = column.size, ar.size - 1
-    w = np.empty(n + order)
-    w[n:] = 0.0
+    q, n = rows.shape
+    order = ar.size - 1
+    w = np.zeros((q, n + order))
+    a = ar[1:]
     for t in range(n - 1, -1, -1):
-        acc = 0.0
-        for i in range(1, order + 1):
-            acc += ar[i] * w[t + i]
-        w[t] = column[t] - acc
-        out[t, j] = w[t]
+        for c in range(q):
+            past = w[c, t + 1:t + 1 + order]
+            acc = 0.0
+            for i in range(order):
+                acc += a[i] * past[i]
+            w[c, t] = rows[c, t] - acc
+            out[t, first + c] = w[c, t]
 
 
 def _whitening_transpose(J: np.ndarray, noise: NoiseModel) -> np.ndarray:
@@ -260,8 +264,7 @@ def _whitening_transpose(J: np.ndarray, noise: NoiseModel) -> np.ndarray:
     True
     """
     out = np.empty(J.shape)
-    for j in range(J.shape[1]):
-        _backward_filter(np.ascontiguousarray(J[:, j], dtype=float), noise.ar, out, j)
+    _backward_filter(np.ascontiguousarray(np.asarray(J, dtype=float).T), noise.ar, out, 0)
     return out
 
 
@@ -401,15 +404,30 @@ def residual_jacobian(cost, x) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _whitened_gram(cost, x, r, noise: NoiseModel, gram) -> tuple[np.ndarray, np.ndarray]:
-    """``(J^T J, (H^T J)^T (H^T J))``, forming ``H^T J`` a column at a time and keeping it in single precision
-    (4 bytes per sample and parameter); ``J^T J`` is ``gram`` when given (the compiled pass's), else formed too."""
+    """``(J^T J, (H^T J)^T (H^T J))``: ``J^T J`` is ``gram`` when given (the compiled pass's), else formed too.
+
+    Up to :data:`JACOBIAN_MAX_BYTES` the Jacobian's columns come from one batch
+    and are filtered together; past it they are formed one simulation at a
+    time and ``H^T J`` is kept in single precision (4 bytes per sample and
+    parameter).
+    """
+    from .normal_equations import forward_steps, neighbours
+
     p = x.size
+    if (p + 1) * r.size * 8 <= JACOBIAN_MAX_BYTES:
+        h = forward_steps(x)
+        R = np.asarray(cost.residuals_batch(neighbours(x, h)[1:]), dtype=float)
+        R -= r
+        R /= h[:, None]                                 # the Jacobian's columns, as rows
+        white = np.empty((r.size, p))
+        _backward_filter(R, noise.ar, white, 0)
+        return (R @ R.T if gram is None else gram), white.T @ white
     white = np.empty((r.size, p), dtype=np.float32)
     raw = None if gram is not None else np.empty((r.size, p), dtype=np.float32)
     for j, col in _jacobian_columns(cost, x, r):
         if raw is not None:
             raw[:, j] = col
-        _backward_filter(col, noise.ar, white, j)
+        _backward_filter(col[None, :], noise.ar, white, j)
     return (gram if raw is None else _gram(raw)), _gram(white)
 
 
@@ -436,7 +454,8 @@ def estimate_uncertainty(cost, x, *, noise: str = "colored", residuals=None) -> 
     model = fit_noise_model(r, x.size, white=noise == "white")
     gram = None
     normal = getattr(cost, "normal_equations", None)
-    if normal is not None:
+    batch = (x.size + 1) * r.size * 8 <= JACOBIAN_MAX_BYTES      # the coloured path forms J^T J itself then
+    if normal is not None and (model.white or not batch):
         ne = normal(x)
         gram = ne.gram if ne.finite else None
     if model.white:

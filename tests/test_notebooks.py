@@ -9,13 +9,14 @@ NOTEBOOKS = sorted((Path(__file__).resolve().parents[1] / "notebooks").glob("*.i
 
 
 #: Notebooks that read the EMPS benchmark record.
-NEEDS_EMPS = {"03_emps_reproduction.ipynb", "05_pid_tuning.ipynb", "06_block_structures.ipynb"}
+NEEDS_EMPS = {"03_emps_reproduction.ipynb", "05_pid_tuning.ipynb", "06_block_structures.ipynb",
+              "07_trust.ipynb"}
 
 
 def test_all_notebooks_are_present():
     assert [p.name for p in NOTEBOOKS] == [
         "01_quickstart.ipynb", "02_trs_reproduction.ipynb", "03_emps_reproduction.ipynb",
-        "04_numerical_example.ipynb", "05_pid_tuning.ipynb", "06_block_structures.ipynb",
+        "04_numerical_example.ipynb", "05_pid_tuning.ipynb", "06_block_structures.ipynb", "07_trust.ipynb",
     ]
 
 
