@@ -2,13 +2,14 @@
 #   make demo   create .venv, install, reproduce the paper's TRS comparison, write figures
 #   make test   create .venv, install with test extras, run the test suite (all but the tests marked slow)
 #   make test-slow  the tests marked slow (notebooks, studies, CLI examples); .ci/run runs both
+#   make lint       ruff under the project's configuration (pyproject.toml); .ci/run runs it first
 #   make notebooks  execute notebooks/*.ipynb in place, saving their outputs (figures)
 PYTHON ?= python3
 VENV   ?= .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 
-.PHONY: demo test test-slow bench notebooks install clean
+.PHONY: demo test test-slow lint bench notebooks install clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -26,6 +27,9 @@ test: $(STAMP)
 
 test-slow: $(STAMP)
 	$(BIN)/python -m pytest -q -m slow
+
+lint: $(STAMP)
+	$(BIN)/ruff check hammerstein_ctrl tests benchmarks notebooks
 
 notebooks: $(STAMP)
 	$(BIN)/python notebooks/run_notebooks.py

@@ -306,10 +306,13 @@ def uniform_grid(t, name: str = "t", *, tolerance: float = GRID_TOLERANCE) -> tu
     --------
     >>> uniform_grid([0.0, 0.1, 0.2, 0.3])[1]
     0.1
-    >>> uniform_grid([0.0, 0.1, 0.3, 0.4])
+    >>> uniform_grid([0.0, 0.1, 0.3, 0.4])  # doctest: +NORMALIZE_WHITESPACE
     Traceback (most recent call last):
     ...
-    hammerstein_ctrl.exceptions.DataError: t is an irregular time grid (typical step dt = 0.1 s): a gap: about 1 sample(s) missing between sample 1 (t = 0.1 s) and sample 2 (t = 0.3 s), a step of 2*dt; pass resample='linear' or 'zoh' (--resample) to interpolate the record onto a uniform grid, or keep a part without it (start=/stop=, --start/--stop)
+    hammerstein_ctrl.exceptions.DataError: t is an irregular time grid (typical step dt = 0.1 s): a gap: about 1
+    sample(s) missing between sample 1 (t = 0.1 s) and sample 2 (t = 0.3 s), a step of 2*dt; pass resample='linear' or
+    'zoh' (--resample) to interpolate the record onto a uniform grid, or keep a part without it (start=/stop=,
+    --start/--stop)
     """
     t = increasing_times(t, name)
     tolerance = check_tolerance(tolerance)
@@ -351,7 +354,8 @@ def resampling_grid(t, dt=None, *, name: str = "t", max_gap: float = MAX_RESAMPL
     i = int(np.argmax(steps))
     if steps[i] > max_gap * h:
         raise DataError(
-            f"{name} has a gap of {steps[i] / h:.3g}*dt (typical step dt = {h:.6g} s) between sample {i} ({name} = {t[i]:.10g} s) and "
+            f"{name} has a gap of {steps[i] / h:.3g}*dt (typical step dt = {h:.6g} s) between sample {i} "
+            f"({name} = {t[i]:.10g} s) and "
             f"sample {i + 1} ({name} = {t[i + 1]:.10g} s), longer than the {max_gap:g}*dt that "
             f"resampling interpolates across; {_WINDOW_HINT}"
         )

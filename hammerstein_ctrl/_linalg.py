@@ -441,7 +441,8 @@ class _SingleThreadedBlas:
 
 
 def _limit_pools(pools) -> list:
-    """Set each of threadpoolctl's library controllers ``pools`` to one thread; ``[(pool, threads before)]`` of those changed."""
+    """Set each of threadpoolctl's library controllers ``pools`` to one thread; ``[(pool, threads before)]`` of those
+    changed."""
     saved = []
     for pool in pools:
         threads = pool.get_num_threads()

@@ -326,7 +326,8 @@ def _child_env(bytecode: bool = False) -> dict:
 
 
 def run_child(code: str, *, timeout: float = 1800, bytecode: bool = False) -> dict:
-    """Run ``code`` in a fresh Python process; it must print one JSON object as its last line (``bytecode``: see :func:`_child_env`)."""
+    """Run ``code`` in a fresh Python process; it must print one JSON object as its last line (``bytecode``: see
+    :func:`_child_env`)."""
     import json
 
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=_child_env(bytecode),
@@ -605,7 +606,8 @@ def identification_routes(case, *, repeat: int = 3) -> list[dict]:
     rows = [hand_route(case)]
     for method, x0 in (("lm", case.x0), ("auto", None)):
         r = identify(case.data, case.structure, method=method, x0=x0)
-        secs = time_call(lambda: identify(case.data, case.structure, method=method, x0=x0), repeat=repeat)
+        secs = time_call(lambda method=method, x0=x0: identify(case.data, case.structure, method=method, x0=x0),
+                         repeat=repeat)
         rows.append({"route": f"identify(method={method!r})", "seconds": secs, "fun": float(r.fun),
                      "nfev": int(r.nfev)})
     return rows

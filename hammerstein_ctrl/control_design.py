@@ -87,8 +87,8 @@ INTEGRATOR_TOL = 1e-9
 def _slope(model, u0: float) -> float:
     if not isinstance(model, HammersteinModel):
         raise ParameterError(
-            f"PID tuning supports Hammerstein models (y = H g(u)), not a {getattr(model, 'kind', type(model).__name__)} "
-            "model: the compiled loop simulates no output nonlinearity")
+            "PID tuning supports Hammerstein models (y = H g(u)), not a "
+            f"{getattr(model, 'kind', type(model).__name__)} model: the compiled loop simulates no output nonlinearity")
     try:
         u0 = float(u0)
     except (TypeError, ValueError):

@@ -154,7 +154,7 @@ def _block_hints(structure, x, model, data) -> dict:
         blocks.append((structure.output_nonlinearity, model.output_params, lambda: model.linear_output(data),
                        "output of H", 2))
     names = _block_names(structure)
-    for (nl, params, signal, label, which), block_names in zip(blocks, names):
+    for (nl, params, signal, label, _), block_names in zip(blocks, names):
         with np.errstate(all="ignore"):
             reasons = nl.unexcited(params, signal())
         for i, why in reasons.items():
@@ -428,8 +428,10 @@ def budget_advice(verdicts, maxfev: int | None, improvement: float = 0.0) -> str
     --------
     >>> budget_advice([], 2000, improvement=0.15)
     'did not converge within maxfev = 2000: raise maxfev (J still fell by 15 % over the last fifth of the evaluations)'
-    >>> budget_advice([Verdict("cancellation", WARNING, "a pole and a zero cancel")], 2000, improvement=1e-8)
-    'did not converge within maxfev = 2000, crawling (J fell by 1e-06 % over the last fifth of the evaluations), and more evaluations would not help: a pole and a zero cancel'
+    >>> budget_advice([Verdict("cancellation", WARNING, "a pole and a zero cancel")], 2000,
+    ...               improvement=1e-8)  # doctest: +NORMALIZE_WHITESPACE
+    'did not converge within maxfev = 2000, crawling (J fell by 1e-06 % over the last fifth of the evaluations), and
+    more evaluations would not help: a pole and a zero cancel'
     """
     budget = f"maxfev = {maxfev}" if maxfev else "the evaluation budget"
     if improvement > STILL_IMPROVING:

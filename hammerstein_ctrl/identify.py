@@ -140,7 +140,8 @@ class IdentificationResult(UncertainParameters):
 
     @property
     def status(self) -> int:
-        """The optimiser's termination code (the table in :mod:`hammerstein_ctrl.optimize`; 5: the budget ran out first)."""
+        """The optimiser's termination code (the table in :mod:`hammerstein_ctrl.optimize`; 5: the budget ran out
+        first)."""
         return int(self.optimize_result.status)
 
     def validate(self, data: IOData, *, initial_state: str | None = None) -> dict:

@@ -281,7 +281,8 @@ class _Drives:
 
 
 def _drives(nonlinearity, u, reg) -> _Drives:
-    """Signals whose responses span the output with ``H`` fixed: the basis, else ``[u, 1]`` (by blocks where ``reg`` streams them)."""
+    """Signals whose responses span the output with ``H`` fixed: the basis, else ``[u, 1]`` (by blocks where ``reg``
+    streams them)."""
     basis = _Drives.basis_of(nonlinearity, u, reg)
     if basis is not None:
         return basis
@@ -327,7 +328,8 @@ class _StreamedColumns:
             begin += Y.shape[0]
 
     def factor(self, y) -> np.ndarray:
-        """The triangular factor of ``[X y]`` (:func:`~hammerstein_ctrl.streamed_lstsq.triangular_factor`); NaN if not finite."""
+        """The triangular factor of ``[X y]`` (:func:`~hammerstein_ctrl.streamed_lstsq.triangular_factor`); NaN if not
+        finite."""
         try:
             return factor_of_columns(self.blocks(), y, self.width)
         except ParameterError:          # a block that cannot be simulated: no fit, as a non-finite column
@@ -607,7 +609,8 @@ def _refine_in_turn(reg: _Regression, starts: list, drives: _Drives, reserve: in
     pool, begin = min(REFINE_SHARE * remaining, remaining - reserve), reg.budget.nfev
     refined = []
     for theta, sse in starts:
-        left = REFINE_EVALUATIONS if pool == np.inf else int((pool - (reg.budget.nfev - begin)) // reg.evaluations(drives))
+        left = (REFINE_EVALUATIONS if pool == np.inf
+                else int((pool - (reg.budget.nfev - begin)) // reg.evaluations(drives)))
         if left <= theta.size + 1:          # no step fits: the scan's value stands
             refined.append((theta, sse))
         else:

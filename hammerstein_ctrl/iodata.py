@@ -341,10 +341,11 @@ class IOData:
 
         Examples
         --------
-        >>> IOData([0.0, 1.0, 0.0], [0.5, 0.5, 0.5], dt=1.0).check_identifiable()
+        >>> IOData([0.0, 1.0, 0.0], [0.5, 0.5, 0.5], dt=1.0).check_identifiable()  # doctest: +NORMALIZE_WHITESPACE
         Traceback (most recent call last):
         ...
-        hammerstein_ctrl.exceptions.DataError: record 'data': output y is constant (every sample is 0.5); nothing to identify
+        hammerstein_ctrl.exceptions.DataError: record 'data': output y is constant (every sample is 0.5); nothing to
+        identify
         """
         problems = []
         if np.ptp(self.y) == 0:

@@ -47,8 +47,8 @@ from .exact_export import model_settings, sampled_iosys, sampled_matrices
 from .exceptions import DataError, ParameterError
 from .nonlinearities import Coulomb, DeadZone, PiecewiseLinear, Polynomial, Saturation, Tanh
 
-__all__ = ["simulate_loops", "sampled_plant", "SampledPlant", "sampled_loop_iosys", "discrete_pid_iosys", "saturation_iosys",
-           "back_calculation_gain", "check_limits", "NONLINEARITY_CODES"]
+__all__ = ["simulate_loops", "sampled_plant", "SampledPlant", "sampled_loop_iosys", "discrete_pid_iosys",
+           "saturation_iosys", "back_calculation_gain", "check_limits", "NONLINEARITY_CODES"]
 
 #: Compiled evaluations of the named nonlinearity families (code per class).
 NONLINEARITY_CODES = {Tanh: 0, Coulomb: 1, Polynomial: 2, Saturation: 3, DeadZone: 4, PiecewiseLinear: 5}

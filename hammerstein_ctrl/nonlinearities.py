@@ -215,8 +215,10 @@ class Nonlinearity:
 
         Examples
         --------
-        >>> Coulomb().unexcited([1.0, 0.0, 0.0], [0.7, 0.7, 0.7])
-        {0: 'the signal is constant (0.7): only the value g(0.7) is seen', 1: 'the signal is constant (0.7): only the value g(0.7) is seen', 2: 'the signal is constant (0.7): only the value g(0.7) is seen'}
+        >>> Coulomb().unexcited([1.0, 0.0, 0.0], [0.7, 0.7, 0.7])  # doctest: +NORMALIZE_WHITESPACE
+        {0: 'the signal is constant (0.7): only the value g(0.7) is seen',
+         1: 'the signal is constant (0.7): only the value g(0.7) is seen',
+         2: 'the signal is constant (0.7): only the value g(0.7) is seen'}
         >>> Coulomb().unexcited([1.0, 0.0, 0.0], [0.7, -0.2, 0.1])
         {}
         """

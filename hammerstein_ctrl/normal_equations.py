@@ -116,7 +116,8 @@ _NO_UPPER, _NO_LOWER = np.array([np.inf]), np.array([-np.inf])
 
 @cached_njit()
 def _forward_steps(x, upper, lower):  # pragma: no cover - compiled
-    """:func:`forward_steps` of a flat ``x`` in ``[lower, upper]`` (one value each, or one for all), in one compiled call."""
+    """:func:`forward_steps` of a flat ``x`` in ``[lower, upper]`` (one value each, or one for all), in one compiled
+    call."""
     h = np.empty_like(x)
     for i in range(x.size):
         step = FD_REL_STEP * (1.0 if x[i] >= 0 else -1.0) * max(1.0, abs(x[i]))
@@ -184,7 +185,8 @@ def compiled_sums(sums, steps):  # pragma: no cover - compiled
 
 
 def from_difference_sums(sums, steps) -> NormalEquations:
-    """Normal equations from ``[r @ r, D.T @ r, D.T @ D]`` (flattened), ``D[:, j] = h_j J[:, j]`` the neighbours' differences.
+    """Normal equations from ``[r @ r, D.T @ r, D.T @ D]`` (flattened), ``D[:, j] = h_j J[:, j]`` the neighbours'
+    differences.
 
     A pass that sums the differences ``r_{j+1} - r_0`` of the neighbours'
     residuals (as :func:`~hammerstein_ctrl.kernels.get_normal_kernel` does)

@@ -53,8 +53,8 @@ from .simulate import (COMPILED_EXPM_MAX_NORM, GROUPS_MIN_BYTES, normal_factor, 
                        simulate_batch, sse_basis_batch, sse_batch, unstable)
 from .structure import BlockStructure
 
-__all__ = ["HammersteinCost", "DirectPass", "EVALUATING_METHODS", "CHUNK_BYTES", "BASIS_MAX_BYTES", "BASIS_BLOCK", "EVAL_BLOCK",
-           "NONFINITE_RESIDUAL"]
+__all__ = ["HammersteinCost", "DirectPass", "EVALUATING_METHODS", "CHUNK_BYTES", "BASIS_MAX_BYTES", "BASIS_BLOCK",
+           "EVAL_BLOCK", "NONFINITE_RESIDUAL"]
 
 
 #: Largest block of per-candidate signals ``g(u)`` (and simulated outputs) formed
@@ -109,7 +109,8 @@ EVALUATING_METHODS = ("__call__", "batch", "residuals", "residuals_batch", "norm
 
 
 class DirectPass(NamedTuple):
-    """A plain cost's normal-equation pass, as compiled code runs it from the parameters (:meth:`HammersteinCost.direct_pass`).
+    """A plain cost's normal-equation pass, as compiled code runs it from the parameters
+    (:meth:`HammersteinCost.direct_pass`).
 
     The linear block's coefficients are ``num0``/``den0`` with the free ones
     written at ``num_pos``/``den_pos`` (:meth:`~hammerstein_ctrl.structure.LinearStructure.coefficient_template`),
@@ -240,7 +241,8 @@ class HammersteinCost:
         return buffer[:P.shape[0]]
 
     def _evaluated(self, params, buffer):
-        """Signals ``g(u; params[b])`` in (the first rows of) ``buffer``, a row and :data:`EVAL_BLOCK` samples at a time.
+        """Signals ``g(u; params[b])`` in (the first rows of) ``buffer``, a row and :data:`EVAL_BLOCK` samples at a
+        time.
 
         Evaluating the whole ``B x N`` array at once has numpy allocate
         ``B x N`` temporaries in every call, which the C allocator serves from
@@ -292,7 +294,8 @@ class HammersteinCost:
         return float(self._sse(b)[0])
 
     def _direct_pass(self):
-        """``(n, X0, Y0)`` for single evaluations in one compiled call (:func:`~hammerstein_ctrl.kernels.get_coefficient_kernel`).
+        """``(n, X0, Y0)`` for single evaluations in one compiled call
+        (:func:`~hammerstein_ctrl.kernels.get_coefficient_kernel`).
 
         ``None`` unless the structure is a plain Hammerstein one (or a linear
         block alone) of at most :data:`~hammerstein_ctrl.kernels.MAX_UNROLLED_STATES`
@@ -451,14 +454,16 @@ class HammersteinCost:
         >>> p = presets.emps()
         >>> x = np.asarray(p.paper["nspsa"]["beta"])
         >>> ne = p.cost.normal_equations(x)
-        >>> slow = from_residuals(p.cost.residuals_batch(neighbours(x, ne.steps)), ne.steps)    # the N x p Jacobian, stored
+        >>> slow = from_residuals(p.cost.residuals_batch(neighbours(x, ne.steps)),
+        ...                       ne.steps)    # the N x p Jacobian, stored
         >>> bool(np.allclose(ne.gram, slow.gram, rtol=1e-6)), round(ne.fun, 6) == round(p.cost(x), 6)
         (True, True)
         """
         b, h, X = self._neighbourhood(beta, steps, "normal_equations")
         if self.reject_unstable:
             bad = self._unstable(X)
-            if bad[0]:          # the cost scores the point inf: so do its normal equations (a solver cannot start there)
+            if bad[0]:          # the cost scores the point inf: so do its normal equations (a solver cannot
+                                # start there)
                 return scored_inf(h)
             if bad.any():       # an unstable neighbour: its huge residuals keep the solver from stepping that way
                 return from_residuals(self.residuals_batch(X), h)
@@ -542,7 +547,8 @@ class HammersteinCost:
         return h
 
     def _fused_normal_equations(self, X, h, driver=normal_pass):
-        """The compiled pass of :func:`~hammerstein_ctrl.simulate.normal_pass` (or ``driver``), or ``None`` where it does not apply."""
+        """The compiled pass of :func:`~hammerstein_ctrl.simulate.normal_pass` (or ``driver``), or ``None`` where it
+        does not apply."""
         s = self.structure
         form = self._basis_form(X)
         if form is not None and driver is normal_pass and self._direct is not None:
@@ -564,7 +570,8 @@ class HammersteinCost:
                       output_map=None if h_params is None else (s.output_nonlinearity, h_params))
 
     def _direct_normal_equations(self, X, h, P, basis):
-        """:meth:`_fused_normal_equations` of a plain structure (:attr:`_direct`): the compiled pass run straight from the coefficients.
+        """:meth:`_fused_normal_equations` of a plain structure (:attr:`_direct`): the compiled pass run straight from
+        the coefficients.
 
         No offset, initial state or output map, and the basis whole: the
         checks and lane set-up of :func:`~hammerstein_ctrl.simulate.normal_pass`

@@ -37,7 +37,8 @@ from .exceptions import ParameterError
 __all__ = [
     "time_response", "error_response", "psd", "dominant_frequency", "spectral_peak", "input_signal",
     "bode", "convergence", "nonlinearity", "final_cost", "compare", "compare_fits", "result_figure",
-    "study_figure_set", "study_figures", "residual_figure", "MIN_PEAK_BINS", "PEAK_PROMINENCE", "SMOOTH_BINS", "LOG_SPAN",
+    "study_figure_set", "study_figures", "residual_figure", "MIN_PEAK_BINS", "PEAK_PROMINENCE", "SMOOTH_BINS",
+    "LOG_SPAN",
 ]
 
 #: Default lower edge of the PSD peak search, in Welch resolution widths (keeps the DC end out).
@@ -423,7 +424,7 @@ def bode(models, *, omega=None, u0: float | None = None, title=None, confidence:
     fig.suptitle(title or default)
     mag, phase = axes[0, 0], axes[1, 0]
     if confidence is not None:
-        for k, (label, obj) in enumerate(items.items()):
+        for k, (_, obj) in enumerate(items.items()):
             if getattr(obj, "covariance", None) is not None and hasattr(obj, "propagate"):
                 _bode_band(mag, phase, obj, mag.get_lines()[k], u0, confidence, method, seed)
     mag.set_ylabel("magnitude (dB)")

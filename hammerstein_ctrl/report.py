@@ -128,8 +128,10 @@ def study_table(study, fmt: str = "text", *, paper: bool = True, alpha: float = 
     if fmt != "text":
         raise ValueError(f"unknown table format {fmt!r}; use 'text', 'markdown' or 'csv'")
     widths = {h: max(len(h), *(len(r[h]) for r in rows)) for h in header}
-    line = lambda r: "  ".join(r[h].ljust(widths[h]) if i < 2 else r[h].rjust(widths[h])
-                               for i, h in enumerate(header))
+
+    def line(r):
+        return "  ".join(r[h].ljust(widths[h]) if i < 2 else r[h].rjust(widths[h]) for i, h in enumerate(header))
+
     out = [title, "", line({h: h for h in header}), line({h: "-" * widths[h] for h in header})]
     out += [line(r) for r in rows]
     return "\n".join(out + [""] + notes)

@@ -169,8 +169,8 @@ class SelectionResult:
             score = (f"validation fit {row['validation_fit']:.2f} %" if self.criterion == "validation"
                      else f"{self.criterion} = {row[self.criterion]:.6g}")
             flags = ("" if row["success"] else " FAILED") + (" over-ordered" if row["over_ordered"] else "")
-            lines.append(f"  {row['rank']:>2}. {row['structure']}: p = {row['n_params']}, fit {row['fit_percent']:.2f} %,"
-                         f" {score}{flags}")
+            lines.append(f"  {row['rank']:>2}. {row['structure']}: p = {row['n_params']}, "
+                         f"fit {row['fit_percent']:.2f} %, {score}{flags}")
         return "\n".join(lines)
 
     def __repr__(self):

@@ -592,7 +592,8 @@ def sse_basis_batch(num, den, P, basis, dt: float, y, *, x0=None, offset=None, i
 
 
 def output_terms(num, den, D, offset, Y0) -> tuple[bool, bool]:
-    """Whether the outputs have a direct term and an offset (a strictly proper block, or no offset given, needs no look)."""
+    """Whether the outputs have a direct term and an offset (a strictly proper block, or no offset given, needs no
+    look)."""
     return np.shape(num)[-1] == np.shape(den)[-1] and bool(D.any()), offset is not None and bool(Y0.any())
 
 
@@ -904,7 +905,8 @@ class _LaneGroups:
 
     @classmethod
     def prepare(cls, num, den, dt, y, P, x0, offset, intersample, output_map, n_samples=None):
-        """The groups, or ``None`` where a candidate fits no group or a pass does not apply (``y``: as :class:`_LanePass`)."""
+        """The groups, or ``None`` where a candidate fits no group or a pass does not apply (``y``: as
+        :class:`_LanePass`)."""
         plan = _lane_groups(P)
         num, den = _coefficient_rows(num, den)
         if plan is None or not 1 <= den.shape[1] - 1 <= MAX_PASS_STATES:
@@ -975,7 +977,8 @@ def _group_signals(P, rows):
 
 
 def _lane_groups(P):
-    """``[(rows, cols, relative)]``: consecutive candidates in groups that fit one pass each (``None`` if one fits none)."""
+    """``[(rows, cols, relative)]``: consecutive candidates in groups that fit one pass each (``None`` if one fits
+    none)."""
     plan, rows = [], []
     for b in range(P.shape[0]):
         if rows and len(rows) < MAX_NORMAL_LANES and _group_signals(P, rows + [b]) is not None:

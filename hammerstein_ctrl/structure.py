@@ -438,7 +438,8 @@ class BlockStructure:
         if self._fixed_gain is None:
             return p
         if not np.isclose(p[self._fixed_gain], 1.0):
-            raise ParameterError(f"the input nonlinearity's gain {self.input_nonlinearity.param_names[self._fixed_gain]}"
+            raise ParameterError(f"the input nonlinearity's gain "
+                                 f"{self.input_nonlinearity.param_names[self._fixed_gain]}"
                                  f" must be 1 in a {self.kind} structure (move the gain to the output block)")
         return np.delete(p, self._fixed_gain)
 

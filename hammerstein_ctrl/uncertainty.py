@@ -697,8 +697,10 @@ def linear_roots(structure, x) -> list[tuple[str, complex, np.ndarray]]:
     >>> import numpy as np
     >>> from hammerstein_ctrl import LinearStructure, HammersteinStructure, Tanh
     >>> s = HammersteinStructure(LinearStructure(1, 2), Tanh())        # (p + b0)/(p^2 + a1 p + a0)
-    >>> [(k, complex(np.round(r, 6)), np.round(g.real, 6).tolist()) for k, r, g in linear_roots(s, [3.0, 2.0, 3.0, 1.0, 1.0])]
-    [('pole', (-2+0j), [0.0, 1.0, -2.0, 0.0, 0.0]), ('pole', (-1+0j), [0.0, -1.0, 1.0, 0.0, 0.0]), ('zero', (-3+0j), [-1.0, 0.0, 0.0, 0.0, 0.0])]
+    >>> [(k, complex(np.round(r, 6)), np.round(g.real, 6).tolist())
+    ...  for k, r, g in linear_roots(s, [3.0, 2.0, 3.0, 1.0, 1.0])]  # doctest: +NORMALIZE_WHITESPACE
+    [('pole', (-2+0j), [0.0, 1.0, -2.0, 0.0, 0.0]), ('pole', (-1+0j), [0.0, -1.0, 1.0, 0.0, 0.0]),
+     ('zero', (-3+0j), [-1.0, 0.0, 0.0, 0.0, 0.0])]
     """
     x = np.asarray(x, dtype=float)
     num, den = structure.linear.coefficients(x[:structure.linear.n_params])

@@ -17,7 +17,8 @@ from hammerstein_ctrl.datasets import TRS_SEED, DataNotFoundError, make_trs_reco
         (dict(u=[0, 1, 2], y=[0, 1], dt=1.0), "length mismatch: u has 3 samples but y has 2"),
         (dict(u=[], y=[], dt=1.0), "u is empty"),
         (dict(u=[0, 1, 2], y=[0, 1, 2], t=[0, 2, 1]), "not strictly increasing"),
-        (dict(u=[0, 1, 2, 3], y=[0, 1, 2, 3], t=[0, 1, 2.5, 3]), r"irregular time grid beyond tolerance=0.001.*sample 2 \(t = 2.5 s\) is 0.5\*dt away"),
+        (dict(u=[0, 1, 2, 3], y=[0, 1, 2, 3], t=[0, 1, 2.5, 3]),
+         r"irregular time grid beyond tolerance=0.001.*sample 2 \(t = 2.5 s\) is 0.5\*dt away"),
         (dict(u=[0, 1, 2], y=[0, 1, 2], t=[0, 1]), "length mismatch: t has 2 samples"),
         (dict(u=[0, 1, 2], y=[0, 1, 2]), "give the sample times t or the sampling interval dt"),
         (dict(u=[0, 1, 2], y=[0, 1, 2], dt=-0.1), "dt must be a positive finite number"),
@@ -107,7 +108,8 @@ def test_trs_noise_is_rescaled_for_any_seed(trs_case):
         J = HammersteinCost(d, trs_case.structure)(trs_case.true_beta)
         assert J == pytest.approx(178.5, rel=1e-12)
     raw = make_trs_reconstruction(seed=1, noise_sse=None)
-    assert np.std(raw.y - make_trs_reconstruction(seed=1, noise_std=0.0, noise_sse=None).y) == pytest.approx(0.17, rel=0.05)
+    assert (np.std(raw.y - make_trs_reconstruction(seed=1, noise_std=0.0, noise_sse=None).y)
+            == pytest.approx(0.17, rel=0.05))
 
 
 # -- user files --------------------------------------------------------------------

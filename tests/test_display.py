@@ -219,7 +219,7 @@ def test_figures_returned_to_ipython_render_as_one_png(monkeypatch):
     from IPython.core.formatters import PNGFormatter
     from matplotlib.figure import Figure
 
-    import IPython.core.pylabtools  # noqa: F401  (loaded before the shell is faked)
+    from IPython.core import pylabtools  # noqa: F401  (loaded before the shell is faked)
 
     class Shell:  # the part of an IPython shell the registration touches
         display_formatter = type("DF", (), {"formatters": {"image/png": PNGFormatter()}})()

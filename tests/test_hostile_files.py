@@ -154,7 +154,8 @@ case("csv-latin1", "r.csv", "t,u,y [°C]\n0,1,2\n".encode("latin-1"), Err(r"not 
 case("csv-latin1-late", "r.csv", GOOD_CSV + "# température\n".encode("latin-1"),
      Err(r"not UTF-8 text \(byte 0xe9 on line 10\)"))
 case("csv-utf16-bom", "r.csv", GOOD_CSV.decode().encode("utf-16"), Err("UTF-16 text; save it as UTF-8"))
-case("csv-utf16-no-bom", "r.csv", GOOD_CSV.decode().encode("utf-16-le"), Err(r"NUL bytes on line 1: binary data, or UTF-16 text without a byte-order mark"))
+case("csv-utf16-no-bom", "r.csv", GOOD_CSV.decode().encode("utf-16-le"),
+     Err(r"NUL bytes on line 1: binary data, or UTF-16 text without a byte-order mark"))
 case("csv-nul-byte", "r.csv", GOOD_CSV[:20] + b"\x00" + GOOD_CSV[20:], Err("NUL bytes on line 3"))
 case("csv-random-binary", "r.csv", np.random.default_rng(0).bytes(4096), Err("not UTF-8 text"))
 case("csv-huge-field", "r.csv", b"t,u,y\n0,1," + b"9" * (200 * 1024) + b"\n1,2,3\n",
@@ -176,9 +177,11 @@ case("csv-hex", "r.csv", b"t,u,y\n0,0x10,2\n1,2,4\n", Err(r"column 'u' holds '0x
 case("csv-ragged-short", "r.csv", b"t,u,y\n0,1,2\n1,2\n2,3,4\n", Err(r"line 3 has 2 fields, expected 3 \(t, u, y\)"))
 case("csv-ragged-long", "r.csv", b"t,u,y\n0,1,2\n1,2,3,4\n", Err("line 3 has 4 fields, expected 3"))
 case("csv-trailing-comma", "r.csv", b"t,u,y\n0,1,2,\n1,2,3,\n", Err("line 2 has 4 fields, expected 3"))
-case("csv-duplicate-names", "r.csv", b"t,u,u\n0,1,2\n1,2,3\n", Err(r"duplicated column name 'u' in the header \(columns 2 and 3\)"))
+case("csv-duplicate-names", "r.csv", b"t,u,u\n0,1,2\n1,2,3\n",
+     Err(r"duplicated column name 'u' in the header \(columns 2 and 3\)"))
 case("csv-empty-name", "r.csv", b"t,,y\n0,1,2\n1,2,3\n", Err("column 2 of the header has no name"))
-case("csv-unknown-names", "r.csv", b"a,b,c\n0,1,2\n1,2,3\n", Err("cannot tell which column is the input; available: a, b, c"))
+case("csv-unknown-names", "r.csv", b"a,b,c\n0,1,2\n1,2,3\n",
+     Err("cannot tell which column is the input; available: a, b, c"))
 case("csv-no-output", "r.csv", b"t,u,z\n0,1,2\n1,2,3\n", Err("cannot tell which column is the output"))
 case("csv-missing-named-input", "r.csv", GOOD_CSV, Err("no input column 'volts'; available: t, u, y"), input="volts")
 case("csv-missing-named-time", "r.csv", GOOD_CSV, Err("no time column 'clock'"), time="clock")
@@ -195,18 +198,22 @@ case("csv-one-column", "r.csv", b"1\n2\n3\n", Err("without a header must have 2 
 case("csv-four-columns", "r.csv", b"1,2,3,4\n5,6,7,8\n", Err("found 4 on line 1"))
 case("csv-two-columns-no-dt", "r.csv", rows(t=None, header=None), Err(r"no time column \(t/time\); give dt"))
 case("csv-one-row", "r.csv", rows(T[:1], U[:1], Y[:1]), Err("t needs at least two samples"))
-case("csv-decreasing-time", "r.csv", rows(t=T[::-1]), Err(r"not strictly increasing: t\[1\] = 0.06 follows t\[0\] = 0.07"))
-case("csv-duplicated-time", "r.csv", rows(t=np.r_[T[:3], T[2], T[4:]]), Err(r"t\[3\] = 0.02 follows t\[2\] = 0.02 \(a duplicated time stamp\)"))
+case("csv-decreasing-time", "r.csv", rows(t=T[::-1]),
+     Err(r"not strictly increasing: t\[1\] = 0.06 follows t\[0\] = 0.07"))
+case("csv-duplicated-time", "r.csv", rows(t=np.r_[T[:3], T[2], T[4:]]),
+     Err(r"t\[3\] = 0.02 follows t\[2\] = 0.02 \(a duplicated time stamp\)"))
 case("csv-constant-time", "r.csv", rows(t=np.zeros(8)), Err("a duplicated time stamp"))
 case("csv-dropped-sample", "r.csv", rows(T[_DROP], U[_DROP], Y[_DROP]),
      Err(r"1 sample\(s\) missing between sample 3 \(t = 0.03 s\) and sample 4 \(t = 0.05 s\)"))
 case("csv-jitter", "r.csv", rows(t=T + 0.1 * 0.01 * np.array([1, -1, 0, 1, 0, -1, 1, 0])),
      Err(r"beyond tolerance=0.001 .* pass tolerance=0\.1\d* \(--tolerance\) to accept"))
-case("csv-misplaced-stamp", "r.csv", rows(t=np.r_[T[:5], 0.041, T[6:]]), Err(r"extra or misplaced time stamp.* sample 4"))
+case("csv-misplaced-stamp", "r.csv", rows(t=np.r_[T[:5], 0.041, T[6:]]),
+     Err(r"extra or misplaced time stamp.* sample 4"))
 case("csv-gap-too-long-to-resample", "r.csv", rows(np.r_[T, 1.0], np.r_[U, 0], np.r_[Y, 0]),
      Err(r"gap of 93\*dt .* between sample 7 \(t = 0.07 s\) and sample 8 \(t = 1 s\)"), resample="linear")
 case("csv-tolerance-too-big", "r.csv", GOOD_CSV, Err(r"tolerance must be in \[0, 0.5\)"), tolerance=0.7)
-case("csv-tolerance-text", "r.csv", GOOD_CSV, Err(r"tolerance must be in \[0, 0.5\) \(a fraction of dt\), got 'big'"), tolerance="big")
+case("csv-tolerance-text", "r.csv", GOOD_CSV,
+     Err(r"tolerance must be in \[0, 0.5\) \(a fraction of dt\), got 'big'"), tolerance="big")
 case("csv-resample-unknown", "r.csv", GOOD_CSV, Err("resample must be one of"), resample="cubic")
 case("csv-intersample-unknown", "r.csv", GOOD_CSV, Err("intersample must be one of"), intersample="spline")
 case("csv-dt-zero", "r.csv", rows(t=None, header=None), Err("dt:? must be a positive finite number"), dt=0.0)
@@ -234,7 +241,8 @@ case("csv-wide-header-no-match", "r.csv", (",".join(f"c{i}" for i in range(500))
      Err(r"cannot tell which column is the input; available: c0, c1, .*, c11, \.\.\. \(500 in all\)"))
 case("txt-mixed-tabs-blanks", "r.txt", b"t u y\n0\t1 2\n1  2\t3\n", Ok([1.0, 2], [2.0, 3], [0.0, 1]))
 case("txt-tabs-header-comment", "r.txt", b"# logged by rig 3\n" + rows(sep="\t"), Ok())
-case("txt-latin1", "r.txt", "t u y\n0 1 2 # 5 \xb5s\n".encode("latin-1"), Err(r"not UTF-8 text \(byte 0xb5 on line 2\)"))
+case("txt-latin1", "r.txt", "t u y\n0 1 2 # 5 \xb5s\n".encode("latin-1"),
+     Err(r"not UTF-8 text \(byte 0xb5 on line 2\)"))
 case("txt-empty", "r.txt", b"", Err("the file is empty"))
 case("txt-header-only", "r.txt", b"t u y\n", Err("but no data rows"))
 case("txt-words", "r.txt", b"hello world\nthis is text\n", Err(r"line 2 has 3 fields, expected 2 \(hello, world\)"))
@@ -309,7 +317,8 @@ case("npz-2d-input", "r.npz", npz(t=T, u=np.column_stack([U, U]), y=Y),
 case("npz-3d-input", "r.npz", npz(t=T, u=U.reshape(2, 2, 2), y=Y), Err(r"column 'u' has shape \(2, 2, 2\)"))
 case("npz-matrix-only", "r.npz", npz(data=np.column_stack([T, U, Y])),
      Err(r"cannot tell which column is the input; available: data \(8, 3\)"))
-case("npz-scalar-input", "r.npz", npz(t=T, u=np.float64(1.0), y=Y), Err(r"column 'u' has shape \(\); expected a vector"))
+case("npz-scalar-input", "r.npz", npz(t=T, u=np.float64(1.0), y=Y),
+     Err(r"column 'u' has shape \(\); expected a vector"))
 case("npz-empty-input", "r.npz", npz(t=T, u=np.zeros(0), y=Y), Err("column 'u' is empty"))
 case("npz-complex", "r.npz", npz(t=T, u=U + 1j * np.r_[0, 0, 2.0, np.zeros(5)], y=Y),
      Err(r"column 'u' holds complex values \(first at sample 2: \(2\+2j\)\)"))
@@ -323,7 +332,8 @@ case("npz-timedelta", "r.npz", npz(t=np.arange(8).astype("timedelta64[ms]"), u=U
      Err("column 't' holds time differences"))
 case("npz-structured", "r.npz", npz(t=T, u=np.zeros(8, dtype=[("a", float), ("b", float)]), y=Y),
      Err("column 'u' holds a MATLAB struct or record array"))
-case("npz-nan", "r.npz", npz(t=T, u=U, y=np.r_[Y[:5], np.nan, Y[6:]]), Err("y contains 1 non-finite value.*NaN at sample 5"))
+case("npz-nan", "r.npz", npz(t=T, u=U, y=np.r_[Y[:5], np.nan, Y[6:]]),
+     Err("y contains 1 non-finite value.*NaN at sample 5"))
 case("npz-length-mismatch", "r.npz", npz(t=T, u=U[:7], y=Y), Err("length mismatch: u has 7 samples but y has 8"))
 case("npz-time-mismatch", "r.npz", npz(t=T[:6], u=U, y=Y), Err("length mismatch: t has 6 samples"))
 case("npz-missing-output", "r.npz", npz(t=T, u=U), Err("cannot tell which column is the output"))
@@ -347,10 +357,12 @@ case("mat-struct", "r.mat", mat({"t": T, "u": {"a": U}, "y": Y}), Err("column 'u
 case("mat-cell", "r.mat", mat({"t": T, "u": np.array([U, U[:3]], dtype=object), "y": Y}),
      Err("column 'u' holds Python objects or a MATLAB cell array"))
 case("mat-string", "r.mat", mat({"t": T, "u": "hello", "y": Y}), Err("column 'u' holds text"))
-case("mat-complex", "r.mat", mat({"t": T, "u": U + 1j, "y": Y}), Err(r"column 'u' holds complex values \(first at sample 0"))
+case("mat-complex", "r.mat", mat({"t": T, "u": U + 1j, "y": Y}),
+     Err(r"column 'u' holds complex values \(first at sample 0"))
 case("mat-2d", "r.mat", mat({"t": T, "u": np.column_stack([U, U]), "y": Y}), Err(r"column 'u' has shape \(8, 2\)"))
 case("mat-empty-var", "r.mat", mat({"t": T, "u": np.zeros((0, 0)), "y": Y}), Err("column 'u' is empty"))
-case("mat-nan", "r.mat", mat({"t": T, "u": np.r_[np.nan, U[1:]], "y": Y}), Err("u contains 1 non-finite value.*NaN at sample 0"))
+case("mat-nan", "r.mat", mat({"t": T, "u": np.r_[np.nan, U[1:]], "y": Y}),
+     Err("u contains 1 non-finite value.*NaN at sample 0"))
 case("mat-no-variables", "r.mat", mat({}), Err("the MAT file holds no variables"))
 case("mat-garbage", "r.mat", np.random.default_rng(2).bytes(4096), Err("not a readable MAT file"))
 case("mat-text", "r.mat", GOOD_CSV, Err("not a readable MAT file"))
@@ -360,11 +372,14 @@ case("mat-truncated-header", "r.mat", mat_bytes({"t": T, "u": U, "y": Y})[:100],
 case("mat-npz-inside", "r.mat", npz_bytes(t=T, u=U, y=Y), Err("not a readable MAT file"))
 _HDF5_HEADER = (b"MATLAB 7.3 MAT-file, Platform: GLNXA64, Created on: Mon Jan  1 00:00:00 2024 HDF5 schema 1.00 ."
                 .ljust(116) + b"\x00" * 8 + b"\x00\x02" + b"IM")
-case("mat-v73", "r.mat", _HDF5_HEADER + b"\x89HDF\r\n\x1a\n" + b"\x00" * 512, Err(r"v7.3 \(HDF5\) MAT files are not supported"))
-case("mat-missing-input", "r.mat", mat({"t": T, "force": U, "y": Y}), Err("cannot tell which column is the input; available: t .*force"))
+case("mat-v73", "r.mat", _HDF5_HEADER + b"\x89HDF\r\n\x1a\n" + b"\x00" * 512,
+     Err(r"v7.3 \(HDF5\) MAT files are not supported"))
+case("mat-missing-input", "r.mat", mat({"t": T, "force": U, "y": Y}),
+     Err("cannot tell which column is the input; available: t .*force"))
 case("mat-length-mismatch", "r.mat", mat({"t": T, "u": U[:5], "y": Y}), Err("length mismatch"))
 case("mat-decreasing", "r.mat", mat({"t": T[::-1], "u": U, "y": Y}), Err("not strictly increasing"))
-case("mat-gap", "r.mat", mat({"t": T[_DROP], "u": U[_DROP], "y": Y[_DROP]}), Err(r"1 sample\(s\) missing between sample 3"))
+case("mat-gap", "r.mat", mat({"t": T[_DROP], "u": U[_DROP], "y": Y[_DROP]}),
+     Err(r"1 sample\(s\) missing between sample 3"))
 
 # ---------------------------------------------------------------------------
 # paths and file types

@@ -1,4 +1,5 @@
-"""The lanes kernel (candidates across SIMD lanes, basis formed in the pass) against the interleaved kernel and python-control."""
+"""The lanes kernel (candidates across SIMD lanes, basis formed in the pass) against the interleaved kernel and
+python-control."""
 
 import control
 import numpy as np
@@ -88,7 +89,8 @@ def test_source_leaves_out_zero_terms():
 
 def test_inapplicable_sizes_return_none():
     basis = np.ones((9, 10))
-    assert sse_basis_batch(np.ones((3, 1)), np.tile([1.0, 1.0], (3, 1)), np.ones((3, 9)), basis, 0.1, np.ones(10)) is None
+    assert sse_basis_batch(np.ones((3, 1)), np.tile([1.0, 1.0], (3, 1)), np.ones((3, 9)), basis, 0.1,
+                           np.ones(10)) is None
 
 
 @pytest.mark.parametrize("batch", [1, LANE_MIN - 1])

@@ -66,7 +66,9 @@ def test_piecewise_linear_extrapolates_and_validates():
 
 
 def test_custom_callable_scalar_and_vectorised():
-    f = lambda u, p: p[0] * u + p[1] * u**3
+    def f(u, p):
+        return p[0] * u + p[1] * u**3
+
     g = CustomNonlinearity(f, n_params=2, param_names=["k", "c"])
     assert g.param_names == ("k", "c")
     P = np.array([[1.0, 0.5], [2.0, 0.0]])

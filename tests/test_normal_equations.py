@@ -139,8 +139,8 @@ def test_emps_from_the_nspsa_vector_stays_on_the_normal_equations(emps_case, mon
 def test_ill_conditioning_hands_over_to_minpack(emps_case):
     ne = emps_case.cost.normal_equations(emps_case.x0)  # the paper's unstable start
     scale = normal_lm._column_norms(ne.gram)
-    ill = normal_lm._iteration(ne.gram, ne.gradient, ne.fun, scale, normal_lm.INITIAL_DAMPING, np.asarray(emps_case.x0, float), True,
-                               normal_lm.ILL_CONDITIONED, 1e-10)[1]
+    ill = normal_lm._iteration(ne.gram, ne.gradient, ne.fun, scale, normal_lm.INITIAL_DAMPING,
+                               np.asarray(emps_case.x0, float), True, normal_lm.ILL_CONDITIONED, 1e-10)[1]
     assert ill
 
 
@@ -183,7 +183,8 @@ def test_normal_pass_checks_shapes_and_keeps_a_given_state(emps_case):
     with pytest.raises(ParameterError, match="one row of basis coefficients per candidate"):
         normal_pass(num, den, emps_case.data.dt, cost._y, P[:2], [cost._basis], h)
     with pytest.raises(ParameterError, match="at most as many linear blocks"):
-        normal_pass(np.vstack([num, num[:1]]), np.vstack([den, den[:1]]), emps_case.data.dt, cost._y, P, [cost._basis], h)
+        normal_pass(np.vstack([num, num[:1]]), np.vstack([den, den[:1]]), emps_case.data.dt, cost._y, P,
+                    [cost._basis], h)
     with pytest.raises(DataError, match="cover 100 samples"):
         normal_pass(num, den, emps_case.data.dt, cost._y, P, [cost._basis[:, :100]], h)
     with pytest.raises(DataError, match="non-zero"):
@@ -447,7 +448,8 @@ def test_auto_leaves_the_advice_to_identify(trs_case):
 
 
 def _lane_outputs_by_hand(E, C, D, X, Y0, P, Phi, hold):
-    """Every lane's output samples and last state from the recursion written out in numpy (as the kernels document it)."""
+    """Every lane's output samples and last state from the recursion written out in numpy (as the kernels document
+    it)."""
     lanes, n = X.shape
     out, last = np.empty((lanes, Phi.shape[1])), np.empty((lanes, n))
     for g in range(lanes):

@@ -130,7 +130,9 @@ def test_zero_objective_keeps_nspsa_moving():
 
 
 def test_negative_objective_is_minimised_by_nspsa():
-    f = lambda x: -float(np.exp(-np.sum((x - 2.0) ** 2)))
+    def f(x):
+        return -float(np.exp(-np.sum((x - 2.0) ** 2)))
+
     r = nspsa(f, np.full(2, 1.5), maxiter=2000, seed=3, a=StepGain(0.05, 10, 0.602), c=PerturbationGain(0.05))
     assert r.fun < -0.99 and np.allclose(r.x, 2.0, atol=0.1)
 
@@ -145,7 +147,9 @@ def test_nlspsa_steps_respect_the_norm_limit():
 
 
 def test_nlspsa_with_an_infinite_side_takes_a_limited_step():
-    f = lambda x: math.inf if x[0] > 1.0 else float(np.sum(x**2))
+    def f(x):
+        return math.inf if x[0] > 1.0 else float(np.sum(x**2))
+
     r = minimize(f, np.array([1.0, 1.0]), method="nlspsa", seed=0, maxiter=20,
                  options={"a": StepGain(0.1), "c": PerturbationGain(0.2), "norm_limit": 0.1})
     assert np.all(np.isfinite(r.x)) and r.fun < 2.0
@@ -153,7 +157,9 @@ def test_nlspsa_with_an_infinite_side_takes_a_limited_step():
 
 # -- API ------------------------------------------------------------------------------------
 def test_api_errors():
-    f = lambda x: float(np.sum(x**2))
+    def f(x):
+        return float(np.sum(x**2))
+
     with pytest.raises(UnknownNameError, match="unknown method 'pso'"):
         minimize(f, [1.0], method="pso")
     with pytest.raises(ParameterError, match=r"unknown option\(s\) \['alpha'\] for method 'nspsa'"):

@@ -92,7 +92,7 @@ def test_a_saved_result_keeps_its_covariance_intervals_and_warnings(trs_case, tm
     old = hc.load_result(path)
     assert old.covariance is None and old.warnings == []
     with pytest.raises(ParameterError, match="no covariance"):
-        old.stderr
+        _ = old.stderr
 
 
 @pytest.mark.parametrize("change, message", [

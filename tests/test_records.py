@@ -136,7 +136,8 @@ def test_resampling_onto_a_given_dt_and_its_limits():
     assert d.dt == 2 * DT and d.t[0] == t[0]
     np.testing.assert_allclose(d.u, d.t, rtol=0, atol=1e-15)  # a ramp is interpolated exactly
     gappy = np.delete(DT * np.arange(100), np.arange(40, 60))
-    with pytest.raises(DataError, match=r"gap of 21\*dt \(typical step dt = 0.001 s\) between sample 39 \(t = 0.039 s\) and sample 40 \(t = 0.06 s\)"):
+    with pytest.raises(DataError, match=r"gap of 21\*dt \(typical step dt = 0.001 s\) between sample 39 "
+                                        r"\(t = 0.039 s\) and sample 40 \(t = 0.06 s\)"):
         IOData(gappy, gappy, gappy, resample="linear")
     with pytest.raises(DataError, match="more than 100x"):
         IOData(t, t, t, dt=1e-9, resample="linear")

@@ -80,17 +80,18 @@ def test_single_threaded_blas_restores_the_limits_after_two_threads():
     assert r["after"] == r["before"]
 
 
-_FIRST_BLOCK_BEFORE_SCIPY = """
+_FIRST_BLOCK_BEFORE_SCIPY = ("""
 import json, sys
 import numpy as np
 from hammerstein_ctrl._linalg import single_threaded_blas
 loaded = "scipy.linalg" in sys.modules
 with single_threaded_blas():
     import threadpoolctl
-    inside = {lib["filepath"]: lib["num_threads"] for lib in threadpoolctl.threadpool_info() if lib["user_api"] == "blas"}
+    inside = {lib["filepath"]: lib["num_threads"] for lib in threadpoolctl.threadpool_info() """
+                             """if lib["user_api"] == "blas"}
 after = {lib["filepath"]: lib["num_threads"] for lib in threadpoolctl.threadpool_info() if lib["user_api"] == "blas"}
 print(json.dumps({"loaded": loaded, "inside": inside, "after": after}))
-"""
+""")
 
 
 def test_the_first_block_before_scipy_linalg_also_holds_scipys_blas():

@@ -112,7 +112,8 @@ def test_quickstart_notebook_shows_the_lm_message_the_code_gives(trs_case):
     import hammerstein_ctrl as hc
 
     nb = json.loads((ROOT / "notebooks" / "01_quickstart.ipynb").read_text())
-    cell = next(c for c in nb["cells"] if c["cell_type"] == "code" and "".join(c["source"]).startswith("lm = hc.identify("))
+    cell = next(c for c in nb["cells"]
+                if c["cell_type"] == "code" and "".join(c["source"]).startswith("lm = hc.identify("))
     shown = "".join(next(o for o in cell["outputs"] if "data" in o)["data"]["text/plain"]).splitlines()[0]
     lm = hc.identify(trs_case.data, trs_case.structure, method="lm", x0=[-2.0, 0.0, 5.0, -5.0, 0.0], maxfev=2000)
     tail = re.compile(r" s (\[.*\])$")

@@ -36,7 +36,8 @@ def test_the_true_order_and_family_win_and_over_ordering_is_flagged(name):
     assert sel.best.structure.describe() == structure.describe()
     assert sel.table[0]["success"] and not sel.table[0]["over_ordered"]
     bigger_true = next(r for r in sel.table
-                       if r["n_params"] == structure.n_params + 2 and structure.input_nonlinearity.name in r["structure"])
+                       if r["n_params"] == structure.n_params + 2
+                       and structure.input_nonlinearity.name in r["structure"])
     assert bigger_true["over_ordered"] or not bigger_true["success"], bigger_true
     assert [r["rank"] for r in sel.table] == list(range(1, 5))
 

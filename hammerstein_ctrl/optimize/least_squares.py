@@ -103,7 +103,8 @@ class _CountedResiduals(CountedObjective):
         self._book_passes(np.asarray(x)[None], np.asarray(steps)[None], [list(values)])
 
     def record_passes(self, xs, steps, values):
-        """Book whole passes in their order: :meth:`record_neighbourhood` of the rows of ``xs``, ``steps``, ``values``, each charged first."""
+        """Book whole passes in their order: :meth:`record_neighbourhood` of the rows of ``xs``, ``steps``, ``values``,
+        each charged first."""
         self._charge(values.size)
         self._book_passes(xs, steps, values.tolist())
 

@@ -94,7 +94,8 @@ class _Passes:
         self.factored = False           # True: passes give the Jacobian's QR factor (normal_factor)
         self._batch = getattr(fun, "residuals_batch", None)
         self._residuals = fun.residuals
-        self._value = getattr(fun, "__call__", None) if self._normal is not None else None
+        # the bound __call__ itself is kept (not a callability test, so not callable(fun))
+        self._value = getattr(fun, "__call__", None) if self._normal is not None else None  # noqa: B004
         direct_pass = getattr(fun, "direct_pass", None)
         self.direct = None if direct_pass is None else direct_pass()    # the compiled loop's pass, or None
 
@@ -112,7 +113,8 @@ class _Passes:
         return f
 
     def full(self, x) -> NormalEquations:
-        """Normal equations at ``x`` (``p + 1`` evaluations); a partial budget is spent on ``x`` and the neighbours that fit."""
+        """Normal equations at ``x`` (``p + 1`` evaluations); a partial budget is spent on ``x`` and the neighbours that
+        fit."""
         h = forward_steps(x)
         if self.counted.remaining < h.size + 1:
             # spend what is left on the point and the neighbours that fit, as separate differences would
@@ -475,7 +477,8 @@ def _loop_pass_inputs(trial, num0, den0, num_pos, den_pos, has_g, dt, max_norm, 
 @cached_njit(inline="always")
 def _loop_outcome(x, trial, fun, f_trial, new_gradient, new_gram, new_steps, gradient, gram, steps, scale, damping,
                  small, predicted, tolerances):  # pragma: no cover - compiled
-    """The evaluated trial accepted or rejected as :func:`normal_equations_lm` does: ``(code, fun)``, the state updated in place."""
+    """The evaluated trial accepted or rejected as :func:`normal_equations_lm` does: ``(code, fun)``, the state updated
+    in place."""
     if f_trial < fun and predicted > 0:
         actual = fun - f_trial
         damping[0] = _lowered_damping(damping[0], actual / predicted)
