@@ -395,9 +395,8 @@ def identify(
             res = minimize(cost, x0, method=key, maxfev=maxfev, maxiter=maxiter, seed=seed,
                            options=options, callback=callback, bounds=bounds)
         result = _result(cost, res, key, x0, started, _Checks(allow_unstable, uncertainty, noise, maxfev, seed))
-    for v in result.verdicts:                  # failures are in success and message already
-        if v.severity != FAILURE:
-            _warnings.warn(v.message, IdentificationWarning, stacklevel=2)
+    for v in result.verdicts:
+        _warnings.warn(v.message, IdentificationWarning, stacklevel=2)
     return result
 
 

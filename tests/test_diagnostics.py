@@ -120,7 +120,8 @@ def test_a_constant_input_leaves_the_nonlinearity_undetermined():
 
 
 def test_offset_and_initial_state_of_an_integrator_get_their_own_verdict(emps_case):
-    res = hc.identify(emps_case.data, emps_case.structure, initial_state="estimate", offset=True)
+    with pytest.warns(IdentificationWarning, match="not separately determined"):
+        res = hc.identify(emps_case.data, emps_case.structure, initial_state="estimate", offset=True)
     assert not res.success and "offset-state" in codes(res)
     assert "offset=False or initial_state='zero'" in res.message
     plain = hc.identify(emps_case.data, emps_case.structure, initial_state="estimate")
