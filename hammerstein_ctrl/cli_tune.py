@@ -25,16 +25,23 @@ def add_tune_parser(subparsers):
     from .control_design import CRITERIA, DEFAULT_MAXFEV, RULES
 
     tune = subparsers.add_parser(
-        "tune", help="tune a PID for a saved model (SIMC, IMC or N-SPSA on the nonlinear loop)",
-        description="Tune a PID for a model saved by model.save() or identify --out, print gains, "
-                    "margins and step figures, and write a figure of the closed loop.")
+        "tune", help="tune a verified PID for a saved model (robust, SIMC, IMC or N-SPSA on the nonlinear loop)",
+        description="Tune a PID for a model saved by model.save() or identify --out, verify it (stability, "
+                    "margins, Ms, a step of the nonlinear loop), print the gains and the verification, and write a "
+                    "figure of the closed loop.  Exits 1 when the controller fails its verification.")
     tune.add_argument("model", help="model or identification-result JSON file")
-    tune.add_argument("--rule", default="simc", choices=RULES, help="tuning rule (default simc)")
+    tune.add_argument("--rule", default="robust", choices=RULES, help="tuning rule (default robust)")
+    tune.add_argument("--kind", default="pid", choices=["pid", "pi"], help="controller structure (default pid)")
+    tune.add_argument("--max-sensitivity", type=float, help="robustness target Ms (default 1.6)")
+    tune.add_argument("--phase-margin", type=float, help="or a phase margin target in degrees")
+    tune.add_argument("--y0", type=float, help="operating point: the output to regulate around")
     tune.add_argument("--u-limit", type=float, nargs=2, metavar=("LO", "HI"), help="actuator limits")
     tune.add_argument("--reference", default="step", help="'step' (default) or a file of reference samples")
-    tune.add_argument("--step", type=float, default=1.0, help="step amplitude (default 1)")
+    tune.add_argument("--step", type=float, help="step of the reference from the operating point (default: one the "
+                      "actuator can make)")
     tune.add_argument("--dt", type=float, help="controller sampling interval (default: the data's, if known)")
-    tune.add_argument("--u0", type=float, default=0.0, help="operating point of the linearisation (default 0)")
+    tune.add_argument("--u0", type=float, help="operating point: the input at rest (default: 0, or where an "
+                      "integrating plant rests)")
     tune.add_argument("--tau-c", type=float, help="SIMC tau_c / IMC lambda")
     tune.add_argument("--t-final", type=float, help="horizon of a step")
     tune.add_argument("--criterion", default="itae", choices=CRITERIA)
@@ -75,25 +82,17 @@ def _cmd_tune(args) -> int:
     model, dt = _model_and_dt(args.model, args.dt)
     reference = _reference(args.reference)
     limits = tuple(args.u_limit) if args.u_limit else None
-    kwargs = dict(u0=args.u0, dt=dt, u_limit=limits, reference=reference, step=args.step,
-                  t_final=args.t_final)
+    kwargs = dict(u0=args.u0, y0=args.y0, dt=dt, u_limit=limits, reference=reference, step=args.step,
+                  t_final=args.t_final, kind=args.kind, max_sensitivity=args.max_sensitivity,
+                  phase_margin=args.phase_margin)
     pid = tune_pid(model, args.rule, tau_c=args.tau_c, criterion=args.criterion, maxfev=args.maxfev,
                    seed=args.seed, **kwargs)
     rep = analyze_loop(model, pid, u_limit=limits, reference=reference, step=args.step, dt=pid.dt,
                        t_final=args.t_final)
-    a = pid.approximation
     print(f"{args.rule} PID for {model!r}")
-    print(f"  kp = {pid.kp:.6g}, ki = {pid.ki:.6g}, kd = {pid.kd:.6g}, tf = {pid.tf:.6g} "
-          f"(parallel form kp + ki/s + kd s/(tf s + 1))")
-    print(f"  approximation: {a['kind']}, gain {a['gain']:.4g}, tau2 {a['tau2']:.4g}, delay {a['theta']:.4g}, "
-          f"tau_c {a['tau_c']:.4g}")
-    print(f"  linearised loop: gain margin {rep['gain_margin']:.4g}, phase margin {rep['phase_margin']:.4g} deg, "
-          f"Ms {rep['Ms']:.4g}, {'stable' if rep['stable'] else 'UNSTABLE'}")
-    info = rep["step_info"]
-    if info:
-        print(f"  nonlinear loop: rise time {info.get('RiseTime', np.nan):.4g} s, settling time "
-              f"{info.get('SettlingTime', np.nan):.4g} s, overshoot {info.get('Overshoot', np.nan):.4g} %")
-    print(f"  IAE {rep['iae']:.4g}, ISE {rep['ise']:.4g}, ITAE {rep['itae']:.4g}")
+    print(pid.summary())
+    print(f"  (parallel form kp + ki/s + kd s/(tf s + 1), output added to u0 = {pid.u0:.6g}); "
+          f"IAE {rep['iae']:.4g}, ISE {rep['ise']:.4g}, ITAE {rep['itae']:.4g}")
     plot = Path(args.plot) if args.plot else Path(args.model).with_name(f"{Path(args.model).stem}_pid_{args.rule}.png")
     import matplotlib
 
@@ -102,4 +101,4 @@ def _cmd_tune(args) -> int:
     fig = loop_figure({args.rule: rep}, u_limit=limits)
     fig.savefig(plot, dpi=120)
     print(f"figure written to {plot}")
-    return 0 if rep["stable"] else 1
+    return 0 if pid.success else 1

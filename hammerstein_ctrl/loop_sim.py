@@ -38,7 +38,7 @@ True
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -47,8 +47,9 @@ from .exact_export import model_settings, sampled_iosys, sampled_matrices
 from .exceptions import DataError, ParameterError
 from .nonlinearities import Coulomb, DeadZone, PiecewiseLinear, Polynomial, Saturation, Tanh
 
-__all__ = ["simulate_loops", "sampled_plant", "SampledPlant", "sampled_loop_iosys", "discrete_pid_iosys",
-           "saturation_iosys", "back_calculation_gain", "check_limits", "NONLINEARITY_CODES"]
+__all__ = ["simulate_loops", "simulate_controller_loop", "sampled_plant", "SampledPlant", "sampled_loop_iosys",
+           "discrete_pid_iosys", "saturation_iosys", "back_calculation_gain", "check_limits", "NONLINEARITY_CODES",
+           "IDENTITY"]
 
 #: Compiled evaluations of the named nonlinearity families (code per class).
 NONLINEARITY_CODES = {Tanh: 0, Coulomb: 1, Polynomial: 2, Saturation: 3, DeadZone: 4, PiecewiseLinear: 5}
@@ -87,19 +88,27 @@ def check_limits(u_limit) -> tuple[float, float]:
     return lo, hi
 
 
-def _nonlinearity_arrays(model):
-    nl = model.nonlinearity
+#: Code of "no static block" (the identity) in the compiled loops.
+IDENTITY = -1
+
+
+def _block_arrays(nl, params):
+    """``(code, params, breakpoints)`` of a static block for the compiled loops (``IDENTITY`` for none)."""
+    if nl is None:
+        return IDENTITY, np.zeros(1), np.zeros(2)
     code = NONLINEARITY_CODES.get(type(nl))
     if code is None:
         raise ParameterError(
             f"the compiled loop simulator supports the named nonlinearity families, not {nl!r}"
         )
     bp = nl.breakpoints if isinstance(nl, PiecewiseLinear) else np.zeros(2)
-    return code, np.ascontiguousarray(model.params, dtype=float), np.ascontiguousarray(bp, dtype=float)
+    return code, np.ascontiguousarray(params, dtype=float), np.ascontiguousarray(bp, dtype=float)
 
 
 @cached_njit()
 def _g(code, p, bp, u):  # pragma: no cover - compiled
+    if code == IDENTITY:
+        return u
     if code == 0:
         return p[0] * math.tanh(p[1] * u)
     if code == 1:
@@ -122,21 +131,46 @@ def _g(code, p, bp, u):  # pragma: no cover - compiled
 
 
 @cached_njit()
-def _loops(Ad, Bd, C, x0, offset, code, p, bp, G, r, dt, lo, hi, bound, Y, U):  # pragma: no cover
+def _plant_output(C, x, offset, hcode, hp, hbp):  # pragma: no cover - compiled
+    """``y = h(C x) + offset``."""
+    z = 0.0
+    for i in range(x.size):
+        z += C[i] * x[i]
+    return _g(hcode, hp, hbp, z) + offset
+
+
+@cached_njit()
+def _plant_step(Ad, Bd, x, xn, v):  # pragma: no cover - compiled
+    """``x <- Ad x + Bd v`` (the exact ZOH step)."""
+    n = x.size
+    for i in range(n):
+        s = Bd[i] * v
+        for j in range(n):
+            s += Ad[i, j] * x[j]
+        xn[i] = s
+    x[:] = xn
+
+
+@cached_njit()
+def _cut(Y, U, b, k):  # pragma: no cover - compiled
+    for j in range(k + 1, Y.shape[1]):
+        Y[b, j] = np.inf
+        U[b, j] = np.nan
+
+
+@cached_njit()
+def _loops(Ad, Bd, C, x0, offset, code, p, bp, hcode, hp, hbp, G, r, dt, lo, hi, bias, bound, Y, U):  # pragma: no cover
     batch, N = Y.shape
-    n = x0.size
-    x = np.empty(n)
-    xn = np.empty(n)
+    x = np.empty(x0.size)
+    xn = np.empty(x0.size)
     for b in range(batch):
         kp, ki, kd, tf, kt = G[b, 0], G[b, 1], G[b, 2], G[b, 3], G[b, 4]
         ad = tf / (tf + dt)
         bd = kd / (tf + dt)
         x[:] = x0
-        integ, deriv, ep = 0.0, 0.0, 0.0
+        integ, deriv, ep = bias, 0.0, 0.0
         for k in range(N):
-            y = offset
-            for i in range(n):
-                y += C[i] * x[i]
+            y = _plant_output(C, x, offset, hcode, hp, hbp)
             e = r[k] - y
             deriv = ad * deriv + bd * (e - ep)
             uc = kp * e + integ + deriv
@@ -144,19 +178,41 @@ def _loops(Ad, Bd, C, x0, offset, code, p, bp, G, r, dt, lo, hi, bound, Y, U):  
             Y[b, k] = y
             U[b, k] = u
             if not abs(y) <= bound:
-                for j in range(k + 1, N):
-                    Y[b, j] = np.inf
-                    U[b, j] = np.nan
+                _cut(Y, U, b, k)
                 break
-            v = _g(code, p, bp, u)
-            for i in range(n):
-                s = Bd[i] * v
-                for j in range(n):
-                    s += Ad[i, j] * x[j]
-                xn[i] = s
-            x[:] = xn
+            _plant_step(Ad, Bd, x, xn, _g(code, p, bp, u))
             integ += dt * (ki * e + kt * (u - uc))
             ep = e
+
+
+@cached_njit()
+def _controller_loop(Ad, Bd, C, x0, offset, code, p, bp, hcode, hp, hbp, Ac, Bc, Cc, Dc, r, lo, hi, bias,
+                     bound, Y, U):  # pragma: no cover
+    """A linear discrete controller ``xc+ = Ac xc + Bc e``, ``u = clip(bias + Cc xc + Dc e)`` (from rest)."""
+    N = Y.shape[1]
+    x = x0.copy()
+    xn = np.empty(x0.size)
+    xc = np.zeros(Ac.shape[0])
+    xcn = np.empty(Ac.shape[0])
+    for k in range(N):
+        y = _plant_output(C, x, offset, hcode, hp, hbp)
+        e = r[k] - y
+        uc = bias + Dc * e
+        for i in range(xc.size):
+            uc += Cc[i] * xc[i]
+        u = min(max(uc, lo), hi)
+        Y[0, k] = y
+        U[0, k] = u
+        if not abs(y) <= bound:
+            _cut(Y, U, 0, k)
+            break
+        _plant_step(Ad, Bd, x, xn, _g(code, p, bp, u))
+        for i in range(xc.size):
+            s = Bc[i] * e
+            for j in range(xc.size):
+                s += Ac[i, j] * xc[j]
+            xcn[i] = s
+        xc[:] = xcn
 
 
 def _gain_table(gains) -> np.ndarray:
@@ -185,27 +241,56 @@ class SampledPlant:
     params: np.ndarray
     breakpoints: np.ndarray
     dt: float
+    hcode: int = IDENTITY
+    hparams: np.ndarray = field(default_factory=lambda: np.zeros(1))
+    hbreakpoints: np.ndarray = field(default_factory=lambda: np.zeros(2))
+
+    def arrays(self) -> tuple:
+        """The plant's arguments of the compiled loops."""
+        return (self.Ad, self.Bd, self.C, self.x0, self.offset, self.code, self.params, self.breakpoints,
+                self.hcode, self.hparams, self.hbreakpoints)
 
 
-def sampled_plant(model, dt: float) -> SampledPlant:
-    """Precompute the sampled plant of :func:`simulate_loops` (strictly proper linear block required)."""
+def sampled_plant(model, dt: float, *, x0=None) -> SampledPlant:
+    """Precompute the sampled plant of :func:`simulate_loops` (strictly proper linear block required).
+
+    ``model`` is a Hammerstein, Wiener or Hammerstein-Wiener model with named
+    nonlinearity families; ``x0`` overrides its initial state (e.g. an
+    equilibrium: :func:`~hammerstein_ctrl.operating_point.operating_point`).
+    """
     Ad, B0, _, C, D = sampled_matrices(model, dt, "zoh")
     if D != 0.0:
         raise ParameterError("a sampled loop needs a strictly proper linear block (no direct feedthrough)")
     settings = model_settings(model)
-    code, p, bp = _nonlinearity_arrays(model)
+    code, p, bp = _block_arrays(model.input_nonlinearity, model.input_params)
+    hcode, hp, hbp = _block_arrays(model.output_nonlinearity, model.output_params)
+    start = settings["initial_state"] if x0 is None else np.asarray(x0, dtype=float).reshape(-1)
+    if start.shape != (Ad.shape[0],) or not np.all(np.isfinite(start)):
+        raise ParameterError(f"x0 must be {Ad.shape[0]} finite numbers (the states of H), got {np.shape(x0)}")
     return SampledPlant(np.ascontiguousarray(Ad), np.ascontiguousarray(B0), np.ascontiguousarray(C),
-                        np.ascontiguousarray(settings["initial_state"]), settings["offset"], code, p, bp,
-                        float(dt))
+                        np.ascontiguousarray(start, dtype=float), settings["offset"], code, p, bp, float(dt),
+                        hcode, hp, hbp)
 
 
-def simulate_loops(model, gains, r, dt: float, *, u_limit=None):
+def _loop_inputs(model, r, dt, u_limit, x0):
+    r = np.ascontiguousarray(r, dtype=float).reshape(-1)
+    if r.size < 2 or not np.all(np.isfinite(r)):
+        raise DataError(f"the reference needs at least two finite samples, got {r.size}")
+    lo, hi = check_limits(u_limit)
+    plant = model if isinstance(model, SampledPlant) else sampled_plant(model, dt, x0=x0)
+    if plant.dt != float(dt):
+        raise ParameterError(f"the sampled plant has dt = {plant.dt}, not {dt}")
+    bound = DIVERGENCE_RATIO * max(1.0, float(np.max(np.abs(r))))
+    return r, lo, hi, plant, bound
+
+
+def simulate_loops(model, gains, r, dt: float, *, u_limit=None, bias: float = 0.0, x0=None):
     """Simulate the sampled loop for a batch of PID gains (compiled, exact recursion).
 
     Parameters
     ----------
-    model : HammersteinModel or SampledPlant
-        The plant (strictly proper linear block, a named nonlinearity family),
+    model : BlockModel or SampledPlant
+        The plant (strictly proper linear block, named nonlinearity families),
         or its precomputed :func:`sampled_plant` at ``dt``.
     gains : array_like, shape (B, 4) or (B, 5)
         Rows ``kp, ki, kd, tf`` and optionally the back-calculation gain ``kt``.
@@ -215,6 +300,11 @@ def simulate_loops(model, gains, r, dt: float, *, u_limit=None):
         Sampling interval.
     u_limit : (lo, hi), optional
         Actuator limits.
+    bias : float, default 0
+        The integral's start: the controller's output before any error (the
+        operating point's input, for a bumpless start there).
+    x0 : array_like, optional
+        The plant's start state (default the model's own; ignored for a ``SampledPlant``).
 
     Returns
     -------
@@ -223,29 +313,50 @@ def simulate_loops(model, gains, r, dt: float, *, u_limit=None):
         ``DIVERGENCE_RATIO`` times the reference's size) is cut short with
         ``Y = inf`` and ``U = nan`` from then on.
     """
-    r = np.ascontiguousarray(r, dtype=float).reshape(-1)
-    if r.size < 2 or not np.all(np.isfinite(r)):
-        raise DataError(f"the reference needs at least two finite samples, got {r.size}")
-    lo, hi = check_limits(u_limit)
+    r, lo, hi, plant, bound = _loop_inputs(model, r, dt, u_limit, x0)
     G = _gain_table(gains)
-    plant = model if isinstance(model, SampledPlant) else sampled_plant(model, dt)
-    if plant.dt != float(dt):
-        raise ParameterError(f"the sampled plant has dt = {plant.dt}, not {dt}")
-    bound = DIVERGENCE_RATIO * max(1.0, float(np.max(np.abs(r))))
     Y = np.empty((G.shape[0], r.size))
     U = np.empty_like(Y)
     with np.errstate(all="ignore"):
-        _loops(plant.Ad, plant.Bd, plant.C, plant.x0, plant.offset, plant.code, plant.params,
-               plant.breakpoints, G, r, float(dt), lo, hi, bound, Y, U)
+        _loops(*plant.arrays(), G, r, float(dt), lo, hi, float(bias), bound, Y, U)
     return Y, U
 
 
-def discrete_pid_iosys(gains, dt: float, *, name: str = "pid"):
+def simulate_controller_loop(model, controller, r, dt: float, *, u_limit=None, bias: float = 0.0, x0=None):
+    """Simulate the sampled loop with a linear discrete controller (``e -> u``), compiled.
+
+    ``u[k] = clip(bias + C_c(q) e[k], lo, hi)`` with ``C_c`` a discrete
+    python-control system of sampling interval ``dt`` (single input and
+    output, from rest); the plant as in :func:`simulate_loops`.  Equals
+    ``control.input_output_response`` of the same loop built by hand around
+    ``model.to_iosys(dt, intersample="zoh")``.
+
+    Returns
+    -------
+    y, u : ndarray, shape (N,)
+    """
+    import control
+
+    sys = control.ss(controller)
+    if sys.ninputs != 1 or sys.noutputs != 1 or not sys.isdtime() or not np.isclose(sys.dt, dt, rtol=1e-12):
+        raise ParameterError(f"the controller must be a SISO discrete-time system with dt = {dt}")
+    r, lo, hi, plant, bound = _loop_inputs(model, r, dt, u_limit, x0)
+    A, B, C, D = (np.ascontiguousarray(np.asarray(M, dtype=float)) for M in (sys.A, sys.B, sys.C, sys.D))
+    Y = np.empty((1, r.size))
+    U = np.empty_like(Y)
+    with np.errstate(all="ignore"):
+        _controller_loop(*plant.arrays(), A, B[:, 0].copy(), C[0].copy(), float(D[0, 0]), r, lo, hi, float(bias),
+                         bound, Y, U)
+    return Y[0], U[0]
+
+
+def discrete_pid_iosys(gains, dt: float, *, bias: float = 0.0, name: str = "pid"):
     """The sampled PID with back-calculation as a discrete :class:`control.NonlinearIOSystem`.
 
     Inputs ``e`` (error) and ``u`` (the actuator's actual output, for the
-    anti-windup), output ``uc``; states ``I`` (integral), ``D`` (filtered
-    derivative) and ``e_prev``.  The recursion is the module's.
+    anti-windup), output ``uc`` (``bias`` added: the operating point's
+    input); states ``I`` (integral), ``D`` (filtered derivative) and
+    ``e_prev``.  The recursion is the module's.
     """
     import control
 
@@ -254,7 +365,7 @@ def discrete_pid_iosys(gains, dt: float, *, name: str = "pid"):
 
     def parts(x, e):
         deriv = ad * x[1] + bd * (e - x[2])
-        return deriv, kp * e + x[0] + deriv
+        return deriv, kp * e + x[0] + deriv + bias
 
     def update(t, x, u, p):
         e, act = u[0], u[1]
@@ -277,11 +388,12 @@ def saturation_iosys(u_limit, *, dt=None, name: str = "actuator"):
                          dt=dt, name=name)
 
 
-def sampled_loop_iosys(model, gains, dt: float, *, u_limit=None, name: str = "loop"):
+def sampled_loop_iosys(model, gains, dt: float, *, u_limit=None, bias: float = 0.0, name: str = "loop"):
     """The sampled loop as a ``control.interconnect`` (input ``r``; outputs ``y``, ``u``).
 
     Simulated with ``control.input_output_response`` on a grid of step ``dt``
-    it equals :func:`simulate_loops` for the same gains.
+    it equals :func:`simulate_loops` for the same gains and ``bias`` (and the
+    model's initial state).
     """
     import control
 
@@ -289,5 +401,5 @@ def sampled_loop_iosys(model, gains, dt: float, *, u_limit=None, name: str = "lo
     plant = sampled_iosys(model, dt, intersample="zoh", name="plant", inputs="u", outputs="y")
     err = control.summing_junction(inputs=["r", "-y"], output="e", dt=dt, name="error")
     return control.interconnect(
-        [err, discrete_pid_iosys(gains, dt), saturation_iosys(u_limit, dt=dt), plant],
+        [err, discrete_pid_iosys(gains, dt, bias=bias), saturation_iosys(u_limit, dt=dt), plant],
         inputs=["r"], outputs=["y", "u"], dt=dt, name=name)

@@ -218,12 +218,29 @@ class BlockModel:
 
     # -- python-control interop -------------------------------------------------
     def to_iosys(self, name: str | None = None, *, dt: float | None = None, inputs: str = "u",
-                 outputs: str = "y"):
+                 outputs: str = "y", intersample: str | None = None):
         """The model as a :class:`control.NonlinearIOSystem` interconnection.
 
         With ``dt`` given, the exact discrete-time system of
         :func:`hammerstein_ctrl.exact_export.sampled_iosys` instead (its
-        ``control.input_output_response`` equals :meth:`simulate`).
+        ``control.input_output_response`` equals :meth:`simulate`), with the
+        model's intersample behaviour unless ``intersample`` says otherwise.
+        **In a digital loop pass** ``intersample="zoh"``: a controller drives
+        the plant through a DAC that holds its input, and the held plant has
+        no direct feedthrough (with D = 0), so
+        ``control.interconnect`` + ``control.input_output_response`` close the
+        loop with any discrete P, PI or PID.  A first-order hold uses the
+        *current* input sample, which a loop cannot provide: python-control
+        then reports an algebraic loop.
+
+        The continuous system (no ``dt``) applies ``g`` to the input *as
+        interpolated by the ODE solver* rather than interpolating ``g(u)``
+        between samples as :meth:`simulate` does; for the samples themselves
+        use the exact discrete system above (it reproduces :meth:`simulate` to
+        rounding).  For ZOH inputs and with
+        ``solve_ivp_kwargs={"rtol": 1e-10, "atol": 1e-12, "max_step": dt}``,
+        fed the held input on a grid refined near each sample, the continuous
+        system agrees with :meth:`simulate` to 1e-6.
 
         The static blocks (``control.nlsys`` without states) and ``H``
         (``control.ss`` in the realisation of :meth:`to_ss`) are wired with
@@ -248,7 +265,7 @@ class BlockModel:
         if dt is not None:
             from .exact_export import sampled_iosys
 
-            return sampled_iosys(self, dt, name=name, inputs=inputs, outputs=outputs)
+            return sampled_iosys(self, dt, name=name, inputs=inputs, outputs=outputs, intersample=intersample)
         g, h, offset = self.g, self.h, self.offset
         blocks = [control.nlsys(None, lambda t, x, u, p: g(np.atleast_1d(u)[:1]), inputs=[inputs],
                                 outputs=["v"], name="g"),

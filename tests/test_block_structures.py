@@ -263,13 +263,3 @@ def test_cli_identifies_block_structures(name, extra, model_type, tmp_path, caps
     assert np.sum((back.y - yhat) ** 2) == pytest.approx(saved.fun, rel=1e-9)
     # and it is the truth to within a few per cent (the statistical test is above)
     np.testing.assert_allclose(saved.x, TRUTHS[name]["beta"], rtol=0.05)
-
-
-def test_pid_tuning_refuses_models_with_an_output_nonlinearity():
-    import control as ct
-
-    from hammerstein_ctrl.control_design import tune_pid
-
-    wiener = WienerModel(ct.tf([1], [1, 2.0, 1.0]), Saturation(), [1.0, 0.5])
-    with pytest.raises(ParameterError, match="PID tuning supports Hammerstein models"):
-        tune_pid(wiener, "simc")
