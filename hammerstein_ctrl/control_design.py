@@ -1120,6 +1120,9 @@ def loop_figure(reports: dict, *, u_limit=None, title: str | None = None):
     """
     from matplotlib.figure import Figure
 
+    from .display import register_figure_formatter
+
+    register_figure_formatter()          # a Figure ending a notebook cell shows once, as a PNG
     fig = Figure(figsize=(7, 5), layout="constrained")
     ax_y, ax_u = fig.subplots(2, 1, sharex=True)
     first = next(iter(reports.values()))
