@@ -71,7 +71,8 @@ from .loop_sim import (
     simulate_loops,
 )
 from .operating_point import OperatingPoint, operating_point, small_signal, static_output
-from .robust_pid import DEFAULT_MS, FILTER_RATIO, frequency_grid, loop_figures, ms_constrained_pid, pid_polynomials
+from .robust_pid import (DEFAULT_MS, FILTER_RATIO, constraints, default_bandwidth, frequency_grid, loop_figures,
+                         ms_constrained_pid, pid_polynomials)
 
 __all__ = ["PIDResult", "DiscretePID", "tune_pid", "closed_loop", "analyze_loop", "approximate", "pid_controller",
            "LoopCost", "loop_figure", "RULES", "CRITERIA", "TRACKING_TOLERANCE"]
@@ -559,7 +560,7 @@ class LoopCost:
 
     def __init__(self, model, r, dt, *, u_limit=None, criterion="itae", scale=(1.0, 1.0, 1.0), is_step=True,
                  max_overshoot=MAX_OVERSHOOT, op: OperatingPoint | None = None,
-                 max_sensitivity: float = DEFAULT_MS, kind: str = "pid"):
+                 max_sensitivity: float = DEFAULT_MS, kind: str = "pid", bandwidth: float | None = None):
         self.model, self.r, self.dt, self.u_limit = model, np.asarray(r, float), float(dt), u_limit
         self.criterion, self.is_step, self.kind = criterion, is_step, kind
         self.max_overshoot, self.max_sensitivity = max_overshoot, float(max_sensitivity)
@@ -567,9 +568,9 @@ class LoopCost:
         self.op = op if op is not None else operating_point(model)
         P = small_signal(model, self.op)
         self._num, self._den = (np.asarray(c, dtype=float) for c in (P.num[0][0], P.den[0][0]))
-        w = frequency_grid(self._num, self._den)
-        self._s = 1j * w
-        self._P = np.polyval(self._num, self._s) / np.polyval(self._den, self._s)
+        self.bandwidth = default_bandwidth(self._num, self._den, dt) if bandwidth is None else float(bandwidth)
+        self._w = frequency_grid(self._num, self._den, bandwidth=self.bandwidth)
+        self._P = np.polyval(self._num, 1j * self._w) / np.polyval(self._den, 1j * self._w)
         self.J0 = float(_criterion(self.r[None, :], self.dt, criterion)[0])
         self._plant = sampled_plant(model, self.dt, x0=self.op.x0)
 
@@ -583,18 +584,16 @@ class LoopCost:
         return np.column_stack([K, tf])
 
     def robustness(self, G: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """``(unstable, peak)``: an unstable linearised loop, and ``max(Ms, Mt)`` on the design grid."""
+        """``(unacceptable, peak)``: an unstable or conditionally stable linearised loop, or one crossing over
+        above the bandwidth (:func:`~hammerstein_ctrl.robust_pid.constraints`); and ``max(Ms, Mt)``."""
         unstable = np.zeros(G.shape[0], dtype=bool)
-        peak = np.full(G.shape[0], np.inf)
-        s = self._s
         for i, (kp, ki, kd, tf) in enumerate(G[:, :4]):
             cn, cd = pid_polynomials(kp, ki, kd, tf)
             char = np.trim_zeros(np.polyadd(np.polymul(self._den, cd), np.polymul(self._num, cn)), "f")
             unstable[i] = not (char.size and np.all(np.isfinite(char))) or np.any(np.roots(char).real >= 0)
-            with np.errstate(all="ignore"):
-                L = np.polyval(cn, s) / np.polyval(cd, s) * self._P
-                peak[i] = max(np.max(np.abs(1 / (1 + L))), np.max(np.abs(L / (1 + L))))
-        return unstable, peak
+        peak, conditional, too_fast = constraints(self._P, self._w, G[:, 0], G[:, 1], G[:, 2], G[:, 3],
+                                                  self.max_sensitivity, self.bandwidth)
+        return unstable | conditional | too_fast, np.where(np.isfinite(peak), peak, np.inf)
 
     def evaluate(self, G: np.ndarray) -> dict:
         """Criterion, overshoot and flags of gain rows ``G`` (no penalties)."""
@@ -750,7 +749,7 @@ def tune_pid(model, rule: str = "robust", *, kind: str = "pid", max_sensitivity:
         gains, extra = _tune_model_based(model, key, gains if start is None else _start(start), op, dt=dt,
                                          u_limit=u_limit, reference=reference, step=step, t_final=t_final,
                                          criterion=crit, max_overshoot=max_overshoot, maxfev=maxfev, seed=seed,
-                                         options=options, ms=ms, kind=kind, record=record)
+                                         options=options, ms=ms, kind=kind, record=record, bandwidth=bandwidth)
     return _verified(model, key, gains, op, record, dt=dt, limits=limits, u_limit=u_limit, step=step,
                      t_final=t_final, ms=ms, **extra)
 
@@ -871,7 +870,7 @@ def _tuning_grid(gains, op, num, den, dt, t_final) -> tuple[float, float]:
 
 
 def _tune_model_based(model, key, start, op, *, dt, u_limit, reference, step, t_final, criterion, max_overshoot,
-                      maxfev, seed, options, ms, kind, record) -> tuple[tuple, dict]:
+                      maxfev, seed, options, ms, kind, record, bandwidth=None) -> tuple[tuple, dict]:
     from threadpoolctl import threadpool_limits
 
     from .optimize import PerturbationGain, StepGain, minimize
@@ -886,7 +885,7 @@ def _tune_model_based(model, key, start, op, *, dt, u_limit, reference, step, t_
     step = _default_step(model, op, check_limits(u_limit), start[0] or robust[0]) if step is None else float(step)
     r, is_step = _reference(reference, step, dt_sim, horizon)
     cost = LoopCost(model, r, dt_sim, u_limit=u_limit, criterion=criterion, scale=scale, is_step=is_step,
-                    max_overshoot=max_overshoot, op=op, max_sensitivity=ms, kind=kind)
+                    max_overshoot=max_overshoot, op=op, max_sensitivity=ms, kind=kind, bandwidth=bandwidth)
     x0 = np.asarray(start, dtype=float) / scale
     if key == "nspsa":
         method = "nspsa"
@@ -941,6 +940,18 @@ def _nonlinear_step(model, gains, op, *, u_limit, step, dt, t_final) -> dict:
     return out
 
 
+def _unreachable(model, op: OperatingPoint, step: float, limits) -> bool:
+    """Whether a self-regulating plant needs, at rest after the step, an input outside the actuator limits."""
+    lo, hi = limits
+    if op.integrating or not (math.isfinite(lo) or math.isfinite(hi)):
+        return False
+    try:
+        operating_point(model, y0=op.y0 + step, u_limit=limits)
+    except ParameterError:
+        return True
+    return False
+
+
 def _verdict(fig: dict, nl: dict | None, ms: float, op: OperatingPoint) -> tuple[bool, str, list]:
     """``(success, message, warnings)`` of a verified controller."""
     warnings = list(op.notes)
@@ -958,10 +969,13 @@ def _verdict(fig: dict, nl: dict | None, ms: float, op: OperatingPoint) -> tuple
         if nl.get("diverged"):
             problems.append("the nonlinear loop diverges from the operating point")
         elif nl["final_error"] > TRACKING_TOLERANCE:
-            if nl["limited_at_end"]:
+            if nl.get("unreachable"):
                 problems.append(f"the actuator limits cannot hold a step of {nl['step']:.4g} from y0 = {op.y0:.4g} "
-                                f"(the input ends at a limit, {100 * nl['final_error']:.0f} % short): choose a "
-                                "smaller step or wider limits")
+                                f"(at rest it needs an input outside them): choose a smaller step or wider limits")
+            elif nl["limited_at_end"]:
+                problems.append(f"the nonlinear loop is still at an actuator limit after {nl['t_final']:.4g} s "
+                                f"({100 * nl['final_error']:.0f} % short of the step): the gains are too high for "
+                                "the limits; use rule='robust', or give u_limit to the tuning")
             else:
                 problems.append(f"the nonlinear loop has not settled within {nl['t_final']:.4g} s (error "
                                 f"{100 * nl['final_error']:.1f} % of the step): a limit cycle or a slow tail; "
@@ -995,11 +1009,13 @@ def _verified(model, key, gains, op, record, *, dt, limits, u_limit, step, t_fin
         dt_sim, horizon = _tuning_grid((kp, ki, kd, tf), op, num, den, dt or sim_dt, t_final)
         full = (kp, ki, kd, tf, back_calculation_gain(abs(kp), abs(ki), abs(kd)))
         nl = _nonlinear_step(model, full, op, u_limit=u_limit, step=step, dt=dt_sim, t_final=horizon)
-        if t_final is None and TRACKING_TOLERANCE < nl["final_error"] < math.inf and not nl["limited_at_end"]:
+        nl["unreachable"] = _unreachable(model, op, step, limits)
+        if t_final is None and TRACKING_TOLERANCE < nl["final_error"] < math.inf and not nl["unreachable"]:
             # a slow tail (a dead zone the integral winds through, a near pole-zero pair): look further
             nl = _nonlinear_step(model, full, op, u_limit=u_limit, step=step,
                                  dt=dt_sim if dt is not None else dt_sim * LONGER_HORIZON,
                                  t_final=horizon * LONGER_HORIZON)
+            nl["unreachable"] = False
     success, message, warnings = _verdict(fig, nl, ms, op)
     controller = pid_controller(kp, ki, kd, tf)
     steps = {k: v for k, v in (nl or {}).items() if k not in ("t", "r", "y", "u")}

@@ -44,7 +44,7 @@ import numpy as np
 from .exceptions import ParameterError
 
 __all__ = ["ms_constrained_pid", "loop_figures", "discrete_loop_figures", "frequency_grid", "default_bandwidth",
-           "pid_polynomials", "DEFAULT_MS", "FILTER_RATIO", "TD_RATIOS", "BANDWIDTH_FACTOR"]
+           "pid_polynomials", "constraints", "DEFAULT_MS", "FILTER_RATIO", "TD_RATIOS", "BANDWIDTH_FACTOR"]
 
 #: Default robustness target: the largest peak sensitivity (and complementary sensitivity).
 DEFAULT_MS = 1.6
@@ -121,8 +121,11 @@ def _closed_loop_stable(num, den, gains: np.ndarray) -> np.ndarray:
     return out
 
 
-def _feasible(P, s, w, KP, KI, KD, TF, ms: float, bandwidth: float):
-    """``(peak, ok)`` on a grid of candidates (leading axes) for the frequency response ``P(s)``."""
+def constraints(P, w, KP, KI, KD, TF, ms: float, bandwidth: float):
+    """``(peak, conditional, too_fast)`` of PID candidates (arrays of gains, any shape) on a plant's frequency
+    response ``P`` at ``w``: ``max(Ms, Mt)``, a negative-real-axis crossing outside ``-1/GM``, and a gain
+    crossover above ``bandwidth`` (the module notes)."""
+    s = 1j * w
     C = KP[..., None] + KI[..., None] / s + KD[..., None] * s / (TF[..., None] * s + 1)
     L = C * P
     with np.errstate(all="ignore"):
@@ -133,6 +136,12 @@ def _feasible(P, s, w, KP, KI, KD, TF, ms: float, bandwidth: float):
     cross = (np.sign(im[..., :-1]) != np.sign(im[..., 1:])) & (L.real[..., :-1] < 0)
     conditional = np.any(cross & (np.abs(L[..., :-1]) > 1.0 / gm), axis=-1)
     too_fast = np.any(np.abs(L[..., w > bandwidth]) >= 1.0, axis=-1)
+    return peak, conditional, too_fast
+
+
+def _feasible(P, s, w, KP, KI, KD, TF, ms: float, bandwidth: float):
+    """``(peak, ok)`` on a grid of candidates (leading axes) for the frequency response ``P(s)``."""
+    peak, conditional, too_fast = constraints(P, w, KP, KI, KD, TF, ms, bandwidth)
     return peak, np.isfinite(peak) & (peak <= ms) & ~conditional & ~too_fast
 
 
