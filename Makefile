@@ -2,6 +2,7 @@
 #   make demo   create .venv, install, reproduce the paper's TRS comparison, write figures
 #   make test   create .venv, install with test extras, run the test suite (all but the tests marked slow)
 #   make test-slow  the tests marked slow (notebooks, studies, CLI examples); .ci/run runs both
+#   make bench      the speed benchmark, then the tests marked timing (wall-clock bounds: never in make test)
 #   make lint       ruff under the project's configuration (pyproject.toml); .ci/run runs it first
 #   make notebooks  execute notebooks/*.ipynb in place, saving their outputs (figures)
 PYTHON ?= python3
@@ -26,7 +27,7 @@ test: $(STAMP)
 	$(BIN)/python -m pytest -q
 
 test-slow: $(STAMP)
-	$(BIN)/python -m pytest -q -m slow
+	$(BIN)/python -m pytest -q -m 'slow and not timing'
 
 lint: $(STAMP)
 	$(BIN)/ruff check hammerstein_ctrl tests benchmarks notebooks
@@ -36,6 +37,7 @@ notebooks: $(STAMP)
 
 bench: $(STAMP)
 	$(BIN)/hammerstein-ctrl bench --methods nspsa nlspsa spsa amvo-sca
+	$(BIN)/python -m pytest -q -m timing
 
 clean:
 	rm -rf $(VENV) results .pytest_cache

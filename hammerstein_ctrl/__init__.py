@@ -26,7 +26,7 @@ import sys
 import types
 
 from .exceptions import (CacheWarning, DataError, HammersteinError, IdentificationWarning, ParameterError,
-                         UnknownNameError)
+                         SimulationWarning, UnknownNameError)
 
 __version__ = "0.1.0"
 
@@ -69,7 +69,7 @@ __all__ = [
     "LinearStructure",
     "minimize", "StepGain", "PerturbationGain", "run_study", "StudyResult",
     "uncertainty", "diagnostics", "residual_analysis", "selection", "select_structure", "candidate_structures",
-    "SelectionResult", "IdentificationWarning",
+    "SelectionResult", "IdentificationWarning", "SimulationWarning",
     "__version__",
 ]
 

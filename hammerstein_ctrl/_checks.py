@@ -6,7 +6,7 @@ import numpy as np
 
 from .exceptions import DataError, ParameterError
 
-__all__ = ["GRID_TOLERANCE", "INTERSAMPLE", "MAX_ORDER", "check_intersample", "as_signal", "as_real_array",
+__all__ = ["GRID_TOLERANCE", "INTERSAMPLE", "MAX_ORDER", "check_intersample", "as_signal", "as_real_array", "as_count",
            "check_transfer_function", "uniform_grid"]
 
 #: Largest allowed deviation of a sample time from the uniform grid ``t0 + k*dt``,
@@ -41,8 +41,16 @@ def as_signal(x, name: str, *, allow_empty: bool = False) -> np.ndarray:
     """Return ``x`` as a finite 1-D float array or raise a :class:`DataError`.
 
     Column vectors such as MATLAB's ``(N, 1)`` arrays are flattened.  Complex,
-    object and string arrays are rejected (never silently cast).
+    object and string arrays are rejected (never silently cast); so is a
+    masked array with masked samples (a mask cannot be honoured by a
+    simulation: fill or cut them first).
     """
+    if isinstance(x, np.ma.MaskedArray):
+        masked = int(np.ma.getmaskarray(x).sum())
+        if masked:
+            raise DataError(f"{name} has {masked} masked sample(s); a signal cannot skip samples: fill them "
+                            f"({name}.filled(value)) or cut the record around them")
+        x = np.ma.getdata(x)
     raw = np.asarray(x)
     if raw.dtype.kind == "c":
         raise DataError(f"{name} is complex; a signal must be real (pass x.real if the imaginary "
@@ -68,6 +76,33 @@ def as_signal(x, name: str, *, allow_empty: bool = False) -> np.ndarray:
     return a
 
 
+def as_count(value, name: str, *, minimum: int = 0) -> int:
+    """``value`` as an int (an integral float such as ``2.0`` passes) or a :class:`ParameterError` naming ``name``.
+
+    Booleans, text, fractions, non-finite numbers and integers beyond 2**63
+    are refused rather than cast.
+
+    Examples
+    --------
+    >>> as_count(3.0, "den_order")
+    3
+    >>> as_count("a", "num_order")
+    Traceback (most recent call last):
+    ...
+    hammerstein_ctrl.exceptions.ParameterError: num_order must be a non-negative integer, got 'a'
+    """
+    ok = isinstance(value, (int, np.integer, float, np.floating)) and not isinstance(value, (bool, np.bool_))
+    try:
+        ok = ok and float(value) == int(value) and minimum <= int(value) < 2**63
+    except (ValueError, OverflowError):       # nan, inf, an int beyond any float
+        ok = False
+    if not ok:
+        kind = {0: "a non-negative integer", 1: "a positive integer"}.get(minimum, f"an integer >= {minimum}")
+        shown = repr(value)
+        raise ParameterError(f"{name} must be {kind}, got {shown if len(shown) <= 40 else shown[:40] + '...'}")
+    return int(value)
+
+
 def as_real_array(x, name: str) -> np.ndarray:
     """``x`` as a float array, or a :class:`ParameterError` naming ``name`` for complex or non-numeric values.
 
@@ -90,6 +125,8 @@ def as_real_array(x, name: str) -> np.ndarray:
     if raw.dtype.kind not in "biuf":
         try:
             return raw.astype(float)
+        except OverflowError:
+            raise ParameterError(f"{name} holds an integer too large for a float: {str(x)[:80]}") from None
         except (TypeError, ValueError):
             raise ParameterError(f"{name} must be numbers, got {str(x)[:80]}") from None
     return raw.astype(float, copy=False)
@@ -109,7 +146,8 @@ def _trimmed(c, label: str) -> np.ndarray:
     return a[nz[0]:] if nz.size else a[-1:]
 
 
-def check_transfer_function(num, den, name: str = "transfer function") -> tuple[np.ndarray, np.ndarray]:
+def check_transfer_function(num, den, name: str = "transfer function", *,
+                            advice: str = "pass a control.StateSpace") -> tuple[np.ndarray, np.ndarray]:
     """Validate ``num(p)/den(p)`` (highest power first) and return it with leading zeros trimmed.
 
     Raises
@@ -137,7 +175,7 @@ def check_transfer_function(num, den, name: str = "transfer function") -> tuple[
                              f"degree {order}")
     if order > MAX_ORDER:
         raise ParameterError(f"{name} has order {order}; at most {MAX_ORDER} is supported (the companion "
-                             "realisation loses accuracy beyond it): pass a control.StateSpace")
+                             f"realisation loses accuracy beyond it): {advice}")
     return num, den
 
 
@@ -166,14 +204,18 @@ MAX_UPSAMPLING = 100
 _SUGGESTION_DIGITS = 2
 
 
-def finite_float(value, what: str, expected: str = "a finite number") -> float:
-    """``value`` as a finite float, else a :class:`DataError` "``what`` must be ``expected``"."""
+def finite_float(value, what: str, expected: str = "a finite number", *, error=DataError) -> float:
+    """``value`` as a finite float, else ``error`` (a :class:`DataError`) "``what`` must be ``expected``".
+
+    Booleans are refused (``True`` is not a number of seconds).
+    """
     try:
-        v = float(value)
-    except (TypeError, ValueError):
+        v = np.nan if isinstance(value, (bool, np.bool_)) else float(value)
+    except (TypeError, ValueError, OverflowError):
         v = np.nan
     if not np.isfinite(v):
-        raise DataError(f"{what} must be {expected}, got {value!r}")
+        shown = repr(value)
+        raise error(f"{what} must be {expected}, got {shown if len(shown) <= 40 else shown[:40] + '...'}")
     return v
 
 
@@ -187,11 +229,11 @@ def check_tolerance(tolerance) -> float:
     return tol
 
 
-def check_dt(dt) -> float:
-    """Return ``dt`` as a positive finite float or raise a :class:`DataError`."""
-    step = finite_float(dt, "dt", "a positive finite number")
+def check_dt(dt, *, error=DataError) -> float:
+    """Return ``dt`` as a positive finite float or raise ``error`` (a :class:`DataError`)."""
+    step = finite_float(dt, "dt", "a positive finite number", error=error)
     if step <= 0:
-        raise DataError(f"dt must be a positive finite number, got {dt!r}")
+        raise error(f"dt must be a positive finite number, got {dt!r}")
     return step
 
 

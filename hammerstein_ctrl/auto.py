@@ -30,6 +30,7 @@ import time
 
 import numpy as np
 
+from ._checks import as_count
 from .exceptions import ParameterError
 from .initialize import Budget, initial_points, nuisance_estimate, stabilize
 from .optimize import BUDGET_EXHAUSTED, COMPLETED, SOLVER_FAILED, History, as_rng, as_x0, levenberg_marquardt
@@ -152,7 +153,7 @@ def auto_minimize(cost, x0=None, *, maxfev: int | None = None, seed=None, allow_
         ``history`` and ``starts`` (how many starts were refined).
     """
     started = time.perf_counter()
-    budget = Budget(AUTO_MAXFEV if maxfev is None else int(maxfev))
+    budget = Budget(AUTO_MAXFEV if maxfev is None else as_count(maxfev, "maxfev", minimum=1))
     rng = as_rng(seed)
     try:
         starts = initial_points(cost.data, cost.structure, budget)

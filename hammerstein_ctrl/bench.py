@@ -206,7 +206,7 @@ def pid_tuning_speed(model, rule: str = "nspsa", *, repeat: int = 3, reference_r
 #: Methods whose peak memory :func:`peak_memory` measures, with the evaluation budget of the run
 #: (small: the peak is reached in the first iterations, and a 1e7-sample evaluation takes 0.1 s;
 #: ``auto`` needs 300 for every stage to run: the start scan, its refinement and the LM polish).
-MEMORY_BUDGETS = {"nspsa": 21, "lm": 25, "auto": 300, "amvo-sca": 100}
+MEMORY_BUDGETS = {"nspsa": 22, "lm": 25, "auto": 300, "amvo-sca": 100}
 #: Hold time, in samples, of each random level of the synthetic input.
 _HOLD_SAMPLES = 500
 #: Sampling interval of the synthetic records (the EMPS rate).

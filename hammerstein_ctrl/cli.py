@@ -78,13 +78,17 @@ def _number(*, positive: bool = False, allow_inf: bool = False):
 
 
 def _writable_file(option: str, path: str) -> Path:
-    """``path`` as a Path, after checking that a file can be written there."""
+    """``path`` as a Path, after checking that a file can be written there (never through a link)."""
+    from .safe_io import UnsafePathError, check_output
+
     p = Path(path)
-    if p.is_dir():
+    if p.is_dir() and not p.is_symlink():
         raise HammersteinError(f"{option} {path}: is a directory, give a file name")
+    try:
+        check_output(p)
+    except UnsafePathError as exc:
+        raise HammersteinError(f"{option} {exc}") from None
     parent = p.parent if str(p.parent) else Path(".")
-    if not parent.is_dir():
-        raise HammersteinError(f"{option} {path}: folder {parent} does not exist")
     if not os.access(parent, os.W_OK) or (p.exists() and not os.access(p, os.W_OK)):
         raise HammersteinError(f"{option} {path}: not writable")
     return p
@@ -102,13 +106,16 @@ def _check_plot_path(path: str) -> Path:
 
 
 def _output_dir(path: str) -> Path:
+    """The output folder (created; a link the user named is resolved once: everything is written inside it)."""
     out = Path(path)
     if out.exists() and not out.is_dir():
         raise HammersteinError(f"--out {path}: exists and is not a directory")
+    if out.is_symlink() and not out.exists():
+        raise HammersteinError(f"--out {path}: is a dangling symbolic link")
     out.mkdir(parents=True, exist_ok=True)
     if not os.access(out, os.W_OK):
         raise HammersteinError(f"--out {path}: directory not writable")
-    return out
+    return out.resolve()
 
 
 def _cmd_bench(args) -> int:
@@ -142,6 +149,7 @@ def _cmd_reproduce(args) -> int:
     from . import presets
     from .plots import study_figures
     from .report import best_models, json_safe
+    from .safe_io import write_text
     from .study import run_study
 
     kwargs = {"path": args.data} if (args.case == "emps" and args.data) else {}
@@ -156,13 +164,14 @@ def _cmd_reproduce(args) -> int:
     study = run_study(case, methods, trials=args.trials, seed=args.seed, jobs=args.jobs,
                       results_path=out / "results.jsonl", progress=progress)
     print(study.table("text"))
-    (out / "summary.md").write_text(study.table("markdown"))
-    (out / "summary.csv").write_text(study.table("csv"))
+    write_text(out / "summary.md", study.table("markdown"), root=out)
+    write_text(out / "summary.csv", study.table("csv"), root=out)
     study.to_json(out / "summary.json")
 
     validation = case.validation() if case.validation is not None else None
     best = best_models(study, validation)
-    (out / "best_models.json").write_text(json.dumps(json_safe(best), indent=2, default=str, allow_nan=False))
+    write_text(out / "best_models.json", json.dumps(json_safe(best), indent=2, default=str, allow_nan=False),
+               root=out)
     if validation is not None:
         print(f"\nBest models on the validation record ({validation.name}):")
         for m, e in best.items():
@@ -303,8 +312,10 @@ def _cmd_identify(args) -> int:
         _use_agg()
         from .plots import time_response
 
+        from .safe_io import save_figure
+
         fig = time_response(data, {result.method: result.model})
-        fig.savefig(plot, dpi=120)
+        save_figure(fig, plot, dpi=120)
         print(f"figure written to {plot}")
     return 0 if result.success else 1
 

@@ -12,6 +12,7 @@ Wire it into a parser with :func:`add_select_parser`.
 from __future__ import annotations
 
 import csv
+import io
 
 from .exceptions import HammersteinError
 
@@ -78,12 +79,15 @@ def _cmd_select(args) -> int:
                            seed=args.seed, jobs=args.jobs)
     print(sel.summary())
     if table is not None:
+        from .safe_io import write_text
+
         fields = [k for k in sel.table[0] if k != "message"]
-        with open(table, "w", newline="") as fh:
-            writer = csv.DictWriter(fh, fieldnames=fields, extrasaction="ignore")
-            writer.writeheader()
-            writer.writerows({k: (" ".join(v) if isinstance(v, list) else v) for k, v in row.items()}
-                             for row in sel.table)
+        buffer = io.StringIO(newline="")
+        writer = csv.DictWriter(buffer, fieldnames=fields, extrasaction="ignore")
+        writer.writeheader()
+        writer.writerows({k: (" ".join(v) if isinstance(v, list) else v) for k, v in row.items()}
+                         for row in sel.table)
+        write_text(table, buffer.getvalue())
         print(f"table written to {table}")
     if out is not None:
         save_result(sel.best, out)

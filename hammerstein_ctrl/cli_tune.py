@@ -98,7 +98,9 @@ def _cmd_tune(args) -> int:
 
     if "matplotlib.pyplot" not in sys.modules:
         matplotlib.use("Agg")
+    from .safe_io import save_figure
+
     fig = loop_figure({args.rule: rep}, u_limit=limits)
-    fig.savefig(plot, dpi=120)
+    save_figure(fig, plot, dpi=120)
     print(f"figure written to {plot}")
     return 0 if pid.success else 1

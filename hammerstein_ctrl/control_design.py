@@ -60,7 +60,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ._checks import as_signal
+from ._checks import as_signal, check_dt
 from .exceptions import DataError, ParameterError, UnknownNameError
 from .loop_sim import (
     back_calculation_gain,
@@ -472,7 +472,6 @@ class PIDResult:
         """
         import control
 
-        from .exact_export import _check_dt
         from .robust_pid import discrete_loop_figures
 
         dt = _check_dt(dt)
@@ -655,15 +654,7 @@ def _robustness_target(max_sensitivity, phase_margin) -> float:
 
 
 def _check_dt(dt):
-    if dt is None:
-        return None
-    try:
-        value = float(dt)
-    except (TypeError, ValueError):
-        raise ParameterError(f"dt must be a positive finite number, got {dt!r}") from None
-    if not (math.isfinite(value) and value > 0):
-        raise ParameterError(f"dt must be a positive finite number, got {dt!r}")
-    return value
+    return None if dt is None else check_dt(dt, error=ParameterError)
 
 
 def tune_pid(model, rule: str = "robust", *, kind: str = "pid", max_sensitivity: float | None = None,

@@ -48,7 +48,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._checks import check_intersample
+from ._checks import check_dt, check_intersample
 from .exceptions import DataError, ParameterError
 from .simulate import companion_realization, discretize
 
@@ -137,13 +137,7 @@ def sampled_matrices(model, dt: float, intersample: str | None = None):
 
 
 def _check_dt(dt) -> float:
-    try:
-        value = float(dt)
-    except (TypeError, ValueError):
-        raise ParameterError(f"dt must be a positive number, got {dt!r}") from None
-    if not (np.isfinite(value) and value > 0):
-        raise ParameterError(f"dt must be a positive finite number, got {dt!r}")
-    return value
+    return check_dt(dt, error=ParameterError)
 
 
 def sampled_iosys(model, dt: float, *, intersample: str | None = None, name: str | None = None,

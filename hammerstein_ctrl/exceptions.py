@@ -6,7 +6,7 @@ who do not care about the distinction.
 """
 
 __all__ = ["HammersteinError", "DataError", "ParameterError", "UnknownNameError", "CacheWarning",
-           "IdentificationWarning"]
+           "IdentificationWarning", "SimulationWarning"]
 
 
 class HammersteinError(ValueError):
@@ -31,3 +31,7 @@ class CacheWarning(UserWarning):
 
 class IdentificationWarning(UserWarning):
     """A finding about an identified model that leaves it usable but needs a look (the result's ``warnings``)."""
+
+
+class SimulationWarning(UserWarning):
+    """A simulation's output stopped being finite (an unstable model, or one whose state overflowed)."""

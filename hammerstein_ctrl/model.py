@@ -32,10 +32,12 @@ array([-0.5793,  1.0519])
 
 from __future__ import annotations
 
+import warnings as _warnings
+
 import numpy as np
 
-from ._checks import as_signal, check_intersample
-from .exceptions import ParameterError
+from ._checks import as_signal, check_intersample, check_transfer_function
+from .exceptions import ParameterError, SimulationWarning
 from .nonlinearities import Nonlinearity
 
 __all__ = ["BlockModel", "HammersteinModel", "WienerModel", "HammersteinWienerModel"]
@@ -44,6 +46,8 @@ __all__ = ["BlockModel", "HammersteinModel", "WienerModel", "HammersteinWienerMo
 def _finite_scalar(value, label: str) -> float:
     try:
         v = float(value)
+    except OverflowError:
+        raise ParameterError(f"{label} is too large for a float ({str(value)[:40]}...)") from None
     except (TypeError, ValueError):
         raise ParameterError(f"{label} must be a number, got {value!r}") from None
     if not np.isfinite(v):
@@ -91,9 +95,8 @@ def _check_linear(linear):
         raise ParameterError("the linear block must be SISO")
     if linear.isdtime(strict=True):
         raise ParameterError("the linear block must be continuous-time (dt=0)")
-    num, den = np.trim_zeros(linear.num[0][0], "f"), np.trim_zeros(linear.den[0][0], "f")
-    if num.size > den.size:
-        raise ParameterError("the linear block must be proper (numerator degree <= denominator degree)")
+    num, den = check_transfer_function(linear.num[0][0], linear.den[0][0], "the linear block",
+                                       advice="reduce the model (e.g. control.balred)")
     return linear, den.size - 1
 
 
@@ -203,7 +206,20 @@ class BlockModel:
         elif u is None:
             raise ParameterError("simulate needs the input u (or an IOData record)")
         x0 = self.initial_state if initial_state is None else _state_vector(initial_state, self.order)
-        return simulate_blocks(self, t, u, x0=x0, intersample=hold if intersample is None else intersample)
+        y = simulate_blocks(self, t, u, x0=x0, intersample=hold if intersample is None else intersample)
+        if not np.isfinite(y).all():
+            self._warn_diverged(np.asarray(t, dtype=float), y)
+        return y
+
+    def _warn_diverged(self, t: np.ndarray, y: np.ndarray) -> None:
+        """Issue a :class:`SimulationWarning` naming where the output stopped being finite, and why."""
+        k = int(np.flatnonzero(~np.isfinite(y))[0])
+        poles = np.roots(np.trim_zeros(np.asarray(self.linear.den[0][0], dtype=float), "f"))
+        growing = poles[poles.real > 0]
+        why = (f"the model is unstable (pole(s) {', '.join(f'{p:.4g}' for p in growing)} in the right half-plane)"
+               if growing.size else "its state overflowed")
+        _warnings.warn(f"{self.name}: the simulated output is not finite from sample {k} (t = {t[k]:.6g} s): {why}; "
+                       "do not use this output", SimulationWarning, stacklevel=3)
 
     def linear_output(self, t, u=None) -> np.ndarray:
         """``z = H(p) g(u)``: the linear block's output (the signal entering ``h``), from the model's ``x(0)``.

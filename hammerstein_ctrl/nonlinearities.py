@@ -25,6 +25,7 @@ from typing import Callable, Sequence
 
 import numpy as np
 
+from ._checks import as_real_array
 from .exceptions import ParameterError, UnknownNameError
 
 __all__ = [
@@ -90,7 +91,7 @@ class Nonlinearity:
         ParameterError
             If the last dimension does not equal :attr:`n_params`.
         """
-        p = np.asarray(params, dtype=float)
+        p = as_real_array(params, f"{self.name} nonlinearity parameters")
         if p.ndim == 0 or p.ndim > 2 or p.shape[-1] != self.n_params:
             got = p.shape[-1] if p.ndim else "a scalar"
             raise ParameterError(

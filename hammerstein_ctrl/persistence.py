@@ -48,12 +48,11 @@ from __future__ import annotations
 import json
 import math
 from dataclasses import dataclass, field
-from pathlib import Path
 
 import numpy as np
 
 from .exceptions import ParameterError, UnknownNameError
-from ._checks import INTERSAMPLE
+from ._checks import INTERSAMPLE, check_transfer_function
 from .exact_export import model_settings
 from .nonlinearities import NONLINEARITIES, PiecewiseLinear, Polynomial
 from .uncertainty import UncertainParameters
@@ -114,6 +113,8 @@ def _number(value, where: str, *, finite: bool = True) -> float:
     value = float(value)
     if finite and not math.isfinite(value):
         raise ParameterError(f"{where} must be a finite number, got {value!r}")
+    if abs(value) > MAX_MAGNITUDE and math.isfinite(value):
+        raise ParameterError(f"{where} = {value!r} is beyond the largest magnitude stored, {MAX_MAGNITUDE:g}")
     return value
 
 
@@ -129,9 +130,11 @@ def _string(value, where: str) -> str:
     return value
 
 
-def _integer(value, where: str) -> int:
+def _integer(value, where: str, *, minimum: int | None = None) -> int:
     if isinstance(value, bool) or not isinstance(value, int):
         raise ParameterError(f"{where} must be an integer, got {value!r}")
+    if minimum is not None and value < minimum:
+        raise ParameterError(f"{where} must be at least {minimum}, got {value}")
     return value
 
 
@@ -315,6 +318,7 @@ def model_from_dict(obj, where: str = "model"):
     _check_kind(obj, where)
     lin = _keys(obj["linear"], f"{where}.linear", ("num", "den"))
     num, den = _numbers(lin["num"], f"{where}.linear.num"), _numbers(lin["den"], f"{where}.linear.den")
+    num, den = check_transfer_function(num, den, f"{where}.linear", advice="this file is not a usable model")
     g, g_params = _block_from_dict(obj["input_nonlinearity"], f"{where}.input_nonlinearity")
     h, h_params = _block_from_dict(obj["output_nonlinearity"], f"{where}.output_nonlinearity")
     x0 = obj["initial_state"]
@@ -328,20 +332,69 @@ def model_from_dict(obj, where: str = "model"):
                             intersample=intersample, name=_string(obj["name"], f"{where}.name"))
 
 
+#: Largest magnitude of a number in a saved model or result (beyond it, products of two overflow).
+MAX_MAGNITUDE = 1e100
+#: Most digits of an integer in a saved file (orders, counts and codes are short).
+_MAX_DIGITS = 18
+
+
+def _unique_object(where: str):
+    """An ``object_pairs_hook`` refusing a key given twice in one object (JSON leaves that undefined)."""
+    def hook(pairs):
+        obj = {}
+        for key, value in pairs:
+            if key in obj:
+                raise ParameterError(f"{where}: the field {key!r} appears twice in one object")
+            obj[key] = value
+        return obj
+    return hook
+
+
+def _parse_int(where: str):
+    def parse(text: str) -> int:
+        if len(text.lstrip("-")) > _MAX_DIGITS:
+            raise ParameterError(f"{where}: an integer with {len(text.lstrip('-'))} digits (at most {_MAX_DIGITS})")
+        return int(text)
+    return parse
+
+
+def _decode(data: bytes, where: str) -> str:
+    """The UTF-8 text of a saved file (a BOM tolerated); UTF-16/32 or binary content is a clear error."""
+    if data.startswith((b"\xff\xfe", b"\xfe\xff")) or b"\x00" in data[:4096]:
+        raise ParameterError(f"{where}: not a UTF-8 text file (binary, or UTF-16/32 encoded); model and result "
+                             "files are UTF-8 JSON")
+    try:
+        return data.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        raise ParameterError(f"{where}: not UTF-8 text (byte {exc.start}); model and result files are UTF-8 "
+                             "JSON") from None
+
+
 def _read(path) -> dict:
+    """The JSON object of a model or result file, read strictly (module notes) and within a size limit."""
+    from .safe_io import MAX_DOCUMENT_BYTES, read_bytes
+
+    where = str(path)
+
     def reject(constant):
-        raise ParameterError(f"{path}: the non-standard JSON constant {constant} is not allowed "
+        raise ParameterError(f"{where}: the non-standard JSON constant {constant} is not allowed "
                              "(non-finite figures are written as the strings 'inf', '-inf', 'nan')")
 
-    text = Path(path).read_text()
+    text = _decode(read_bytes(path, limit=MAX_DOCUMENT_BYTES, what="model or result file"), where)
     try:
-        return json.loads(text, parse_constant=reject)
+        return json.loads(text, parse_constant=reject, parse_int=_parse_int(where),
+                          object_pairs_hook=_unique_object(where))
     except json.JSONDecodeError as exc:
-        raise ParameterError(f"{path}: not valid JSON ({exc})") from None
+        raise ParameterError(f"{where}: not valid JSON ({exc})") from None
+    except RecursionError:
+        raise ParameterError(f"{where}: JSON nested too deeply to be a model or result file") from None
 
 
 def _write(obj: dict, path) -> None:
-    Path(path).write_text(json.dumps(obj, indent=2, allow_nan=False) + "\n")
+    """Write ``obj`` as JSON, whole and never through a link (:func:`~hammerstein_ctrl.safe_io.write_text`)."""
+    from .safe_io import write_text
+
+    write_text(path, json.dumps(obj, indent=2, allow_nan=False) + "\n")
 
 
 def save_model(model, path) -> None:
@@ -474,6 +527,15 @@ def _uncertainty_from(obj, version: int, p: int, where: str) -> dict:
             "warnings": [_string(w, f"{where}: warnings[{i}]") for i, w in enumerate(warnings)]}
 
 
+def _status_code(value, where: str) -> int:
+    from .optimize import STATUS_CODES
+
+    code = _integer(value, where)
+    if code not in STATUS_CODES:
+        raise ParameterError(f"{where} must be one of the optimisers' codes {list(STATUS_CODES)}, got {code}")
+    return code
+
+
 def _status(status) -> int | None:
     return None if status is None else int(status)
 
@@ -483,8 +545,15 @@ def _data_from_dict(obj, where: str) -> dict:
     out = dict(obj)
     if obj["dt"] is not None:
         out["dt"] = _number(obj["dt"], f"{where}.dt")
+        if out["dt"] <= 0:
+            raise ParameterError(f"{where}.dt must be a positive sampling interval, got {out['dt']!r}")
     if obj["n_samples"] is not None:
-        out["n_samples"] = _integer(obj["n_samples"], f"{where}.n_samples")
+        out["n_samples"] = _integer(obj["n_samples"], f"{where}.n_samples", minimum=1)
+    for key in ("name", "input_name", "output_name", "input_unit", "output_unit", "intersample"):
+        if out[key] is not None:
+            _string(out[key], f"{where}.{key}")
+    if out["intersample"] is not None and out["intersample"] not in INTERSAMPLE:
+        raise ParameterError(f"{where}.intersample must be one of {list(INTERSAMPLE)}, got {out['intersample']!r}")
     return out
 
 
@@ -509,12 +578,12 @@ def result_from_dict(obj, where: str = "result") -> SavedResult:
         fit_percent=_number(obj["fit_percent"], f"{where}: fit_percent", finite=False),
         rmse=_number(obj["rmse"], f"{where}: rmse", finite=False),
         nrmse=_number(obj["nrmse"], f"{where}: nrmse", finite=False),
-        nfev=_integer(obj["nfev"], f"{where}: nfev"), method=_string(obj["method"], f"{where}: method"),
+        nfev=_integer(obj["nfev"], f"{where}: nfev", minimum=0), method=_string(obj["method"], f"{where}: method"),
         success=_boolean(obj["success"], f"{where}: success"),
         message=_string(obj["message"], f"{where}: message"),
         elapsed=_number(obj["elapsed_s"], f"{where}: elapsed_s", finite=False),
         data=_data_from_dict(obj["data"], f"{where}: data"),
-        status=None if obj.get("status") is None else _integer(obj["status"], f"{where}: status"),
+        status=None if obj.get("status") is None else _status_code(obj["status"], f"{where}: status"),
         **_uncertainty_from(obj, version, structure.n_params, where),
     )
 

@@ -933,12 +933,16 @@ def study_figure_set(study, *, validation=None, u0: float | None = None) -> dict
 
 def study_figures(study, out_dir, *, formats=("png",), validation=None, dpi: int = FIGURE_DPI) -> list[Path]:
     """Write :func:`study_figure_set` into ``out_dir`` (one file per figure and format); return the paths."""
+    from .safe_io import UnsafePathError, save_figure
+
     out_dir = Path(out_dir)
+    if out_dir.is_symlink():
+        raise UnsafePathError(f"{out_dir} is a symbolic link: refusing to write figures through it")
     out_dir.mkdir(parents=True, exist_ok=True)
     paths = []
     for name, fig in study_figure_set(study, validation=validation).items():
         for fmt in formats:
             path = out_dir / f"{name}.{fmt}"
-            fig.savefig(path, dpi=dpi)
+            save_figure(fig, path, root=out_dir, dpi=dpi)      # never through a planted link
             paths.append(path)
     return paths

@@ -26,7 +26,7 @@ from typing import Mapping
 
 import numpy as np
 
-from ._checks import MAX_ORDER, as_real_array
+from ._checks import MAX_ORDER, as_count, as_real_array
 from ._jit import cached_njit
 from .exceptions import ParameterError
 from .nonlinearities import Nonlinearity
@@ -83,10 +83,7 @@ class LinearStructure:
         monic_numerator: bool = True,
         fixed: Mapping[str, float] | None = None,
     ):
-        for label, val in (("num_order", num_order), ("den_order", den_order)):
-            if int(val) != val or val < 0:
-                raise ParameterError(f"{label} must be a non-negative integer, got {val!r}")
-        num_order, den_order = int(num_order), int(den_order)
+        num_order, den_order = as_count(num_order, "num_order"), as_count(den_order, "den_order")
         if den_order < 1:
             raise ParameterError("den_order must be >= 1 (a dynamic linear block)")
         if den_order > MAX_ORDER:
@@ -106,6 +103,10 @@ class LinearStructure:
                 raise ParameterError(
                     f"cannot fix unknown coefficient {name!r}; this structure has {known}"
                 )
+            arr = as_real_array(value, f"fixed coefficient {name}")
+            if arr.ndim != 0:
+                raise ParameterError(f"fixed coefficient {name} must be one number, got {value!r}")
+            fixed[name] = value = float(arr)
             if not np.isfinite(value):
                 raise ParameterError(f"fixed coefficient {name} must be finite, got {value!r}")
         lead = f"b{num_order}"

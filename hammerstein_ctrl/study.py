@@ -45,6 +45,7 @@ import scipy.stats
 from ._linalg import single_threaded_blas
 from .exceptions import HammersteinError, ParameterError
 from .executors import make_executor
+from .safe_io import MAX_INPUT_BYTES, check_output, open_append, open_lock, read_bytes, write_bytes, write_text
 from .optimize import canonical_method, minimize
 from .report import json_float, json_safe
 
@@ -252,10 +253,12 @@ def _load_results(path: Path, accept) -> tuple[dict, list]:
     byte, so nothing is lost) and returned as ``(line number, reason)``.
     """
     done, rejected, keep, bad, seen = {}, [], [], [], set()
-    if not path.is_file():
+    check_output(path)                          # a link (even dangling) or a folder is refused, never followed
+    if not path.exists():
         return done, rejected
-    with open(path, "rb") as fh:
-        lines = fh.readlines()
+    data = read_bytes(path, limit=MAX_INPUT_BYTES, what="results file")
+    lines = [line + b"\n" for line in data.split(b"\n")[:-1]] + ([data.rsplit(b"\n", 1)[-1]] if not
+                                                                 data.endswith(b"\n") else [])
     for number, raw in enumerate(lines, start=1):
         if not raw.strip():
             continue
@@ -272,11 +275,9 @@ def _load_results(path: Path, accept) -> tuple[dict, list]:
         if accept(record):
             done[(record["method"], record["trial"])] = record
     if rejected:
-        with open(path.with_name(f"{path.stem}.rejected{path.suffix}"), "ab") as fh:
-            fh.writelines(bad)
-        tmp = path.with_name(path.name + ".tmp")
-        tmp.write_bytes(b"".join(keep))
-        os.replace(tmp, path)
+        with open_append(path.with_name(f"{path.stem}.rejected{path.suffix}"), binary=True) as fh:
+            fh.write(b"".join(bad))
+        write_bytes(path, b"".join(keep))       # a fresh mkstemp file moved over it: no fixed temporary name
     return done, rejected
 
 
@@ -293,7 +294,7 @@ def _locked(path: Path):
         yield
         return
     lock = path.with_name(path.name + ".lock")
-    with open(lock, "a+") as fh:
+    with open_lock(lock) as fh:                 # O_NOFOLLOW: a planted link is refused, never truncated
         try:
             fcntl.flock(fh, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except BlockingIOError:
@@ -410,7 +411,7 @@ def _execute(case, methods, trials, seed, plan, pool, owned, path, progress):
 
         bar = tqdm(total=len(methods) * trials, initial=len(done), unit="trial",
                    desc=f"{case.name}: {'/'.join(methods)}")
-    out = open(path, "a", encoding="utf-8") if path is not None else None
+    out = open_append(path) if path is not None else None
     started = time.perf_counter()
     try:
         def finish(rec):
@@ -556,7 +557,7 @@ class StudyResult:
         data = json_safe(summary)
         data["_meta"] = {"case": self.case.name, "seed": self.seed, "elapsed_s": self.elapsed,
                          "trials": max(v["n"] for k, v in summary.items() if k != "ranksum")}
-        path.write_text(json.dumps(data, indent=2))
+        write_text(path, json.dumps(data, indent=2))
         return path
 
     def __repr__(self):

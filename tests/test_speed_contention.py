@@ -7,11 +7,14 @@ spun against the other work.  Here a sibling process spins a one-thread BLAS
 loop, paused and running in interleaved blocks (medians of 7 each), and the
 cost's time per evaluation is compared between the two.
 
-The machine running the tests is shared, so the bounds are generous: while
-the sibling runs, the process must use at most 1.2 CPU seconds per wall second
-(spinning worker threads add theirs; one thread cannot), and its wall time per
-evaluation must not grow by more than 3x (sharing two cores with one more busy
-process can cost up to ~1.5x on its own).  The growth of the process's CPU time
+The default suite checks only what a busy machine cannot fake: while the
+sibling runs, the process must use at most 1.2 CPU seconds per wall second
+(spinning worker threads add theirs; one thread cannot; other load on the
+machine only lowers the figure), and the numbers must not change.  The wall
+time per evaluation (must not grow by more than 3x; sharing two cores with one
+more busy process can cost up to ~1.5x on its own) depends on everything else
+the machine runs, so it is asserted only under the ``timing`` marker, which
+``make bench`` runs and ``make test`` leaves out.  The growth of the process's CPU time
 is not bounded here: where the two cores are hyper-threads of one, a sibling
 busy with vector arithmetic slows the batched kernel's own thread by up to ~1.9x
 (measured on this machine), with no thread of ours spinning.
@@ -36,14 +39,14 @@ def emps_beta(emps_case):
     return np.asarray(emps_case.paper["nspsa"]["beta"], dtype=float)
 
 
+@pytest.mark.timing
 def test_sibling_really_keeps_a_core_busy():
     r = bench.contention_ratio(lambda: sum(range(2000)), number=200, pairs=3)
     # on an idle machine it takes a whole core; shared by 4-5 agents on 2 cores still a fair slice
     assert r["sibling_share"] > 0.1
 
 
-@pytest.mark.parametrize("kind", ["single", "batched"])
-def test_emps_cost_unaffected_by_busy_sibling(emps_case, emps_beta, kind):
+def _emps_cost_under_contention(emps_case, emps_beta, kind):
     cost = emps_case.cost
     if kind == "single":
         fn, number = (lambda: cost(emps_beta)), 100
@@ -52,12 +55,25 @@ def test_emps_cost_unaffected_by_busy_sibling(emps_case, emps_beta, kind):
         fn, number = (lambda: cost.batch(betas)), 4
     expected = fn()
     r = bench.contention_ratio(fn, number=number)
+    np.testing.assert_array_equal(fn(), expected)  # same numbers under load
+    return r
+
+
+@pytest.mark.parametrize("kind", ["single", "batched"])
+def test_emps_cost_spins_no_threads_beside_a_busy_sibling(emps_case, emps_beta, kind):
+    r = _emps_cost_under_contention(emps_case, emps_beta, kind)
+    assert r["busy_cpu_per_wall"] < CPU_PER_WALL_BOUND, r
+
+
+@pytest.mark.timing
+@pytest.mark.parametrize("kind", ["single", "batched"])
+def test_emps_cost_wall_time_unaffected_by_busy_sibling(emps_case, emps_beta, kind):
+    r = _emps_cost_under_contention(emps_case, emps_beta, kind)
     assert r["busy_cpu_per_wall"] < CPU_PER_WALL_BOUND, r
     assert r["ratio"] < WALL_RATIO_BOUND, r
-    np.testing.assert_array_equal(fn(), expected)  # same numbers under load
 
 
-@pytest.mark.slow
+@pytest.mark.timing
 def test_the_measure_sees_threads_spinning_against_the_sibling():
     """The bound can fail: a 300 x 300 product in two-thread OpenBLAS uses ~1.3 CPU seconds per wall second
     while the sibling runs (one thread: 1.0)."""

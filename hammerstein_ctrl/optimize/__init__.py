@@ -17,8 +17,8 @@ with a finite ``fun``):
 =====================  ==  =====================================================
 """
 
-from ._common import (BUDGET_EXHAUSTED, CALLBACK_STOP, COMPLETED, DIVERGED, NO_FINITE_VALUE, SOLVER_FAILED, History,
-                      as_rng, as_x0)
+from ._common import (BUDGET_EXHAUSTED, CALLBACK_STOP, COMPLETED, DIVERGED, NO_FINITE_VALUE, SOLVER_FAILED,
+                      STATUS_CODES, History, as_rng, as_x0)
 from .amvo_sca import amvo_sca
 from .least_squares import levenberg_marquardt
 from .gains import SPALL_ALPHA, SPALL_GAMMA, GainSequence, PerturbationGain, StepGain
@@ -29,6 +29,7 @@ __all__ = [
     "minimize", "canonical_method", "METHODS", "SCIPY_METHODS",
     "spsa", "nlspsa", "nspsa", "amvo_sca", "levenberg_marquardt", "normalized_difference",
     "GainSequence", "StepGain", "PerturbationGain", "SPALL_ALPHA", "SPALL_GAMMA",
-    "COMPLETED", "CALLBACK_STOP", "DIVERGED", "NO_FINITE_VALUE", "SOLVER_FAILED", "BUDGET_EXHAUSTED", "History",
+    "COMPLETED", "CALLBACK_STOP", "DIVERGED", "NO_FINITE_VALUE", "SOLVER_FAILED", "BUDGET_EXHAUSTED", "STATUS_CODES",
+    "History",
     "as_rng", "as_x0",
 ]

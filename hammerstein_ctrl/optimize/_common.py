@@ -7,7 +7,7 @@ import time
 import numpy as np
 from scipy.optimize import Bounds, OptimizeResult
 
-from .._checks import as_real_array
+from .._checks import as_count, as_real_array
 from ..exceptions import ParameterError
 
 # Result status codes (``OptimizeResult.status``).
@@ -17,6 +17,8 @@ DIVERGED = 2  #: the iterates or objective blew up (SPSA's expected failure mode
 NO_FINITE_VALUE = 3  #: every evaluation was non-finite
 SOLVER_FAILED = 4  #: a delegated scipy solver reported failure
 BUDGET_EXHAUSTED = 5  #: a converging method (LM, scipy's) ran out of evaluations before its convergence test
+#: Every status code, in order.
+STATUS_CODES = (COMPLETED, CALLBACK_STOP, DIVERGED, NO_FINITE_VALUE, SOLVER_FAILED, BUDGET_EXHAUSTED)
 
 
 def budget_exhausted_message(maxfev) -> str:
@@ -37,6 +39,36 @@ class BudgetExhausted(RuntimeError):
     """
 
     nit: int | None = None
+
+
+class ResidualsFault(RuntimeError):
+    """A residual function returned something no least-squares solver can use (a failure status, not a crash)."""
+
+
+def residual_array(r, size: int | None, *, batch: int | None = None) -> np.ndarray:
+    """``r`` as a float vector (or, with ``batch``, ``batch`` rows) of ``size`` residuals (any size if None).
+
+    Raises
+    ------
+    ResidualsFault
+        For text or objects, the wrong number of dimensions, no residuals, or
+        a length different from the one seen before (``size``).
+    """
+    try:
+        with np.errstate(all="ignore"):
+            a = np.asarray(r, dtype=float)
+    except (TypeError, ValueError):
+        raise ResidualsFault("the residual function must return an array of numbers of the same length at every "
+                             f"point; got {type(r).__name__} {str(r)[:60]}") from None
+    want = 1 if batch is None else 2
+    if a.ndim != want or a.shape[-1] == 0 or (batch is not None and a.shape[0] != batch):
+        raise ResidualsFault(f"the residual function must return a non-empty 1-D array (one residual per sample), "
+                             f"got shape {np.shape(a) if batch is None else np.shape(a)[1:]}")
+    if size is not None and a.shape[-1] != size:
+        raise ResidualsFault(f"the residual vector changed length between evaluations, from {size} to "
+                             f"{a.shape[-1]}; a residual function must return the same number of residuals at "
+                             "every point")
+    return a
 
 
 class CountedObjective:
@@ -135,23 +167,15 @@ def check_budget(maxfev, maxiter=None) -> tuple[int | None, int | None]:
 
 
 def _as_count(value, name: str, least: int) -> int | None:
-    if value is None:
-        return None
-    ok = not isinstance(value, (bool, np.bool_))
-    try:
-        ok = ok and float(value) == int(value) and int(value) >= least
-    except (TypeError, ValueError, OverflowError):
-        ok = False
-    if not ok:
-        kind = "a positive" if least == 1 else "a non-negative"
-        raise ParameterError(f"{name} must be {kind} integer, got {value!r}")
-    return int(value)
+    return None if value is None else as_count(value, name, minimum=least)
 
 
 def as_rng(seed) -> np.random.Generator:
     """A :class:`numpy.random.Generator` from a seed, a Generator, or None."""
     if isinstance(seed, np.random.Generator):
         return seed
+    if isinstance(seed, (bool, np.bool_)):
+        raise ParameterError(f"seed must be None, a non-negative integer or a numpy.random.Generator, got {seed!r}")
     if isinstance(seed, np.random.RandomState):
         raise ParameterError("pass an int seed or a numpy.random.Generator, not a RandomState")
     try:
@@ -243,8 +267,19 @@ def call_back(callback, x, fun, nit, nfev) -> bool:
 
 
 def make_result(*, x, fun, obj: CountedObjective, nit, status, message, history: History,
-                method: str, started: float, **extra) -> OptimizeResult:
-    """Assemble the :class:`scipy.optimize.OptimizeResult` every optimiser returns."""
+                method: str, started: float, keep_last: bool = False, **extra) -> OptimizeResult:
+    """Assemble the :class:`scipy.optimize.OptimizeResult` every optimiser returns.
+
+    The contract of every optimiser: the point returned is never worse than
+    the best one it evaluated (``obj.best_x``, which replaces ``x`` when
+    better, or when ``fun`` is NaN), unless ``keep_last`` asks for the given
+    point (the paper's last-iterate estimate).
+    """
+    if not keep_last and obj.best_x is not None and (obj.best_fun < fun or (np.isnan(fun) and
+                                                                            np.isfinite(obj.best_fun))):
+        x, fun = obj.best_x, obj.best_fun
+    if status in (COMPLETED, DIVERGED) and obj.nfev and not np.isfinite(obj.best_fun):
+        status, message = NO_FINITE_VALUE, f"every evaluation was non-finite ({message})"
     res = OptimizeResult(
         x=np.asarray(x, dtype=float),
         fun=float(fun),

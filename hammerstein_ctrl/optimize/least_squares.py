@@ -29,11 +29,13 @@ import scipy.optimize
 
 from .._linalg import single_threaded_blas
 from ..exceptions import ParameterError
-from ..normal_equations import forward_steps
+from ..normal_equations import NONFINITE_RESIDUAL, forward_steps
 from ._common import (
     BUDGET_EXHAUSTED,
     COMPLETED,
+    NO_FINITE_VALUE,
     SOLVER_FAILED,
+    ResidualsFault,
     BudgetExhausted,
     CountedObjective,
     History,
@@ -42,6 +44,7 @@ from ._common import (
     budget_exhausted_message,
     check_budget,
     make_result,
+    residual_array,
 )
 from .normal_lm import CONVERGED, ILL_CONDITIONED_CODE, MESSAGES, normal_equations_lm
 
@@ -82,6 +85,13 @@ class _CountedResiduals(CountedObjective):
         self.history = History()
         self._last = (None, None)
         self.calls = 0          # charged residual vectors the solver asked for (its trial points), not Jacobian columns
+        self.size = None        # the number of residuals, fixed by the first evaluation
+
+    def check(self, r, batch: int | None = None) -> np.ndarray:
+        """``r`` as residuals of the one length every evaluation must have (:func:`residual_array`)."""
+        a = residual_array(r, self.size, batch=batch)
+        self.size = a.shape[-1]
+        return a
 
     def record(self, x, r):
         """Book one charged evaluation of the residual vector ``r``."""
@@ -135,8 +145,10 @@ class _CountedResiduals(CountedObjective):
         self._charge(1)
         self.calls += 1
         with np.errstate(all="ignore"):
-            r = np.asarray(self.fun(x), dtype=float)
+            r = self.check(self.fun(x))
         self.record(x, r)
+        if not np.isfinite(r).all():        # as the Jacobian's passes do: solvers back off from a stand-in
+            r = np.where(np.isfinite(r), r, NONFINITE_RESIDUAL)
         self._last = (np.array(x, dtype=float), r)
         return r
 
@@ -156,7 +168,7 @@ class _BatchedJacobian:
 
     def __init__(self, counted: _CountedResiduals, residuals_batch, box):
         self.counted = counted
-        self.residuals_batch = residuals_batch or (lambda X: np.array([counted.fun(x) for x in X]))
+        self.residuals_batch = residuals_batch or (lambda X: [counted.check(counted.fun(x)) for x in X])
         self.lower, self.upper = (None, None) if box is None else box
         self._cache = (None, None)
         self._formed = 0
@@ -181,14 +193,16 @@ class _BatchedJacobian:
         X = x + np.diag(h)
         fit = int(min(x.size, self.counted.remaining))
         with np.errstate(all="ignore"):
-            R = np.asarray(self.residuals_batch(X[:fit]), dtype=float)
+            R = self.counted.check(self.residuals_batch(X[:fit]), batch=fit)
         for xk, rk in zip(X[:fit], R):  # one by one, as scipy's differences would have
             self.counted.charge(1)
             self.counted.record(xk, rk)
         if fit < x.size:
             self.counted.charge(x.size - fit)  # raises BudgetExhausted
-        R -= r0
-        R /= h[:, None]
+        with np.errstate(all="ignore"):
+            R[~np.isfinite(R)] = NONFINITE_RESIDUAL
+            R -= r0
+            R /= h[:, None]
         if not self._formed:
             self._cache = (x.copy(), R)
         self._formed += 1
@@ -204,7 +218,7 @@ def _solve(fun, counted, jac, x0, box, tolerances):
     Returns ``(x, J, success, message, iterations)``.
     """
     if box is not None:
-        with _steps_on_exhaustion(counted, 0):
+        with _steps_on_exhaustion(counted, 0), _solver_refusal(), np.errstate(all="ignore"):
             res = scipy.optimize.least_squares(counted, x0, jac=jac, method="trf", bounds=box, **tolerances)
         return res.x, float(2.0 * res.cost), bool(res.success), str(res.message), int(res.nfev)
     # past MINPACK_MAX_BYTES of Jacobian the solver goes on with a streamed QR factor instead of MINPACK
@@ -217,13 +231,22 @@ def _solve(fun, counted, jac, x0, box, tolerances):
     # lmder through leastsq: the Jacobian goes in as rows (col_deriv), copied once into MINPACK's own
     # array, and no extra Jacobian is formed at the solution (least_squares does both, at n evaluations
     # and two more Jacobian-sized copies)
-    with _steps_on_exhaustion(counted, iterations):
+    with _steps_on_exhaustion(counted, iterations), _solver_refusal(), np.errstate(all="ignore"):
         x, _, info, _, ier = scipy.optimize.leastsq(
             counted, x0, Dfun=jac.columns, full_output=True, col_deriv=True,
             maxfev=_MINPACK_MAXFEV_PER_PARAM * x0.size, **tolerances)
     f = info["fvec"]
     message = _MINPACK_MESSAGES.get(ier, f"MINPACK exit code {ier}")
     return x, float(f @ f), ier in _MINPACK_CONVERGED, message, iterations + int(info["nfev"])
+
+
+@contextlib.contextmanager
+def _solver_refusal():
+    """scipy's solvers refusing residuals (non-finite values it computed from them) as a :class:`ResidualsFault`."""
+    try:
+        yield
+    except (ValueError, FloatingPointError) as exc:
+        raise ResidualsFault(f"scipy's least-squares solver stopped: {exc} (residuals too large to square?)") from None
 
 
 @contextlib.contextmanager
@@ -315,6 +338,7 @@ def levenberg_marquardt(fun, x0, *, maxfev: int | None = None, maxiter=None, see
     box = _trf_box(bounds, x0)
     counted = _CountedResiduals(residuals, maxfev)
     jac = _BatchedJacobian(counted, getattr(fun, "residuals_batch", None), box)
+    fault = False
     try:
         # The residual vectors are long enough for OpenBLAS to thread its dot
         # products; handing off to those threads between compiled simulations
@@ -326,7 +350,14 @@ def levenberg_marquardt(fun, x0, *, maxfev: int | None = None, maxiter=None, see
     except BudgetExhausted as exc:    # nit: the steps tried before it (see _steps_on_exhaustion)
         x, fun_x, nit = counted.best_x, counted.best_fun, counted.calls if exc.nit is None else exc.nit
         status, message = BUDGET_EXHAUSTED, budget_exhausted_message(maxfev)
+    except ResidualsFault as exc:
+        x, fun_x, nit, status, message = counted.best_x, counted.best_fun, counted.calls, SOLVER_FAILED, str(exc)
+        fault = True
     if x is None:
         x, fun_x = x0, np.nan
-    return make_result(x=x, fun=fun_x, obj=counted, nit=nit, status=status,
-                       message=message, history=counted.history, method="lm", started=started)
+    res = make_result(x=x, fun=fun_x, obj=counted, nit=nit, status=status,
+                      message=message, history=counted.history, method="lm", started=started)
+    if not fault and not res.fun < NONFINITE_RESIDUAL ** 2:   # every residual vector had non-finite entries
+        res.update(status=NO_FINITE_VALUE, success=False,
+                   message=f"no evaluated point had finite residuals (J = {res.fun:.4g}); {res.message}")
+    return res

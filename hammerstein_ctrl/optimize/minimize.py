@@ -7,8 +7,8 @@ Examples
 >>> f = lambda x: float(np.sum((x - 1.0) ** 2))
 >>> r = minimize(f, np.zeros(2), method="nspsa", maxfev=1001, seed=0,
 ...              options={"a": StepGain(0.5, 10), "c": PerturbationGain(0.1)})
->>> r.nfev, r.success
-(1001, True)
+>>> r.nfev, r.success        # the start, 499 iterations of two evaluations, the last iterate
+(1000, True)
 """
 
 from __future__ import annotations
@@ -58,9 +58,9 @@ _ALIASES = {
 }
 
 _OPTIONS = {
-    "spsa": {"a", "c", "scale", "divergence_factor", "monitor"},
-    "nlspsa": {"a", "c", "scale", "norm_limit", "divergence_factor", "monitor"},
-    "nspsa": {"a", "c", "scale", "divergence_factor", "monitor"},
+    "spsa": {"a", "c", "scale", "divergence_factor", "monitor", "estimate"},
+    "nlspsa": {"a", "c", "scale", "norm_limit", "divergence_factor", "monitor", "estimate"},
+    "nspsa": {"a", "c", "scale", "divergence_factor", "monitor", "estimate"},
     "amvo-sca": {"pop_size", "wep_min", "wep_max", "include_x0"},
     "lm": {"ftol", "xtol", "gtol"},
 }

@@ -106,7 +106,7 @@ class _Passes:
             if self._value is not None:
                 f = float(self._value(x))
             else:
-                r = np.asarray(self._residuals(x), dtype=float)
+                r = self.counted.check(self._residuals(x))
                 f = float(r @ r)
         f = f if np.isfinite(f) else np.inf
         self.counted.record_value(x, f)
@@ -129,8 +129,9 @@ class _Passes:
         else:
             X = neighbours(x, h)
             with np.errstate(all="ignore"):
-                R = self._batch(X) if self._batch is not None else [self._residuals(row) for row in X]
-                ne = from_residuals(R, h)
+                R = self._batch(X) if self._batch is not None else [self.counted.check(self._residuals(row))
+                                                                     for row in X]
+                ne = from_residuals(self.counted.check(R, batch=len(X)), h)
         values = [f if math.isfinite(f) else math.inf for f in [ne.fun, *ne.neighbour_values().tolist()]]
         self.counted.record_neighbourhood(x, h, values)
         return ne if values[0] == ne.fun else ne._replace(fun=values[0])

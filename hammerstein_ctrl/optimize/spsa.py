@@ -12,10 +12,14 @@ evaluations) and step ``theta <- theta - s``.  They differ in ``s``:
 * **N-SPSA** (the paper, Eq. 9-12, Algorithm 4.2): ``s = a(k) hbar / (2 c(k) Delta)``
   with ``hbar = f~+ - f~-``, ``f~± = f± / max(f+, f-)``, and ``hbar = 1`` on a tie.
 
-The final estimate is the last iterate ``theta(k_max)`` (paper section 4.3,
-step 3); it is evaluated once more to report ``fun``, so a run of ``k_max``
-iterations uses ``2 k_max + 1`` evaluations.  The best point seen among all
-evaluations is reported too (``best_x``, ``best_fun``).
+The paper's final estimate is the last iterate ``theta(k_max)`` (paper
+section 4.3, step 3), evaluated once more to score it: ``estimate="last"``, a
+run of ``k_max`` iterations then uses ``2 k_max + 1`` evaluations.  By default
+(``estimate="best"``) the start ``theta(0)`` is evaluated too (one more
+evaluation) and the result is the best point evaluated, the start and the
+last iterate included, so a run never returns a point worse than one it has
+seen; the last iterate stays in ``last_x`` and ``last_fun``.  The paper's
+presets ask for ``"last"``.
 
 Corner cases the paper leaves open, decided here:
 
@@ -46,8 +50,8 @@ Examples
 >>> from hammerstein_ctrl.optimize import nspsa, StepGain, PerturbationGain
 >>> f = lambda x: float(np.sum((x - 1.0) ** 2))
 >>> r = nspsa(f, np.zeros(3), a=StepGain(0.1, 10, 0.602), c=PerturbationGain(0.1), maxiter=500, seed=1)
->>> r.nfev, bool(r.fun < 1e-6)
-(1001, True)
+>>> r.nfev, bool(r.fun < 1e-6), bool(r.fun <= r.last_fun)
+(1002, True, True)
 """
 
 from __future__ import annotations
@@ -80,6 +84,8 @@ __all__ = ["spsa", "nlspsa", "nspsa", "normalized_difference", "iterations_for_b
 DEFAULT_MAXITER = 1000
 #: Value of ``a``/``c``/``scale`` asking for calibration from the problem itself.
 AUTO = "auto"
+#: What a run returns: the best point evaluated (the start included) or the paper's last iterate.
+ESTIMATES = ("best", "last")
 #: Gradient estimates at x0 used to calibrate ``a`` (two evaluations each, counted).
 CALIBRATION_PAIRS = 4
 #: Automatic ``c``: perturbations of this fraction of each parameter's scale.
@@ -277,9 +283,13 @@ def _run(
     callback=None,
     monitor: int = 0,
     scale=None,
+    estimate: str = "best",
 ):
     started = time.perf_counter()
     theta = as_x0(x0)
+    if estimate not in ESTIMATES:
+        raise ParameterError(f"estimate must be one of {ESTIMATES}, got {estimate!r}")
+    start = 1 if estimate == "best" else 0      # the evaluation of theta(0)
     n = theta.size
     rng = as_rng(seed)
     box = as_bounds(bounds, n)
@@ -290,7 +300,12 @@ def _run(
     auto = (a is None and c is None) or AUTO in (_tag(a), _tag(c))
     # calibrate only when the budget leaves at least one iteration after it
     calibration = 2 * CALIBRATION_PAIRS if auto and (maxfev is None or maxfev >= 2 * CALIBRATION_PAIRS + 3) else 0
-    kmax = iterations_for_budget(maxfev, maxiter, int(monitor), reserved=calibration)
+    if start and (maxfev is None or maxfev >= calibration + 2):
+        kmax = iterations_for_budget(maxfev, maxiter, int(monitor), reserved=calibration + start)
+    else:
+        kmax = 0 if start else iterations_for_budget(maxfev, maxiter, int(monitor), reserved=calibration)
+    if kmax == 0:       # no iteration: the final evaluation is the start's
+        start = 0
     scale = _scale_vector(scale, theta, auto)
     if variant == "nlspsa":
         if norm_limit is None or not (np.isfinite(norm_limit) and norm_limit > 0):
@@ -300,8 +315,9 @@ def _run(
     every = max(1, kmax // int(monitor)) if monitor else 0
 
     radius = divergence_factor * max(1.0, math.sqrt(float(theta @ theta)))
-    obj = CountedObjective(fun, args, maxfev=2 * kmax + 1 + calibration)
+    obj = CountedObjective(fun, args, maxfev=2 * kmax + 1 + calibration + start)
     with np.errstate(all="ignore"):
+        f_start = obj(theta) if start else math.nan
         a, c = _gains(variant, obj, theta, scale, kmax, rng, a, c, auto, calibrate=calibration > 0)
     history = History()
     status, message = COMPLETED, f"completed {kmax} iterations"
@@ -353,16 +369,19 @@ def _run(
                 break
         fun_final = obj(theta)
     history.set_last_estimate(fun_final)
-    if status == COMPLETED and not math.isfinite(fun_final):
+    if status == COMPLETED and not math.isfinite(fun_final) and not start:
         message += "; the final estimate has a non-finite objective"
+    if start and math.isfinite(f_start) and not obj.best_fun < f_start:
+        message += f"; no point evaluated improved on the start (J = {f_start:.6g}), which is returned"
     return make_result(
         x=theta, fun=fun_final, obj=obj, nit=nit, status=status, message=message,
-        history=history, method=variant, started=started,
+        history=history, method=variant, started=started, keep_last=not start,
+        last_x=theta.copy(), last_fun=float(fun_final),
     )
 
 
 def spsa(fun, x0, *, a=None, c=None, maxiter=None, maxfev=None, seed=None, args=(),
-         bounds=None, callback=None, divergence_factor=1e6, monitor=0, scale=None):
+         bounds=None, callback=None, divergence_factor=1e6, monitor=0, scale=None, estimate="best"):
     """Spall's SPSA (paper Eq. 6-7).
 
     Parameters
@@ -407,19 +426,23 @@ def spsa(fun, x0, *, a=None, c=None, maxiter=None, maxfev=None, seed=None, args=
         Per-parameter scales: the iteration runs on ``theta / scale``.  Default:
         ``"auto"`` (:func:`auto_scale`) with automatic gains, else ones (the
         paper's unscaled iteration).
+    estimate : {"best", "last"}, default "best"
+        The point returned: the best one evaluated, the start included (one
+        more evaluation), or the paper's last iterate (module notes).
 
     Returns
     -------
     scipy.optimize.OptimizeResult
-        ``x, fun, nfev, nit, success, status, message, history, best_x, best_fun``.
+        ``x, fun, nfev, nit, success, status, message, history, best_x,
+        best_fun, last_x, last_fun``.
     """
     return _run("spsa", fun, x0, a=a, c=c, maxiter=maxiter, maxfev=maxfev, seed=seed, args=args,
                 bounds=bounds, callback=callback, divergence_factor=divergence_factor, monitor=monitor,
-                scale=scale)
+                scale=scale, estimate=estimate)
 
 
 def nlspsa(fun, x0, *, a=None, c=None, norm_limit=0.01, maxiter=None, maxfev=None, seed=None,
-           args=(), bounds=None, callback=None, divergence_factor=1e6, monitor=0, scale=None):
+           args=(), bounds=None, callback=None, divergence_factor=1e6, monitor=0, scale=None, estimate="best"):
     """Norm-limited SPSA: SPSA whose update vector's norm is capped at ``norm_limit``.
 
     Parameters are those of :func:`spsa` plus ``norm_limit`` (the paper's
@@ -427,15 +450,15 @@ def nlspsa(fun, x0, *, a=None, c=None, norm_limit=0.01, maxiter=None, maxfev=Non
     """
     return _run("nlspsa", fun, x0, a=a, c=c, norm_limit=norm_limit, maxiter=maxiter, maxfev=maxfev,
                 seed=seed, args=args, bounds=bounds, callback=callback,
-                divergence_factor=divergence_factor, monitor=monitor, scale=scale)
+                divergence_factor=divergence_factor, monitor=monitor, scale=scale, estimate=estimate)
 
 
 def nspsa(fun, x0, *, a=None, c=None, maxiter=None, maxfev=None, seed=None, args=(), bounds=None,
-          callback=None, divergence_factor=1e6, monitor=0, scale=None):
+          callback=None, divergence_factor=1e6, monitor=0, scale=None, estimate="best"):
     """Normalized SPSA (the paper's Algorithm 4.2).
 
     Parameters are those of :func:`spsa`.
     """
     return _run("nspsa", fun, x0, a=a, c=c, maxiter=maxiter, maxfev=maxfev, seed=seed, args=args,
                 bounds=bounds, callback=callback, divergence_factor=divergence_factor, monitor=monitor,
-                scale=scale)
+                scale=scale, estimate=estimate)
