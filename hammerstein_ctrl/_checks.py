@@ -6,8 +6,8 @@ import numpy as np
 
 from .exceptions import DataError, ParameterError
 
-__all__ = ["GRID_TOLERANCE", "INTERSAMPLE", "MAX_ORDER", "check_intersample", "as_signal", "as_real_array", "as_count",
-           "check_transfer_function", "uniform_grid"]
+__all__ = ["GRID_TOLERANCE", "INTERSAMPLE", "MAX_ORDER", "MAX_MAGNITUDE", "check_intersample", "as_signal",
+           "as_real_array", "as_count", "check_transfer_function", "uniform_grid"]
 
 #: Largest allowed deviation of a sample time from the uniform grid ``t0 + k*dt``,
 #: as a fraction of ``dt``.  Grids within this tolerance are regularised to exactly
@@ -22,6 +22,10 @@ GRID_TOLERANCE = 1e-3
 #: Higher orders are rejected; pass a ``control.StateSpace`` built from a
 #: well-conditioned realisation instead.
 MAX_ORDER = 10
+
+#: Largest magnitude of a model's number (a coefficient, parameter or gain) the package computes with:
+#: beyond it, the product of two overflows.
+MAX_MAGNITUDE = 1e100
 
 #: Intersample behaviours of an input (MATLAB ``iddata`` ``InterSample``).
 INTERSAMPLE = ("foh", "zoh")
@@ -262,15 +266,21 @@ def _fit_grid(t: np.ndarray, k: np.ndarray) -> tuple[float, float, np.ndarray]:
     """Least-squares ``t ~ t0 + dt*k`` rounded to the simplest decimals; returns (t0, dt, deviation)."""
     n = k[-1] - k[0] + 1
     origin = t[0]
-    if k.size > 2:
-        dt, t0 = np.polyfit(k, t - origin, 1)
+    tc = t - origin
+    if k.size > 2:      # the least-squares line through (k, tc), on centred k (no N x 2 design matrix)
+        kc = k - k.mean()
+        dt = float(kc @ tc) / float(kc @ kc)
+        del kc
+        t0 = float(tc.mean()) - dt * float(k.mean())
     else:
         dt, t0 = (t[-1] - t[0]) / (k[-1] - k[0]), 0.0
+    tc -= t0 + dt * k                   # now the deviation from the fitted line
+    jitter = float(np.max(np.abs(tc)))
     t0 += origin
-    jitter = float(np.max(np.abs(t - (t0 + dt * k))))
     dt = _simplest_decimal(float(dt), 2.0 * jitter / max(n - 1, 1))
     t0 = _simplest_decimal(float(t0), jitter)
-    return t0, dt, t - (t0 + dt * k)
+    np.subtract(t, t0 + dt * k, out=tc)
+    return t0, dt, tc
 
 
 def _round_up(x: float) -> float:

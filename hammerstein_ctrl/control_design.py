@@ -60,7 +60,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ._checks import as_signal, check_dt
+from ._checks import MAX_MAGNITUDE, as_signal, check_dt
 from .exceptions import DataError, ParameterError, UnknownNameError
 from .loop_sim import (
     back_calculation_gain,
@@ -726,9 +726,11 @@ def tune_pid(model, rule: str = "robust", *, kind: str = "pid", max_sensitivity:
     if kind not in ("pid", "pi"):
         raise ParameterError(f"kind must be 'pid' or 'pi', got {kind!r}")
     ms = _robustness_target(max_sensitivity, phase_margin)
+    _check_range(model)
     op = _operating_point(model, u0, y0, u_limit)
     P = small_signal(model, op)
     num, den = np.asarray(P.num[0][0], float), np.asarray(P.den[0][0], float)
+    _check_range(num=num, den=den)
     record = {"notes": list(op.notes), "max_sensitivity": ms}
     if key in ("simc", "imc"):
         gains, record = _rule_design(model, key, op, dt, limits, tau_c, step, ms, num, den, record)
@@ -741,8 +743,42 @@ def tune_pid(model, rule: str = "robust", *, kind: str = "pid", max_sensitivity:
                                          u_limit=u_limit, reference=reference, step=step, t_final=t_final,
                                          criterion=crit, max_overshoot=max_overshoot, maxfev=maxfev, seed=seed,
                                          options=options, ms=ms, kind=kind, record=record, bandwidth=bandwidth)
+    _check_gains(gains)
     return _verified(model, key, gains, op, record, dt=dt, limits=limits, u_limit=u_limit, step=step,
                      t_final=t_final, ms=ms, **extra)
+
+
+_RESCALE = "rescale the model (its signals' units) so that its gain and time constants are nearer 1"
+
+
+def _check_range(model=None, *, num=None, den=None) -> None:
+    """Refuse a model, or its linearisation ``num/den``, whose numbers a design would overflow with."""
+    if model is not None:
+        lin = model.linear
+        num, den = np.asarray(lin.num[0][0], float), np.asarray(lin.den[0][0], float)
+        for label, p in (("input", model.input_params), ("output", model.output_params)):
+            if p is not None and np.max(np.abs(p), initial=0.0) > MAX_MAGNITUDE:
+                raise ParameterError(f"the {label} nonlinearity's parameters {p.tolist()} exceed {MAX_MAGNITUDE:g} "
+                                     f"in magnitude: {_RESCALE}")
+    if not (np.all(np.isfinite(num)) and np.all(np.isfinite(den))):
+        raise ParameterError(f"the linear block has non-finite coefficients (num {num.tolist()}, den {den.tolist()})")
+    den = np.trim_zeros(den, "f")
+    with np.errstate(all="ignore"):
+        scaled = np.concatenate([num, den]) / den[0]
+    if not np.all(np.isfinite(scaled)) or np.max(np.abs(scaled)) > MAX_MAGNITUDE:
+        raise ParameterError(f"the linear block's coefficients (num {num.tolist()}, den {den.tolist()}) span more "
+                             f"than {MAX_MAGNITUDE:g}: no design is numerically meaningful; {_RESCALE}")
+    if not np.any(num):
+        raise ParameterError("the model's gain is zero at this operating point: the controller cannot move the "
+                             "output; choose another operating point (u0, y0)")
+
+
+def _check_gains(gains) -> None:
+    """Refuse gains beyond :data:`MAX_MAGNITUDE`: the model's gain is outside any numerically sound scale."""
+    values = np.asarray(gains[:3], dtype=float)
+    if not np.all(np.isfinite(values)) or np.max(np.abs(values)) > MAX_MAGNITUDE:
+        raise ParameterError(f"the designed gains (kp, ki, kd) = {values.tolist()} are beyond {MAX_MAGNITUDE:g}: "
+                             f"the model's gain is far outside any physical scale; {_RESCALE}")
 
 
 #: Redesigns of the robust rule over the operating range the loop visits (its gain varies with it).

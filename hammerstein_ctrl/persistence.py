@@ -52,7 +52,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .exceptions import ParameterError, UnknownNameError
-from ._checks import INTERSAMPLE, check_transfer_function
+from ._checks import INTERSAMPLE, MAX_MAGNITUDE, check_transfer_function
 from .exact_export import model_settings
 from .nonlinearities import NONLINEARITIES, PiecewiseLinear, Polynomial
 from .uncertainty import UncertainParameters
@@ -332,8 +332,6 @@ def model_from_dict(obj, where: str = "model"):
                             intersample=intersample, name=_string(obj["name"], f"{where}.name"))
 
 
-#: Largest magnitude of a number in a saved model or result (beyond it, products of two overflow).
-MAX_MAGNITUDE = 1e100
 #: Most digits of an integer in a saved file (orders, counts and codes are short).
 _MAX_DIGITS = 18
 

@@ -22,9 +22,12 @@ Examples
 from __future__ import annotations
 
 import argparse
+import array
 import codecs
 import csv
+import itertools
 import os
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -32,6 +35,7 @@ import numpy as np
 from ._checks import GRID_TOLERANCE, INTERSAMPLE, as_signal, check_dt, optional_time
 from .exceptions import DataError
 from .iodata import RESAMPLE_METHODS, IOData
+from .safe_io import MAX_INPUT_BYTES, check_input
 
 __all__ = ["read_record", "DataNotFoundError", "add_record_arguments", "record_from_args", "FILE_TYPES"]
 
@@ -44,6 +48,8 @@ _OUTPUT_NAMES = ("y", "output", "qm")
 _QUOTE = 60
 #: Most column names listed in an error.
 _LISTED = 12
+#: Bytes of a text file read first: its layout, and an early refusal of binary or UTF-16 content.
+_HEAD_BYTES = 1 << 16
 #: Delimiters recognised in text files, by priority (None: whitespace).
 _DELIMITERS = (";", ",", "\t")
 
@@ -60,45 +66,80 @@ def _quote(text) -> str:
 # ---------------------------------------------------------------------------
 # text files
 # ---------------------------------------------------------------------------
-def _decode(path: Path) -> str:
-    raw = path.read_bytes()
-    if raw.startswith((codecs.BOM_UTF16_LE, codecs.BOM_UTF16_BE)):
+def _head(path: Path) -> bytes:
+    """The first :data:`_HEAD_BYTES` of a text file, refused at once if they show UTF-16 or binary content."""
+    with open(path, "rb") as fh:
+        head = fh.read(_HEAD_BYTES)
+    if head.startswith((codecs.BOM_UTF16_LE, codecs.BOM_UTF16_BE)):
         raise DataError(f"{path}: the file is UTF-16 text; save it as UTF-8 (or plain ASCII) CSV")
-    try:
-        text = raw.decode("utf-8-sig")
+    try:        # a character cut by the end of the head is not an error
+        codecs.getincrementaldecoder("utf-8")().decode(head, final=len(head) < _HEAD_BYTES)
     except UnicodeDecodeError as exc:
-        line = raw[: exc.start].count(b"\n") + 1
-        raise DataError(
-            f"{path}: not UTF-8 text (byte 0x{raw[exc.start]:02x} on line {line}); "
-            "save the file as UTF-8 (or plain ASCII) CSV"
-        ) from None
-    if "\x00" in text:
-        line = text[: text.index("\x00")].count("\n") + 1
-        raise DataError(f"{path}: NUL bytes on line {line}: binary data, or UTF-16 text without a "
-                        "byte-order mark; save the file as UTF-8 CSV")
-    return text
+        line = head[: exc.start].count(b"\n") + 1
+        raise DataError(f"{path}: not UTF-8 text (byte 0x{head[exc.start]:02x} on line {line}); "
+                        "save the file as UTF-8 (or plain ASCII) CSV") from None
+    if b"\x00" in head:
+        _nul(path, head[: head.index(b"\x00")].count(b"\n") + 1)
+    return head
 
 
-def _content_lines(text: str) -> list[tuple[int, str]]:
+def _nul(path: Path, line: int):
+    raise DataError(f"{path}: NUL bytes on line {line}: binary data, or UTF-16 text without a "
+                    "byte-order mark; save the file as UTF-8 CSV")
+
+
+def _text_lines(path: Path):
+    """``(line number, line)`` of every line of a UTF-8 text file, decoded strictly and streamed.
+
+    Lines are numbered as ``str.splitlines`` numbers them; memory stays within one line.
+    """
+    number = 0
+    with open(path, "rb") as fh:
+        for raw in fh:
+            if b"\x00" in raw:
+                _nul(path, number + 1)
+            try:
+                text = raw.decode("utf-8-sig" if number == 0 else "utf-8")
+            except UnicodeDecodeError as exc:
+                raise DataError(
+                    f"{path}: not UTF-8 text (byte 0x{raw[exc.start]:02x} on line {number + 1}); "
+                    "save the file as UTF-8 (or plain ASCII) CSV"
+                ) from None
+            for line in text.splitlines():
+                number += 1
+                yield number, line
+
+
+def _content_lines(lines):
     """(line number, line) of the lines that are neither blank nor ``#`` comments."""
-    return [(i, ln) for i, ln in enumerate(text.splitlines(), 1)
-            if ln.strip() and not ln.lstrip().startswith("#")]
+    return ((i, ln) for i, ln in lines if ln.strip() and not ln.lstrip().startswith("#"))
 
 
-def _split_rows(path: Path, lines) -> tuple[list[tuple[int, list[str]]], str | None]:
-    first = lines[0][1]
-    delimiter = next((d for d in _DELIMITERS if d in first), None)
+def _delimiter(first: str):
+    return next((d for d in _DELIMITERS if d in first), None)
+
+
+def _split_rows(path: Path, lines, delimiter):
+    """``(line number, fields)`` of the content lines, split on ``delimiter`` (None: whitespace), streamed."""
     if delimiter is None:
-        return [(n, ln.split()) for n, ln in lines], None
-    rows = []
-    reader = csv.reader((ln for _, ln in lines), delimiter=delimiter)
+        for n, ln in lines:
+            yield n, ln.split()
+        return
+    pending = []            # the lines the reader took for the current row (several inside a quoted field)
+
+    def text():
+        for n, ln in lines:
+            pending.append(n)
+            yield ln
+
+    reader = csv.reader(text(), delimiter=delimiter)
     try:
-        for (n, _), fields in zip(lines, reader):
-            rows.append((n, [f.strip() for f in fields]))
+        for fields in reader:
+            n = pending[0]
+            pending.clear()
+            yield n, [f.strip() for f in fields]
     except csv.Error as exc:
-        n = lines[len(rows)][0]
-        raise DataError(f"{path}: line {n}: {exc} (a corrupt or non-CSV file?)") from None
-    return rows, delimiter
+        raise DataError(f"{path}: line {pending[0] if pending else '?'}: {exc} (a corrupt or non-CSV file?)") from None
 
 
 def _number(field: str, delimiter) -> float:
@@ -144,34 +185,76 @@ def _bad_field_message(path, n, fields, names, delimiter) -> str:
     return f"{path}: line {n}: a field is not a number"  # pragma: no cover - guarded by the caller
 
 
-def _read_text_columns(path: Path) -> dict:
-    lines = _content_lines(_decode(path))
-    if not lines:
-        raise DataError(f"{path}: no data rows (the file is empty or holds only comments)")
-    rows, delimiter = _split_rows(path, lines)
-    if _is_numeric_row(rows[0][1], delimiter):
-        names = {2: ["u", "y"], 3: ["t", "u", "y"]}.get(len(rows[0][1]))
+def _layout(path: Path, first, delimiter):
+    """``(names, header line or None)`` from the first content row ``(n, fields)``."""
+    n, fields = first
+    if _is_numeric_row(fields, delimiter):
+        names = {2: ["u", "y"], 3: ["t", "u", "y"]}.get(len(fields))
         if names is None:
             raise DataError(
                 f"{path}: a file without a header must have 2 columns (u, y) or 3 (t, u, y), "
-                f"found {len(rows[0][1])} on line {rows[0][0]}"
+                f"found {len(fields)} on line {n}"
             )
-        body = rows
-    else:
-        names = _header_names(path, rows[0][1])
-        body = rows[1:]
-        if not body:
-            raise DataError(f"{path}: a header ({', '.join(names)}) but no data rows")
-    values = np.empty((len(body), len(names)))
-    for i, (n, fields) in enumerate(body):
+        return names, None
+    return _header_names(path, fields), n
+
+
+def _careful_columns(path: Path) -> dict:
+    """Every line checked, for the exact message on a bad file (streamed: 8 bytes per value held)."""
+    lines = _content_lines(_text_lines(path))
+    first = next(lines, None)
+    if first is None:
+        raise DataError(f"{path}: no data rows (the file is empty or holds only comments)")
+    delimiter = _delimiter(first[1])
+    rows = _split_rows(path, itertools.chain([first], lines), delimiter)
+    names, header = _layout(path, next(rows), delimiter)
+    if header is None:
+        rows = itertools.chain([_split_rows(path, iter([first]), delimiter).__next__()], rows)
+    values = array.array("d")
+    for n, fields in rows:
         if len(fields) != len(names):
             raise DataError(f"{path}: line {n} has {len(fields)} fields, expected {len(names)} "
                             f"({', '.join(names)})")
         try:
-            values[i] = [_number(f, delimiter) for f in fields]
+            values.extend([_number(f, delimiter) for f in fields])
         except ValueError:
             raise DataError(_bad_field_message(path, n, fields, names, delimiter)) from None
-    return {name: values[:, j] for j, name in enumerate(names)}
+    if not values:
+        raise DataError(f"{path}: a header ({', '.join(names)}) but no data rows")
+    table = np.frombuffer(values, dtype=float).reshape(-1, len(names))
+    return {name: table[:, j].copy() for j, name in enumerate(names)}
+
+
+def _fast_columns(path: Path, head: bytes) -> dict | None:
+    """The columns through numpy's compiled reader, or None to let :func:`_careful_columns` decide.
+
+    The layout (header, delimiter) comes from the first lines as the careful
+    reader sees them; any doubt (a decimal comma, quoting, a line numpy
+    refuses) falls back to the careful reader, so both give the same record.
+    """
+    text = head.decode("utf-8-sig", errors="replace")
+    complete = text if len(head) < _HEAD_BYTES else text[: text.rfind("\n") + 1]
+    first = next(_content_lines(enumerate(complete.splitlines(), 1)), None)
+    if first is None or '"' in complete:
+        return None
+    delimiter = _delimiter(first[1])
+    if delimiter == ";":          # a decimal comma is possible: the careful reader knows it
+        return None
+    try:
+        names, header = _layout(path, next(_split_rows(path, iter([first]), delimiter)), delimiter)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")       # numpy's "empty input file" warning: the careful reader explains
+            table = np.loadtxt(path, delimiter=delimiter, comments="#", skiprows=header or 0, ndmin=2,
+                               encoding="utf-8-sig")
+    except (ValueError, UnicodeDecodeError, DataError):
+        return None
+    if table.shape[0] == 0 or table.shape[1] != len(names) or not np.isfinite(table).all():
+        return None         # the careful reader names the line (a number too long, a NaN, ...)
+    return {name: table[:, j] for j, name in enumerate(names)}     # views: the record copies what it keeps
+
+
+def _read_text_columns(path: Path) -> dict:
+    return _fast_columns(path, _head(path)) or _careful_columns(path)
 
 
 # ---------------------------------------------------------------------------
@@ -322,7 +405,7 @@ def _columns(path: Path) -> dict:
         raise DataError(f"{path}: unsupported file type {suffix or '(no suffix)'!r}; "
                         f"use {', '.join(FILE_TYPES)}")
     try:
-        if path.stat().st_size == 0:
+        if check_input(path, limit=MAX_INPUT_BYTES, what="data file") == 0:
             raise DataError(f"{path}: the file is empty")
         return _READERS[suffix](path)
     except OSError as exc:

@@ -116,8 +116,11 @@ def _closed_loop_stable(num, den, gains: np.ndarray) -> np.ndarray:
     out = np.zeros(len(gains), dtype=bool)
     for i, (kp, ki, kd, tf) in enumerate(gains):
         cn, cd = pid_polynomials(kp, ki, kd, tf)
-        char = np.trim_zeros(np.polyadd(np.polymul(den, cd), np.polymul(num, cn)), "f")
-        out[i] = char.size > 0 and np.all(np.isfinite(char)) and (char.size == 1 or np.all(np.roots(char).real < 0))
+        with np.errstate(all="ignore"):
+            char = np.trim_zeros(np.polyadd(np.polymul(den, cd), np.polymul(num, cn)), "f")
+            companion = char[1:] / char[0] if char.size else char       # what np.roots decomposes
+        out[i] = (char.size > 0 and np.all(np.isfinite(companion))
+                  and (char.size == 1 or np.all(np.roots(char).real < 0)))
     return out
 
 
