@@ -159,6 +159,7 @@ def _cmd_reproduce(args) -> int:
         raise HammersteinError(f"--data {args.data}: no such file or folder")
     methods = _unique_methods(args.methods)
     out = _output_dir(args.out or f"results/{args.case}")
+    _check_outputs(out, figures=not args.no_figures)
     case = presets.get(args.case, **kwargs)
     progress = sys.stderr.isatty() if args.progress is None else args.progress
     study = run_study(case, methods, trials=args.trials, seed=args.seed, jobs=args.jobs,
@@ -188,6 +189,25 @@ def _cmd_reproduce(args) -> int:
         print(f"figures: {len(paths)} files in {out / 'figures'}")
     print(f"results: {out}/results.jsonl, summary.json, summary.md, summary.csv, best_models.json")
     return 0
+
+
+#: Every file ``reproduce`` writes in its output folder (figures go to ``figures/``).
+REPRODUCE_OUTPUTS = ("results.jsonl", "results.jsonl.lock", "results.rejected.jsonl", "summary.md", "summary.csv",
+                     "summary.json", "best_models.json")
+
+
+def _check_outputs(out: Path, *, figures: bool) -> None:
+    """Refuse, before any work, an output name in ``out`` that is a link, a folder or resolves outside it."""
+    from .safe_io import UnsafePathError, check_output
+
+    try:
+        for name in REPRODUCE_OUTPUTS:
+            check_output(out / name, root=out)
+        folder = out / "figures"
+        if figures and (folder.is_symlink() or (folder.exists() and not folder.is_dir())):
+            raise UnsafePathError(f"{folder} is a symbolic link or not a folder: refusing to write figures there")
+    except UnsafePathError as exc:
+        raise HammersteinError(f"--out: {exc}") from None
 
 
 def _unique_methods(names) -> list[str]:

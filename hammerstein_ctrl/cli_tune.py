@@ -53,18 +53,12 @@ def add_tune_parser(subparsers):
 
 
 def _model_and_dt(path: str, dt):
-    import json
+    from .persistence import SavedResult, load_saved
 
-    from .persistence import RESULT_FORMAT, load_model, load_result
-
-    try:
-        fmt = json.loads(Path(path).read_text()).get("format")
-    except (ValueError, AttributeError):
-        fmt = None
-    if fmt == RESULT_FORMAT:
-        saved = load_result(path)
+    saved = load_saved(path)
+    if isinstance(saved, SavedResult):
         return saved.model, dt if dt is not None else saved.data.get("dt")
-    return load_model(path), dt
+    return saved, dt
 
 
 def _reference(arg: str):

@@ -748,6 +748,8 @@ def tune_pid(model, rule: str = "robust", *, kind: str = "pid", max_sensitivity:
                      t_final=t_final, ms=ms, **extra)
 
 
+#: A model whose gain stays beyond this (or below its inverse) at every frequency cannot be given sensible gains.
+_GAIN_RANGE = 1e50
 _RESCALE = "rescale the model (its signals' units) so that its gain and time constants are nearer 1"
 
 
@@ -771,6 +773,13 @@ def _check_range(model=None, *, num=None, den=None) -> None:
     if not np.any(num):
         raise ParameterError("the model's gain is zero at this operating point: the controller cannot move the "
                              "output; choose another operating point (u0, y0)")
+    s = 1j * frequency_grid(num, den)
+    with np.errstate(all="ignore"):     # the gains a design needs are about 1/|P| somewhere on the grid
+        gain = np.abs(np.polyval(num, s) / np.polyval(den, s))
+    if not (np.max(gain) > _GAIN_RANGE ** -1 and np.min(gain) < _GAIN_RANGE):
+        raise ParameterError(f"the model's gain |P(jw)| lies in [{np.min(gain):.3g}, {np.max(gain):.3g}] over its "
+                             f"frequencies: a controller would need gains beyond {_GAIN_RANGE:g} or below "
+                             f"{_GAIN_RANGE ** -1:g}; {_RESCALE}")
 
 
 def _check_gains(gains) -> None:

@@ -5,7 +5,7 @@ and from :class:`ValueError`, so ``except ValueError`` keeps working for callers
 who do not care about the distinction.
 """
 
-__all__ = ["HammersteinError", "DataError", "ParameterError", "UnknownNameError", "CacheWarning",
+__all__ = ["HammersteinError", "DataError", "DataNotFoundError", "ParameterError", "UnknownNameError", "CacheWarning",
            "IdentificationWarning", "SimulationWarning"]
 
 
@@ -15,6 +15,10 @@ class HammersteinError(ValueError):
 
 class DataError(HammersteinError):
     """Measured data are unusable (NaN, mismatched lengths, irregular time, ...)."""
+
+
+class DataNotFoundError(DataError, FileNotFoundError):
+    """A file to read (a record, a model, a result) could not be located."""
 
 
 class ParameterError(HammersteinError):

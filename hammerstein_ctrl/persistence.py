@@ -60,7 +60,8 @@ from .uncertainty import UncertainParameters
 __all__ = [
     "SCHEMA_VERSION", "MODEL_FORMAT", "RESULT_FORMAT",
     "model_to_dict", "model_from_dict", "save_model", "load_model",
-    "result_to_dict", "result_from_dict", "save_result", "load_result", "SavedResult", "READABLE_SCHEMA_VERSIONS",
+    "result_to_dict", "result_from_dict", "save_result", "load_result", "load_saved", "SavedResult",
+    "READABLE_SCHEMA_VERSIONS",
 ]
 
 #: Version of the JSON schema written by this module.
@@ -410,7 +411,10 @@ def load_model(path):
     FileNotFoundError
         If ``path`` does not exist.
     """
-    obj = _read(path)
+    return _model_from_file(_read(path), path)
+
+
+def _model_from_file(obj, path):
     if isinstance(obj, dict) and obj.get("format") == RESULT_FORMAT:
         _header(obj, RESULT_FORMAT, str(path))
     else:
@@ -594,3 +598,17 @@ def save_result(result, path) -> None:
 def load_result(path) -> SavedResult:
     """Read a result written by :func:`save_result`."""
     return result_from_dict(_read(path), str(path))
+
+
+def load_saved(path):
+    """A model file's model, or a result file's :class:`SavedResult` (the file read once, by its ``format``).
+
+    Raises
+    ------
+    ParameterError, UnknownNameError, DataError
+        As :func:`load_model` and :func:`load_result`.
+    """
+    obj = _read(path)
+    if isinstance(obj, dict) and obj.get("format") == RESULT_FORMAT:
+        return result_from_dict(obj, str(path))
+    return _model_from_file(obj, path)

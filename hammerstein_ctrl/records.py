@@ -33,7 +33,7 @@ from pathlib import Path
 import numpy as np
 
 from ._checks import GRID_TOLERANCE, INTERSAMPLE, as_signal, check_dt, optional_time
-from .exceptions import DataError
+from .exceptions import DataError, DataNotFoundError
 from .iodata import RESAMPLE_METHODS, IOData
 from .safe_io import MAX_INPUT_BYTES, check_input
 
@@ -54,8 +54,6 @@ _HEAD_BYTES = 1 << 16
 _DELIMITERS = (";", ",", "\t")
 
 
-class DataNotFoundError(DataError, FileNotFoundError):
-    """A data file could not be located."""
 
 
 def _quote(text) -> str:

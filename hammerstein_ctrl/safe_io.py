@@ -37,7 +37,7 @@ import stat
 import tempfile
 from pathlib import Path
 
-from .exceptions import DataError, HammersteinError
+from .exceptions import DataError, DataNotFoundError, HammersteinError
 
 __all__ = ["UnsafePathError", "write_bytes", "write_text", "save_figure", "open_append", "open_lock",
            "read_bytes", "check_input", "check_output", "input_limit", "MAX_INPUT_BYTES", "MAX_DOCUMENT_BYTES",
@@ -178,6 +178,10 @@ def check_input(path, *, limit: int, what: str = "file") -> int:
         fd = os.open(p, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_CLOEXEC", 0))
     except IsADirectoryError:
         raise DataError(f"{p} is a folder; give the {what} itself") from None
+    except FileNotFoundError:
+        raise DataNotFoundError(f"{what} not found: {p}") from None
+    except PermissionError:
+        raise DataError(f"{p}: permission denied; the {what} is not readable") from None
     try:
         info = os.fstat(fd)
     finally:

@@ -511,3 +511,16 @@ def test_the_continuous_export_reproduces_the_held_model_to_1e6():
                                  solve_ivp_kwargs={"rtol": 1e-10, "atol": 1e-12, "max_step": dt})
     y = m.simulate(t, u)
     assert np.max(np.abs(np.interp(t, r.time, r.outputs) - y)) < 1e-6 * np.max(np.abs(y))
+
+
+@pytest.mark.parametrize("num, den, params, message", [
+    ([1e-300], [1, 3.1, 1], [1, 1], r"gain \|P\(jw\)\| lies in"),
+    ([1], [1, 3.1, 1], [1e-300, 1], r"gain \|P\(jw\)\| lies in"),
+    ([1e80], [1, 3.1, 1], [1e60, 1], r"gain \|P\(jw\)\| lies in"),
+    ([1], [1e-200, 3.1, 1], [1, 1], r"coefficients .* span more than 1e\+100"),
+    ([1], [1, 1e90, 1], [1, 1], r"gain \|P\(jw\)\| lies in"),
+])
+def test_tuning_refuses_models_beyond_numerical_range(num, den, params, message):
+    model = hc.HammersteinModel(ct.tf(num, den), hc.Tanh(), params)
+    with pytest.raises(ParameterError, match=message):
+        cd.tune_pid(model)

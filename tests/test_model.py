@@ -1,3 +1,5 @@
+import warnings
+
 import control as ct
 import numpy as np
 import pytest
@@ -67,3 +69,31 @@ def test_model_validation():
     m = HammersteinModel(ct.ss(ct.tf([1], [1, 2])), Tanh(), [1, 1])
     assert isinstance(m.linear, ct.TransferFunction) and m.is_stable()
     assert "tanh(d0=1, d1=1)" in repr(m)
+
+
+# -- numerical extremes and bad arguments --------------------------------------------------------------------
+def test_a_diverging_simulation_warns_where_and_why():
+    from hammerstein_ctrl import SimulationWarning
+
+    model = HammersteinModel(ct.tf([1], [1, -50, 0]), Coulomb(), [1.0, 0.0, 0.0])
+    t = np.arange(0, 100, 0.01)
+    with pytest.warns(SimulationWarning, match=r"not finite from sample \d+ .*unstable \(pole\(s\) 50"):
+        y = model.simulate(t, np.ones_like(t))
+    assert not np.isfinite(y[-1])
+    stable = HammersteinModel(ct.tf([1], [1, 3, 0]), Coulomb(), [1.0, 0.0, 0.0])
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        stable.simulate(t, np.ones_like(t))
+
+
+@pytest.mark.parametrize("build, message", [
+    (lambda: HammersteinModel(ct.tf([1], [1, 1]), Tanh(), [10**400, 1.0]), "too large for a float"),
+    (lambda: HammersteinModel(ct.tf([1], [1, 1]), Tanh(), [1.0, 1.0], offset=10**400), "too large for a float"),
+    (lambda: HammersteinModel(ct.tf([1], np.ones(12)), Tanh(), [1.0, 1.0]), "has order 11; at most 10"),
+    (lambda: HammersteinModel(ct.tf([1], [1, 1]), Tanh(), ["a", 1.0]), "must be numbers"),
+    (lambda: HammersteinModel(ct.tf([1], [1, 1]), Tanh(), [1.0, 1.0]).to_iosys(dt=True), "dt must be a positive"),
+    (lambda: HammersteinModel(ct.tf([1], [1, 1]), Tanh(), [1.0, 1.0]).to_iosys(dt=-0.1), "dt must be a positive"),
+])
+def test_bad_model_arguments_raise_parameter_errors(build, message):
+    with pytest.raises(ParameterError, match=message):
+        build()

@@ -6,7 +6,7 @@ import pytest
 
 from hammerstein_ctrl import ParameterError, UnknownNameError, minimize
 from hammerstein_ctrl.optimize import (
-    CALLBACK_STOP, COMPLETED, DIVERGED, NO_FINITE_VALUE, PerturbationGain, StepGain, amvo_sca,
+    CALLBACK_STOP, COMPLETED, DIVERGED, NO_FINITE_VALUE, SOLVER_FAILED, PerturbationGain, StepGain, amvo_sca,
     normalized_difference, nspsa,
 )
 from hammerstein_ctrl.optimize.presets import eq8_methods, eq8_objective
@@ -218,3 +218,55 @@ def test_emps_presets_few_seeds(emps_case, seed):
 def test_trs_nspsa_few_seeds(trs_case, seed):
     r = minimize(trs_case.cost, trs_case.x0, seed=seed, **trs_case.minimize_kwargs("nspsa"))
     assert 178.4 < r.fun < 180.0 and r.nfev == 2001
+
+
+# -- unusable residuals and the best point seen ---------------------------------------------------------------
+class _Residuals:
+    def __init__(self, f):
+        self.f, self.calls = f, 0
+
+    def residuals(self, x):
+        self.calls += 1
+        return self.f(x, self.calls)
+
+    def __call__(self, x):
+        r = np.asarray(self.residuals(x), dtype=float)
+        return float(r @ r)
+
+
+@pytest.mark.parametrize("bounds", [None, [(-5, 5), (-5, 5)]], ids=["normal-equations", "trf"])
+@pytest.mark.parametrize("f, status, message", [
+    (lambda x, k: np.full(10, np.nan), NO_FINITE_VALUE, "no evaluated point had finite residuals"),
+    (lambda x, k: np.full(10, np.inf), NO_FINITE_VALUE, "no evaluated point had finite residuals"),
+    (lambda x, k: np.r_[x - 1, np.nan], NO_FINITE_VALUE, "no evaluated point had finite residuals"),
+    (lambda x, k: np.ones(5 + k % 2) * (x[0] - 1), SOLVER_FAILED, "changed length between evaluations"),
+    (lambda x, k: 3.0, SOLVER_FAILED, "non-empty 1-D array"),
+    (lambda x, k: np.zeros(0), SOLVER_FAILED, "non-empty 1-D array"),
+    (lambda x, k: np.ones((2, 2)), SOLVER_FAILED, "non-empty 1-D array"),
+    (lambda x, k: "abc", SOLVER_FAILED, "array of numbers"),
+], ids=["nan", "inf", "one-nan", "length-changes", "scalar", "empty", "matrix", "text"])
+def test_lm_reports_unusable_residuals_as_a_failure(f, status, message, bounds):
+    r = minimize(_Residuals(f), np.zeros(2), method="lm", maxfev=200, bounds=bounds)
+    assert not r.success and r.status == status and message in r.message, (r.status, r.message)
+
+
+@pytest.mark.parametrize("method", ["spsa", "nlspsa", "nspsa"])
+def test_the_spsa_family_never_returns_a_point_worse_than_its_start(method):
+    """From the optimum, gains far too large throw every iterate away: the start is what comes back."""
+    f = lambda x: float(np.sum((x - 1.0) ** 2)) + 1e-3  # noqa: E731
+    options = {"a": StepGain(50.0, 1, 0.602), "c": PerturbationGain(0.5), "divergence_factor": 1e12}
+    if method == "nlspsa":
+        options["norm_limit"] = 5.0
+    for seed in range(10):
+        r = minimize(f, np.ones(3), method=method, maxiter=40, seed=seed, options=options)
+        assert r.fun <= f(np.ones(3)) and r.fun == f(r.x) and r.fun <= r.best_fun
+        assert r.last_fun > r.fun      # the last iterate is worse: the paper's estimate would be
+        paper = minimize(f, np.ones(3), method=method, maxiter=40, seed=seed, options={**options, "estimate": "last"})
+        assert paper.fun == paper.last_fun and np.array_equal(paper.x, r.last_x)
+        if r.fun == f(np.ones(3)):
+            assert "no point evaluated improved on the start" in r.message
+
+
+def test_the_paper_presets_score_the_last_iterate(trs_case):
+    for method in ("spsa", "nlspsa", "nspsa"):
+        assert trs_case.methods[method]["options"]["estimate"] == "last"

@@ -270,3 +270,161 @@ def test_wiener_and_hammerstein_wiener_round_trip(tmp_path):
         hc.load_model(tmp_path / "m.json")
 
 
+
+
+# -- hostile files -------------------------------------------------------------------------------------------
+def _raw(tmp_path, data: bytes, name="h.json"):
+    path = tmp_path / name
+    path.write_bytes(data)
+    return path
+
+
+def _doc_text():
+    model = hc.HammersteinModel(ct.tf([1], [1, 3.138764, 0]), hc.Coulomb(), EMPS_OPT[1:])
+    doc = {"format": persistence.MODEL_FORMAT, "schema_version": persistence.SCHEMA_VERSION,
+           "model": persistence.model_to_dict(model)}
+    return json.dumps(doc)
+
+
+@pytest.mark.parametrize("data, message", [
+    (b"[" * 100_000 + b"]" * 100_000, "nested too deeply"),
+    (_doc_text().encode("utf-16"), "not a UTF-8 text file"),
+    (_doc_text().encode("utf-32"), "not a UTF-8 text file"),
+    (bytes(range(256)) * 10, "not a UTF-8 text file"),
+    (b'{"format": "x", ' + _doc_text().encode()[1:], "'format' appears twice"),
+    (_doc_text().replace('"schema_version": 4', '"schema_version": ' + "9" * 400).encode(), "400 digits"),
+    (_doc_text().replace('"offset": 0.0', '"offset": 1' + "0" * 400).encode(), "401 digits"),
+    (_doc_text().replace('"den": [1.0, 3.138764, 0.0]', '"den": [0.0, 0.0]').encode(), "denominator is zero"),
+    (_doc_text().replace('"den": [1.0, 3.138764, 0.0]', '"den": [' + ", ".join(["1.0"] * 3001) + "]").encode(),
+     "has order 3000; at most 10"),
+    (_doc_text().replace('"den": [1.0, 3.138764, 0.0]', '"den": [1.0, 1e308, 0.0]').encode(),
+     "beyond the largest magnitude stored"),
+    (_doc_text().replace('"schema_version": 4', '"schema_version": true').encode(), "unsupported schema_version"),
+    (b"\xef\xbb\xbf" + b"{not json", "not valid JSON"),
+])
+def test_hostile_model_files_fail_with_one_clear_error(tmp_path, data, message):
+    with pytest.raises(ParameterError, match=message):
+        hc.load_model(_raw(tmp_path, data))
+
+
+def test_a_utf8_byte_order_mark_is_tolerated(tmp_path):
+    path = _raw(tmp_path, b"\xef\xbb\xbf" + _doc_text().encode())
+    assert hc.load_model(path).params.tolist() == list(EMPS_OPT[1:])
+
+
+@pytest.fixture(scope="module")
+def result_doc(trs_case):
+    res = hc.identify(trs_case.data, trs_case.structure, method="lm", x0=trs_case.x0, maxfev=200)
+    return persistence.result_to_dict(res)
+
+
+@pytest.mark.parametrize("key, value, message", [
+    (("data", "dt"), -0.01, "dt must be a positive sampling interval"),
+    (("data", "dt"), 0.0, "dt must be a positive sampling interval"),
+    (("data", "n_samples"), -5, "n_samples must be at least 1"),
+    (("data", "n_samples"), True, "n_samples must be an integer"),
+    (("data", "intersample"), "cubic", "intersample must be one of"),
+    (("data", "name"), 12, "name must be a string"),
+    (("nfev",), -1, "nfev must be at least 0"),
+    (("nfev",), 2.5, "nfev must be an integer"),
+    (("status",), 17, "status must be one of the optimisers' codes"),
+    (("success",), 1, "success must be true or false"),
+    (("dof",), 0, "dof must be a positive integer"),
+    (("J",), "1e3", "J must be a number"),
+])
+def test_a_tampered_result_is_refused_naming_the_field(tmp_path, result_doc, key, value, message):
+    doc = json.loads(json.dumps(result_doc))
+    target = doc
+    for k in key[:-1]:
+        target = target[k]
+    target[key[-1]] = value
+    path = tmp_path / "r.json"
+    path.write_text(json.dumps(doc))
+    with pytest.raises(ParameterError, match=message):
+        hc.load_result(path)
+
+
+def test_saving_to_a_folder_is_a_clear_error(tmp_path):
+    model = hc.HammersteinModel(ct.tf([1], [1, 1]), hc.Tanh(), [1.0, 1.0])
+    with pytest.raises(hc.HammersteinError, match="is a folder: give a file name"):
+        hc.save_model(model, tmp_path)
+
+
+# -- fuzz: whatever a file holds, loading raises ParameterError/UnknownNameError or returns a valid model ------------
+from hypothesis import HealthCheck, given, settings  # noqa: E402
+from hypothesis import strategies as st  # noqa: E402
+
+_JSON = st.recursive(
+    st.none() | st.booleans() | st.integers(-10**30, 10**30) | st.floats(allow_nan=False) | st.text(max_size=8),
+    lambda inner: st.lists(inner, max_size=4) | st.dictionaries(st.text(max_size=8), inner, max_size=4),
+    max_leaves=20)
+
+
+def _mutations(doc):
+    """Strategy of documents: the valid one with one field (at any depth) replaced by any JSON value, or deleted."""
+    paths = []
+
+    def walk(obj, path):
+        if isinstance(obj, dict):
+            for k, v in obj.items():
+                paths.append(path + (k,))
+                walk(v, path + (k,))
+        elif isinstance(obj, list):
+            for i, v in enumerate(obj):
+                paths.append(path + (i,))
+                walk(v, path + (i,))
+    walk(doc, ())
+
+    @st.composite
+    def mutated(draw):
+        out = json.loads(json.dumps(doc))
+        path = draw(st.sampled_from(paths))
+        target = out
+        for k in path[:-1]:
+            target = target[k]
+        if draw(st.booleans()) and isinstance(target, dict):
+            del target[path[-1]]
+        else:
+            target[path[-1]] = draw(_JSON)
+        return out
+    return mutated()
+
+
+def _load_or_clear_error(path, loader):
+    try:
+        out = loader(path)
+    except (ParameterError, UnknownNameError):
+        return None
+    return out
+
+
+@settings(max_examples=150, deadline=None, derandomize=True, suppress_health_check=list(HealthCheck))
+@given(doc=_mutations(json.loads(_doc_text())))
+def test_fuzzed_model_files_load_or_fail_clearly(tmp_path_factory, doc):
+    path = tmp_path_factory.mktemp("fuzz") / "m.json"
+    path.write_text(json.dumps(doc))
+    model = _load_or_clear_error(path, hc.load_model)
+    if model is not None:       # what loads is a usable model: it simulates a short record to finite numbers
+        t = np.arange(0.0, 0.05, 0.01)
+        with np.errstate(all="ignore"):
+            y = model.simulate(t, np.ones_like(t))
+        assert y.shape == t.shape
+
+
+@settings(max_examples=150, deadline=None, derandomize=True, suppress_health_check=list(HealthCheck))
+@given(data=st.binary(max_size=300) | st.text(max_size=300).map(str.encode))
+def test_fuzzed_bytes_never_raise_anything_but_a_clear_error(tmp_path_factory, data):
+    path = tmp_path_factory.mktemp("fuzz") / "m.json"
+    path.write_bytes(data)
+    for loader in (hc.load_model, hc.load_result, persistence.load_saved):
+        _load_or_clear_error(path, loader)
+
+
+def test_fuzzed_result_files_load_or_fail_clearly(tmp_path, result_doc):
+    @settings(max_examples=100, deadline=None, derandomize=True, suppress_health_check=list(HealthCheck))
+    @given(doc=_mutations(result_doc))
+    def check(doc):
+        path = tmp_path / "r.json"
+        path.write_text(json.dumps(doc))
+        _load_or_clear_error(path, hc.load_result)
+    check()

@@ -276,3 +276,112 @@ def test_garbage_emps_file_is_a_data_error(tmp_path):
     (tmp_path / "DATA_EMPS.mat").write_bytes(b"not a mat file at all" * 10)
     with pytest.raises(DataError, match="DATA_EMPS.mat is not a readable MAT file"):
         load_emps(path=tmp_path)
+
+
+# -- large, special and binary files ------------------------------------------------------------------------
+import os  # noqa: E402
+import tracemalloc  # noqa: E402
+
+from hypothesis import HealthCheck, given, settings  # noqa: E402
+from hypothesis import strategies as st  # noqa: E402
+
+from hammerstein_ctrl import records  # noqa: E402
+from hammerstein_ctrl.safe_io import MAX_BYTES_ENV  # noqa: E402
+
+
+@pytest.mark.skipif(not hasattr(os, "mkfifo"), reason="needs FIFOs")
+def test_special_files_are_refused_without_reading(tmp_path):
+    fifo = tmp_path / "r.csv"
+    os.mkfifo(fifo)                                 # opening it to read would block
+    with pytest.raises(DataError, match="is a FIFO, not a regular file"):
+        read_record(fifo)
+    os.symlink("/dev/zero", tmp_path / "z.csv")     # reading it would never end
+    with pytest.raises(DataError, match="is a device, not a regular file"):
+        read_record(tmp_path / "z.csv")
+
+
+def test_a_file_beyond_the_size_limit_names_its_size_and_the_variable(tmp_path, monkeypatch):
+    path = tmp_path / "r.csv"
+    path.write_text("u,y\n" + "1,2\n" * 1000)
+    monkeypatch.setenv(MAX_BYTES_ENV, "1000")
+    with pytest.raises(DataError, match=rf"4.0 kB, larger than the limit of 1.0 kB .*{MAX_BYTES_ENV}"):
+        read_record(path)
+
+
+def test_a_large_binary_file_is_refused_from_its_first_block(tmp_path):
+    path = tmp_path / "nul.csv"
+    with open(path, "wb") as fh:
+        fh.truncate(200_000_000)        # 200 MB of NUL bytes, sparse
+    tracemalloc.start()
+    with pytest.raises(DataError, match="NUL bytes on line 1"):
+        read_record(path)
+    peak = tracemalloc.get_traced_memory()[1]
+    tracemalloc.stop()
+    assert peak < 2_000_000             # the first block, not the file
+
+
+def test_a_large_csv_is_read_in_about_the_memory_of_its_numbers(tmp_path):
+    n = 300_000
+    path = tmp_path / "big.csv"
+    t = np.arange(n) * 1e-3
+    np.savetxt(path, np.c_[t, np.sin(t), np.cos(t)], delimiter=",", header="t,u,y", comments="", fmt="%.9g")
+    tracemalloc.start()
+    d = read_record(path)
+    peak = tracemalloc.get_traced_memory()[1]
+    tracemalloc.stop()
+    assert len(d) == n and d.dt == 0.001
+    assert peak / n < 120               # bytes per sample (the table is 24; Python lists of the text: > 500)
+
+
+_FIELD = st.one_of(st.floats(-1e6, 1e6, allow_nan=False).map(repr), st.integers(-10**6, 10**6).map(str),
+                   st.sampled_from(["", " ", "nan", "inf", "1e400", "x", "1,5", '"3"', "1_0", "0x10", "+.5", "-0"]))
+
+
+@st.composite
+def _csv_texts(draw):
+    delimiter = draw(st.sampled_from([",", "\t", " ", ";"]))
+    width = draw(st.sampled_from([2, 3]))
+    header = draw(st.sampled_from([None, ["t", "u", "y"][-width:], ["time", "input", "output"][-width:]]))
+    rows = draw(st.lists(st.lists(_FIELD, min_size=width - 1, max_size=width + 1), min_size=1, max_size=6))
+    lines = ([delimiter.join(header)] if header else [])
+    lines += [delimiter.join(r) for r in rows]
+    if draw(st.booleans()):
+        lines.insert(draw(st.integers(0, len(lines))), draw(st.sampled_from(["# comment", "", "   "])))
+    end = draw(st.sampled_from(["\n", "\r\n"]))
+    return end.join(lines) + (end if draw(st.booleans()) else "")
+
+
+@settings(max_examples=300, deadline=None, derandomize=True, suppress_health_check=list(HealthCheck))
+@given(text=_csv_texts())
+def test_the_fast_reader_agrees_with_the_line_checking_reader(tmp_path_factory, text):
+    """Both readers give the same columns, or the fast one steps aside (None) and the careful one decides."""
+    path = tmp_path_factory.mktemp("csv") / "r.csv"
+    path.write_text(text)
+    try:
+        careful = records._careful_columns(path)
+    except DataError:
+        careful = None
+    fast = records._fast_columns(path, records._head(path))
+    if fast is not None:
+        assert careful is not None and list(fast) == list(careful)
+        for name in fast:
+            np.testing.assert_array_equal(fast[name], careful[name])
+
+
+@settings(max_examples=200, deadline=None, derandomize=True, suppress_health_check=list(HealthCheck))
+@given(data=st.binary(max_size=400))
+def test_any_bytes_give_a_record_or_a_data_error(tmp_path_factory, data):
+    path = tmp_path_factory.mktemp("csv") / "r.csv"
+    path.write_bytes(data)
+    try:
+        read_record(path)
+    except DataError:
+        pass
+
+
+def test_masked_samples_are_refused_not_ignored():
+    u = np.ma.masked_array(np.ones(10), mask=[0] * 9 + [1])
+    with pytest.raises(DataError, match="u has 1 masked sample"):
+        IOData(u, np.ones(10), dt=0.1)
+    d = IOData(np.ma.masked_array(np.ones(10)), np.ones(10), dt=0.1)     # nothing masked: its data
+    assert d.u.tolist() == [1.0] * 10

@@ -68,3 +68,19 @@ def test_describe():
     assert s.describe() == "H(p) = (p + b0)/(p^2 + a1 p + a0); g = tanh(d0, d1)"
     e = LinearStructure(0, 2, fixed={"a0": 0.0})
     assert e.describe() == "(1)/(p^2 + a1 p)"
+
+
+@pytest.mark.parametrize("args, kwargs, message", [
+    (("a", 2), {}, "num_order must be a non-negative integer, got 'a'"),
+    ((True, 2), {}, "num_order must be a non-negative integer, got True"),
+    ((1, 2.5), {}, "den_order must be a non-negative integer, got 2.5"),
+    ((1, float("nan")), {}, "den_order must be a non-negative integer"),
+    ((1, 10**400), {}, "den_order must be a non-negative integer"),
+    ((0, 2), {"fixed": {"a0": "x"}}, "fixed coefficient a0 must be numbers"),
+    ((0, 2), {"fixed": {"a0": [1, 2]}}, "fixed coefficient a0 must be one number"),
+])
+def test_linear_structure_refuses_what_is_not_an_order(args, kwargs, message):
+    from hammerstein_ctrl import LinearStructure
+
+    with pytest.raises(ParameterError, match=message):
+        LinearStructure(*args, **kwargs)
