@@ -158,9 +158,9 @@ def _cmd_reproduce(args) -> int:
     if args.data and not Path(args.data).exists():
         raise HammersteinError(f"--data {args.data}: no such file or folder")
     methods = _unique_methods(args.methods)
+    case = presets.get(args.case, **kwargs)                # the data first: a bad --data creates no folder
     out = _output_dir(args.out or f"results/{args.case}")
     _check_outputs(out, figures=not args.no_figures)
-    case = presets.get(args.case, **kwargs)
     progress = sys.stderr.isatty() if args.progress is None else args.progress
     study = run_study(case, methods, trials=args.trials, seed=args.seed, jobs=args.jobs,
                       results_path=out / "results.jsonl", progress=progress)

@@ -11,6 +11,7 @@ Wire it into a parser with :func:`add_tune_parser`.
 from __future__ import annotations
 
 import sys
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -64,10 +65,20 @@ def _model_and_dt(path: str, dt):
 def _reference(arg: str):
     if arg == "step":
         return "step"
+    from .safe_io import MAX_INPUT_BYTES, check_input
+
+    check_input(arg, limit=MAX_INPUT_BYTES, what="reference file")     # a regular file, not a FIFO or device
     try:
-        return np.loadtxt(arg, ndmin=1)
-    except ValueError as exc:
-        raise DataError(f"--reference {arg}: not a file of numbers ({exc})") from None
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")      # numpy's "input contained no data": the check below says it
+            values = np.loadtxt(arg, ndmin=1)
+    except (ValueError, UnicodeDecodeError) as exc:
+        raise DataError(f"--reference {arg}: not a file of numbers ({str(exc)[:80]})") from None
+    if values.size == 0:
+        raise DataError(f"--reference {arg}: the file holds no samples")
+    if values.ndim != 1:
+        raise DataError(f"--reference {arg}: one column of reference samples expected, got shape {values.shape}")
+    return values
 
 
 def _cmd_tune(args) -> int:

@@ -726,6 +726,7 @@ def tune_pid(model, rule: str = "robust", *, kind: str = "pid", max_sensitivity:
     if kind not in ("pid", "pi"):
         raise ParameterError(f"kind must be 'pid' or 'pi', got {kind!r}")
     ms = _robustness_target(max_sensitivity, phase_margin)
+    _check_scalars(step=step, tau_c=tau_c, t_final=t_final, bandwidth=bandwidth)
     _check_range(model)
     op = _operating_point(model, u0, y0, u_limit)
     P = small_signal(model, op)
@@ -746,6 +747,21 @@ def tune_pid(model, rule: str = "robust", *, kind: str = "pid", max_sensitivity:
     _check_gains(gains)
     return _verified(model, key, gains, op, record, dt=dt, limits=limits, u_limit=u_limit, step=step,
                      t_final=t_final, ms=ms, **extra)
+
+
+def _check_scalars(**values) -> None:
+    """Each given value finite; ``step`` non-zero, the others positive (refused before any design)."""
+    for name, value in values.items():
+        if value is None:
+            continue
+        try:
+            v = float(value)
+        except (TypeError, ValueError, OverflowError):
+            v = math.nan
+        ok = math.isfinite(v) and (v != 0 if name == "step" else v > 0) and not isinstance(value, bool)
+        if not ok:
+            raise ParameterError(f"{name} must be a finite, {'non-zero' if name == 'step' else 'positive'} number, "
+                                 f"got {value!r}")
 
 
 #: A model whose gain stays beyond this (or below its inverse) at every frequency cannot be given sensible gains.

@@ -34,6 +34,7 @@ import numpy as np
 from .exceptions import DataError
 from .iodata import IOData
 from .records import DataNotFoundError, read_record
+from .safe_io import MAX_INPUT_BYTES, check_input
 
 __all__ = [
     "IOData",
@@ -94,6 +95,11 @@ def _locate_emps(file: str, path) -> Path:
     looked = []
     if path is not None:
         p = Path(path).expanduser()
+        if p.exists() and not p.is_dir() and p.suffix.lower() != ".mat":
+            raise DataError(f"{p} is neither a folder nor a .mat file: give the folder holding {file} "
+                            "(or that file itself)")
+        if p.suffix.lower() == ".mat" and (p.exists() or p.is_symlink()):
+            check_input(p, limit=MAX_INPUT_BYTES, what="EMPS file")      # a regular file, not a FIFO or device
         candidates = [p] if p.suffix.lower() == ".mat" else [p / file, p / "emps" / file]
     else:
         env = os.environ.get(ENV_DATA)

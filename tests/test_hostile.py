@@ -10,6 +10,7 @@ The hostile *data files* (NPZ/MAT/CSV garbage, encodings) have their own
 corpus with ``read_record``; here the file is a valid record.
 """
 
+import os
 import re
 import subprocess
 import sys
@@ -198,3 +199,91 @@ def test_a_real_process_prints_one_line_and_exits_2(tmp_path):
     assert proc.stderr.splitlines() == [
         "hammerstein-ctrl: error: argument --seed: must be a non-negative integer, got '-1' "
         "(see hammerstein-ctrl reproduce --help)"]
+
+
+# -- round 3: a generated corpus of numbers, outputs and inputs, each refused in one line with nothing written ----
+#: Numeric options of each command, and values none of them may accept (non-finite, not a number, overflowing).
+NUMERIC_OPTIONS = {
+    "identify": ["--dt", "--maxfev", "--seed", "--tolerance", "--start", "--stop", "--norm-limit", "--pop-size",
+                 "--maxiter"],
+    "tune": ["--max-sensitivity", "--phase-margin", "--y0", "--step", "--dt", "--u0", "--tau-c", "--t-final",
+             "--maxfev", "--seed"],
+    "select": ["--maxfev", "--seed", "--jobs", "--degree", "--dt"],
+    "reproduce": ["--seed", "--trials", "--jobs"],
+}
+BAD_NUMBERS = ["nan", "inf", "-inf", "", "abc", "1e400", "-1e400", "1.2.3", "0x1g", "\u0661e400"]
+PREFIX = {"identify": ["identify", "--data", "{csv}", *TRS], "tune": ["tune", "{model}"],
+          "select": ["select", "--data", "{csv}", "--orders", "0", "1", "--nonlinearity", "tanh"],
+          "reproduce": ["reproduce", "trs", "--out", "{tmp}/out"]}
+ROUND3_NUMBERS = [(PREFIX[cmd] + [opt, value], opt.lstrip("-").replace("-", "[-_ ]")) for cmd, opts in
+                  NUMERIC_OPTIONS.items() for opt in opts for value in BAD_NUMBERS]
+
+#: Output options and what may stand where a file is to be written.
+OUTPUTS = [["identify", "--data", "{csv}", *TRS, "--out"], ["identify", "--data", "{csv}", *TRS, "--plot"],
+           ["tune", "{model}", "--plot"],
+           ["select", "--data", "{csv}", "--orders", "0", "1", "--nonlinearity", "tanh", "--table"],
+           ["select", "--data", "{csv}", "--orders", "0", "1", "--nonlinearity", "tanh", "--out"]]
+BAD_OUTPUTS = [("{tmp}/link-to-victim.png", "symbolic link"), ("{tmp}/dangling.png", "symbolic link"),
+               ("{tmp}/fifo.png", "not a regular file|is a FIFO|not writable"), ("{tmp}", "directory|folder"),
+               ("{tmp}/missing/x.png", "does not exist")]
+ROUND3_OUTPUTS = [(cmd + [path], pattern) for cmd in OUTPUTS for path, pattern in BAD_OUTPUTS]
+ROUND3_OUTPUTS += [(["reproduce", "trs", "--out", path], pattern) for path, pattern in
+                   [("{tmp}/dangling.png", "dangling symbolic link"), ("{tmp}/fifo.png", "not a directory"),
+                    ("{csv}", "not a directory"), ("{tmp}/link-to-victim.png", "not a directory")]]
+
+#: Input options and special or broken files.
+INPUTS = [["identify", *TRS, "--data"], ["select", "--orders", "0", "1", "--nonlinearity", "tanh", "--data"],
+          ["tune"], ["tune", "{model}", "--reference"], ["reproduce", "emps", "--out", "{tmp}/out", "--data"]]
+BAD_INPUTS = [("{tmp}/fifo.csv", "FIFO|neither a folder"), ("{tmp}/zero.csv", "device|neither a folder"),
+              ("{tmp}/missing.csv", "not found|no such"),
+              ("{tmp}/empty.csv", "empty|no data|not valid JSON|holds no samples|neither a folder"),
+              ("{tmp}/binary.csv", "NUL|UTF-8|not a file of numbers|not a UTF-8|neither a folder")]
+ROUND3_INPUTS = [(cmd + [path], pattern) for cmd in INPUTS for path, pattern in BAD_INPUTS]
+ROUND3_INPUTS += [(INPUTS[-1] + ["{tmp}/fifo.mat"], "is a FIFO"), (INPUTS[-1] + ["{tmp}/zero.mat"], "is a device")]
+
+ROUND3 = ROUND3_NUMBERS + ROUND3_OUTPUTS + ROUND3_INPUTS
+
+
+@pytest.fixture
+def hostile_tree(tmp_path, files, monkeypatch):
+    """A scratch folder with a victim elsewhere, links, a FIFO and broken files; the working folder inside it."""
+    import control
+
+    from hammerstein_ctrl import Coulomb, HammersteinModel, save_model
+
+    victim_dir = tmp_path / "elsewhere"
+    victim_dir.mkdir()
+    (victim_dir / "victim.txt").write_text("precious\n")
+    os.symlink(victim_dir / "victim.txt", tmp_path / "link-to-victim.png")
+    os.symlink(tmp_path / "nowhere", tmp_path / "dangling.png")
+    os.symlink(victim_dir, tmp_path / "victim-dir-link")
+    os.mkfifo(tmp_path / "fifo.png")
+    os.mkfifo(tmp_path / "fifo.csv")
+    os.symlink("/dev/zero", tmp_path / "zero.csv")
+    os.symlink("/dev/zero", tmp_path / "zero.mat")
+    os.mkfifo(tmp_path / "fifo.mat")
+    (tmp_path / "empty.csv").write_bytes(b"")
+    (tmp_path / "binary.csv").write_bytes(bytes(range(256)) * 4)
+    save_model(HammersteinModel(control.tf([1], [1, 3.1, 0]), Coulomb(), [0.5, -0.4, 0.05]), tmp_path / "m.json")
+    (tmp_path / "cwd").mkdir()
+    monkeypatch.chdir(tmp_path / "cwd")
+    return {**files, "{model}": str(tmp_path / "m.json")}
+
+
+def _tree(folder):
+    return {str(p.relative_to(folder)): (p.is_symlink(), p.lstat().st_size, p.lstat().st_mtime_ns)
+            for p in sorted(folder.rglob("*"))}
+
+
+@pytest.mark.skipif(not hasattr(os, "mkfifo"), reason="needs FIFOs and symbolic links")
+@pytest.mark.parametrize("argv, pattern", ROUND3, ids=[" ".join(a)[-70:] for a, _ in ROUND3])
+def test_round3_refused_in_one_line_with_nothing_written(capsys, tmp_path, hostile_tree, no_work, argv, pattern):
+    before = _tree(tmp_path)
+    code, out, err = _run(capsys, _fill(argv, hostile_tree))
+    assert code == 2 and "unexpected failure" not in err, (code, err)
+    _assert_one_error_line(code, err, pattern)
+    assert no_work == [] and _tree(tmp_path) == before      # no file made, moved or touched, the victim included
+
+
+def test_round3_corpus_size():
+    assert len(ROUND3) >= 150
