@@ -26,8 +26,8 @@ import numpy as np
 
 from ._jit import cached_njit
 
-__all__ = ["expm_batch", "expm_into", "tf_augmented", "tf_discrete", "single_threaded_blas", "solve_in_place",
-           "symmetric_eigenvalues", "PADE13_THETA", "JACOBI_MAX_SWEEPS"]
+__all__ = ["fill_coefficients", "expm_batch", "expm_into", "tf_augmented", "tf_discrete", "single_threaded_blas",
+           "solve_in_place", "symmetric_eigenvalues", "PADE13_THETA", "JACOBI_MAX_SWEEPS"]
 
 #: Largest 1-norm for which the degree-13 Pade approximant is accurate to unit
 #: roundoff without scaling (Higham 2005, Table 2.3).
@@ -485,3 +485,19 @@ def _clear_controlling_thread():
 
 
 _SINGLE_THREADED_BLAS, _CONTROLLING_THIS_THREAD = _SingleThreadedBlas(), _ControllingThisThread()
+
+
+@cached_njit()
+def fill_coefficients(theta, num0, den0, num_pos, den_pos):  # pragma: no cover - compiled
+    """Rows of ``num0``/``den0`` with the free coefficients of each row of ``theta`` written in (one call per batch)."""
+    batch, k = theta.shape[0], num_pos.size
+    num = np.empty((batch, num0.size))
+    den = np.empty((batch, den0.size))
+    for b in range(batch):
+        num[b] = num0
+        den[b] = den0
+        for j in range(k):
+            num[b, num_pos[j]] = theta[b, j]
+        for j in range(den_pos.size):
+            den[b, den_pos[j]] = theta[b, k + j]
+    return num, den

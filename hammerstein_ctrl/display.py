@@ -36,7 +36,8 @@ import numpy as np
 from .exceptions import DataError, ParameterError
 
 __all__ = [
-    "as_models", "labelled", "as_iodata", "progress", "progress_enabled", "register_figure_formatter", "response",
+    "as_models", "labelled", "as_iodata", "is_identification_result",
+    "progress", "progress_enabled", "register_figure_formatter", "response",
     "result_html", "study_html", "result_frame", "study_frame", "require_pandas",
     "method_label", "PROGRESS_ENV",
 ]
@@ -57,10 +58,13 @@ def method_label(method: str) -> str:
 
 
 # -- input normalisation -------------------------------------------------------
-def _is_result(obj) -> bool:
-    from .identify import IdentificationResult
+def is_identification_result(obj) -> bool:
+    """Whether ``obj`` is an :class:`~hammerstein_ctrl.identify.IdentificationResult` (or behaves as one).
 
-    return isinstance(obj, IdentificationResult)
+    Checked by the class flag ``is_identification_result`` rather than by
+    importing the class, so this layer never imports the identification layer above it.
+    """
+    return bool(getattr(type(obj), "is_identification_result", False))
 
 
 def _is_system(obj) -> bool:
@@ -70,7 +74,7 @@ def _is_system(obj) -> bool:
 
 
 def _default_label(obj, index: int | None) -> str:
-    if _is_result(obj):
+    if is_identification_result(obj):
         return method_label(obj.method)
     if isinstance(obj, (np.ndarray, list, tuple)):
         return "simulated" if index is None else f"simulated {index + 1}"
@@ -85,7 +89,7 @@ def _default_label(obj, index: int | None) -> str:
 
 def _check_item(label, obj, *, arrays: bool, systems: bool, need: tuple):
     """One model (IdentificationResult unwrapped), array or LTI system, checked for what is needed."""
-    if _is_result(obj):
+    if is_identification_result(obj):
         obj = obj.model
     if isinstance(obj, (np.ndarray, list, tuple)) and arrays:
         return np.asarray(obj, dtype=float)

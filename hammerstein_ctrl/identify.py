@@ -107,6 +107,8 @@ class IdentificationResult(UncertainParameters):
         The covariance with the noise model and degrees of freedom it came from.
     """
 
+    #: Lets the display and plotting layers recognise a result without importing this module.
+    is_identification_result = True
     model: BlockModel
     x: np.ndarray
     fun: float

@@ -362,7 +362,7 @@ class BlockModel:
     # -- persistence and exact exports ----------------------------------------
     def save(self, path) -> None:
         """Write the model to ``path`` as versioned JSON (:func:`hammerstein_ctrl.load_model` reads it)."""
-        from .persistence import save_model
+        from ._writer import save_model
 
         save_model(self, path)
 

@@ -53,8 +53,9 @@ import numpy as np
 
 from .exceptions import ParameterError, UnknownNameError
 from ._checks import INTERSAMPLE, MAX_MAGNITUDE, check_transfer_function
-from .exact_export import model_settings
-from .nonlinearities import NONLINEARITIES, PiecewiseLinear, Polynomial
+from ._writer import (MODEL_FORMAT, RESULT_FORMAT, SCHEMA_VERSION, encode_float as _encode, model_to_dict,
+                      nonlinearity_to_dict as _nonlinearity_to_dict, save_model, write_json as _write)
+from .nonlinearities import NONLINEARITIES
 from .uncertainty import UncertainParameters
 
 __all__ = [
@@ -64,13 +65,9 @@ __all__ = [
     "READABLE_SCHEMA_VERSIONS",
 ]
 
-#: Version of the JSON schema written by this module.
-SCHEMA_VERSION = 4
-#: Versions it reads (others are refused): 3 added a result's ``status``, the optimiser's termination code;
+#: Versions read (others are refused): 3 added a result's ``status``, the optimiser's termination code;
 #: 4 its ``covariance``, ``dof`` and ``warnings``.
 READABLE_SCHEMA_VERSIONS = (2, 3, 4)
-MODEL_FORMAT = "hammerstein_ctrl/model"
-RESULT_FORMAT = "hammerstein_ctrl/result"
 
 #: The first schema version whose result files carry ``status``; and ``covariance``, ``dof``, ``warnings``.
 _STATUS_VERSION = 3
@@ -163,31 +160,9 @@ def _header(obj, fmt: str, where: str) -> int:
     return version
 
 
-def _encode(value):
-    """A float for JSON: finite floats as numbers, non-finite ones as strings."""
-    value = float(value)
-    if math.isfinite(value):
-        return value
-    return "nan" if math.isnan(value) else ("inf" if value > 0 else "-inf")
-
-
 # ---------------------------------------------------------------------------
 # nonlinearities and structures
 # ---------------------------------------------------------------------------
-def _nonlinearity_to_dict(nl) -> dict:
-    if type(nl) not in NONLINEARITIES.values():
-        raise ParameterError(
-            f"cannot save a {type(nl).__name__} nonlinearity: only the named families "
-            f"{sorted(NONLINEARITIES)} can be stored (a custom function is code, not data)"
-        )
-    options = {}
-    if isinstance(nl, Polynomial):
-        options["degree"] = nl.degree
-    elif isinstance(nl, PiecewiseLinear):
-        options["breakpoints"] = nl.breakpoints.tolist()
-    return {"family": nl.name, "options": options}
-
-
 def _nonlinearity_from_dict(obj, where: str):
     family = _string(obj["family"], f"{where}.family")
     if family not in NONLINEARITIES:
@@ -260,40 +235,6 @@ def _structure_from_dict(obj, where: str):
 # ---------------------------------------------------------------------------
 # models
 # ---------------------------------------------------------------------------
-def _block_to_dict(nl, params) -> dict | None:
-    if nl is None:
-        return None
-    out = _nonlinearity_to_dict(nl)
-    out["params"] = dict(zip(nl.param_names, np.asarray(params, float).tolist()))
-    return out
-
-
-def model_to_dict(model) -> dict:
-    """The ``"model"`` object of the schema for a Hammerstein, Wiener or Hammerstein-Wiener model.
-
-    Raises
-    ------
-    ParameterError
-        For a custom nonlinearity (code cannot be stored) or non-finite numbers.
-    """
-    settings = model_settings(model)
-    num = np.trim_zeros(np.asarray(model.linear.num[0][0], dtype=float), "f")
-    den = np.trim_zeros(np.asarray(model.linear.den[0][0], dtype=float), "f")
-    x0 = settings["initial_state"]
-    blocks = {"input_nonlinearity": _block_to_dict(model.input_nonlinearity, model.input_params),
-              "output_nonlinearity": _block_to_dict(model.output_nonlinearity, model.output_params)}
-    out = {"name": str(model.name), "kind": model.kind,
-           "linear": {"num": (num if num.size else np.zeros(1)).tolist(), "den": den.tolist()},
-           **blocks, "offset": settings["offset"],
-           "initial_state": x0.tolist() if np.any(x0 != 0) else None,
-           "intersample": settings["intersample"]}
-    params = [v for b in blocks.values() if b is not None for v in b["params"].values()]
-    numbers = out["linear"]["num"] + out["linear"]["den"] + params + [out["offset"]]
-    if not all(math.isfinite(v) for v in numbers + (out["initial_state"] or [])):
-        raise ParameterError("cannot save a model with non-finite coefficients or parameters")
-    return out
-
-
 def _block_from_dict(obj, where: str):
     if obj is None:
         return None, None
@@ -387,18 +328,6 @@ def _read(path) -> dict:
         raise ParameterError(f"{where}: not valid JSON ({exc})") from None
     except RecursionError:
         raise ParameterError(f"{where}: JSON nested too deeply to be a model or result file") from None
-
-
-def _write(obj: dict, path) -> None:
-    """Write ``obj`` as JSON, whole and never through a link (:func:`~hammerstein_ctrl.safe_io.write_text`)."""
-    from .safe_io import write_text
-
-    write_text(path, json.dumps(obj, indent=2, allow_nan=False) + "\n")
-
-
-def save_model(model, path) -> None:
-    """Write ``model`` to ``path`` (see the module notes for the schema)."""
-    _write({"format": MODEL_FORMAT, "schema_version": SCHEMA_VERSION, "model": model_to_dict(model)}, path)
 
 
 def load_model(path):

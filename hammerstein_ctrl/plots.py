@@ -31,7 +31,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .display import as_iodata, as_models, labelled, method_label, register_figure_formatter
+from .display import (as_iodata, as_models, is_identification_result, labelled, method_label,
+                      register_figure_formatter)
 from .exceptions import ParameterError
 
 __all__ = [
@@ -490,12 +491,10 @@ def _block_range(models, u_range, block):
 
 
 def _results(models):
-    from .identify import IdentificationResult
-
-    if isinstance(models, IdentificationResult):
+    if is_identification_result(models):
         return [models]
     items = models.values() if isinstance(models, dict) else models if isinstance(models, (list, tuple)) else []
-    return [m for m in items if isinstance(m, IdentificationResult)]
+    return [m for m in items if is_identification_result(m)]
 
 
 def nonlinearity(models, u_range=None, *, block: str = "input", unit_in: str = "", title=None, ax=None,
@@ -789,9 +788,7 @@ def compare(records, models, *, title=None):
 
 def result_figure(result, *, zoom=None):
     """Overview of one IdentificationResult: measured vs simulated, the residual, and ``g(u)`` / ``h(z)``."""
-    from .identify import IdentificationResult
-
-    if not isinstance(result, IdentificationResult):
+    if not is_identification_result(result):
         raise ParameterError(f"result_figure needs an IdentificationResult, got {type(result).__name__}")
     data, model, label = result.data, result.model, method_label(result.method)
     with np.errstate(all="ignore"):

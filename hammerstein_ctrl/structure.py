@@ -27,28 +27,12 @@ from typing import Mapping
 import numpy as np
 
 from ._checks import MAX_ORDER, as_count, as_real_array
-from ._jit import cached_njit
+from ._linalg import fill_coefficients
 from .exceptions import ParameterError
 from .nonlinearities import Nonlinearity
 
 __all__ = ["LinearStructure", "BlockStructure", "HammersteinStructure", "WienerStructure",
            "HammersteinWienerStructure", "INITIAL_STATES", "fill_coefficients"]
-
-
-@cached_njit()
-def fill_coefficients(theta, num0, den0, num_pos, den_pos):  # pragma: no cover - compiled
-    """Rows of ``num0``/``den0`` with the free coefficients of each row of ``theta`` written in (one call per batch)."""
-    batch, k = theta.shape[0], num_pos.size
-    num = np.empty((batch, num0.size))
-    den = np.empty((batch, den0.size))
-    for b in range(batch):
-        num[b] = num0
-        den[b] = den0
-        for j in range(k):
-            num[b, num_pos[j]] = theta[b, j]
-        for j in range(den_pos.size):
-            den[b, den_pos[j]] = theta[b, k + j]
-    return num, den
 
 
 class LinearStructure:

@@ -32,11 +32,10 @@ import math
 import numpy as np
 
 from .._jit import cached_njit
-from .._linalg import solve_in_place, symmetric_eigenvalues, tf_discrete
+from .._linalg import fill_coefficients, solve_in_place, symmetric_eigenvalues, tf_discrete
 from ..kernels import call_normal_kernel, normal_kernel_address
 from ..normal_equations import (NormalEquations, compiled_neighbourhood, compiled_sums, forward_steps,
                                 from_residuals, neighbours)
-from ..structure import fill_coefficients
 from ._common import BudgetExhausted
 
 __all__ = ["normal_equations_lm", "INITIAL_DAMPING", "MAX_DAMPING", "ILL_CONDITIONED", "MESSAGES",

@@ -1,0 +1,96 @@
+"""Writing models as versioned JSON: the encoder below the model classes.
+
+:meth:`BlockModel.save <hammerstein_ctrl.model.BlockModel.save>` and
+:mod:`hammerstein_ctrl.persistence` both write through here; reading (which
+needs the model classes) lives in :mod:`~hammerstein_ctrl.persistence`. The
+split keeps the model layer free of an import of the persistence layer above it.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+
+from .exact_export import model_settings
+from .exceptions import ParameterError
+from .nonlinearities import NONLINEARITIES, PiecewiseLinear, Polynomial
+
+__all__ = ["SCHEMA_VERSION", "MODEL_FORMAT", "RESULT_FORMAT", "model_to_dict", "save_model", "write_json",
+           "encode_float", "nonlinearity_to_dict"]
+
+#: Version of the JSON schema written by this module.
+SCHEMA_VERSION = 4
+MODEL_FORMAT = "hammerstein_ctrl/model"
+RESULT_FORMAT = "hammerstein_ctrl/result"
+
+
+def encode_float(value):
+    """A float for JSON: finite floats as numbers, non-finite ones as strings."""
+    value = float(value)
+    if math.isfinite(value):
+        return value
+    return "nan" if math.isnan(value) else ("inf" if value > 0 else "-inf")
+
+
+def nonlinearity_to_dict(nl) -> dict:
+    """``{"family", "options"}`` of a named nonlinearity family (a custom class is refused)."""
+    if type(nl) not in NONLINEARITIES.values():
+        raise ParameterError(
+            f"cannot save a {type(nl).__name__} nonlinearity: only the named families "
+            f"{sorted(NONLINEARITIES)} can be stored (a custom function is code, not data)"
+        )
+    options = {}
+    if isinstance(nl, Polynomial):
+        options["degree"] = nl.degree
+    elif isinstance(nl, PiecewiseLinear):
+        options["breakpoints"] = nl.breakpoints.tolist()
+    return {"family": nl.name, "options": options}
+
+
+
+def _block_to_dict(nl, params) -> dict | None:
+    if nl is None:
+        return None
+    out = nonlinearity_to_dict(nl)
+    out["params"] = dict(zip(nl.param_names, np.asarray(params, float).tolist()))
+    return out
+
+
+def model_to_dict(model) -> dict:
+    """The ``"model"`` object of the schema for a Hammerstein, Wiener or Hammerstein-Wiener model.
+
+    Raises
+    ------
+    ParameterError
+        For a custom nonlinearity (code cannot be stored) or non-finite numbers.
+    """
+    settings = model_settings(model)
+    num = np.trim_zeros(np.asarray(model.linear.num[0][0], dtype=float), "f")
+    den = np.trim_zeros(np.asarray(model.linear.den[0][0], dtype=float), "f")
+    x0 = settings["initial_state"]
+    blocks = {"input_nonlinearity": _block_to_dict(model.input_nonlinearity, model.input_params),
+              "output_nonlinearity": _block_to_dict(model.output_nonlinearity, model.output_params)}
+    out = {"name": str(model.name), "kind": model.kind,
+           "linear": {"num": (num if num.size else np.zeros(1)).tolist(), "den": den.tolist()},
+           **blocks, "offset": settings["offset"],
+           "initial_state": x0.tolist() if np.any(x0 != 0) else None,
+           "intersample": settings["intersample"]}
+    params = [v for b in blocks.values() if b is not None for v in b["params"].values()]
+    numbers = out["linear"]["num"] + out["linear"]["den"] + params + [out["offset"]]
+    if not all(math.isfinite(v) for v in numbers + (out["initial_state"] or [])):
+        raise ParameterError("cannot save a model with non-finite coefficients or parameters")
+    return out
+
+
+def write_json(obj: dict, path) -> None:
+    """Write ``obj`` as JSON, whole and never through a link (:func:`~hammerstein_ctrl.safe_io.write_text`)."""
+    from .safe_io import write_text
+
+    write_text(path, json.dumps(obj, indent=2, allow_nan=False) + "\n")
+
+
+def save_model(model, path) -> None:
+    """Write ``model`` to ``path`` as a model file (:func:`hammerstein_ctrl.persistence.load_model` reads it)."""
+    write_json({"format": MODEL_FORMAT, "schema_version": SCHEMA_VERSION, "model": model_to_dict(model)}, path)
