@@ -36,7 +36,7 @@ from .initialize import Budget, initial_points, nuisance_estimate, stabilize
 from .optimize import BUDGET_EXHAUSTED, COMPLETED, SOLVER_FAILED, History, as_rng, as_x0, levenberg_marquardt
 from .simulate import unstable
 
-__all__ = ["auto_minimize", "AUTO_MAXFEV", "RESTART_SPREAD", "MAX_RESTARTS"]
+__all__ = ["auto_minimize", "auto_records", "AUTO_MAXFEV", "RECORDS_JOINT_SHARE", "RESTART_SPREAD", "MAX_RESTARTS"]
 
 #: Default evaluation budget of the auto method.
 AUTO_MAXFEV = 2000
@@ -52,6 +52,8 @@ MAX_RESTARTS = 8
 REFINE_TOL = 1e-8
 #: Fewest evaluations worth giving one refinement.
 MIN_REFINE_BUDGET = 10
+#: Share of the budget of a fit to several records kept for the joint refinement (the rest: the longest record).
+RECORDS_JOINT_SHARE = 0.25
 
 
 class _Merged:
@@ -240,3 +242,50 @@ def _result(cost, best, budget, runs, n_starts, merged, allow_unstable, started)
                           history=merged.history.as_dict(), method="auto", starts=n_starts,
                           best_x=x.copy(), best_fun=float(best.fun), nfev_monitor=0,
                           elapsed=time.perf_counter() - started)
+
+
+def auto_records(cost, x0=None, *, maxfev: int | None = None, seed=None, allow_unstable: bool = False,
+                 callback=None):
+    """:func:`auto_minimize` for several records of one plant (a :class:`~hammerstein_ctrl.experiments.RecordsCost`).
+
+    The blocks come from ``auto`` on the longest record; each other record's
+    offset and initial state from linear least squares given those blocks;
+    then Levenberg-Marquardt refines everything jointly on all the records.
+    ``maxfev`` bounds the three stages together, :data:`RECORDS_JOINT_SHARE`
+    of it kept for the joint refinement.
+
+    Parameters and return value as :func:`auto_minimize`; ``x0`` may be the
+    block parameters, one record's beta, or the whole joint beta.
+    """
+    started = time.perf_counter()
+    total = AUTO_MAXFEV if maxfev is None else as_count(maxfev, "maxfev", minimum=1)
+    rs, longest = cost.structure, int(np.argmax([len(r) for r in cost.records]))
+    joint_share = max(MIN_REFINE_BUDGET, int(RECORDS_JOINT_SHARE * total))
+    first = auto_minimize(cost.costs[longest], _record_start(rs, x0, longest), maxfev=max(1, total - joint_share),
+                          seed=seed, allow_unstable=allow_unstable, callback=callback)
+    budget = Budget(total)
+    budget.charge(min(int(first.nfev), total))
+    if not np.all(np.isfinite(first.x)) or budget.remaining < MIN_REFINE_BUDGET:
+        return first            # nothing to share: its message says why
+    core = first.x[:rs.n_core]
+    betas = [first.x if k == longest else nuisance_estimate(rec, rs.base, core, budget)
+             for k, rec in enumerate(cost.records)]
+    merged = _Merged()
+    merged.add(first.history, 0)
+    joint = _refine(cost, rs.glue(betas), budget, int(budget.remaining), merged)   # never worse than its start
+    result = _result(cost, joint, budget, first.nit + 1, first.starts, merged, allow_unstable, started)
+    result.message = f"{result.message}; blocks started from record {longest}'s fit, then refined on all records"
+    return result
+
+
+def _record_start(rs, x0, record: int):
+    """The user's x0 for the single-record fit of ``record``: the blocks (and that record's nuisance if given)."""
+    if x0 is None:
+        return None
+    x = as_x0(x0)
+    if x.size == rs.n_params:
+        return rs.local(x, record)
+    if x.size in (rs.n_core, rs.base.n_params):
+        return x
+    raise ParameterError(f"x0 must hold the {rs.n_core} block parameters {list(rs.core_names)}, one record's "
+                         f"{rs.base.n_params}, or all {rs.n_params} {list(rs.param_names)}; got {x.size}")

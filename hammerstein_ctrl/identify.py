@@ -46,6 +46,7 @@ import numpy as np
 
 from ._linalg import single_threaded_blas
 from .datasets import IOData
+from .experiments import RecordsCost
 from .diagnostics import (FAILURE, STILL_IMPROVING, Verdict, budget_advice, identifiability_verdicts,
                           late_improvement, linear_verdicts, offset_verdict)
 from .exceptions import IdentificationWarning, ParameterError
@@ -76,8 +77,10 @@ class IdentificationResult(UncertainParameters):
     model : BlockModel
         The fitted model (a HammersteinModel, WienerModel or
         HammersteinWienerModel); ``model.linear`` is a ``control.TransferFunction``.
+        After a fit to several records: with the first record's offset and initial state.
     x : ndarray
-        The fitted beta.
+        The fitted beta (after a fit to several records: the block parameters, then
+        each record's offset and initial state, as ``structure.param_names`` says).
     fun : float
         J at ``x`` (sum of squared output errors on the estimation data).
     nfev : int
@@ -91,8 +94,10 @@ class IdentificationResult(UncertainParameters):
         The optimiser's per-iteration record (``nit, nfev, fun, best``).
     elapsed : float
         Wall time in seconds.
-    structure : BlockStructure
+    structure : BlockStructure or RecordsStructure
+        The structure fitted (:class:`~hammerstein_ctrl.experiments.RecordsStructure` for several records).
     data : IOData
+        The estimation record (the first one of several).
     optimize_result : scipy.optimize.OptimizeResult
         The optimiser's full result.
     covariance : ndarray or None
@@ -105,6 +110,12 @@ class IdentificationResult(UncertainParameters):
         (:class:`~hammerstein_ctrl.diagnostics.Verdict`).
     uncertainty : ParameterUncertainty or None
         The covariance with the noise model and degrees of freedom it came from.
+    records : tuple of IOData
+        After a fit to several records, all of them (``fun``, the fit figures,
+        the covariance and the residual analysis cover them all); else empty.
+    models : tuple of BlockModel
+        After a fit to several records, each record's model: the shared blocks
+        with that record's offset and initial state; else empty.
     """
 
     #: Lets the display and plotting layers recognise a result without importing this module.
@@ -129,6 +140,8 @@ class IdentificationResult(UncertainParameters):
     verdicts: list = field(default_factory=list, repr=False)
     uncertainty: ParameterUncertainty | None = field(default=None, repr=False)
     analysis: ResidualAnalysis | None = field(default=None, repr=False)
+    records: tuple = field(default=(), repr=False)
+    models: tuple = field(default=(), repr=False)
 
     @property
     def params(self) -> dict:
@@ -146,12 +159,16 @@ class IdentificationResult(UncertainParameters):
         first)."""
         return int(self.optimize_result.status)
 
-    def validate(self, data: IOData, *, initial_state: str | None = None) -> dict:
-        """Goodness of fit (``sse``, ``rmse``, ``nrmse``, ``fit_percent``) on another record.
+    def validate(self, data, *, initial_state: str | None = None):
+        """Goodness of fit (``sse``, ``rmse``, ``nrmse``, ``fit_percent``) on another record, or on each of a list.
 
         Parameters
         ----------
-        data : IOData
+        data : IOData or list of IOData
+            A list gives a list of reports, one per record. After a fit to
+            several records, each of those records is simulated with its own
+            offset and initial state (:attr:`models`); any other record with
+            :attr:`model` (the first record's).
         initial_state : {"zero", "estimate"}, optional
             Start the model from rest, or estimate its initial state on
             ``data`` by least squares (as MATLAB's ``compare`` does).  Default:
@@ -163,13 +180,16 @@ class IdentificationResult(UncertainParameters):
         if self.model is None:
             raise ParameterError(f"this identification produced no model, so there is nothing to validate "
                                  f"({self.message})")
+        if isinstance(data, (list, tuple)) and data and all(hasattr(d, "u") for d in data):
+            return [self.validate(d, initial_state=initial_state) for d in data]
         data = as_iodata(data)
         mode = initial_state or self.structure.initial_state
         if mode not in ("zero", "estimate"):
             raise ParameterError(f"initial_state must be 'zero' or 'estimate', got {initial_state!r}")
+        model = next((m for r, m in zip(self.records, self.models) if r is data), self.model)
         with np.errstate(all="ignore"):
-            x0 = estimate_initial_state(self.model, data) if mode == "estimate" else np.zeros(self.model.order)
-            yhat = self.model.simulate(data, initial_state=x0)
+            x0 = estimate_initial_state(model, data) if mode == "estimate" else np.zeros(model.order)
+            yhat = model.simulate(data, initial_state=x0)
         if not np.all(np.isfinite(yhat)):
             return {"sse": np.inf, "rmse": np.inf, "nrmse": np.inf, "fit_percent": -np.inf}
         return fit_report(data.y, yhat)
@@ -335,9 +355,15 @@ def identify(
 
     Parameters
     ----------
-    data : IOData
+    data : IOData or list of IOData
         Estimation record; its ``intersample`` ("foh"/"zoh") is honoured.  A
         ``nonlinear_benchmarks`` record (``u``, ``y``, ``sampling_time``) works too.
+        A list of records of one plant (same sampling time and intersample
+        behaviour) is fitted jointly: the blocks are shared, each record has
+        its own offset and initial state when the structure estimates them
+        (:mod:`~hammerstein_ctrl.experiments`; ``x`` and ``structure.param_names``
+        then list the block parameters once and the record's nuisance
+        parameters as ``y0[k]``, ``xi0[k]``, ...).
     structure : HammersteinStructure, WienerStructure, HammersteinWienerStructure or {"trs", "emps"}
         The model structure (a preset name uses that case's structure and,
         for the paper's methods when ``x0`` is omitted, its initial point).
@@ -382,24 +408,45 @@ def identify(
     """
     started = time.perf_counter()
     noise = _check_noise(noise)
-    data = _as_record(data)
-    structure, x0 = _resolve_structure(data, structure, method, x0)
+    records = _as_records(data)
+    structure, x0 = _resolve_structure(records[0], structure, method, x0)
     if offset is not None or initial_state is not None:
         structure = structure.with_options(offset=offset, initial_state=initial_state)
-    data.check_identifiable(structure.n_params)
     key = AUTO if str(method).strip().lower() == AUTO else canonical_method(method)
-    cost = HammersteinCost(data, structure, reject_unstable=reject_unstable)
+    cost = _cost(records, structure, reject_unstable)
     with single_threaded_blas():
         if key == AUTO:
             res = _run_auto(cost, x0, maxfev, seed, options, bounds, maxiter, callback, allow_unstable)
         else:
-            x0 = _starting_point(structure, x0, bounds)
+            x0 = _starting_point(cost.structure, x0, bounds)
             res = minimize(cost, x0, method=key, maxfev=maxfev, maxiter=maxiter, seed=seed,
                            options=options, callback=callback, bounds=bounds)
         result = _result(cost, res, key, x0, started, _Checks(allow_unstable, uncertainty, noise, maxfev, seed))
     for v in result.verdicts:
         _warnings.warn(v.message, IdentificationWarning, stacklevel=2)
     return result
+
+
+def _as_records(data) -> tuple:
+    """One record, or several (a list or tuple of records) fitted together."""
+    if isinstance(data, (list, tuple)) and data and all(hasattr(d, "u") and hasattr(d, "y") for d in data):
+        return tuple(_as_record(d) for d in data)
+    if isinstance(data, (list, tuple)) and not data:
+        raise ParameterError("data is an empty list: give one record or a list of records")
+    return (_as_record(data),)
+
+
+def _cost(records, structure, reject_unstable):
+    """The cost of one record, or the shared-block cost of several
+    (:class:`~hammerstein_ctrl.experiments.RecordsCost`)."""
+    if len(records) == 1:
+        records[0].check_identifiable(structure.n_params)
+        return HammersteinCost(records[0], structure, reject_unstable=reject_unstable)
+    cost = RecordsCost(records, structure, reject_unstable=reject_unstable)
+    for rec in records:
+        rec.check_identifiable(structure.n_params)
+    cost.data.check_identifiable(cost.n_params)
+    return cost
 
 
 def _as_record(data) -> IOData:
@@ -450,12 +497,14 @@ def _starting_point(structure, x0, bounds):
 
 
 def _run_auto(cost, x0, maxfev, seed, options, bounds, maxiter, callback, allow_unstable):
-    from .auto import auto_minimize
+    from .auto import auto_minimize, auto_records
 
     unused = [name for name, value in (("options", options), ("bounds", bounds), ("maxiter", maxiter))
               if value is not None]
     if unused:
         raise ParameterError(f"method 'auto' does not take {', '.join(unused)}; use maxfev (and x0, seed)")
+    if isinstance(cost, RecordsCost):
+        return auto_records(cost, x0, maxfev=maxfev, seed=seed, allow_unstable=allow_unstable, callback=callback)
     if x0 is not None:
         x = np.asarray(x0, dtype=float).reshape(-1)
         if x.size not in (cost.structure.n_core, cost.structure.n_params):
@@ -583,7 +632,7 @@ def _result(cost, res, key, x0, started, checks: _Checks) -> IdentificationResul
         still = _out_of_budget(res, key) and late_improvement(res.history) > STILL_IMPROVING
         if not still and not any(v.code == "no-better" for v in verdicts):
             verdicts += trust
-    if key == AUTO and checks.uncertainty:
+    if key == AUTO and checks.uncertainty and not isinstance(cost, RecordsCost):
         probe = _offset_probe(cost, res, verdicts, checks, checks.seed)
         if probe is not None:
             verdicts.insert(0, probe)
@@ -592,7 +641,16 @@ def _result(cost, res, key, x0, started, checks: _Checks) -> IdentificationResul
         model=model, x=x, fun=float(res.fun), nfev=int(res.nfev), fit_percent=report["fit_percent"],
         rmse=report["rmse"], nrmse=report["nrmse"], method=key, success=success,
         message=_message(res, key, verdicts, checks), history=res.history, elapsed=time.perf_counter() - started,
-        structure=structure, data=data, optimize_result=res,
+        structure=structure, optimize_result=res,
         covariance=None if unc is None else unc.covariance, warnings=[v.message for v in verdicts],
-        verdicts=verdicts, uncertainty=unc, analysis=analysis,
+        verdicts=verdicts, uncertainty=unc, analysis=analysis, **_records_of(cost, x, model),
     )
+
+
+def _records_of(cost, x, model) -> dict:
+    """``data`` of a fit, and for several records also ``records`` and each record's model in ``models``."""
+    if not isinstance(cost, RecordsCost):
+        return {"data": cost.data}
+    models = () if model is None else tuple(
+        cost.structure.model(x, k, intersample=rec.intersample, name=rec.name) for k, rec in enumerate(cost.records))
+    return {"data": cost.records[0], "records": cost.records, "models": models}
