@@ -2,12 +2,14 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from .exceptions import DataError, ParameterError
 
 __all__ = ["GRID_TOLERANCE", "INTERSAMPLE", "MAX_ORDER", "MAX_MAGNITUDE", "check_intersample", "as_signal",
-           "as_real_array", "as_count", "check_transfer_function", "uniform_grid"]
+           "as_real_array", "as_count", "check_transfer_function", "uniform_grid", "check_delay", "ESTIMATE"]
 
 #: Largest allowed deviation of a sample time from the uniform grid ``t0 + k*dt``,
 #: as a fraction of ``dt``.  Grids within this tolerance are regularised to exactly
@@ -428,3 +430,37 @@ def resampling_grid(t, dt=None, *, name: str = "t", max_gap: float = MAX_RESAMPL
     if last - first < 1:
         raise DataError(f"dt = {dt:g} s leaves fewer than two samples in the record's {t[-1] - t[0]:g} s")
     return t0 + dt * np.arange(first, last + 1), dt
+
+
+#: The value of ``delay`` that asks for the dead time to be estimated.
+ESTIMATE = "estimate"
+
+
+def check_delay(value, *, estimate: bool = True):
+    """A dead time: a finite float ``>= 0``, or ``"estimate"`` when ``estimate`` allows it.
+
+    ``None`` means no delay (0.0).
+
+    Examples
+    --------
+    >>> check_delay(None), check_delay(0.25), check_delay("Estimate")
+    (0.0, 0.25, 'estimate')
+    >>> check_delay(-1)
+    Traceback (most recent call last):
+    ...
+    hammerstein_ctrl.exceptions.ParameterError: delay must be a finite number >= 0 (seconds) or 'estimate', got -1
+    """
+    if value is None:
+        return 0.0
+    if isinstance(value, str):
+        if estimate and value.strip().lower() == ESTIMATE:
+            return ESTIMATE
+    elif not isinstance(value, bool):
+        try:
+            tau = float(value)
+        except (TypeError, ValueError, OverflowError):
+            tau = math.nan
+        if math.isfinite(tau) and tau >= 0:
+            return tau
+    allowed = " or 'estimate'" if estimate else ""
+    raise ParameterError(f"delay must be a finite number >= 0 (seconds){allowed}, got {value!r}")

@@ -36,7 +36,8 @@ from .initialize import Budget, initial_points, nuisance_estimate, stabilize
 from .optimize import BUDGET_EXHAUSTED, COMPLETED, SOLVER_FAILED, History, as_rng, as_x0, levenberg_marquardt
 from .simulate import unstable
 
-__all__ = ["auto_minimize", "auto_records", "AUTO_MAXFEV", "RECORDS_JOINT_SHARE", "RESTART_SPREAD", "MAX_RESTARTS"]
+__all__ = ["auto_minimize", "auto_records", "auto_delayed", "AUTO_MAXFEV", "RECORDS_JOINT_SHARE", "DELAY_JOINT_SHARE",
+           "RESTART_SPREAD", "MAX_RESTARTS"]
 
 #: Default evaluation budget of the auto method.
 AUTO_MAXFEV = 2000
@@ -54,6 +55,8 @@ REFINE_TOL = 1e-8
 MIN_REFINE_BUDGET = 10
 #: Share of the budget of a fit to several records kept for the joint refinement (the rest: the longest record).
 RECORDS_JOINT_SHARE = 0.25
+#: Share of the budget of a dead-time fit kept for the joint refinement (the rest: the whole-sample candidates).
+DELAY_JOINT_SHARE = 0.25
 
 
 class _Merged:
@@ -289,3 +292,57 @@ def _record_start(rs, x0, record: int):
         return x
     raise ParameterError(f"x0 must hold the {rs.n_core} block parameters {list(rs.core_names)}, one record's "
                          f"{rs.base.n_params}, or all {rs.n_params} {list(rs.param_names)}; got {x.size}")
+
+
+def auto_delayed(cost, x0=None, *, maxfev: int | None = None, seed=None, allow_unstable: bool = False,
+                 callback=None):
+    """:func:`auto_minimize` for a structure with a dead time (a :class:`~hammerstein_ctrl.delay_fit.DelayedCost`).
+
+    Whole-sample dead times ranked by ARX fits
+    (:func:`~hammerstein_ctrl.delay_fit.delay_candidates`; the fixed one
+    rounded, when the dead time is not estimated) are each fitted without
+    delay on the record shifted by that many samples; the best becomes the
+    start of Levenberg-Marquardt on everything, the dead time continuous.
+    ``maxfev`` bounds all stages together, :data:`DELAY_JOINT_SHARE` of it
+    kept for the joint refinement.  ``x0``, if given, is a whole beta of the
+    delayed structure and is refined directly.
+
+    Parameters and return value as :func:`auto_minimize`.
+    """
+    from .delay_fit import delay_candidates, shifted
+    from .objective import HammersteinCost
+
+    started = time.perf_counter()
+    total = AUTO_MAXFEV if maxfev is None else as_count(maxfev, "maxfev", minimum=1)
+    budget, merged = Budget(total), _Merged()
+    s, data = cost.structure, cost.data
+    if x0 is not None:
+        best = _refine(cost, s.check_beta(as_x0(x0)), budget, total, merged)
+        return _result(cost, best, budget, 1, 1, merged, allow_unstable, started)
+    if s.linear.estimates_delay:
+        shifts = delay_candidates(data, s.linear.den_order)
+    else:
+        shifts = [int(round(float(s.linear.delay) / data.dt))]
+    share = max(1, int((total - max(MIN_REFINE_BUDGET, int(DELAY_JOINT_SHARE * total))) // len(shifts)))
+    best_x, best_fun, best_shift, runs = None, np.inf, 0, 0
+    for d in shifts:
+        if budget.remaining < share + MIN_REFINE_BUDGET:
+            break
+        part = auto_minimize(HammersteinCost(shifted(data, d), cost.base, reject_unstable=cost.reject_unstable),
+                             maxfev=share, seed=seed, allow_unstable=allow_unstable, callback=callback)
+        budget.charge(min(int(part.nfev), int(budget.remaining)))
+        merged.add(part.history, budget.nfev - int(part.nfev))
+        runs += int(part.nit)
+        if np.all(np.isfinite(part.x)):
+            x = cost.from_base(part.x, d * data.dt)
+            fun = cost(x)
+            if fun < best_fun:
+                best_x, best_fun, best_shift = x, fun, d
+    if best_x is None:
+        raise ParameterError("no start for the dead-time fit: the fits of the shifted records failed; "
+                             "give x0 (the whole beta, with the delay) or a larger maxfev")
+    best = _refine(cost, best_x, budget, max(int(budget.remaining), 1), merged)
+    result = _result(cost, best, budget, runs + 1, len(shifts), merged, allow_unstable, started)
+    result.message = (f"{result.message}; dead time started from {best_shift} sample(s) "
+                      f"(of {len(shifts)} whole-sample candidates), then refined continuously")
+    return result

@@ -46,6 +46,7 @@ import numpy as np
 
 from ._linalg import single_threaded_blas
 from .datasets import IOData
+from .delay_fit import DelayedCost
 from .experiments import RecordsCost
 from .diagnostics import (FAILURE, STILL_IMPROVING, Verdict, budget_advice, identifiability_verdicts,
                           late_improvement, linear_verdicts, offset_verdict)
@@ -441,7 +442,12 @@ def _cost(records, structure, reject_unstable):
     (:class:`~hammerstein_ctrl.experiments.RecordsCost`)."""
     if len(records) == 1:
         records[0].check_identifiable(structure.n_params)
+        if structure.linear.delay:
+            return DelayedCost(records[0], structure, reject_unstable=reject_unstable)
         return HammersteinCost(records[0], structure, reject_unstable=reject_unstable)
+    if structure.linear.delay:
+        raise ParameterError("several records in one fit do not take a dead time yet: fit the records one at a "
+                             "time, or leave out the delay")
     cost = RecordsCost(records, structure, reject_unstable=reject_unstable)
     for rec in records:
         rec.check_identifiable(structure.n_params)
@@ -497,12 +503,14 @@ def _starting_point(structure, x0, bounds):
 
 
 def _run_auto(cost, x0, maxfev, seed, options, bounds, maxiter, callback, allow_unstable):
-    from .auto import auto_minimize, auto_records
+    from .auto import auto_delayed, auto_minimize, auto_records
 
     unused = [name for name, value in (("options", options), ("bounds", bounds), ("maxiter", maxiter))
               if value is not None]
     if unused:
         raise ParameterError(f"method 'auto' does not take {', '.join(unused)}; use maxfev (and x0, seed)")
+    if isinstance(cost, DelayedCost):
+        return auto_delayed(cost, x0, maxfev=maxfev, seed=seed, allow_unstable=allow_unstable, callback=callback)
     if isinstance(cost, RecordsCost):
         return auto_records(cost, x0, maxfev=maxfev, seed=seed, allow_unstable=allow_unstable, callback=callback)
     if x0 is not None:
@@ -632,7 +640,7 @@ def _result(cost, res, key, x0, started, checks: _Checks) -> IdentificationResul
         still = _out_of_budget(res, key) and late_improvement(res.history) > STILL_IMPROVING
         if not still and not any(v.code == "no-better" for v in verdicts):
             verdicts += trust
-    if key == AUTO and checks.uncertainty and not isinstance(cost, RecordsCost):
+    if key == AUTO and checks.uncertainty and isinstance(cost, HammersteinCost):
         probe = _offset_probe(cost, res, verdicts, checks, checks.seed)
         if probe is not None:
             verdicts.insert(0, probe)

@@ -36,11 +36,15 @@ import warnings as _warnings
 
 import numpy as np
 
-from ._checks import as_signal, check_intersample, check_transfer_function
+from ._checks import as_count, as_signal, check_delay, check_intersample, check_transfer_function
 from .exceptions import ParameterError, SimulationWarning
 from .nonlinearities import Nonlinearity
 
-__all__ = ["BlockModel", "HammersteinModel", "WienerModel", "HammersteinWienerModel"]
+__all__ = ["BlockModel", "HammersteinModel", "WienerModel", "HammersteinWienerModel", "PADE_ORDER"]
+
+#: Order of the Pade approximant that stands for a dead time in python-control exports and loop analyses
+#: (phase error under 0.1 degree up to ``omega tau = 6``, 1.4 degrees at 8).
+PADE_ORDER = 6
 
 
 def _finite_scalar(value, label: str) -> float:
@@ -123,6 +127,11 @@ class BlockModel:
         is given ``(t, u)`` arrays; a record's own ``intersample`` wins.
     name : str, optional
         Name used for the interconnected system.
+    delay : float, default 0
+        Input dead time ``tau`` in seconds (``y = h(H(p) e^{-tau p} g(u))``),
+        simulated exactly (:mod:`~hammerstein_ctrl.delay`); python-control
+        exports carry it as a Pade approximant of order ``pade_order``
+        (:data:`PADE_ORDER`).
     """
 
     #: Short name of the structure family.
@@ -130,8 +139,9 @@ class BlockModel:
 
     def __init__(self, linear, *, input_nonlinearity=None, input_params=None, output_nonlinearity=None,
                  output_params=None, offset: float = 0.0, initial_state=None, intersample: str = "foh",
-                 name: str | None = None):
+                 name: str | None = None, delay: float = 0.0):
         self.linear, order = _check_linear(linear)
+        self.delay = check_delay(delay, estimate=False)
         self.input_nonlinearity, self.input_params = _check_block(input_nonlinearity, input_params, "input")
         self.output_nonlinearity, self.output_params = _check_block(output_nonlinearity, output_params, "output")
         self.offset = _finite_scalar(offset, "offset")
@@ -206,7 +216,13 @@ class BlockModel:
         elif u is None:
             raise ParameterError("simulate needs the input u (or an IOData record)")
         x0 = self.initial_state if initial_state is None else _state_vector(initial_state, self.order)
-        y = simulate_blocks(self, t, u, x0=x0, intersample=hold if intersample is None else intersample)
+        hold = hold if intersample is None else intersample
+        if self.delay:
+            from .delay import simulate_delayed
+
+            y = simulate_delayed(self, t, u, x0=x0, intersample=hold)
+        else:
+            y = simulate_blocks(self, t, u, x0=x0, intersample=hold)
         if not np.isfinite(y).all():
             self._warn_diverged(np.asarray(t, dtype=float), y)
         return y
@@ -228,7 +244,7 @@ class BlockModel:
         """
         inner = BlockModel.build(self.linear, input_nonlinearity=self.input_nonlinearity,
                                  input_params=self.input_params, initial_state=self.initial_state,
-                                 intersample=self.intersample)
+                                 intersample=self.intersample, delay=self.delay)
         with np.errstate(all="ignore"):
             return inner.simulate(t, u)
 
@@ -313,7 +329,37 @@ class BlockModel:
         if self.output_nonlinearity is not None:
             z0 = self._steady_state(u0) if z0 is None else float(as_signal(z0, "z0")[0])
             gain *= float(np.asarray(self.output_nonlinearity.derivative(np.array([z0]), self.output_params))[0])
-        return gain * self.linear
+        return gain * self.linear_block()
+
+    def linear_block(self, pade_order: int | None = None):
+        """``H(p)``, times a Pade approximant of ``e^{-tau p}`` of order ``pade_order`` when the model has a dead time.
+
+        Examples
+        --------
+        >>> import control as ct
+        >>> from hammerstein_ctrl import HammersteinModel, Tanh
+        >>> m = HammersteinModel(ct.tf([1], [1, 1]), Tanh(), [1.0, 1.0], delay=0.5)
+        >>> m.linear_block(2).den[0][0].size - 1          # one pole of H, two of the approximant
+        3
+        """
+        if not self.delay:
+            return self.linear
+        import control
+
+        order = PADE_ORDER if pade_order is None else as_count(pade_order, "pade_order", minimum=1)
+        return self.linear * control.tf(*control.pade(self.delay, order))
+
+    def without_delay(self, pade_order: int | None = None) -> "BlockModel":
+        """The same model with its dead time replaced by a Pade approximant (itself when it has none).
+
+        Its ``initial_state`` is at rest: the approximant adds states of its own.
+        """
+        if not self.delay:
+            return self
+        return BlockModel.build(self.linear_block(pade_order), input_nonlinearity=self.input_nonlinearity,
+                                input_params=self.input_params, output_nonlinearity=self.output_nonlinearity,
+                                output_params=self.output_params, offset=self.offset,
+                                intersample=self.intersample, name=self.name)
 
     def _steady_state(self, u0: float) -> float:
         den0 = float(np.asarray(self.linear.den[0][0], dtype=float)[-1])
@@ -357,7 +403,8 @@ class BlockModel:
                 terms.append(pw if (a == 1 and pw) else f"{a:.6g}{(' ' + pw) if pw else ''}")
             return " + ".join(terms).replace("+ -", "- ") or "0"
 
-        return f"({poly(self.linear.num[0][0])})/({poly(self.linear.den[0][0])})"
+        dead = f" e^(-{self.delay:.6g} p)" if self.delay else ""
+        return f"({poly(self.linear.num[0][0])})/({poly(self.linear.den[0][0])}){dead}"
 
     # -- persistence and exact exports ----------------------------------------
     def save(self, path) -> None:

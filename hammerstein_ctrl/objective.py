@@ -171,6 +171,9 @@ class HammersteinCost:
                 "structure must be a HammersteinStructure, WienerStructure or HammersteinWienerStructure, "
                 f"got {type(structure).__name__}"
             )
+        if structure.linear.delay:
+            raise ParameterError("this structure has a dead time, which HammersteinCost does not simulate: use "
+                                 "hammerstein_ctrl.delay_fit.DelayedCost (identify chooses it)")
         self.data = data
         self.structure = structure
         self.reject_unstable = bool(reject_unstable)

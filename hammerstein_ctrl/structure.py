@@ -26,7 +26,7 @@ from typing import Mapping
 
 import numpy as np
 
-from ._checks import MAX_ORDER, as_count, as_real_array
+from ._checks import ESTIMATE, MAX_ORDER, as_count, as_real_array, check_delay
 from ._linalg import fill_coefficients
 from .exceptions import ParameterError
 from .nonlinearities import Nonlinearity
@@ -49,6 +49,12 @@ class LinearStructure:
         nonlinearity, which makes the split between the blocks unique).
     fixed : mapping of str to float, optional
         Further coefficients held at a given value, by name (``"a0"``, ``"b1"``, ...).
+    delay : float or "estimate", optional
+        Input dead time ``tau`` in seconds: the block is ``B(p)/A(p) e^{-tau p}``.
+        A number fixes it; ``"estimate"`` makes it a parameter named
+        ``delay`` (after the other block parameters of a structure), estimated
+        as a continuous value, not a multiple of the sample time
+        (:mod:`~hammerstein_ctrl.delay`).  Default: no dead time.
 
     Examples
     --------
@@ -57,6 +63,8 @@ class LinearStructure:
     ('b0', 'a0', 'a1')
     >>> s.coefficients([-1.8, 0.1, 4.8])
     (array([[ 1. , -1.8]]), array([[1. , 4.8, 0.1]]))
+    >>> LinearStructure(0, 1, delay="estimate").delay
+    'estimate'
     """
 
     def __init__(
@@ -66,7 +74,9 @@ class LinearStructure:
         *,
         monic_numerator: bool = True,
         fixed: Mapping[str, float] | None = None,
+        delay=None,
     ):
+        self.delay = check_delay(delay)
         num_order, den_order = as_count(num_order, "num_order"), as_count(den_order, "den_order")
         if den_order < 1:
             raise ParameterError("den_order must be >= 1 (a dynamic linear block)")
@@ -265,19 +275,35 @@ class LinearStructure:
                     terms.append(f"{coef:g} {power}".strip())
             return " + ".join(terms) or "0"
 
-        return f"({poly(self.num_order, 'b')})/({poly(self.den_order, 'a')})"
+        dead = ("" if not self.delay else " e^{-delay p}" if self.estimates_delay
+                else f" e^{{-{self.delay:g} p}}")
+        return f"({poly(self.num_order, 'b')})/({poly(self.den_order, 'a')}){dead}"
 
     def __repr__(self):
         fixed = {k: v for k, v in self.fixed.items() if not (self.monic_numerator and k == f"b{self.num_order}")}
         extra = f", fixed={fixed}" if fixed else ""
         mon = "" if self.monic_numerator else ", monic_numerator=False"
-        return f"LinearStructure({self.num_order}, {self.den_order}{mon}{extra})"
+        dead = f", delay={self.delay!r}" if self.delay else ""
+        return f"LinearStructure({self.num_order}, {self.den_order}{mon}{extra}{dead})"
+
+    def with_delay(self, delay) -> "LinearStructure":
+        """The same coefficients with another dead time (``None``: none, a number, or ``"estimate"``)."""
+        fixed = {k: v for k, v in self.fixed.items() if not (self.monic_numerator and k == f"b{self.num_order}")}
+        return LinearStructure(self.num_order, self.den_order, monic_numerator=self.monic_numerator, fixed=fixed,
+                               delay=delay)
+
+    @property
+    def estimates_delay(self) -> bool:
+        """Whether the dead time is a parameter (``delay="estimate"``)."""
+        return self.delay == ESTIMATE
 
 
 #: Choices for the initial state of the linear block.
 INITIAL_STATES = ("zero", "estimate")
 #: Name of the output-offset parameter.
 OFFSET_NAME = "y0"
+#: Name of the dead-time parameter (``LinearStructure(..., delay="estimate")``), the last block parameter.
+DELAY_NAME = "delay"
 #: Prefix of the initial-state parameters ``xi0, xi1, ...`` (the state ``x(0)``
 #: of the controllable canonical realisation of ``H``).
 STATE_PREFIX = "xi"
@@ -341,7 +367,8 @@ class BlockStructure:
             g_names = tuple(f"g_{n}" for n in g_names)
             h_names = tuple(f"h_{n}" for n in h_names)
         self._n_g, self._n_h = len(g_names), len(h_names)
-        self.core_names: tuple[str, ...] = linear.param_names + g_names + h_names
+        self.core_names: tuple[str, ...] = linear.param_names + g_names + h_names + (
+            (DELAY_NAME,) if linear.estimates_delay else ())
         extra = ((OFFSET_NAME,) if self.offset else ()) + (
             tuple(f"{STATE_PREFIX}{i}" for i in range(linear.den_order)) if initial_state == "estimate" else ())
         self.param_names: tuple[str, ...] = self.core_names + extra
@@ -367,6 +394,11 @@ class BlockStructure:
         """The same blocks with other real-data options (``None`` keeps the current one)."""
         return type(self)(*self._block_args(), offset=self.offset if offset is None else offset,
                           initial_state=self.initial_state if initial_state is None else initial_state)
+
+    def with_delay(self, delay):
+        """The same blocks and options with another dead time of the linear block (see :class:`LinearStructure`)."""
+        return type(self)(self.linear.with_delay(delay), *self._block_args()[1:], offset=self.offset,
+                          initial_state=self.initial_state)
 
     # -- beta <-> blocks ----------------------------------------------------
     def check_beta(self, beta) -> np.ndarray:
@@ -440,7 +472,14 @@ class BlockStructure:
             self.linear.transfer_function(self.linear_params(b)),
             input_nonlinearity=self.input_nonlinearity, input_params=self.input_params(b),
             output_nonlinearity=self.output_nonlinearity, output_params=self.output_params(b),
-            offset=0.0 if offset is None else float(offset), initial_state=state, **kwargs)
+            offset=0.0 if offset is None else float(offset), initial_state=state,
+            delay=float(self.delay(b)), **kwargs)
+
+    def delay(self, beta):
+        """The dead time of a beta or batch: its ``delay`` entry, or the fixed one (0 without a dead time)."""
+        if self.linear.estimates_delay:
+            return self.check_beta(beta)[..., self.n_core - 1]
+        return self.linear.delay
 
     def beta(self, model) -> np.ndarray:
         """The beta vector of a model that has this structure."""
@@ -454,6 +493,8 @@ class BlockStructure:
             parts.append(self._free_input(model.input_params))
         if self.output_nonlinearity is not None:
             parts.append(model.output_params)
+        if self.linear.estimates_delay:
+            parts.append([model.delay])
         if self.offset:
             parts.append([model.offset])
         if self.initial_state == "estimate":
