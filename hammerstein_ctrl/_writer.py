@@ -77,6 +77,8 @@ def model_to_dict(model) -> dict:
            **blocks, "offset": settings["offset"],
            "initial_state": x0.tolist() if np.any(x0 != 0) else None,
            "intersample": settings["intersample"]}
+    if model.delay:                     # only then: files of models without a dead time stay as they were
+        out["delay"] = float(model.delay)
     params = [v for b in blocks.values() if b is not None for v in b["params"].values()]
     numbers = out["linear"]["num"] + out["linear"]["den"] + params + [out["offset"]]
     if not all(math.isfinite(v) for v in numbers + (out["initial_state"] or [])):

@@ -330,8 +330,7 @@ def auto_delayed(cost, x0=None, *, maxfev: int | None = None, seed=None, allow_u
             break
         part = auto_minimize(HammersteinCost(shifted(data, d), cost.base, reject_unstable=cost.reject_unstable),
                              maxfev=share, seed=seed, allow_unstable=allow_unstable, callback=callback)
-        budget.charge(min(int(part.nfev), int(budget.remaining)))
-        merged.add(part.history, budget.nfev - int(part.nfev))
+        budget.charge(min(int(part.nfev), int(budget.remaining)))   # (its history: J of the shifted record)
         runs += int(part.nit)
         if np.all(np.isfinite(part.x)):
             x = cost.from_base(part.x, d * data.dt)

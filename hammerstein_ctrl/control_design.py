@@ -62,6 +62,7 @@ import numpy as np
 
 from ._checks import MAX_MAGNITUDE, as_signal, check_dt
 from .exceptions import DataError, ParameterError, UnknownNameError
+from .model import PADE_ORDER
 from .loop_sim import (
     back_calculation_gain,
     check_limits,
@@ -127,6 +128,12 @@ def _polynomials(model):
         if params is not None and not np.all(np.isfinite(params)):
             raise ParameterError("the model's nonlinearity parameters are not finite")
     return num / den[0], den / den[0]
+
+
+def _rational(model):
+    """The model itself, or with its dead time replaced by a Pade approximant
+    (:meth:`~hammerstein_ctrl.model.BlockModel.without_delay`) for the loop analyses."""
+    return model.without_delay() if getattr(model, "delay", 0) else model
 
 
 def _split_poles(den: np.ndarray):
@@ -196,8 +203,9 @@ def approximate(model, u0: float | None = 0.0, dt: float | None = None, *, op: O
     or ``"self-regulating"``: ``K e^{-theta s}/((tau1 s + 1)(tau2 s + 1))``),
     ``gain`` (``k`` or ``K``), ``tau1``, ``tau2``, ``theta``, ``slope`` (the
     small-signal gain of the static blocks), ``u0``, ``dt`` and ``notes``.
-    Inverse-response zeros and half of the third-largest lag (and all smaller
-    ones) go to the delay; a digital controller adds ``dt/2``.
+    The model's own dead time, inverse-response zeros and half of the
+    third-largest lag (and all smaller ones) go to the delay; a digital
+    controller adds ``dt/2``.
 
     Examples
     --------
@@ -232,6 +240,9 @@ def approximate(model, u0: float | None = 0.0, dt: float | None = None, *, op: O
         notes.append(f"half rule: half of the lag {rest[0]:.4g} to tau2, "
                      f"the rest ({rest[0] / 2 + sum(rest[1:]):.4g}) to the delay")
     kept += [0.0] * (keep - len(kept))
+    if getattr(model, "delay", 0):
+        theta += float(model.delay)
+        notes.append(f"the model's dead time {float(model.delay):.4g} s added to the delay")
     if dt is not None:
         theta += float(dt) / 2
         notes.append(f"digital control: dt/2 = {float(dt) / 2:.4g} added to the delay")
@@ -728,13 +739,17 @@ def tune_pid(model, rule: str = "robust", *, kind: str = "pid", max_sensitivity:
     ms = _robustness_target(max_sensitivity, phase_margin)
     _check_scalars(step=step, tau_c=tau_c, t_final=t_final, bandwidth=bandwidth)
     _check_range(model)
+    delayed, model = model, _rational(model)
     op = _operating_point(model, u0, y0, u_limit)
     P = small_signal(model, op)
     num, den = np.asarray(P.num[0][0], float), np.asarray(P.den[0][0], float)
     _check_range(num=num, den=den)
     record = {"notes": list(op.notes), "max_sensitivity": ms}
+    if delayed is not model:
+        record["notes"].append(f"dead time {delayed.delay:.4g} s: the loop figures use its Pade approximant "
+                               f"of order {PADE_ORDER}")
     if key in ("simc", "imc"):
-        gains, record = _rule_design(model, key, op, dt, limits, tau_c, step, ms, num, den, record)
+        gains, record = _rule_design(model, key, op, dt, limits, tau_c, step, ms, num, den, record, delayed)
     else:
         gains = _robust_design(model, op, num, den, ms=ms, kind=kind, bandwidth=bandwidth, dt=dt, limits=limits,
                                step=step, record=record)
@@ -865,9 +880,12 @@ def _start(start) -> tuple[float, float, float]:
     return tuple(float(v) for v in g)
 
 
-def _rule_design(model, key, op, dt, limits, tau_c, step, ms, num, den, record):
-    """SIMC or IMC gains; without ``tau_c``, detuned until ``max(Ms, Mt) <= ms``."""
-    a = approximate(model, dt=dt, op=op)
+def _rule_design(model, key, op, dt, limits, tau_c, step, ms, num, den, record, delayed=None):
+    """SIMC or IMC gains; without ``tau_c``, detuned until ``max(Ms, Mt) <= ms``.
+
+    The half rule reads the model with its dead time (``delayed``), the loop figures its rational form.
+    """
+    a = approximate(model if delayed is None else delayed, dt=dt, op=op)
     a["notes"] = record["notes"] + [n for n in a["notes"] if n not in record["notes"]]
     design = _simc if key == "simc" else _imc
     if tau_c is not None:
@@ -1131,6 +1149,7 @@ def closed_loop(model, pid: PIDResult, u_limit=None, *, dt: float | None = None,
 
     if not isinstance(pid, PIDResult):
         raise ParameterError(f"pid must be a PIDResult (from tune_pid), got {type(pid).__name__}")
+    model = _rational(model)
     plant_model = rest_model(model, pid.operating_point) if pid.operating_point is not None else model
     if dt is not None:
         return sampled_loop_iosys(plant_model, pid.gains, dt, u_limit=u_limit, bias=pid.u0, name=name)
@@ -1160,6 +1179,7 @@ def analyze_loop(model, pid: PIDResult, *, u_limit=None, reference="step", step:
         operating point, overshoot in %), ``iae``, ``ise``, ``itae``,
         ``max_overshoot`` (fraction) and the response ``t, r, y, u`` (absolute).
     """
+    model = _rational(model)
     op = pid.operating_point if pid.operating_point is not None else operating_point(model)
     P = small_signal(model, op)
     num, den = np.asarray(P.num[0][0], float), np.asarray(P.den[0][0], float)

@@ -163,9 +163,14 @@ def sampled_iosys(model, dt: float, *, intersample: str | None = None, name: str
     Returns
     -------
     control.NonlinearIOSystem
+        With a dead time the states also hold the last ``d + 1`` samples of
+        ``g(u)`` (``d`` whole samples of delay), named ``v[k-1]``, ...,
+        before ``started``; the delay is exact, fraction of a sample included.
     """
     import control
 
+    if getattr(model, "delay", 0):
+        return _delayed_iosys(model, _check_dt(dt), intersample, name=name, inputs=inputs, outputs=outputs)
     Ad, B0, B1, C, D = sampled_matrices(model, dt, intersample)
     settings = model_settings(model)
     x0, offset = settings["initial_state"], settings["offset"]
@@ -190,3 +195,53 @@ def sampled_iosys(model, dt: float, *, intersample: str | None = None, name: str
     return control.nlsys(update, output, inputs=[inputs], outputs=[outputs],
                          states=[f"z[{i}]" for i in range(n)] + ["started"], dt=dt,
                          name=name or getattr(model, "name", None) or "hammerstein")
+
+
+def _delayed_iosys(model, dt: float, intersample, *, name, inputs, outputs):
+    """:func:`sampled_iosys` of a model with a dead time (:func:`~hammerstein_ctrl.delay.delay_matrices`)."""
+    import control
+
+    from .delay import delay_matrices
+
+    settings = model_settings(model)
+    mode = settings["intersample"] if intersample is None else intersample
+    try:
+        mode = check_intersample(mode)
+    except DataError as exc:
+        raise ParameterError(str(exc)) from None
+    M, Pa, Pb, Pc, C, D, d, a = delay_matrices(*_num_den(model), dt, model.delay, mode)
+    x0, offset = settings["initial_state"], settings["offset"]
+    n, L = M.shape[0], d + 1
+    g, h = model.g, model.h
+
+    def delayed(z, v):
+        """``(w0, w1)``: the delayed input now and ``a dt`` later; before the record, its first sample."""
+        past = z[n:n + L] if z[n + L] else np.full(L, v)
+        s = np.concatenate(([v], past))                # s[i] = v[k - i], i = 0 .. d + 1
+        now, before = s[d], s[d + 1]
+        if mode == "zoh":
+            return (before if a > 0 else now), now
+        return a * before + (1.0 - a) * now, now
+
+    def state(z, w0):
+        return z[:n] + (Pc * w0 if z[n + L] else x0)
+
+    def update(t, z, u, p):
+        v = float(g(np.atleast_1d(u)[:1])[0])
+        w0, w1 = delayed(z, v)
+        out = np.empty(n + L + 1)
+        out[:n] = M @ state(z, w0) + Pa * w0 + Pb * w1
+        past = z[n:n + L] if z[n + L] else np.full(L, v)
+        out[n] = v
+        out[n + 1:n + L] = past[:L - 1]
+        out[n + L] = 1.0
+        return out
+
+    def output(t, z, u, p):
+        v = float(g(np.atleast_1d(u)[:1])[0])
+        w0, _ = delayed(z, v)
+        return np.array([float(h(np.array([C @ state(z, w0) + D * w0]))[0]) + offset])
+
+    return control.nlsys(update, output, inputs=[inputs], outputs=[outputs],
+                         states=[f"z[{i}]" for i in range(n)] + [f"v[k-{i}]" for i in range(1, L + 1)] + ["started"],
+                         dt=dt, name=name or getattr(model, "name", None) or "hammerstein")

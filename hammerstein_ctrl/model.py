@@ -250,7 +250,7 @@ class BlockModel:
 
     # -- python-control interop -------------------------------------------------
     def to_iosys(self, name: str | None = None, *, dt: float | None = None, inputs: str = "u",
-                 outputs: str = "y", intersample: str | None = None):
+                 outputs: str = "y", intersample: str | None = None, pade_order: int | None = None):
         """The model as a :class:`control.NonlinearIOSystem` interconnection.
 
         With ``dt`` given, the exact discrete-time system of
@@ -281,6 +281,11 @@ class BlockModel:
         e.g. a feedback loop with a controller.  Simulate it from the model's
         initial state with ``X0=model.state0()``.
 
+        A dead time is exact in the discrete system (``dt`` given).  The
+        continuous one carries it as a Pade approximant of order
+        ``pade_order`` (default :data:`PADE_ORDER`) between ``g`` and ``H``,
+        starting at rest; its states come after ``H``'s (pad ``X0`` with zeros).
+
         Examples
         --------
         >>> import control as ct
@@ -299,11 +304,16 @@ class BlockModel:
 
             return sampled_iosys(self, dt, name=name, inputs=inputs, outputs=outputs, intersample=intersample)
         g, h, offset = self.g, self.h, self.offset
+        delayed = "vd" if self.delay else "v"
         blocks = [control.nlsys(None, lambda t, x, u, p: g(np.atleast_1d(u)[:1]), inputs=[inputs],
                                 outputs=["v"], name="g"),
-                  self.to_ss(inputs="v", outputs="z", name="H"),
+                  self.to_ss(inputs=delayed, outputs="z", name="H"),
                   control.nlsys(None, lambda t, x, u, p: h(np.atleast_1d(u)[:1]) + offset, inputs=["z"],
                                 outputs=[outputs], name="h")]
+        if self.delay:      # after H in the list, so that H's states come first (X0 = [state0, zeros])
+            order = PADE_ORDER if pade_order is None else as_count(pade_order, "pade_order", minimum=1)
+            blocks.append(control.ss(control.tf(*control.pade(self.delay, order)), inputs="v", outputs="vd",
+                                     name="delay"))
         return control.interconnect(blocks, inputs=[inputs], outputs=[outputs], name=name or self.name)
 
     def linearize(self, u0: float = 0.0, *, z0: float | None = None):

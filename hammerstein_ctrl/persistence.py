@@ -52,7 +52,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .exceptions import ParameterError, UnknownNameError
-from ._checks import INTERSAMPLE, MAX_MAGNITUDE, check_transfer_function
+from ._checks import INTERSAMPLE, MAX_MAGNITUDE, check_delay, check_transfer_function
 from ._writer import (MODEL_FORMAT, RESULT_FORMAT, SCHEMA_VERSION, encode_float as _encode, model_to_dict,
                       nonlinearity_to_dict as _nonlinearity_to_dict, save_model, write_json as _write)
 from .nonlinearities import NONLINEARITIES
@@ -198,9 +198,11 @@ def _structure_to_dict(structure) -> dict:
     if not isinstance(structure, BlockStructure) or structure.kind not in _KINDS:
         raise ParameterError(f"cannot save a structure of type {type(structure).__name__}")
     lin = structure.linear
-    return {"kind": structure.kind,
-            "linear": {"num_order": lin.num_order, "den_order": lin.den_order,
-                       "monic_numerator": lin.monic_numerator, "fixed": dict(lin.fixed)},
+    linear = {"num_order": lin.num_order, "den_order": lin.den_order,
+              "monic_numerator": lin.monic_numerator, "fixed": dict(lin.fixed)}
+    if lin.delay:
+        linear["delay"] = lin.delay
+    return {"kind": structure.kind, "linear": linear,
             **{key: None if nl is None else _nonlinearity_to_dict(nl)
                for key, nl in (("input_nonlinearity", structure.input_nonlinearity),
                                ("output_nonlinearity", structure.output_nonlinearity))},
@@ -213,7 +215,7 @@ def _structure_from_dict(obj, where: str):
 
     _keys(obj, where, ("kind", "linear", "input_nonlinearity", "output_nonlinearity", "offset", "initial_state"))
     kind, _ = _check_kind(obj, where)
-    lin = _keys(obj["linear"], f"{where}.linear", ("num_order", "den_order", "monic_numerator", "fixed"))
+    lin = _keys(obj["linear"], f"{where}.linear", ("num_order", "den_order", "monic_numerator", "fixed"), ("delay",))
     fixed = lin["fixed"]
     if not isinstance(fixed, dict):
         raise ParameterError(f"{where}.linear.fixed must be a JSON object")
@@ -221,7 +223,7 @@ def _structure_from_dict(obj, where: str):
     linear = LinearStructure(_integer(lin["num_order"], f"{where}.linear.num_order"),
                              _integer(lin["den_order"], f"{where}.linear.den_order"),
                              monic_numerator=_boolean(lin["monic_numerator"], f"{where}.linear.monic_numerator"),
-                             fixed=fixed)
+                             fixed=fixed, delay=_delay(lin.get("delay"), f"{where}.linear.delay", estimate=True))
     blocks = [_nonlinearity_from_dict(_keys(obj[key], f"{where}.{key}", ("family", "options")), f"{where}.{key}")
               for key in ("input_nonlinearity", "output_nonlinearity") if obj[key] is not None]
     initial_state = _string(obj["initial_state"], f"{where}.initial_state")
@@ -256,7 +258,7 @@ def model_from_dict(obj, where: str = "model"):
 
     from .model import BlockModel
 
-    _keys(obj, where, _MODEL_KEYS)
+    _keys(obj, where, _MODEL_KEYS, ("delay",))
     _check_kind(obj, where)
     lin = _keys(obj["linear"], f"{where}.linear", ("num", "den"))
     num, den = _numbers(lin["num"], f"{where}.linear.num"), _numbers(lin["den"], f"{where}.linear.den")
@@ -271,7 +273,20 @@ def model_from_dict(obj, where: str = "model"):
     return BlockModel.build(control.tf(num, den), input_nonlinearity=g, input_params=g_params,
                             output_nonlinearity=h, output_params=h_params,
                             offset=_number(obj["offset"], f"{where}.offset"), initial_state=x0,
-                            intersample=intersample, name=_string(obj["name"], f"{where}.name"))
+                            intersample=intersample, name=_string(obj["name"], f"{where}.name"),
+                            delay=_delay(obj.get("delay"), f"{where}.delay", estimate=False))
+
+
+def _delay(value, where: str, *, estimate: bool):
+    """A saved dead time: absent (none), a number >= 0, or (in a structure) the string 'estimate'."""
+    if value is None:
+        return None
+    if not (isinstance(value, str) and estimate):
+        value = _number(value, where)
+    try:
+        return check_delay(value, estimate=estimate)
+    except ParameterError as exc:
+        raise ParameterError(f"{where}: {exc}") from None
 
 
 #: Most digits of an integer in a saved file (orders, counts and codes are short).
