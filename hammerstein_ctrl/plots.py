@@ -558,7 +558,7 @@ def _run_curves(source, quantity: str) -> dict:
         keep = ~np.isnan(values)
         return nfev[keep], values[keep], bool(diverged)
 
-    if hasattr(source, "records"):
+    if _is_study(source):
         out = {}
         for r in source.records:
             c = r["curve"]
@@ -694,6 +694,12 @@ def _draw_diverged(b, runs, color, text):
             b.plot(n[fin][-1], v[fin][-1], "x", color=color, ms=6)
 
 
+def _is_study(obj) -> bool:
+    """Whether ``obj`` is a StudyResult (its trial records and method names; a fit to several records has
+    ``records`` too, of IOData)."""
+    return hasattr(obj, "records") and hasattr(obj, "methods") and not is_identification_result(obj)
+
+
 def final_cost(study, *, title=None, ax=None):
     """Box plot with the individual trials of the final J per method.
 
@@ -701,7 +707,7 @@ def final_cost(study, *, title=None, ax=None):
     tick label counts them, and ``^`` marks at the top edge show them.  The
     y axis is logarithmic when the values span more than :data:`LOG_SPAN`.
     """
-    if not hasattr(study, "records"):
+    if not _is_study(study):
         raise ParameterError(f"final_cost needs a StudyResult, got {type(study).__name__}")
     fig, a = _single_axes(ax)
     rng = np.random.default_rng(0)
