@@ -1,14 +1,17 @@
-"""Compiled scalar forms of the static nonlinearities, called inside the simulation kernels.
+"""Compiled scalar forms of the static nonlinearities, derived from their formulas.
 
 An output nonlinearity ``h`` (Wiener and Hammerstein-Wiener models) acts on
 every simulated sample, so the kernels apply it in the same compiled pass as
-the linear recursion instead of storing the whole output first.  Each function
-here has the signature ``map(z, p, extra) -> float``: ``z`` one sample, ``p``
-the parameter vector of one candidate, ``extra`` fixed data of the family
-(the breakpoints of a piecewise-linear map, else an empty array).  They agree
-with the vectorised :meth:`~hammerstein_ctrl.nonlinearities.Nonlinearity.evaluate`
-to rounding; :attr:`~hammerstein_ctrl.nonlinearities.Nonlinearity.compiled_map`
-names the function of a family.
+the linear recursion instead of storing the whole output first; the
+closed-loop simulator applies ``g`` and ``h`` at every step the same way.
+Nothing here is written by hand: for every family registered in
+:data:`~hammerstein_ctrl.nonlinearities.NONLINEARITIES` with a
+:attr:`~hammerstein_ctrl.nonlinearities.Nonlinearity.formula`, the module
+holds ``<name>_map = compiled(formula)``, with the signature
+``map(z, p, extra) -> float``: ``z`` one sample, ``p`` the parameter vector
+of one candidate, ``extra`` fixed data of the family (the breakpoints of a
+piecewise-linear map, else an empty array).  They agree with the vectorised
+:meth:`~hammerstein_ctrl.nonlinearities.Nonlinearity.evaluate` to rounding.
 
 Examples
 --------
@@ -17,67 +20,21 @@ Examples
 2.0
 >>> float(piecewise_linear_map(0.5, np.array([-1.0, 0.0, 2.0]), np.array([-1.0, 0.0, 1.0])))
 1.0
+>>> FAMILY_CODES[NONLINEARITIES["tanh"]] == 0
+True
 """
 
 from __future__ import annotations
 
-import numpy as np
-
 from ._jit import cached_njit
+from .nonlinearities import NONLINEARITIES
 
-__all__ = ["tanh_map", "coulomb_map", "polynomial_map", "saturation_map", "deadzone_map",
-           "piecewise_linear_map"]
+#: The compiled maps, in the order of the registry (the closed-loop simulator picks one by its position).
+MAPS = tuple(cached_njit()(family.formula) for family in NONLINEARITIES.values() if family.formula is not None)
+#: Position in :data:`MAPS` of each family's map.
+FAMILY_CODES = {family: i for i, family in enumerate(f for f in NONLINEARITIES.values() if f.formula is not None)}
 
+for _family, _code in FAMILY_CODES.items():
+    globals()[f"{_family.name}_map"] = MAPS[_code]
 
-@cached_njit()
-def tanh_map(z, p, extra):  # pragma: no cover - compiled
-    return p[0] * np.tanh(p[1] * z)
-
-
-@cached_njit()
-def coulomb_map(z, p, extra):  # pragma: no cover - compiled
-    s = 1.0 if z > 0.0 else (-1.0 if z < 0.0 else 0.0)
-    return p[0] * z + p[1] * s + p[2]
-
-
-@cached_njit()
-def polynomial_map(z, p, extra):  # pragma: no cover - compiled
-    acc = 0.0
-    for i in range(p.size - 1, -1, -1):
-        acc = acc * z + p[i]
-    return acc * z
-
-
-@cached_njit()
-def _clip(z, a):  # pragma: no cover - compiled
-    """``numpy.clip(z, -a, a)`` for ``a >= 0``: NaN if ``z`` or ``a`` is NaN (``min``/``max`` would drop it)."""
-    if np.isnan(z) or np.isnan(a):
-        return np.nan
-    return min(max(z, -a), a)
-
-
-@cached_njit()
-def saturation_map(z, p, extra):  # pragma: no cover - compiled
-    return p[0] * _clip(z, abs(p[1]))
-
-
-@cached_njit()
-def deadzone_map(z, p, extra):  # pragma: no cover - compiled
-    return p[0] * (z - _clip(z, abs(p[1])))
-
-
-@cached_njit()
-def piecewise_linear_map(z, p, extra):  # pragma: no cover - compiled
-    n = extra.size
-    k = 0
-    # segment: the last breakpoint <= z, clipped to the first and last segments
-    lo, hi = 0, n - 1
-    while hi - lo > 1:
-        mid = (lo + hi) // 2
-        if extra[mid] <= z:
-            lo = mid
-        else:
-            hi = mid
-    k = min(lo, n - 2)
-    w = (z - extra[k]) / (extra[k + 1] - extra[k])
-    return p[k] * (1.0 - w) + p[k + 1] * w
+__all__ = ["MAPS", "FAMILY_CODES", "NONLINEARITIES"] + [f"{family.name}_map" for family in FAMILY_CODES]

@@ -872,7 +872,7 @@ def call_normal_kernel(typingctx, address, E, C, D, X, Y0, VP, P, Phi, HP, HX, y
 
 
 #: Package modules whose compiled functions the generated kernels call.
-_CALLED_MODULES = ("_linalg.py", "compiled_maps.py", "_simd.py")
+_CALLED_MODULES = ("_linalg.py", "compiled_maps.py", "nonlinearities.py", "_simd.py")
 
 
 @functools.lru_cache(maxsize=1)

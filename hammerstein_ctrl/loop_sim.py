@@ -37,22 +37,25 @@ True
 
 from __future__ import annotations
 
+import contextlib
 import math
+import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
+from numba import literal_unroll
 
 from ._jit import cached_njit
 from .exact_export import model_settings, sampled_iosys, sampled_matrices
 from .exceptions import DataError, ParameterError
-from .nonlinearities import Coulomb, DeadZone, PiecewiseLinear, Polynomial, Saturation, Tanh
+from .compiled_maps import FAMILY_CODES, MAPS
 
 __all__ = ["simulate_loops", "simulate_controller_loop", "sampled_plant", "SampledPlant", "sampled_loop_iosys",
            "discrete_pid_iosys", "saturation_iosys", "back_calculation_gain", "check_limits", "NONLINEARITY_CODES",
            "IDENTITY"]
 
-#: Compiled evaluations of the named nonlinearity families (code per class).
-NONLINEARITY_CODES = {Tanh: 0, Coulomb: 1, Polynomial: 2, Saturation: 3, DeadZone: 4, PiecewiseLinear: 5}
+#: Code of each named nonlinearity family in the compiled loops (its position among the compiled maps).
+NONLINEARITY_CODES = FAMILY_CODES
 
 #: A simulated output beyond this multiple of the reference's size counts as diverged.
 DIVERGENCE_RATIO = 1e6
@@ -101,33 +104,38 @@ def _block_arrays(nl, params):
         raise ParameterError(
             f"the compiled loop simulator supports the named nonlinearity families, not {nl!r}"
         )
-    bp = nl.breakpoints if isinstance(nl, PiecewiseLinear) else np.zeros(2)
-    return code, np.ascontiguousarray(params, dtype=float), np.ascontiguousarray(bp, dtype=float)
+    return code, np.ascontiguousarray(params, dtype=float), np.ascontiguousarray(nl.map_extra(), dtype=float)
+
+
+@contextlib.contextmanager
+def _quiet_compilation(loop):
+    """Silence numba's note, while ``loop`` compiles, that :func:`_g` uses an experimental feature.
+
+    ``_g`` picks a compiled map from a tuple of them, which numba types as
+    "first-class functions"; that is what makes a new nonlinearity family
+    need no code here.  Once ``loop`` has a compiled version the filters are
+    left alone (they are process-wide: not worth touching on every call).
+    """
+    if loop.signatures:
+        yield
+        return
+    from numba.core.errors import NumbaExperimentalFeatureWarning
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", NumbaExperimentalFeatureWarning)
+        yield
 
 
 @cached_njit()
 def _g(code, p, bp, u):  # pragma: no cover - compiled
-    if code == IDENTITY:
-        return u
-    if code == 0:
-        return p[0] * math.tanh(p[1] * u)
-    if code == 1:
-        s = 1.0 if u > 0 else (-1.0 if u < 0 else 0.0)
-        return p[0] * u + p[1] * s + p[2]
-    if code == 2:
-        acc = p[p.size - 1]
-        for i in range(p.size - 2, -1, -1):
-            acc = acc * u + p[i]
-        return acc * u
-    if code == 3 or code == 4:
-        a = abs(p[1])
-        c = min(max(u, -a), a)
-        return p[0] * c if code == 3 else p[0] * (u - c)
-    n = bp.size
-    idx = np.searchsorted(bp, u, side="right") - 1
-    idx = min(max(idx, 0), n - 2)
-    w = (u - bp[idx]) / (bp[idx + 1] - bp[idx])
-    return p[idx] * (1.0 - w) + p[idx + 1] * w
+    """The static block of code ``code`` (:data:`NONLINEARITY_CODES`) at ``u``, its compiled map; ``u`` for none."""
+    out = u
+    i = 0
+    for h in literal_unroll(MAPS):
+        if i == code:
+            out = h(u, p, bp)
+        i += 1
+    return out
 
 
 @cached_njit()
@@ -317,7 +325,7 @@ def simulate_loops(model, gains, r, dt: float, *, u_limit=None, bias: float = 0.
     G = _gain_table(gains)
     Y = np.empty((G.shape[0], r.size))
     U = np.empty_like(Y)
-    with np.errstate(all="ignore"):
+    with np.errstate(all="ignore"), _quiet_compilation(_loops):
         _loops(*plant.arrays(), G, r, float(dt), lo, hi, float(bias), bound, Y, U)
     return Y, U
 
@@ -344,7 +352,7 @@ def simulate_controller_loop(model, controller, r, dt: float, *, u_limit=None, b
     A, B, C, D = (np.ascontiguousarray(np.asarray(M, dtype=float)) for M in (sys.A, sys.B, sys.C, sys.D))
     Y = np.empty((1, r.size))
     U = np.empty_like(Y)
-    with np.errstate(all="ignore"):
+    with np.errstate(all="ignore"), _quiet_compilation(_controller_loop):
         _controller_loop(*plant.arrays(), A, B[:, 0].copy(), C[0].copy(), float(D[0, 0]), r, lo, hi, float(bias),
                          bound, Y, U)
     return Y[0], U[0]

@@ -45,8 +45,14 @@ __all__ = [
 class Nonlinearity:
     """Base class of a parametric static nonlinearity ``v = g(u; delta)``.
 
-    Subclasses set :attr:`param_names` and implement :meth:`_evaluate`
-    (and, where it is known in closed form, :meth:`_derivative`).
+    Subclasses set :attr:`param_names` and define the family's formula once,
+    as :attr:`formula` (and, where it is known in closed form, :meth:`_derivative`).
+    Everything else is derived from it: the vectorised :meth:`evaluate`, and,
+    for a family registered in :data:`NONLINEARITIES`, the compiled scalar map
+    that the simulation kernels and the closed-loop simulator call
+    (:mod:`~hammerstein_ctrl.compiled_maps`).  A family whose formula cannot
+    be written in that form overrides :meth:`_evaluate` instead (and then has
+    no compiled map unless it also gives a scalar :attr:`formula`).
     """
 
     #: Short name used in reprs, the CLI and :func:`nonlinearity_from_name`.
@@ -57,9 +63,30 @@ class Nonlinearity:
     #: (``g(u; p) = p[i] g(u; p with p[i] = 1)``), or ``None``.  With it, the
     #: automatic initial point fits that parameter by linear least squares.
     scale_index: int | None = None
-    #: Name of the compiled scalar form in :mod:`hammerstein_ctrl.compiled_maps`
-    #: (used when the family is an output nonlinearity), or ``None``.
-    compiled_map: str | None = None
+    #: The formula ``g(z; p)``, a plain function ``formula(z, p, extra)``
+    #: (declare it with ``staticmethod``) written with numpy ufuncs and
+    #: indexing of ``p`` only, so that it runs both compiled on one sample
+    #: (``z`` a float, ``p`` the parameter vector, ``extra`` :meth:`map_extra`)
+    #: and vectorised (``z`` an array, ``p`` the parameters as columns that
+    #: broadcast over it).  ``None`` for families that override :meth:`_evaluate`.
+    formula = None
+
+    @property
+    def compiled_map(self) -> str | None:
+        """Name of the compiled form of :attr:`formula` in :mod:`~hammerstein_ctrl.compiled_maps`, or ``None``.
+
+        Derived for the families registered in :data:`NONLINEARITIES` that
+        have a formula; an output nonlinearity with a compiled map is applied
+        inside the compiled simulation pass.
+
+        Examples
+        --------
+        >>> Tanh().compiled_map
+        'tanh_map'
+        """
+        if type(self).formula is None or NONLINEARITIES.get(self.name) is not type(self):
+            return None
+        return f"{self.name}_map"
 
     def map_extra(self) -> np.ndarray:
         """Fixed data passed to the compiled map (e.g. breakpoints); empty by default."""
@@ -237,8 +264,11 @@ class Nonlinearity:
         """:meth:`unexcited` for a finite, non-constant signal (families override; default: nothing known)."""
         return {}
 
-    def _evaluate(self, u: np.ndarray, p: np.ndarray) -> np.ndarray:  # pragma: no cover
-        raise NotImplementedError
+    def _evaluate(self, u: np.ndarray, p: np.ndarray) -> np.ndarray:
+        formula = type(self).formula
+        if formula is None:  # pragma: no cover - a family must give one or the other
+            raise NotImplementedError(f"{type(self).__name__} defines neither formula nor _evaluate")
+        return np.asarray(formula(u, self._columns(p), self.map_extra()), dtype=float)
 
     def _derivative(self, u: np.ndarray, p: np.ndarray) -> np.ndarray:
         h = 1e-6 * np.maximum(1.0, np.abs(u))
@@ -280,7 +310,6 @@ class Tanh(Nonlinearity):
     """
 
     name = "tanh"
-    compiled_map = "tanh_map"
     param_names = ("d0", "d1")
     scale_index = 0
     #: Range of ``d1 * max|u|`` scanned by :meth:`shape_grid` (almost linear to hard switching).
@@ -298,9 +327,9 @@ class Tanh(Nonlinearity):
         d1 = np.geomspace(*self.SCAN_RANGE, SCAN_POINTS) / top
         return np.column_stack([np.ones_like(d1), d1])
 
-    def _evaluate(self, u, p):
-        d0, d1 = self._columns(p)
-        return d0 * np.tanh(d1 * u)
+    @staticmethod
+    def formula(z, p, extra):
+        return p[0] * np.tanh(p[1] * z)
 
     def _unexcited(self, p, u):
         """Linear or saturated on the whole signal.
@@ -337,12 +366,11 @@ class Coulomb(Nonlinearity):
     """
 
     name = "coulomb"
-    compiled_map = "coulomb_map"
     param_names = ("d0", "d1", "d2")
 
-    def _evaluate(self, u, p):
-        d0, d1, d2 = self._columns(p)
-        return d0 * u + d1 * np.sign(u) + d2
+    @staticmethod
+    def formula(z, p, extra):
+        return p[0] * z + p[1] * np.sign(z) + p[2]
 
     def _derivative(self, u, p):
         return np.full(np.shape(u), p[0], dtype=float)
@@ -380,7 +408,6 @@ class Polynomial(Nonlinearity):
     """
 
     name = "polynomial"
-    compiled_map = "polynomial_map"
 
     def __init__(self, degree: int = 3):
         if int(degree) != degree or degree < 1:
@@ -388,12 +415,12 @@ class Polynomial(Nonlinearity):
         self.degree = int(degree)
         self.param_names = tuple(f"d{i}" for i in range(1, self.degree + 1))
 
-    def _evaluate(self, u, p):
-        cols = self._columns(p)
-        acc = cols[-1] * np.ones_like(u)
-        for c in reversed(cols[:-1]):
-            acc = acc * u + c
-        return acc * u
+    @staticmethod
+    def formula(z, p, extra):
+        acc = p[len(p) - 1]
+        for i in range(len(p) - 2, -1, -1):
+            acc = acc * z + p[i]
+        return acc * z
 
     def _derivative(self, u, p):
         cols = self._columns(p)
@@ -456,13 +483,12 @@ class Saturation(_GainAndThreshold):
     """
 
     name = "saturation"
-    compiled_map = "saturation_map"
     param_names = ("gain", "limit")
 
-    def _evaluate(self, u, p):
-        k, a = self._columns(p)
-        a = np.abs(a)
-        return k * np.clip(u, -a, a)
+    @staticmethod
+    def formula(z, p, extra):
+        a = np.abs(p[1])
+        return p[0] * np.minimum(np.maximum(z, -a), a)
 
     def _derivative(self, u, p):
         k, a = p
@@ -495,15 +521,14 @@ class DeadZone(_GainAndThreshold):
     """
 
     name = "deadzone"
-    compiled_map = "deadzone_map"
     param_names = ("gain", "width")
     SCAN_FRACTIONS = (0.02, 0.8)
     SCAN_ZERO = True
 
-    def _evaluate(self, u, p):
-        k, a = self._columns(p)
-        a = np.abs(a)
-        return k * (u - np.clip(u, -a, a))
+    @staticmethod
+    def formula(z, p, extra):
+        a = np.abs(p[1])
+        return p[0] * (z - np.minimum(np.maximum(z, -a), a))
 
     def _derivative(self, u, p):
         k, a = p
@@ -544,7 +569,21 @@ class PiecewiseLinear(Nonlinearity):
     """
 
     name = "piecewise_linear"
-    compiled_map = "piecewise_linear_map"
+
+    @staticmethod
+    def formula(z, p, extra):
+        """One sample (``extra``: the breakpoints); :meth:`_evaluate` is the vectorised form, through the segments."""
+        n = extra.size
+        lo, hi = 0, n - 1               # the segment: the last breakpoint <= z, clipped to the first and last
+        while hi - lo > 1:
+            mid = (lo + hi) // 2
+            if extra[mid] <= z:
+                lo = mid
+            else:
+                hi = mid
+        k = min(lo, n - 2)
+        w = (z - extra[k]) / (extra[k + 1] - extra[k])
+        return p[k] * (1.0 - w) + p[k + 1] * w
 
     def __init__(self, breakpoints: Sequence[float]):
         bp = np.asarray(breakpoints, dtype=float)
