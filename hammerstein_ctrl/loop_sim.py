@@ -54,6 +54,8 @@ __all__ = ["simulate_loops", "simulate_controller_loop", "sampled_plant", "Sampl
            "discrete_pid_iosys", "saturation_iosys", "back_calculation_gain", "check_limits", "NONLINEARITY_CODES",
            "IDENTITY"]
 
+#: Files whose code the loops call through the compiled maps: an edit of a formula compiles the loops again.
+MAP_SOURCES = ("compiled_maps.py", "nonlinearities.py")
 #: Code of each named nonlinearity family in the compiled loops (its position among the compiled maps).
 NONLINEARITY_CODES = FAMILY_CODES
 
@@ -126,7 +128,7 @@ def _quiet_compilation(loop):
         yield
 
 
-@cached_njit()
+@cached_njit(depends=MAP_SOURCES)
 def _g(code, p, bp, u):  # pragma: no cover - compiled
     """The static block of code ``code`` (:data:`NONLINEARITY_CODES`) at ``u``, its compiled map; ``u`` for none."""
     out = u
@@ -138,7 +140,7 @@ def _g(code, p, bp, u):  # pragma: no cover - compiled
     return out
 
 
-@cached_njit()
+@cached_njit(depends=MAP_SOURCES)
 def _plant_output(C, x, offset, hcode, hp, hbp):  # pragma: no cover - compiled
     """``y = h(C x) + offset``."""
     z = 0.0
@@ -166,7 +168,7 @@ def _cut(Y, U, b, k):  # pragma: no cover - compiled
         U[b, j] = np.nan
 
 
-@cached_njit()
+@cached_njit(depends=MAP_SOURCES)
 def _loops(Ad, Bd, C, x0, offset, code, p, bp, hcode, hp, hbp, G, r, dt, lo, hi, bias, bound, Y, U):  # pragma: no cover
     batch, N = Y.shape
     x = np.empty(x0.size)
@@ -193,7 +195,7 @@ def _loops(Ad, Bd, C, x0, offset, code, p, bp, hcode, hp, hbp, G, r, dt, lo, hi,
             ep = e
 
 
-@cached_njit()
+@cached_njit(depends=MAP_SOURCES)
 def _controller_loop(Ad, Bd, C, x0, offset, code, p, bp, hcode, hp, hbp, Ac, Bc, Cc, Dc, r, lo, hi, bias,
                      bound, Y, U):  # pragma: no cover
     """A linear discrete controller ``xc+ = Ac xc + Bc e``, ``u = clip(bias + Cc xc + Dc e)`` (from rest)."""
