@@ -36,6 +36,7 @@ __all__ = [
     "Saturation",
     "DeadZone",
     "PiecewiseLinear",
+    "Sigmoid",
     "CustomNonlinearity",
     "nonlinearity_from_name",
     "NONLINEARITIES",
@@ -642,6 +643,37 @@ class PiecewiseLinear(Nonlinearity):
         return f"PiecewiseLinear(breakpoints={self.breakpoints.tolist()})"
 
 
+class Sigmoid(Nonlinearity):
+    r"""Logistic sigmoid: a smooth switch between 0 and ``d0`` centred at ``d2`` (an actuator that opens).
+
+    .. math:: g(u) = \frac{\delta_0}{1 + e^{-\delta_1 (u - \delta_2)}}
+
+    Evaluated as ``d0 (1 + tanh(d1 (u - d2) / 2)) / 2``, which never overflows.
+
+    Examples
+    --------
+    >>> Sigmoid()([-100.0, 0.5, 100.0], [2.0, 4.0, 0.5]).round(6)
+    array([0., 1., 2.])
+    """
+
+    name = "sigmoid"
+    param_names = ("d0", "d1", "d2")
+    scale_index = 0
+
+    @staticmethod
+    def formula(z, p, extra):
+        return p[0] * 0.5 * (1.0 + np.tanh(0.5 * p[1] * (z - p[2])))
+
+    def shape_grid(self, u):
+        """Steepness from almost linear to a hard switch over the input's range, centres at its quantiles."""
+        u = np.asarray(u, dtype=float)
+        span = float(np.ptp(u)) or 1.0
+        steep = np.geomspace(0.5, 50.0, 8) / span
+        centres = np.quantile(u, np.linspace(0.1, 0.9, 5))
+        d1, d2 = np.meshgrid(steep, centres)
+        return np.column_stack([np.ones(d1.size), d1.ravel(), d2.ravel()])
+
+
 class CustomNonlinearity(Nonlinearity):
     """A user-supplied static function with a declared number of parameters.
 
@@ -714,6 +746,7 @@ NONLINEARITIES: dict[str, type[Nonlinearity]] = {
     "saturation": Saturation,
     "deadzone": DeadZone,
     "piecewise_linear": PiecewiseLinear,
+    "sigmoid": Sigmoid,
 }
 
 
@@ -724,7 +757,7 @@ def nonlinearity_from_name(name: str, **kwargs) -> Nonlinearity:
     ----------
     name : str
         One of ``tanh``, ``coulomb``, ``polynomial``, ``saturation``,
-        ``deadzone``, ``piecewise_linear`` (case-insensitive; ``-`` and ``_``
+        ``deadzone``, ``piecewise_linear``, ``sigmoid`` (case-insensitive; ``-`` and ``_``
         are interchangeable).
     **kwargs
         Passed to the class (``degree`` for polynomial, ``breakpoints`` for

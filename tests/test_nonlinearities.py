@@ -6,6 +6,7 @@ from hammerstein_ctrl import (
     Coulomb, CustomNonlinearity, DeadZone, ParameterError, PiecewiseLinear, Polynomial,
     Saturation, Tanh, UnknownNameError, nonlinearity_from_name,
 )
+from hammerstein_ctrl.nonlinearities import NONLINEARITIES, Sigmoid
 
 U = np.linspace(-2.0, 2.0, 41)
 
@@ -17,12 +18,48 @@ CASES = [
     (DeadZone(), [3.0, 0.5], lambda u: 3.0 * np.where(np.abs(u) > 0.5, u - 0.5 * np.sign(u), 0.0)),
     (PiecewiseLinear([-1.0, 0.0, 1.0]), [-2.0, 0.0, 1.0],
      lambda u: np.where(u < 0, 2.0 * u, u)),
+    (Sigmoid(), [2.0, 3.0, 0.3], lambda u: 2.0 / (1.0 + np.exp(-3.0 * (u - 0.3)))),
 ]
 
 
 @pytest.mark.parametrize("g, p, ref", CASES, ids=lambda c: getattr(c, "name", None))
 def test_values_match_closed_form(g, p, ref):
     np.testing.assert_allclose(g(U, p), ref(U), rtol=1e-14, atol=1e-14)
+
+
+def test_every_registered_family_has_a_case_here():
+    assert {type(g) for g, _, _ in CASES} == set(NONLINEARITIES.values())
+
+
+@pytest.mark.parametrize("g, p, ref", CASES, ids=lambda c: getattr(c, "name", None))
+def test_compiled_map_is_derived_from_the_one_formula(g, p, ref, rng):
+    from hammerstein_ctrl import compiled_maps
+
+    compiled = getattr(compiled_maps, g.compiled_map)
+    z = np.r_[U, rng.normal(scale=3.0, size=50)]
+    extra = np.ascontiguousarray(g.map_extra(), dtype=float)
+    got = np.array([compiled(float(v), np.asarray(p, dtype=float), extra) for v in z])
+    np.testing.assert_allclose(got, g(z, p), rtol=1e-13, atol=1e-14)
+    assert np.isnan(compiled(np.nan, np.asarray(p, dtype=float), extra))
+
+
+@pytest.mark.parametrize("g, p, ref", CASES, ids=lambda c: getattr(c, "name", None))
+def test_closed_loop_simulator_uses_the_same_formula(g, p, ref):
+    """The compiled loop (P control of g -> 1/(s + 1) under ZOH) against the same loop stepped in Python."""
+    import control as ct
+
+    from hammerstein_ctrl.loop_sim import simulate_loops
+
+    model = hc.HammersteinModel(ct.tf([1.0], [1.0, 1.0]), g, p, intersample="zoh")
+    dt, kp = 0.05, 0.8
+    r = 1.5 * np.sin(np.arange(200) * dt)
+    Y, U_ = simulate_loops(model, [[kp, 0.0, 0.0, 0.0]], r, dt)
+    a, b = np.exp(-dt), 1.0 - np.exp(-dt)
+    x, y_ref = 0.0, []
+    for k in range(r.size):
+        y_ref.append(x)
+        x = a * x + b * float(g(np.array([kp * (r[k] - x)]), p)[0])
+    np.testing.assert_allclose(Y[0], y_ref, rtol=1e-10, atol=1e-12)
 
 
 @pytest.mark.parametrize("g, p, ref", CASES, ids=lambda c: getattr(c, "name", None))
@@ -93,7 +130,7 @@ def test_lookup_by_name():
 @pytest.mark.parametrize("g, p, ref", CASES, ids=lambda c: getattr(c, "name", None))
 def test_basis_reproduces_evaluation_when_linear_in_parameters(g, p, ref, rng):
     phi = g.basis(U)
-    if g.name in ("tanh", "saturation", "deadzone"):
+    if g.name in ("tanh", "saturation", "deadzone", "sigmoid"):
         assert phi is None
         return
     assert phi.shape == (g.n_params, U.size)
@@ -128,3 +165,43 @@ def test_a_basis_of_the_wrong_shape_is_refused_before_any_pass(family):
     with pytest.raises(hc.ParameterError, match=r"basis\(u\) must give one row per parameter"):
         hc.identify(data, structure, method="lm")
     assert hc.Polynomial(2).checked_basis(t).shape == (2, 200)
+
+
+def _sigmoid_record(kind, seed):
+    """A known-truth record made with python-control: sigmoid 2/(1 + e^{-3 (. - c)}) and (p + 2)/(p^2 + 1.4 p + 4)."""
+    import control as ct
+
+    rng = np.random.default_rng(seed)
+    N, dt = 1500, 0.05
+    t = np.arange(N) * dt
+    u = np.repeat(rng.uniform(-2, 2, N // 20 + 1), 20)[:N]
+    H = ct.tf([1.0, 2.0], [1.0, 1.4, 4.0])
+    if kind == "hammerstein":
+        y = ct.forced_response(H, t, 2.0 / (1.0 + np.exp(-3.0 * (u - 0.3)))).outputs
+        truth = [2.0, 4.0, 1.4, 2.0, 3.0, 0.3]      # b0, a0, a1, d0, d1, d2
+    else:
+        y = 2.0 / (1.0 + np.exp(-3.0 * (ct.forced_response(H, t, u).outputs - 0.2)))
+        truth = [2.0, 4.0, 1.4, 2.0, 3.0, 0.2]
+    return hc.IOData(u, y + 0.01 * rng.standard_normal(N), dt=dt), np.array(truth)
+
+
+@pytest.mark.parametrize("kind", ["hammerstein", "wiener"])
+def test_sigmoid_family_is_identified_without_x0(kind):
+    structure = (hc.HammersteinStructure if kind == "hammerstein" else hc.WienerStructure)(
+        hc.LinearStructure(1, 2), Sigmoid())
+    for seed in range(3):
+        data, truth = _sigmoid_record(kind, seed)
+        res = hc.identify(data, structure, seed=0)
+        assert res.success, res.message
+        se = np.sqrt(np.diag(res.covariance))
+        assert np.all(np.abs(res.x - truth) <= 4 * se), (res.x, se)
+
+
+def test_sigmoid_model_survives_saving(tmp_path):
+    import control as ct
+
+    m = hc.WienerModel(ct.tf([1.0], [1.0, 1.0]), Sigmoid(), [2.0, 3.0, 0.3])
+    m.save(tmp_path / "m.json")
+    back = hc.load_model(tmp_path / "m.json")
+    t = np.arange(100) * 0.1
+    np.testing.assert_array_equal(back.simulate(t, np.sin(t)), m.simulate(t, np.sin(t)))
