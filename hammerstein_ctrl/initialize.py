@@ -47,13 +47,14 @@ import numpy as np
 import scipy.optimize
 
 from .exceptions import ParameterError
+from .optimize import Budget, BudgetExhausted
 from .simulate import MAX_PASS_STATES, free_response, response_blocks, simulate_batch, unstable
 from . import streamed_lstsq
 from .streamed_lstsq import (constant_column, factor_of_blocks, factor_of_columns, factor_sse, residual,
                              residual_of_columns, solve_minimum_norm, solve_scaled, triangular_factor)
 
 __all__ = ["initial_points", "stabilize", "nuisance_estimate", "estimate_initial_state", "static_affine_sse",
-           "Budget", "BudgetSpent", "POLE_PATTERNS"]
+           "Budget", "POLE_PATTERNS"]
 
 #: Frequencies scanned per pole pattern (at least; see :data:`SCAN_PER_DECADE`).
 SCAN_FREQUENCIES = 12
@@ -89,31 +90,6 @@ REFINE_TOL = 1e-8
 STREAMED_COLUMNS_BYTES = 1 << 24
 
 
-class BudgetSpent(RuntimeError):
-    """Raised by :class:`Budget` when the evaluation budget would be exceeded."""
-
-
-class Budget:
-    """Counts simulated candidates against a limit shared by all stages of a fit.
-
-    Examples
-    --------
-    >>> b = Budget(3); b.charge(2); b.remaining
-    1
-    """
-
-    def __init__(self, maxfev: int | None):
-        self.maxfev = maxfev
-        self.nfev = 0
-
-    @property
-    def remaining(self) -> float:
-        return np.inf if self.maxfev is None else self.maxfev - self.nfev
-
-    def charge(self, count: int = 1):
-        if count > self.remaining:
-            raise BudgetSpent(f"evaluation budget of {self.maxfev} exhausted")
-        self.nfev += int(count)
 
 
 # ---------------------------------------------------------------------------
@@ -445,7 +421,7 @@ def _refine_linear(reg: _Regression, theta, drives, limit: int = REFINE_EVALUATI
 
     def evaluate(th):
         if calls[0] <= 0:
-            raise BudgetSpent("refinement budget spent")
+            raise BudgetExhausted("refinement budget spent")
         calls[0] -= 1
         _, r = reg.solve(reg.columns(th, drives))
         if r is None:
@@ -471,7 +447,7 @@ def _refine_linear(reg: _Regression, theta, drives, limit: int = REFINE_EVALUATI
         x, _, info, _, _ = scipy.optimize.leastsq(reduced_residual, theta, full_output=True, xtol=REFINE_TOL,
                                                   ftol=REFINE_TOL, gtol=REFINE_TOL)
         return x, float(info["fvec"] @ info["fvec"])
-    except BudgetSpent:
+    except BudgetExhausted:
         return best[0], best[1]
 
 
@@ -658,7 +634,7 @@ def initial_points(data, structure, budget: Budget, *, count: int = REFINED_CAND
             fitted = _static_blocks(reg, theta, u)
             if fitted is not None:
                 points.append(_assemble(structure, theta, *fitted))
-    except BudgetSpent:
+    except BudgetExhausted:
         pass  # the points completed so far
     budget.charge(own.nfev)
     return points

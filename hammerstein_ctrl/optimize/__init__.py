@@ -18,7 +18,7 @@ with a finite ``fun``):
 """
 
 from ._common import (BUDGET_EXHAUSTED, CALLBACK_STOP, COMPLETED, DIVERGED, NO_FINITE_VALUE, SOLVER_FAILED,
-                      STATUS_CODES, History, as_rng, as_x0)
+                      STATUS_CODES, Budget, BudgetExhausted, History, as_rng, as_x0)
 from .amvo_sca import amvo_sca
 from .least_squares import levenberg_marquardt
 from .gains import SPALL_ALPHA, SPALL_GAMMA, GainSequence, PerturbationGain, StepGain
@@ -26,6 +26,7 @@ from .minimize import METHODS, SCIPY_METHODS, canonical_method, minimize
 from .spsa import nlspsa, normalized_difference, nspsa, spsa
 
 __all__ = [
+    "Budget", "BudgetExhausted",
     "minimize", "canonical_method", "METHODS", "SCIPY_METHODS",
     "spsa", "nlspsa", "nspsa", "amvo_sca", "levenberg_marquardt", "normalized_difference",
     "GainSequence", "StepGain", "PerturbationGain", "SPALL_ALPHA", "SPALL_GAMMA",

@@ -71,7 +71,41 @@ def residual_array(r, size: int | None, *, batch: int | None = None) -> np.ndarr
     return a
 
 
-class CountedObjective:
+class Budget:
+    """An evaluation budget: ``maxfev`` candidates at most (``None``: no limit), ``nfev`` spent so far.
+
+    The one budget of the package: every optimiser counts its objective with
+    it (:class:`CountedObjective`), and the stages of an automatic fit share one.
+
+    Examples
+    --------
+    >>> b = Budget(3); b.charge(2); b.remaining
+    1
+    >>> b.charge(2)
+    Traceback (most recent call last):
+    ...
+    hammerstein_ctrl.optimize._common.BudgetExhausted: evaluation budget exhausted (2 + 2 > 3)
+    """
+
+    def __init__(self, maxfev: int | None = None):
+        self.maxfev = maxfev
+        self.nfev = 0
+
+    @property
+    def remaining(self) -> float:
+        """Evaluations left (``inf`` without a limit)."""
+        return np.inf if self.maxfev is None else self.maxfev - self.nfev
+
+    def charge(self, count: int = 1):
+        """Count ``count`` evaluations, or raise :class:`BudgetExhausted` (counting none) if they do not fit."""
+        if self.maxfev is not None and self.nfev + count > self.maxfev:
+            raise BudgetExhausted(f"evaluation budget exhausted ({self.nfev} + {count} > {self.maxfev})")
+        self.nfev += int(count)
+
+    _charge = charge
+
+
+class CountedObjective(Budget):
     """Wrap ``fun`` to count evaluations, track the best point, and tame values.
 
     * Every call counts; a batch of ``B`` points counts ``B``.  An evaluation
@@ -87,20 +121,10 @@ class CountedObjective:
         self.fun = fun
         self.args = tuple(args)
         self._batch = getattr(fun, "batch", None) if not self.args else None
-        self.maxfev = maxfev
-        self.nfev = 0
+        super().__init__(maxfev)
         self.best_x: np.ndarray | None = None
         self.best_fun = np.inf
         self.nfev_monitor = 0
-
-    @property
-    def remaining(self) -> float:
-        return np.inf if self.maxfev is None else self.maxfev - self.nfev
-
-    def _charge(self, count: int):
-        if self.maxfev is not None and self.nfev + count > self.maxfev:
-            raise BudgetExhausted(f"evaluation budget exhausted ({self.nfev} + {count} > {self.maxfev})")
-        self.nfev += count
 
     def _scalar(self, x) -> float:
         try:
