@@ -39,7 +39,7 @@ _SUBMODULES = ("datasets", "iodata", "metrics", "nonlinearities", "optimize", "p
 _LAZY_NAMES = {
     "load_emps": "datasets", "load_trs": "datasets", "make_trs_reconstruction": "datasets",
     "IOData": "iodata", "read_record": "records",
-    "IdentificationResult": "identify", "identify": "identify",
+    "IdentificationResult": "result", "identify": "identify",
     "fit_percent": "metrics", "fit_report": "metrics", "nrmse": "metrics", "rmse": "metrics", "sse": "metrics",
     "BlockModel": "model", "HammersteinModel": "model", "WienerModel": "model", "HammersteinWienerModel": "model",
     "Coulomb": "nonlinearities", "CustomNonlinearity": "nonlinearities", "DeadZone": "nonlinearities",

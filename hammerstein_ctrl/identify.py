@@ -40,12 +40,12 @@ from __future__ import annotations
 
 import time
 import warnings as _warnings
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
 from ._linalg import single_threaded_blas
-from .datasets import IOData
+from .iodata import IOData
 from .delay_fit import DelayedCost
 from .experiments import RecordsCost
 from .diagnostics import (FAILURE, STILL_IMPROVING, Verdict, budget_advice, identifiability_verdicts,
@@ -53,284 +53,19 @@ from .diagnostics import (FAILURE, STILL_IMPROVING, Verdict, budget_advice, iden
 from .exceptions import IdentificationWarning, ParameterError
 from .initialize import static_affine_sse
 from .metrics import fit_report
-from .model import BlockModel
 from .objective import HammersteinCost
+from .result import IdentificationResult
 from .optimize import BUDGET_EXHAUSTED, DIVERGED, SCIPY_METHODS, canonical_method, minimize
-from .residual_analysis import RESID_LAGS, ResidualAnalysis, residual_analysis
+from .residual_analysis import residual_analysis
 from .structure import BlockStructure
-from .uncertainty import (DEFAULT_LEVEL, ParameterUncertainty, Propagated, UncertainParameters,
-                          estimate_uncertainty, _check_noise)
+from .uncertainty import (estimate_uncertainty, _check_noise)
 
-__all__ = ["identify", "IdentificationResult", "AUTO"]
+__all__ = ["identify", "IdentificationResult", "AUTO"]   # the result type lives in hammerstein_ctrl.result
 
 #: Name of the default method (see :mod:`hammerstein_ctrl.auto`).
 AUTO = "auto"
 #: Methods that stop on a convergence test (running out of budget is then a failure).
 _CONVERGING = ("lm",) + SCIPY_METHODS
-
-
-@dataclass
-class IdentificationResult(UncertainParameters):
-    """The outcome of :func:`identify`.
-
-    Attributes
-    ----------
-    model : BlockModel
-        The fitted model (a HammersteinModel, WienerModel or
-        HammersteinWienerModel); ``model.linear`` is a ``control.TransferFunction``.
-        After a fit to several records: with the first record's offset and initial state.
-    x : ndarray
-        The fitted beta (after a fit to several records: the block parameters, then
-        each record's offset and initial state, as ``structure.param_names`` says).
-    fun : float
-        J at ``x`` (sum of squared output errors on the estimation data).
-    nfev : int
-        Objective evaluations used.
-    fit_percent, rmse, nrmse : float
-        Goodness of fit on the estimation data.
-    method : str
-    success : bool
-    message : str
-    history : dict
-        The optimiser's per-iteration record (``nit, nfev, fun, best``).
-    elapsed : float
-        Wall time in seconds.
-    structure : BlockStructure or RecordsStructure
-        The structure fitted (:class:`~hammerstein_ctrl.experiments.RecordsStructure` for several records).
-    data : IOData
-        The estimation record (the first one of several).
-    optimize_result : scipy.optimize.OptimizeResult
-        The optimiser's full result.
-    covariance : ndarray or None
-        Covariance of ``x`` (aligned with it; ``inf`` on the diagonal of a
-        parameter the record does not determine); ``None`` when not computed.
-    warnings : list of str
-        Every verdict's message (failures and warnings), in order.
-    verdicts : list of Verdict
-        The findings behind ``warnings`` and ``success``
-        (:class:`~hammerstein_ctrl.diagnostics.Verdict`).
-    uncertainty : ParameterUncertainty or None
-        The covariance with the noise model and degrees of freedom it came from.
-    records : tuple of IOData
-        After a fit to several records, all of them (``fun``, the fit figures,
-        the covariance and the residual analysis cover them all); else empty.
-    models : tuple of BlockModel
-        After a fit to several records, each record's model: the shared blocks
-        with that record's offset and initial state; else empty.
-    """
-
-    #: Lets the display and plotting layers recognise a result without importing this module.
-    is_identification_result = True
-    model: BlockModel
-    x: np.ndarray
-    fun: float
-    nfev: int
-    fit_percent: float
-    rmse: float
-    nrmse: float
-    method: str
-    success: bool
-    message: str
-    history: dict
-    elapsed: float
-    structure: BlockStructure = field(repr=False)
-    data: IOData = field(repr=False)
-    optimize_result: object = field(repr=False)
-    covariance: np.ndarray | None = field(default=None, repr=False)
-    warnings: list = field(default_factory=list)
-    verdicts: list = field(default_factory=list, repr=False)
-    uncertainty: ParameterUncertainty | None = field(default=None, repr=False)
-    analysis: ResidualAnalysis | None = field(default=None, repr=False)
-    records: tuple = field(default=(), repr=False)
-    models: tuple = field(default=(), repr=False)
-
-    @property
-    def params(self) -> dict:
-        """The fitted parameters by name."""
-        return dict(zip(self.structure.param_names, self.x.tolist()))
-
-    @property
-    def dof(self) -> int:
-        """Degrees of freedom of the residuals, ``N - p``."""
-        return len(self.data) - len(self.x)
-
-    @property
-    def status(self) -> int:
-        """The optimiser's termination code (the table in :mod:`hammerstein_ctrl.optimize`; 5: the budget ran out
-        first)."""
-        return int(self.optimize_result.status)
-
-    def validate(self, data, *, initial_state: str | None = None):
-        """Goodness of fit (``sse``, ``rmse``, ``nrmse``, ``fit_percent``) on another record, or on each of a list.
-
-        Parameters
-        ----------
-        data : IOData or list of IOData
-            A list gives a list of reports, one per record. After a fit to
-            several records, each of those records is simulated with its own
-            offset and initial state (:attr:`models`); any other record with
-            :attr:`model` (the first record's).
-        initial_state : {"zero", "estimate"}, optional
-            Start the model from rest, or estimate its initial state on
-            ``data`` by least squares (as MATLAB's ``compare`` does).  Default:
-            ``"estimate"`` if the identification estimated it, else ``"zero"``.
-        """
-        from .display import as_iodata
-        from .initialize import estimate_initial_state
-
-        if self.model is None:
-            raise ParameterError(f"this identification produced no model, so there is nothing to validate "
-                                 f"({self.message})")
-        if isinstance(data, (list, tuple)) and data and all(hasattr(d, "u") for d in data):
-            return [self.validate(d, initial_state=initial_state) for d in data]
-        data = as_iodata(data)
-        mode = initial_state or self.structure.initial_state
-        if mode not in ("zero", "estimate"):
-            raise ParameterError(f"initial_state must be 'zero' or 'estimate', got {initial_state!r}")
-        model = next((m for r, m in zip(self.records, self.models) if r is data), self.model)
-        with np.errstate(all="ignore"):
-            x0 = estimate_initial_state(model, data) if mode == "estimate" else np.zeros(model.order)
-            yhat = model.simulate(data, initial_state=x0)
-        if not np.all(np.isfinite(yhat)):
-            return {"sse": np.inf, "rmse": np.inf, "nrmse": np.inf, "fit_percent": -np.inf}
-        return fit_report(data.y, yhat)
-
-    def residual_analysis(self, data=None, *, lags: int = RESID_LAGS, initial_state: str | None = None
-                          ) -> ResidualAnalysis:
-        """Residual analysis (MATLAB ``resid``) on the estimation record or on ``data``.
-
-        Parameters
-        ----------
-        data : IOData, optional
-            Another record (default: the estimation record, as analysed when
-            the result was made).
-        lags : int, default 25
-        initial_state : {"zero", "estimate"}, optional
-            For another record, as :meth:`validate` (default: as identified).
-
-        Returns
-        -------
-        ResidualAnalysis
-            Its ``plot()`` draws the correlations with their 99 % bounds.
-        """
-        if data is None and lags == RESID_LAGS and self.analysis is not None:
-            return self.analysis
-        if self.model is None:
-            raise ParameterError(f"this identification produced no model to analyse ({self.message})")
-        from .display import as_iodata
-
-        record = self.data if data is None else as_iodata(data)
-        yhat = self._simulated(record, initial_state)
-        if not np.all(np.isfinite(yhat)):
-            raise ParameterError(f"the model cannot be simulated on {record.name!r} (its output is not finite)")
-        return residual_analysis(record.y - yhat, record.u, dt=record.dt, simulated=yhat, lags=lags,
-                                 name=record.name)
-
-    def _simulated(self, record, initial_state):
-        from .initialize import estimate_initial_state
-
-        if record is self.data and initial_state is None:
-            with np.errstate(all="ignore"):
-                return self.model.simulate(record)
-        mode = initial_state or self.structure.initial_state
-        if mode not in ("zero", "estimate"):
-            raise ParameterError(f"initial_state must be 'zero' or 'estimate', got {initial_state!r}")
-        with np.errstate(all="ignore"):
-            x0 = estimate_initial_state(self.model, record) if mode == "estimate" else np.zeros(self.model.order)
-            return self.model.simulate(record, initial_state=x0)
-
-    def propagate(self, fun, *, level: float = DEFAULT_LEVEL, method: str = "linear", samples: int = 2000,
-                  seed=None) -> Propagated:
-        """The uncertainty of any quantity computed from the fitted model.
-
-        Parameters
-        ----------
-        fun : callable
-            ``fun(model) -> array_like`` of real numbers, e.g.
-            ``lambda m: m.linear.dcgain()``.
-        level, method, samples, seed
-            As :func:`hammerstein_ctrl.uncertainty.propagate` (``"linear"``
-            or seeded ``"sampling"`` from the covariance).
-
-        Returns
-        -------
-        Propagated
-            ``value``, ``stderr``, ``low``, ``high``.
-        """
-        from .uncertainty import propagate
-
-        if self.covariance is None:
-            raise ParameterError("this result carries no covariance (identify(..., uncertainty=False), or no model)")
-        structure, hold = self.structure, self.data.intersample
-        return propagate(lambda b: fun(structure.model(b, intersample=hold)), self.x, self.covariance, level=level,
-                         dof=self.dof, method=method, samples=samples, seed=seed)
-
-    def characteristics(self, level: float = DEFAULT_LEVEL):
-        """Poles, zeros, time constants, natural frequencies, damping and the DC gain of ``H``, with their uncertainty.
-
-        Returns
-        -------
-        CharacteristicsTable
-            Rows ``(quantity, value, stderr, low, high)``; renders in Jupyter,
-            ``to_frame()`` gives a DataFrame.
-        """
-        from .uncertainty import linear_characteristics
-
-        if self.covariance is None:
-            raise ParameterError("this result carries no covariance (identify(..., uncertainty=False), or no model)")
-        return linear_characteristics(self.structure, self.x, self.covariance, level=level, dof=self.dof)
-
-    def summary(self) -> str:
-        """A short human-readable report: figures, parameters with standard errors, warnings."""
-        se = self.stderr if self.covariance is not None else {}
-        names = ", ".join(f"{k} = {v:.6g}" + (f" ± {se[k]:.2g}" if k in se else "") for k, v in self.params.items())
-        status = "ok" if self.success else "FAILED"
-        warned = "".join(f"\n  warning: {w}" for w in self.warnings if w not in self.message)
-        return (
-            f"{self.method} on {self.data.name!r}: J = {self.fun:.6g}, fit = {self.fit_percent:.2f} %, "
-            f"RMSE = {self.rmse:.4g}, nfev = {self.nfev}, {self.elapsed:.2f} s [{status}: {self.message}]\n"
-            f"  {self.structure.describe()}\n  {names}\n  model: {self.model!r}{warned}"
-        )
-
-    def to_dict(self) -> dict:
-        """JSON-serialisable description of the fitted model and the run."""
-        num = np.asarray(self.model.linear.num[0][0], dtype=float).tolist()
-        den = np.asarray(self.model.linear.den[0][0], dtype=float).tolist()
-        return {
-            "method": self.method, "data": self.data.name, "structure": self.structure.describe(),
-            "params": self.params, "beta": self.x.tolist(), "J": self.fun, "nfev": self.nfev,
-            "fit_percent": self.fit_percent, "rmse": self.rmse, "nrmse": self.nrmse,
-            "success": self.success, "status": self.status, "message": self.message, "elapsed_s": self.elapsed,
-            "stderr": None if self.covariance is None else list(self.stderr.values()), "warnings": list(self.warnings),
-            "linear": {"num": num, "den": den},
-            **{key: {"name": nl.name, "params": dict(zip(nl.param_names, np.asarray(p).tolist()))}
-               for key, nl, p in (("nonlinearity", self.model.input_nonlinearity, self.model.input_params),
-                                  ("output_nonlinearity", self.model.output_nonlinearity,
-                                   self.model.output_params)) if nl is not None},
-        }
-
-    # -- notebook display (logic in display.py / plots.py) ---------------------
-    def _repr_html_(self) -> str:
-        from .display import result_html
-        return result_html(self)
-
-    def _repr_pretty_(self, printer, cycle):  # IPython's text view: the summary, not the dataclass fields
-        printer.text(self.summary())
-
-    def plot(self, **kwargs):
-        """Measured vs simulated output, residual and g(u) (:func:`hammerstein_ctrl.plots.result_figure`)."""
-        from .plots import result_figure
-        return result_figure(self, **kwargs)
-
-    def compare(self, *records, **kwargs):
-        """Fit % of this model on each record, one figure (:func:`hammerstein_ctrl.plots.compare`)."""
-        from .plots import compare
-        return compare(list(records) or [self.data], self, **kwargs)
-
-    def to_frame(self):
-        """Parameters (``value``, ``stderr``) as a pandas DataFrame (:func:`hammerstein_ctrl.display.result_frame`)."""
-        from .display import result_frame
-        return result_frame(self)
 
 
 def identify(

@@ -47,7 +47,6 @@ from __future__ import annotations
 
 import json
 import math
-from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -56,7 +55,7 @@ from ._checks import INTERSAMPLE, MAX_MAGNITUDE, check_delay, check_transfer_fun
 from ._writer import (MODEL_FORMAT, RESULT_FORMAT, SCHEMA_VERSION, encode_float as _encode, model_to_dict,
                       nonlinearity_to_dict as _nonlinearity_to_dict, save_model, write_json as _write)
 from .nonlinearities import NONLINEARITIES
-from .uncertainty import UncertainParameters
+from .result import IdentificationResult
 
 __all__ = [
     "SCHEMA_VERSION", "MODEL_FORMAT", "RESULT_FORMAT",
@@ -370,41 +369,9 @@ def _model_from_file(obj, path):
 # ---------------------------------------------------------------------------
 # identification results
 # ---------------------------------------------------------------------------
-@dataclass
-class SavedResult(UncertainParameters):
-    """An identification result read back from JSON (the model, the run's figures, the covariance and warnings).
-
-    The estimation record itself is not stored, only its description in
-    :attr:`data` (name, sampling interval, length, labels, units, intersample).
-    """
-
-    model: object
-    structure: object
-    x: np.ndarray
-    fun: float
-    fit_percent: float
-    rmse: float
-    nrmse: float
-    nfev: int
-    method: str
-    success: bool
-    message: str
-    elapsed: float
-    data: dict = field(default_factory=dict)
-    #: The optimiser's termination code (the table in :mod:`hammerstein_ctrl.optimize`; 5: the
-    #: budget ran out first); ``None`` when the file does not say (schema version 2).
-    status: int | None = None
-    #: The parameters' covariance (``None`` when not computed or before schema version 4).
-    covariance: np.ndarray | None = None
-    #: Degrees of freedom of the residuals, ``N - p``.
-    dof: int | None = None
-    #: The verdicts' messages.
-    warnings: list = field(default_factory=list)
-
-    @property
-    def params(self) -> dict:
-        """The fitted parameters by name."""
-        return dict(zip(self.structure.param_names, self.x.tolist()))
+#: The type :func:`load_result` returns: the one result type, :class:`~hammerstein_ctrl.result.IdentificationResult`
+#: (kept under this name for code written against earlier versions).
+SavedResult = IdentificationResult
 
 
 def _data_to_dict(data) -> dict:
@@ -417,7 +384,7 @@ def _data_to_dict(data) -> dict:
 
 
 def result_to_dict(result) -> dict:
-    """The JSON object of an :class:`~hammerstein_ctrl.IdentificationResult` (or a :class:`SavedResult`)."""
+    """The JSON object of an :class:`~hammerstein_ctrl.IdentificationResult` (one just fitted or read back)."""
     structure = result.structure
     x = np.asarray(result.x, dtype=float)
     data = result.data if isinstance(result.data, dict) else _data_to_dict(getattr(result, "data", None))
@@ -503,8 +470,9 @@ def _data_from_dict(obj, where: str) -> dict:
     return out
 
 
-def result_from_dict(obj, where: str = "result") -> SavedResult:
-    """Build a :class:`SavedResult` from the object written by :func:`result_to_dict`."""
+def result_from_dict(obj, where: str = "result") -> IdentificationResult:
+    """Build an :class:`~hammerstein_ctrl.result.IdentificationResult` from the object written by
+    :func:`result_to_dict` (``data``: the record's description; ``saved``: its status and dof)."""
     version = _header(obj, RESULT_FORMAT, where)
     _keys(obj, where, _RESULT_KEYS + (("status",) if version >= _STATUS_VERSION else ())
           + (_UNCERTAINTY_KEYS if version >= _UNCERTAINTY_VERSION else ()))
@@ -519,7 +487,11 @@ def result_from_dict(obj, where: str = "result") -> SavedResult:
         raise ParameterError(f"{where}: params {params} disagree with beta {beta.tolist()}")
     if not np.allclose(structure.beta(model), beta, rtol=1e-12, atol=0):
         raise ParameterError(f"{where}: the model does not have the parameters beta = {beta.tolist()}")
-    return SavedResult(
+    extra = _uncertainty_from(obj, version, structure.n_params, where)
+    saved = {"status": None if obj.get("status") is None else _status_code(obj["status"], f"{where}: status")}
+    if "dof" in extra:
+        saved["dof"] = extra.pop("dof")
+    return IdentificationResult(
         model=model, structure=structure, x=beta, fun=_number(obj["J"], f"{where}: J", finite=False),
         fit_percent=_number(obj["fit_percent"], f"{where}: fit_percent", finite=False),
         rmse=_number(obj["rmse"], f"{where}: rmse", finite=False),
@@ -528,9 +500,8 @@ def result_from_dict(obj, where: str = "result") -> SavedResult:
         success=_boolean(obj["success"], f"{where}: success"),
         message=_string(obj["message"], f"{where}: message"),
         elapsed=_number(obj["elapsed_s"], f"{where}: elapsed_s", finite=False),
-        data=_data_from_dict(obj["data"], f"{where}: data"),
-        status=None if obj.get("status") is None else _status_code(obj["status"], f"{where}: status"),
-        **_uncertainty_from(obj, version, structure.n_params, where),
+        data=_data_from_dict(obj["data"], f"{where}: data"), history={}, optimize_result=None, saved=saved,
+        **extra,
     )
 
 
@@ -539,13 +510,14 @@ def save_result(result, path) -> None:
     _write(result_to_dict(result), path)
 
 
-def load_result(path) -> SavedResult:
+def load_result(path) -> IdentificationResult:
     """Read a result written by :func:`save_result`."""
     return result_from_dict(_read(path), str(path))
 
 
 def load_saved(path):
-    """A model file's model, or a result file's :class:`SavedResult` (the file read once, by its ``format``).
+    """A model file's model, or a result file's :class:`~hammerstein_ctrl.IdentificationResult` (the file read
+    once, by its ``format``).
 
     Raises
     ------
