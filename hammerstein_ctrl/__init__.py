@@ -33,7 +33,7 @@ __version__ = "0.1.0"
 #: Sub-modules exposed as attributes of the package.
 _SUBMODULES = ("datasets", "iodata", "metrics", "nonlinearities", "optimize", "plots", "presets", "records",
                "simulate", "study", "control_design", "exact_export", "persistence", "display", "uncertainty",
-               "diagnostics", "residual_analysis", "selection")
+               "diagnostics", "residual_analysis", "selection", "config")
 
 #: Public name -> the sub-module that defines it.
 _LAZY_NAMES = {
@@ -58,7 +58,8 @@ _LAZY_NAMES = {
 
 __all__ = [
     "datasets", "iodata", "metrics", "nonlinearities", "optimize", "plots", "presets", "records", "simulate",
-    "study", "control_design", "exact_export", "persistence", "display", "load_model", "save_model", "load_result",
+    "study", "control_design", "exact_export", "persistence", "display", "config", "load_model", "save_model",
+    "load_result",
     "save_result",
     "IOData", "load_emps", "load_trs", "make_trs_reconstruction", "read_record",
     "DataError", "HammersteinError", "ParameterError", "UnknownNameError", "CacheWarning",

@@ -30,17 +30,15 @@ import time
 
 import numpy as np
 
+from . import config
 from ._checks import as_count
 from .exceptions import ParameterError
 from .initialize import Budget, initial_points, nuisance_estimate, stabilize
 from .optimize import BUDGET_EXHAUSTED, COMPLETED, SOLVER_FAILED, History, as_rng, as_x0, levenberg_marquardt
 from .simulate import unstable
 
-__all__ = ["auto_minimize", "auto_records", "auto_delayed", "AUTO_MAXFEV", "RECORDS_JOINT_SHARE", "DELAY_JOINT_SHARE",
-           "RESTART_SPREAD", "MAX_RESTARTS"]
+__all__ = ["auto_minimize", "auto_records", "auto_delayed", "RESTART_SPREAD", "MAX_RESTARTS"]
 
-#: Default evaluation budget of the auto method.
-AUTO_MAXFEV = 2000
 #: Relative size of the random perturbations of a restart.
 RESTART_SPREAD = 0.3
 #: Smallest parameter scale of a perturbation (for parameters at zero).
@@ -53,10 +51,6 @@ MAX_RESTARTS = 8
 REFINE_TOL = 1e-8
 #: Fewest evaluations worth giving one refinement.
 MIN_REFINE_BUDGET = 10
-#: Share of the budget of a fit to several records kept for the joint refinement (the rest: the longest record).
-RECORDS_JOINT_SHARE = 0.25
-#: Share of the budget of a dead-time fit kept for the joint refinement (the rest: the whole-sample candidates).
-DELAY_JOINT_SHARE = 0.25
 
 
 class _Merged:
@@ -72,6 +66,11 @@ class _Merged:
             self.best = min(self.best, fun)
             self.rows += 1
             self.history.append(self.rows, offset + int(nfev), fun, self.best, self.best)
+
+
+def _total(maxfev) -> int:
+    """The evaluation budget: ``maxfev``, or the default of :mod:`~hammerstein_ctrl.config`."""
+    return config.get("auto.maxfev") if maxfev is None else as_count(maxfev, "maxfev", minimum=1)
 
 
 def _user_start(cost, x0, budget: Budget):
@@ -141,7 +140,7 @@ def auto_minimize(cost, x0=None, *, maxfev: int | None = None, seed=None, allow_
     x0 : array_like, optional
         Used as one more start (stabilised; offset and initial state may be left out).
     maxfev : int, optional
-        Budget of simulated candidates (default :data:`AUTO_MAXFEV`); never exceeded.
+        Budget of simulated candidates (default ``config.defaults["auto.maxfev"]``); never exceeded.
     seed : int or numpy.random.Generator, optional
         Source of the restart perturbations.
     allow_unstable : bool, default False
@@ -158,7 +157,7 @@ def auto_minimize(cost, x0=None, *, maxfev: int | None = None, seed=None, allow_
         ``history`` and ``starts`` (how many starts were refined).
     """
     started = time.perf_counter()
-    budget = Budget(AUTO_MAXFEV if maxfev is None else as_count(maxfev, "maxfev", minimum=1))
+    budget = Budget(_total(maxfev))
     rng = as_rng(seed)
     try:
         starts = initial_points(cost.data, cost.structure, budget)
@@ -208,7 +207,7 @@ def _unrefined(cost, starts, found, budget, merged, started):
     from scipy.optimize import OptimizeResult
 
     hint = (f"{budget.nfev} of maxfev = {budget.maxfev} evaluations spent, and a refinement needs at least "
-            f"{MIN_REFINE_BUDGET}; raise maxfev (the default is {AUTO_MAXFEV})")
+            f"{MIN_REFINE_BUDGET}; raise maxfev (the default is {config.get('auto.maxfev')})")
     if starts:
         x = cost.structure.normalize(starts[0])
         fun = float(cost(x))
@@ -254,16 +253,16 @@ def auto_records(cost, x0=None, *, maxfev: int | None = None, seed=None, allow_u
     The blocks come from ``auto`` on the longest record; each other record's
     offset and initial state from linear least squares given those blocks;
     then Levenberg-Marquardt refines everything jointly on all the records.
-    ``maxfev`` bounds the three stages together, :data:`RECORDS_JOINT_SHARE`
+    ``maxfev`` bounds the three stages together, ``config.defaults["auto.records_joint_share"]``
     of it kept for the joint refinement.
 
     Parameters and return value as :func:`auto_minimize`; ``x0`` may be the
     block parameters, one record's beta, or the whole joint beta.
     """
     started = time.perf_counter()
-    total = AUTO_MAXFEV if maxfev is None else as_count(maxfev, "maxfev", minimum=1)
+    total = _total(maxfev)
     rs, longest = cost.structure, int(np.argmax([len(r) for r in cost.records]))
-    joint_share = max(MIN_REFINE_BUDGET, int(RECORDS_JOINT_SHARE * total))
+    joint_share = max(MIN_REFINE_BUDGET, int(config.get("auto.records_joint_share") * total))
     first = auto_minimize(cost.costs[longest], _record_start(rs, x0, longest), maxfev=max(1, total - joint_share),
                           seed=seed, allow_unstable=allow_unstable, callback=callback)
     budget = Budget(total)
@@ -303,7 +302,7 @@ def auto_delayed(cost, x0=None, *, maxfev: int | None = None, seed=None, allow_u
     rounded, when the dead time is not estimated) are each fitted without
     delay on the record shifted by that many samples; the best becomes the
     start of Levenberg-Marquardt on everything, the dead time continuous.
-    ``maxfev`` bounds all stages together, :data:`DELAY_JOINT_SHARE` of it
+    ``maxfev`` bounds all stages together, ``config.defaults["auto.delay_joint_share"]`` of it
     kept for the joint refinement.  ``x0``, if given, is a whole beta of the
     delayed structure and is refined directly.
 
@@ -313,7 +312,7 @@ def auto_delayed(cost, x0=None, *, maxfev: int | None = None, seed=None, allow_u
     from .objective import HammersteinCost
 
     started = time.perf_counter()
-    total = AUTO_MAXFEV if maxfev is None else as_count(maxfev, "maxfev", minimum=1)
+    total = _total(maxfev)
     budget, merged = Budget(total), _Merged()
     s, data = cost.structure, cost.data
     if x0 is not None:
@@ -323,7 +322,8 @@ def auto_delayed(cost, x0=None, *, maxfev: int | None = None, seed=None, allow_u
         shifts = delay_candidates(data, s.linear.den_order)
     else:
         shifts = [int(round(float(s.linear.delay) / data.dt))]
-    share = max(1, int((total - max(MIN_REFINE_BUDGET, int(DELAY_JOINT_SHARE * total))) // len(shifts)))
+    joint_share = max(MIN_REFINE_BUDGET, int(config.get("auto.delay_joint_share") * total))
+    share = max(1, int((total - joint_share) // len(shifts)))
     best_x, best_fun, best_shift, runs = None, np.inf, 0, 0
     for d in shifts:
         if budget.remaining < share + MIN_REFINE_BUDGET:

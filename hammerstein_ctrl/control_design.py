@@ -61,8 +61,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ._checks import MAX_MAGNITUDE, as_signal, check_dt
+from . import config
 from .exceptions import DataError, ParameterError, UnknownNameError
-from .model import PADE_ORDER
+from .model import pade_order_of
 from .loop_sim import (
     back_calculation_gain,
     check_limits,
@@ -72,7 +73,7 @@ from .loop_sim import (
     simulate_loops,
 )
 from .operating_point import OperatingPoint, operating_point, small_signal, static_output
-from .robust_pid import (DEFAULT_MS, FILTER_RATIO, constraints, default_bandwidth, frequency_grid, loop_figures,
+from .robust_pid import (FILTER_RATIO, constraints, default_bandwidth, frequency_grid, loop_figures,
                          ms_constrained_pid, pid_polynomials)
 
 __all__ = ["PIDResult", "DiscretePID", "tune_pid", "closed_loop", "analyze_loop", "approximate", "pid_controller",
@@ -82,8 +83,6 @@ __all__ = ["PIDResult", "DiscretePID", "tune_pid", "closed_loop", "analyze_loop"
 RULES = ("robust", "simc", "imc", "nspsa", "auto")
 #: Closed-loop cost criteria.
 CRITERIA = ("iae", "ise", "itae")
-#: SIMC's integral time ``tau_I = min(tau1, SIMC_TI_FACTOR (tau_c + theta))``.
-SIMC_TI_FACTOR = 4.0
 #: Default horizon of a model-based tuning simulation, in closed-loop time scales ``tau_c + theta``.
 HORIZON_FACTOR = 20.0
 #: Samples of a tuning simulation when no ``dt`` is given.
@@ -262,9 +261,9 @@ def _series_to_parallel(kc: float, ti: float, td: float) -> tuple[float, float, 
 def _simc(a: dict, tau_c: float):
     t = tau_c + a["theta"]
     if a["kind"] == "integrating":
-        kc, ti = 1.0 / (a["gain"] * t), SIMC_TI_FACTOR * t
+        kc, ti = 1.0 / (a["gain"] * t), config.get("control.simc_ti_factor") * t
     else:
-        kc, ti = a["tau1"] / (a["gain"] * t), min(a["tau1"], SIMC_TI_FACTOR * t)
+        kc, ti = a["tau1"] / (a["gain"] * t), min(a["tau1"], config.get("control.simc_ti_factor") * t)
     return _series_to_parallel(kc, ti, a["tau2"])
 
 
@@ -417,7 +416,7 @@ class PIDResult:
     delay_margin: float = math.nan
     Ms: float = math.nan
     Mt: float = math.nan
-    max_sensitivity: float = DEFAULT_MS
+    max_sensitivity: float = math.nan
     poles: np.ndarray = field(default=None, repr=False)
     step: dict = field(default_factory=dict, repr=False)
     operating_point: OperatingPoint | None = field(default=None, repr=False)
@@ -570,10 +569,12 @@ class LoopCost:
 
     def __init__(self, model, r, dt, *, u_limit=None, criterion="itae", scale=(1.0, 1.0, 1.0), is_step=True,
                  max_overshoot=MAX_OVERSHOOT, op: OperatingPoint | None = None,
-                 max_sensitivity: float = DEFAULT_MS, kind: str = "pid", bandwidth: float | None = None):
+                 max_sensitivity: float | None = None, kind: str = "pid", bandwidth: float | None = None):
         self.model, self.r, self.dt, self.u_limit = model, np.asarray(r, float), float(dt), u_limit
         self.criterion, self.is_step, self.kind = criterion, is_step, kind
-        self.max_overshoot, self.max_sensitivity = max_overshoot, float(max_sensitivity)
+        self.max_overshoot = max_overshoot
+        self.max_sensitivity = (config.get("control.max_sensitivity") if max_sensitivity is None
+                                else float(max_sensitivity))
         self.scale = np.asarray(scale, dtype=float)
         self.op = op if op is not None else operating_point(model)
         P = small_signal(model, self.op)
@@ -658,7 +659,7 @@ def _robustness_target(max_sensitivity, phase_margin) -> float:
         if not 0 < pm < 90:
             raise ParameterError(f"phase_margin must be between 0 and 90 degrees, got {phase_margin!r}")
         return 1.0 / (2.0 * math.sin(math.radians(pm) / 2.0))
-    ms = DEFAULT_MS if max_sensitivity is None else float(max_sensitivity)
+    ms = config.get("control.max_sensitivity") if max_sensitivity is None else float(max_sensitivity)
     if not 1.0 < ms < 10.0:
         raise ParameterError(f"max_sensitivity must be between 1 and 10 (1.4-2.0 is usual), got {max_sensitivity!r}")
     return ms
@@ -747,7 +748,7 @@ def tune_pid(model, rule: str = "robust", *, kind: str = "pid", max_sensitivity:
     record = {"notes": list(op.notes), "max_sensitivity": ms}
     if delayed is not model:
         record["notes"].append(f"dead time {delayed.delay:.4g} s: the loop figures use its Pade approximant "
-                               f"of order {PADE_ORDER}")
+                               f"of order {pade_order_of()}")
     if key in ("simc", "imc"):
         gains, record = _rule_design(model, key, op, dt, limits, tau_c, step, ms, num, den, record, delayed)
     else:

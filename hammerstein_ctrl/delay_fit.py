@@ -35,6 +35,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from . import config
 from .delay import delayed_response
 from .exceptions import ParameterError
 from .iodata import IOData
@@ -42,12 +43,7 @@ from .normal_equations import NONFINITE_RESIDUAL, NormalEquations, forward_steps
 from .simulate import unstable
 from .structure import BlockStructure
 
-__all__ = ["DelayedCost", "delay_candidates", "shifted", "MAX_DELAY_SAMPLES", "DELAY_CANDIDATES"]
-
-#: Longest dead time the ``auto`` scan considers, in samples (also at most a quarter of the record).
-MAX_DELAY_SAMPLES = 500
-#: How many whole-sample delays, best first, ``auto`` fits before refining the dead time continuously.
-DELAY_CANDIDATES = 3
+__all__ = ["DelayedCost", "delay_candidates", "shifted"]
 
 
 class DelayedCost:
@@ -179,7 +175,7 @@ def shifted(data: IOData, samples: int) -> IOData:
 
 
 def delay_candidates(data: IOData, order: int, *, max_shift: int | None = None,
-                     count: int = DELAY_CANDIDATES) -> list[int]:
+                     count: int | None = None) -> list[int]:
     """Whole-sample dead times, best first, ranked by the fit of ARX models with that input delay.
 
     For each shift ``d`` an ARX model of ``order`` output lags and
@@ -187,7 +183,10 @@ def delay_candidates(data: IOData, order: int, *, max_shift: int | None = None,
     fitted by least squares on the same samples; a continuous dead time
     ``tau`` shows as the best ``d`` near ``tau / dt`` (one more under a
     zero-order hold).  The shifts returned are dead times in samples:
-    ``[d0, d0 - 1, d0 + 1, ...]`` around the best one, within range.
+    ``[d0, d0 - 1, d0 + 1, ...]`` around the best one, within range: ``count``
+    of them (default ``config.defaults["delay.candidates"]``), shifts up to
+    ``max_shift`` (default ``config.defaults["delay.max_samples"]``, at most a
+    quarter of the record).
 
     Examples
     --------
@@ -200,7 +199,8 @@ def delay_candidates(data: IOData, order: int, *, max_shift: int | None = None,
     """
     u, y = np.asarray(data.u, dtype=float), np.asarray(data.y, dtype=float)
     N = u.size
-    top = min(MAX_DELAY_SAMPLES if max_shift is None else int(max_shift), max(0, N // 4))
+    top = min(config.get("delay.max_samples") if max_shift is None else int(max_shift), max(0, N // 4))
+    count = config.get("delay.candidates") if count is None else count
     first = top + order + 1                         # the same samples for every shift
     rows = N - first
     if rows <= 2 * order + 2:

@@ -40,11 +40,18 @@ from ._checks import as_count, as_signal, check_delay, check_intersample, check_
 from .exceptions import ParameterError, SimulationWarning
 from .nonlinearities import Nonlinearity
 
-__all__ = ["BlockModel", "HammersteinModel", "WienerModel", "HammersteinWienerModel", "PADE_ORDER"]
+__all__ = ["BlockModel", "HammersteinModel", "WienerModel", "HammersteinWienerModel", "pade_order_of"]
 
-#: Order of the Pade approximant that stands for a dead time in python-control exports and loop analyses
-#: (phase error under 0.1 degree up to ``omega tau = 6``, 1.4 degrees at 8).
-PADE_ORDER = 6
+
+def pade_order_of(order=None) -> int:
+    """The order of the Pade approximant that stands for a dead time in python-control exports and loop analyses.
+
+    ``order`` if given, else ``config.defaults["delay.pade_order"]`` (6: phase error under 0.1 degree
+    up to ``omega tau = 6``, 1.4 degrees at 8).
+    """
+    from . import config
+
+    return config.get("delay.pade_order") if order is None else as_count(order, "pade_order", minimum=1)
 
 
 def _finite_scalar(value, label: str) -> float:
@@ -131,7 +138,7 @@ class BlockModel:
         Input dead time ``tau`` in seconds (``y = h(H(p) e^{-tau p} g(u))``),
         simulated exactly (:mod:`~hammerstein_ctrl.delay`); python-control
         exports carry it as a Pade approximant of order ``pade_order``
-        (:data:`PADE_ORDER`).
+        (:func:`pade_order_of`).
     """
 
     #: Short name of the structure family.
@@ -283,7 +290,7 @@ class BlockModel:
 
         A dead time is exact in the discrete system (``dt`` given).  The
         continuous one carries it as a Pade approximant of order
-        ``pade_order`` (default :data:`PADE_ORDER`) between ``g`` and ``H``,
+        ``pade_order`` (default: :func:`pade_order_of`) between ``g`` and ``H``,
         starting at rest; its states come after ``H``'s (pad ``X0`` with zeros).
 
         Examples
@@ -311,7 +318,7 @@ class BlockModel:
                   control.nlsys(None, lambda t, x, u, p: h(np.atleast_1d(u)[:1]) + offset, inputs=["z"],
                                 outputs=[outputs], name="h")]
         if self.delay:      # after H in the list, so that H's states come first (X0 = [state0, zeros])
-            order = PADE_ORDER if pade_order is None else as_count(pade_order, "pade_order", minimum=1)
+            order = pade_order_of(pade_order)
             blocks.append(control.ss(control.tf(*control.pade(self.delay, order)), inputs="v", outputs="vd",
                                      name="delay"))
         return control.interconnect(blocks, inputs=[inputs], outputs=[outputs], name=name or self.name)
@@ -356,7 +363,7 @@ class BlockModel:
             return self.linear
         import control
 
-        order = PADE_ORDER if pade_order is None else as_count(pade_order, "pade_order", minimum=1)
+        order = pade_order_of(pade_order)
         return self.linear * control.tf(*control.pade(self.delay, order))
 
     def without_delay(self, pade_order: int | None = None) -> "BlockModel":

@@ -54,13 +54,12 @@ from typing import NamedTuple
 import numpy as np
 
 from ._jit import cached_njit
+from . import config
 from .exceptions import ParameterError
 
-__all__ = ["ResidualAnalysis", "CoherenceFinding", "residual_analysis", "coherence_test", "RESID_LAGS",
+__all__ = ["ResidualAnalysis", "CoherenceFinding", "residual_analysis", "coherence_test",
            "RESID_LEVEL", "ADEQUACY_Z", "COHERENCE_SEGMENTS", "SEGMENT_MAX", "GROUPS", "NAMED_SHARE"]
 
-#: Lags of the correlation functions (MATLAB ``resid``'s default).
-RESID_LAGS = 25
 #: Level of the correlation bounds (MATLAB ``resid``'s 99 %).
 RESID_LEVEL = 0.99
 #: Standard deviations above the shifted pairings' mean at which an explained fraction is a finding.
@@ -424,7 +423,7 @@ def _normal_quantile(level: float) -> float:
     return float(ndtri(0.5 + level / 2))
 
 
-def residual_analysis(residuals, u, *, dt: float, simulated=None, output=None, lags: int = RESID_LAGS,
+def residual_analysis(residuals, u, *, dt: float, simulated=None, output=None, lags: int | None = None,
                       name: str = "") -> ResidualAnalysis:
     """Analyse residuals ``e = y - y_sim`` against the input ``u`` (see the module notes).
 
@@ -438,10 +437,12 @@ def residual_analysis(residuals, u, *, dt: float, simulated=None, output=None, l
     output : array_like, shape (N,), optional
         The measured output ``y`` instead of ``simulated`` (``y_sim = y - e`` is then formed on the
         test's segments alone: no second record-long array).
-    lags : int, default 25
+    lags : int, optional
+        Default ``config.defaults["residual_analysis.lags"]`` (25).
     name : str
         Shown in the summary and the figure.
     """
+    lags = config.get("residual_analysis.lags") if lags is None else lags
     e = np.asarray(residuals, dtype=float)
     u = np.asarray(u, dtype=float)
     if e.ndim != 1 or u.shape != e.shape:

@@ -15,9 +15,9 @@ from .exceptions import ParameterError
 from .iodata import IOData
 from .metrics import fit_report
 from .model import BlockModel
-from .residual_analysis import RESID_LAGS, ResidualAnalysis, residual_analysis
+from .residual_analysis import ResidualAnalysis, residual_analysis
 from .structure import BlockStructure
-from .uncertainty import DEFAULT_LEVEL, ParameterUncertainty, Propagated, UncertainParameters
+from .uncertainty import ParameterUncertainty, Propagated, UncertainParameters
 
 __all__ = ["IdentificationResult"]
 
@@ -173,7 +173,7 @@ class IdentificationResult(UncertainParameters):
             return {"sse": np.inf, "rmse": np.inf, "nrmse": np.inf, "fit_percent": -np.inf}
         return fit_report(data.y, yhat)
 
-    def residual_analysis(self, data=None, *, lags: int = RESID_LAGS, initial_state: str | None = None
+    def residual_analysis(self, data=None, *, lags: int | None = None, initial_state: str | None = None
                           ) -> ResidualAnalysis:
         """Residual analysis (MATLAB ``resid``) on the estimation record or on ``data``.
 
@@ -182,7 +182,8 @@ class IdentificationResult(UncertainParameters):
         data : IOData, optional
             Another record (default: the estimation record, as analysed when
             the result was made).
-        lags : int, default 25
+        lags : int, optional
+            Default ``config.defaults["residual_analysis.lags"]``.
         initial_state : {"zero", "estimate"}, optional
             For another record, as :meth:`validate` (default: as identified).
 
@@ -191,7 +192,7 @@ class IdentificationResult(UncertainParameters):
         ResidualAnalysis
             Its ``plot()`` draws the correlations with their 99 % bounds.
         """
-        if data is None and lags == RESID_LAGS and self.analysis is not None:
+        if data is None and self.analysis is not None and lags in (None, self.analysis.lags[-1]):
             return self.analysis
         if self.model is None:
             raise ParameterError(f"this identification produced no model to analyse ({self.message})")
@@ -217,7 +218,7 @@ class IdentificationResult(UncertainParameters):
             x0 = estimate_initial_state(self.model, record) if mode == "estimate" else np.zeros(self.model.order)
             return self.model.simulate(record, initial_state=x0)
 
-    def propagate(self, fun, *, level: float = DEFAULT_LEVEL, method: str = "linear", samples: int = 2000,
+    def propagate(self, fun, *, level: float | None = None, method: str = "linear", samples: int = 2000,
                   seed=None) -> Propagated:
         """The uncertainty of any quantity computed from the fitted model.
 
@@ -244,7 +245,7 @@ class IdentificationResult(UncertainParameters):
         return propagate(lambda b: fun(structure.model(b, intersample=hold)), self.x, self.covariance, level=level,
                          dof=self.dof, method=method, samples=samples, seed=seed)
 
-    def characteristics(self, level: float = DEFAULT_LEVEL):
+    def characteristics(self, level: float | None = None):
         """Poles, zeros, time constants, natural frequencies, damping and the DC gain of ``H``, with their uncertainty.
 
         Returns

@@ -41,13 +41,12 @@ import warnings
 
 import numpy as np
 
+from . import config
 from .exceptions import ParameterError
 
 __all__ = ["ms_constrained_pid", "loop_figures", "discrete_loop_figures", "frequency_grid", "default_bandwidth",
-           "pid_polynomials", "constraints", "DEFAULT_MS", "FILTER_RATIO", "TD_RATIOS", "BANDWIDTH_FACTOR"]
+           "pid_polynomials", "constraints", "FILTER_RATIO", "TD_RATIOS", "BANDWIDTH_FACTOR"]
 
-#: Default robustness target: the largest peak sensitivity (and complementary sensitivity).
-DEFAULT_MS = 1.6
 #: Derivative filter ``tf = Td / FILTER_RATIO`` (the classical N = 10).
 FILTER_RATIO = 10.0
 #: Ratios ``Td / Ti`` searched (0: a PI controller).
@@ -178,7 +177,7 @@ def _best_on_grid(num, den, P, s, w, kps, wis, ratios, ms, bandwidth, factors=(1
     return best
 
 
-def ms_constrained_pid(num, den, *, max_sensitivity: float = DEFAULT_MS, kind: str = "pid",
+def ms_constrained_pid(num, den, *, max_sensitivity: float | None = None, kind: str = "pid",
                        bandwidth: float | None = None, dt: float | None = None,
                        gain_factors=(1.0,)) -> tuple[float, float, float, float]:
     """The PI or PID with the largest integral gain under the module's robustness constraints.
@@ -187,7 +186,8 @@ def ms_constrained_pid(num, den, *, max_sensitivity: float = DEFAULT_MS, kind: s
     ----------
     num, den : array_like
         The linear plant (small-signal, at the operating point), descending powers.
-    max_sensitivity : float, default 1.6
+    max_sensitivity : float, optional
+        Default ``config.defaults["control.max_sensitivity"]`` (1.6).
         Largest ``Ms`` and ``Mt`` (1.2-2.0; 1.4 is conservative, 2.0 aggressive).
     kind : {"pid", "pi"}
         ``"pid"`` searches PI and PID and keeps the better (it may be a PI).
@@ -212,7 +212,7 @@ def ms_constrained_pid(num, den, *, max_sensitivity: float = DEFAULT_MS, kind: s
     """
     num = np.trim_zeros(np.atleast_1d(np.asarray(num, dtype=float)), "f")
     den = np.trim_zeros(np.atleast_1d(np.asarray(den, dtype=float)), "f")
-    ms = float(max_sensitivity)
+    ms = config.get("control.max_sensitivity") if max_sensitivity is None else float(max_sensitivity)
     if not 1.0 < ms < 10.0:
         raise ParameterError(f"max_sensitivity must be between 1 and 10 (1.4-2.0 is usual), got {max_sensitivity!r}")
     if kind not in ("pid", "pi"):

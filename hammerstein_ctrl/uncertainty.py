@@ -51,13 +51,14 @@ from typing import Callable, NamedTuple
 import numpy as np
 
 from ._jit import cached_njit
+from . import config
 from .exceptions import ParameterError
 
 __all__ = ["NoiseModel", "ParameterUncertainty", "Propagated", "UncertainParameters", "CharacteristicsTable",
            "fit_noise_model", "parameter_covariance", "white_covariance", "residual_jacobian",
            "estimate_uncertainty", "propagate", "t_factor", "root_gradients", "linear_roots", "scaled_eigen",
            "linear_characteristics",
-           "NOISE_MODELS", "MAX_NOISE_ORDER", "RANK_TOLERANCE", "JACOBIAN_MAX_BYTES", "DEFAULT_LEVEL"]
+           "NOISE_MODELS", "MAX_NOISE_ORDER", "RANK_TOLERANCE", "JACOBIAN_MAX_BYTES"]
 
 #: Noise descriptions for the covariance: ``"colored"`` (an autoregressive model of the residuals, order
 #: picked by BIC; the white formula when they are white) or ``"white"`` (the plain Gauss-Newton formula).
@@ -70,8 +71,6 @@ RANK_TOLERANCE = 1e-13
 #: Largest block of residual vectors formed at once for the Jacobian; past it the columns are formed one
 #: simulation at a time.
 JACOBIAN_MAX_BYTES = 1 << 24
-#: Default confidence level of intervals.
-DEFAULT_LEVEL = 0.95
 
 
 class NoiseModel(NamedTuple):
@@ -124,7 +123,7 @@ class ParameterUncertainty(NamedTuple):
         """Standard errors (``inf`` where undetermined)."""
         return np.sqrt(np.abs(np.diag(self.covariance)))
 
-    def conf_int(self, x, level: float = DEFAULT_LEVEL) -> tuple[np.ndarray, np.ndarray]:
+    def conf_int(self, x, level: float | None = None) -> tuple[np.ndarray, np.ndarray]:
         """``(low, high)``: Student-t intervals ``x -/+ t se`` at ``level``."""
         k = t_factor(level, self.dof) * self.stderr
         return np.asarray(x, dtype=float) - k, np.asarray(x, dtype=float) + k
@@ -160,6 +159,8 @@ def t_factor(level: float, dof: int) -> float:
 
 
 def _check_level(level) -> float:
+    if level is None:
+        return config.get("uncertainty.level")
     try:
         value = float(level)
     except (TypeError, ValueError):
@@ -472,7 +473,7 @@ def _derivative_steps(x: np.ndarray, se: np.ndarray) -> np.ndarray:
     return np.where(np.isfinite(se) & (se > 0), 1e-3 * se, 1e-6 * np.maximum(1.0, np.abs(x)))
 
 
-def propagate(fun: Callable, x, covariance, *, level: float = DEFAULT_LEVEL, dof: int | None = None,
+def propagate(fun: Callable, x, covariance, *, level: float | None = None, dof: int | None = None,
               method: str = "linear", samples: int = 2000, seed=None) -> Propagated:
     """The standard error and confidence interval of ``fun(x)`` under the parameters' covariance.
 
@@ -599,7 +600,7 @@ class UncertainParameters:
         self._need_covariance()
         return dict(zip(self.structure.param_names, np.sqrt(np.abs(np.diag(self.covariance))).tolist()))
 
-    def conf_int(self, level: float = DEFAULT_LEVEL) -> dict:
+    def conf_int(self, level: float | None = None) -> dict:
         """Confidence interval of each parameter: ``{name: (low, high)}`` (Student-t with ``N - p`` degrees of freedom).
 
         Examples
@@ -657,7 +658,7 @@ def _row(name, value, gradient, cov, k):
     return (name, float(value), se, float(value) - k * se, float(value) + k * se)
 
 
-def linear_characteristics(structure, x, covariance, *, level: float = DEFAULT_LEVEL, dof: int = 10**9
+def linear_characteristics(structure, x, covariance, *, level: float | None = None, dof: int = 10**9
                            ) -> CharacteristicsTable:
     """Poles, zeros, time constants, natural frequencies, damping and DC gain of a structure's ``H``, with uncertainty.
 
