@@ -141,10 +141,10 @@ def test_a_wide_structure_in_bounded_memory(record, method):
     kwargs = {"maxfev": 300 if method == "auto" else 60, "seed": 0, "method": method}
     if method == "lm":
         kwargs["x0"] = np.r_[[1.0, 1.0, 3.0, 3.0], np.linspace(-0.9, 0.9, 11), 0.0]     # H = 1 / (p + 1)^3
-    from hammerstein_ctrl import initialize, simulate
+    from hammerstein_ctrl import _normal_pass, initialize
 
     with pytest.MonkeyPatch.context() as mp:      # compile outside the measurement, on the long records' routes
-        mp.setattr(simulate, "GROUPS_MIN_BYTES", 0)
+        mp.setattr(_normal_pass, "GROUPS_MIN_BYTES", 0)
         mp.setattr(initialize, "STREAMED_COLUMNS_BYTES", 0)
         identify(bench.synthetic_record(3000), s, **kwargs)
     per_sample, r = peak_bytes_per_sample(lambda: identify(record, s, **kwargs))

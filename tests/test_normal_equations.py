@@ -267,7 +267,7 @@ def test_lane_groups_give_the_stored_jacobians_sums(case):
     """Past one pass (more than 16 lanes or 8 basis signals) groups of passes run side by side:
     the sums and the QR factor are the stored forward-difference Jacobian's."""
     from hammerstein_ctrl.kernels import MAX_LANE_BASIS, MAX_NORMAL_LANES
-    from hammerstein_ctrl.simulate import _LaneGroups
+    from hammerstein_ctrl._normal_pass import _LaneGroups
 
     data, structures = _lane_group_cases()
     s = structures[case]
@@ -283,7 +283,7 @@ def test_lane_groups_give_the_stored_jacobians_sums(case):
         return groups[-1]
     with pytest.MonkeyPatch.context() as mp:
         mp.setattr(_LaneGroups, "prepare", classmethod(spy))
-        mp.setattr("hammerstein_ctrl.simulate.GROUPS_MIN_BYTES", 0)    # a short record: groups all the same
+        mp.setattr("hammerstein_ctrl._normal_pass.GROUPS_MIN_BYTES", 0)    # a short record: groups all the same
         ne, qr = cost.normal_equations(x, h), cost.normal_factor(x, h)
     assert len(groups) == 2 and all(g is not None and len(g.groups) >= 2 for g in groups)
     f, g, G = _stored(cost, x)
