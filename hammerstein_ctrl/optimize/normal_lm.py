@@ -342,7 +342,7 @@ def _accepted_code(actual, predicted, f_old, ftol, small):  # pragma: no cover -
 
 #: Package files holding compiled code that :func:`_compiled_loop` calls or inlines (the pass kernel's signature
 #: among them): numba's cache of it is keyed on them too (a stale copy would call the kernel unchecked).
-LOOP_DEPENDS = ("kernels.py", "normal_equations.py", "structure.py", "_linalg.py", "_simd.py")
+LOOP_DEPENDS = ("kernels.py", "_kernel_source.py", "normal_equations.py", "structure.py", "_linalg.py", "_simd.py")
 
 
 @cached_njit(depends=LOOP_DEPENDS)
