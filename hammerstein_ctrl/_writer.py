@@ -18,7 +18,7 @@ from .exceptions import ParameterError
 from .nonlinearities import NONLINEARITIES, PiecewiseLinear, Polynomial
 
 __all__ = ["SCHEMA_VERSION", "MODEL_FORMAT", "RESULT_FORMAT", "model_to_dict", "save_model", "write_json",
-           "encode_float", "nonlinearity_to_dict"]
+           "encode_float", "json_safe", "nonlinearity_to_dict"]
 
 #: Version of the JSON schema written by this module.
 SCHEMA_VERSION = 4
@@ -27,11 +27,43 @@ RESULT_FORMAT = "hammerstein_ctrl/result"
 
 
 def encode_float(value):
-    """A float for JSON: finite floats as numbers, non-finite ones as strings."""
+    """A float for JSON: finite floats as numbers, non-finite ones as the strings ``"inf"``, ``"-inf"``, ``"nan"``.
+
+    Examples
+    --------
+    >>> encode_float(1), encode_float(float("-inf")), encode_float(float("nan"))
+    (1.0, '-inf', 'nan')
+    """
     value = float(value)
     if math.isfinite(value):
         return value
     return "nan" if math.isnan(value) else ("inf" if value > 0 else "-inf")
+
+
+def json_safe(obj):
+    """``obj`` with every float (numpy's included) passed through :func:`encode_float`, recursively.
+
+    Arrays become lists, so ``json.dumps(json_safe(x), allow_nan=False)`` writes
+    standard JSON.
+
+    Examples
+    --------
+    >>> json_safe({"J": float("inf"), "x": np.array([1.0, np.nan])})
+    {'J': 'inf', 'x': [1.0, 'nan']}
+    """
+    if isinstance(obj, dict):
+        return {str(k): json_safe(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [json_safe(v) for v in obj]
+    if isinstance(obj, np.ndarray):
+        return json_safe(obj.tolist())
+    if isinstance(obj, (bool, np.bool_)):
+        return bool(obj)
+    if isinstance(obj, (int, np.integer)):
+        return int(obj)
+    if isinstance(obj, (float, np.floating)):
+        return encode_float(obj)
+    return obj
 
 
 def nonlinearity_to_dict(nl) -> dict:

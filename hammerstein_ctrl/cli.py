@@ -148,7 +148,8 @@ def _cmd_reproduce(args) -> int:
 
     from . import presets
     from .plots import study_figures
-    from .report import best_models, json_safe
+    from ._writer import json_safe
+    from .report import best_models
     from .safe_io import write_text
     from .study import run_study
 

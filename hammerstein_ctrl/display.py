@@ -52,7 +52,7 @@ HTML_DIGITS = 6
 
 def method_label(method: str) -> str:
     """Display name of a method key (``"nspsa"`` -> ``"N-SPSA"``); unknown keys pass through."""
-    from .report import METHOD_LABELS
+    from .optimize import METHOD_LABELS
 
     return METHOD_LABELS.get(method, method)
 

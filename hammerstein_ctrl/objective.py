@@ -162,7 +162,7 @@ class HammersteinCost:
     """
 
     def __init__(self, data, structure: BlockStructure, *, reject_unstable: bool = False):
-        from .datasets import IOData
+        from .iodata import IOData
 
         if not isinstance(data, IOData):
             raise ParameterError(f"data must be an IOData record, got {type(data).__name__}")

@@ -8,53 +8,14 @@ import math
 
 import numpy as np
 
-__all__ = ["study_table", "best_models", "json_float", "json_safe", "METHOD_LABELS", "PAPER_TABLES"]
+from .optimize import METHOD_LABELS
 
-#: Display names of the methods.
-METHOD_LABELS = {"spsa": "SPSA", "nlspsa": "NL-SPSA", "nspsa": "N-SPSA", "amvo-sca": "AMVO-SCA",
-                 "lm": "LM*"}
+__all__ = ["study_table", "best_models", "PAPER_TABLES"]
+
 #: Where each case's numbers come from in the paper.
 PAPER_TABLES = {"trs": "Table 3", "emps": "Table 7"}
 
 _COLUMNS = ("mean", "best", "worst", "std")
-
-
-def json_float(v):
-    """``float(v)``, or the strings ``"inf"``, ``"-inf"``, ``"nan"`` (standard JSON has no non-finite numbers).
-
-    Examples
-    --------
-    >>> json_float(1), json_float(float("-inf")), json_float(float("nan"))
-    (1.0, '-inf', 'nan')
-    """
-    v = float(v)
-    return v if math.isfinite(v) else ("inf" if v > 0 else "-inf" if v < 0 else "nan")
-
-
-def json_safe(obj):
-    """``obj`` with every float (numpy's included) passed through :func:`json_float`, recursively.
-
-    Arrays become lists, so ``json.dumps(json_safe(x), allow_nan=False)`` writes
-    standard JSON.
-
-    Examples
-    --------
-    >>> json_safe({"J": float("inf"), "x": np.array([1.0, np.nan])})
-    {'J': 'inf', 'x': [1.0, 'nan']}
-    """
-    if isinstance(obj, dict):
-        return {str(k): json_safe(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [json_safe(v) for v in obj]
-    if isinstance(obj, np.ndarray):
-        return json_safe(obj.tolist())
-    if isinstance(obj, (bool, np.bool_)):
-        return bool(obj)
-    if isinstance(obj, (int, np.integer)):
-        return int(obj)
-    if isinstance(obj, (float, np.floating)):
-        return json_float(obj)
-    return obj
 
 
 def _num(v, digits: int = 6) -> str:

@@ -47,7 +47,7 @@ from .exceptions import HammersteinError, ParameterError
 from .executors import make_executor
 from .safe_io import MAX_INPUT_BYTES, check_output, open_append, open_lock, read_bytes, write_bytes, write_text
 from .optimize import canonical_method, minimize
-from .report import json_float, json_safe
+from ._writer import encode_float as json_float, json_safe
 
 __all__ = ["run_study", "StudyResult", "trial_seed", "ranksum", "validate_record", "record_digest", "RECORD_SCHEMA",
            "StudyLockedError", "StudyInterrupted", "ResultsFileWarning"]
