@@ -191,7 +191,7 @@ def _check_kind(obj, where: str) -> tuple:
     return kind, _KINDS[kind]
 
 
-def _structure_to_dict(structure) -> dict:
+def _block_structure_to_dict(structure) -> dict:
     from .structure import BlockStructure
 
     if not isinstance(structure, BlockStructure) or structure.kind not in _KINDS:
@@ -208,11 +208,20 @@ def _structure_to_dict(structure) -> dict:
             "offset": structure.offset, "initial_state": structure.initial_state}
 
 
+def _structure_to_dict(structure) -> dict:
+    """A block structure's object; a fit to several records adds ``n_records`` (its blocks shared by them)."""
+    base = getattr(structure, "base", None)
+    if base is not None and hasattr(structure, "n_records"):
+        return {**_block_structure_to_dict(base), "n_records": int(structure.n_records)}
+    return _block_structure_to_dict(structure)
+
+
 def _structure_from_dict(obj, where: str):
     from .structure import (INITIAL_STATES, HammersteinStructure, HammersteinWienerStructure, LinearStructure,
                             WienerStructure)
 
-    _keys(obj, where, ("kind", "linear", "input_nonlinearity", "output_nonlinearity", "offset", "initial_state"))
+    _keys(obj, where, ("kind", "linear", "input_nonlinearity", "output_nonlinearity", "offset", "initial_state"),
+          ("n_records",))
     kind, _ = _check_kind(obj, where)
     lin = _keys(obj["linear"], f"{where}.linear", ("num_order", "den_order", "monic_numerator", "fixed"), ("delay",))
     fixed = lin["fixed"]
@@ -230,7 +239,12 @@ def _structure_from_dict(obj, where: str):
         raise ParameterError(f"{where}.initial_state must be one of {list(INITIAL_STATES)}, got {initial_state!r}")
     cls = {"hammerstein": HammersteinStructure, "wiener": WienerStructure,
            "hammerstein-wiener": HammersteinWienerStructure}[kind]
-    return cls(linear, *blocks, offset=_boolean(obj["offset"], f"{where}.offset"), initial_state=initial_state)
+    structure = cls(linear, *blocks, offset=_boolean(obj["offset"], f"{where}.offset"), initial_state=initial_state)
+    if obj.get("n_records") is None:
+        return structure
+    from .experiments import RecordsStructure
+
+    return RecordsStructure(structure, _integer(obj["n_records"], f"{where}.n_records", minimum=1))
 
 
 # ---------------------------------------------------------------------------
@@ -388,7 +402,8 @@ def result_to_dict(result) -> dict:
     structure = result.structure
     x = np.asarray(result.x, dtype=float)
     data = result.data if isinstance(result.data, dict) else _data_to_dict(getattr(result, "data", None))
-    return {
+    records = [r if isinstance(r, dict) else _data_to_dict(r) for r in (getattr(result, "records", None) or ())]
+    return {**({"records": records} if records else {}),
         "format": RESULT_FORMAT, "schema_version": SCHEMA_VERSION,
         "model": model_to_dict(result.model), "structure": _structure_to_dict(structure),
         "params": {k: _encode(v) for k, v in zip(structure.param_names, x.tolist())},
@@ -475,7 +490,7 @@ def result_from_dict(obj, where: str = "result") -> IdentificationResult:
     :func:`result_to_dict` (``data``: the record's description; ``saved``: its status and dof)."""
     version = _header(obj, RESULT_FORMAT, where)
     _keys(obj, where, _RESULT_KEYS + (("status",) if version >= _STATUS_VERSION else ())
-          + (_UNCERTAINTY_KEYS if version >= _UNCERTAINTY_VERSION else ()))
+          + (_UNCERTAINTY_KEYS if version >= _UNCERTAINTY_VERSION else ()), ("records",))
     model = model_from_dict(obj["model"], f"{where}: model")
     structure = _structure_from_dict(obj["structure"], f"{where}: structure")
     beta = _numbers(obj["beta"], f"{where}: beta")
@@ -485,8 +500,11 @@ def result_from_dict(obj, where: str = "result") -> IdentificationResult:
     named = np.array([_number(params[k], f"{where}: params.{k}") for k in structure.param_names])
     if not np.array_equal(named, beta):
         raise ParameterError(f"{where}: params {params} disagree with beta {beta.tolist()}")
-    if not np.allclose(structure.beta(model), beta, rtol=1e-12, atol=0):
-        raise ParameterError(f"{where}: the model does not have the parameters beta = {beta.tolist()}")
+    joint = hasattr(structure, "n_records")
+    own = structure.local(beta, 0) if joint else beta          # a joint fit's model: its first record's
+    if not np.allclose((structure.base if joint else structure).beta(model), own, rtol=1e-12, atol=0):
+        raise ParameterError(f"{where}: the model does not have the parameters beta = {own.tolist()}")
+    records = _records_from(obj, structure, where) if joint else ()
     extra = _uncertainty_from(obj, version, structure.n_params, where)
     saved = {"status": None if obj.get("status") is None else _status_code(obj["status"], f"{where}: status")}
     if "dof" in extra:
@@ -501,8 +519,18 @@ def result_from_dict(obj, where: str = "result") -> IdentificationResult:
         message=_string(obj["message"], f"{where}: message"),
         elapsed=_number(obj["elapsed_s"], f"{where}: elapsed_s", finite=False),
         data=_data_from_dict(obj["data"], f"{where}: data"), history={}, optimize_result=None, saved=saved,
+        records=records, models=tuple(structure.model(beta, k, intersample=r["intersample"] or "foh", name=r["name"])
+                                      for k, r in enumerate(records)),
         **extra,
     )
+
+
+def _records_from(obj, structure, where: str) -> tuple:
+    """The descriptions of a joint fit's records, one per record of its structure."""
+    records = obj.get("records")
+    if not isinstance(records, list) or len(records) != structure.n_records:
+        raise ParameterError(f"{where}: records must list the {structure.n_records} records of the fit")
+    return tuple(_data_from_dict(r, f"{where}: records[{k}]") for k, r in enumerate(records))
 
 
 def save_result(result, path) -> None:

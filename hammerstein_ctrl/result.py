@@ -165,13 +165,22 @@ class IdentificationResult(UncertainParameters):
         mode = initial_state or self.structure.initial_state
         if mode not in ("zero", "estimate"):
             raise ParameterError(f"initial_state must be 'zero' or 'estimate', got {initial_state!r}")
-        model = next((m for r, m in zip(self.records, self.models) if r is data), self.model)
+        model = self._model_for(data)
         with np.errstate(all="ignore"):
             x0 = estimate_initial_state(model, data) if mode == "estimate" else np.zeros(model.order)
             yhat = model.simulate(data, initial_state=x0)
         if not np.all(np.isfinite(yhat)):
             return {"sse": np.inf, "rmse": np.inf, "nrmse": np.inf, "fit_percent": -np.inf}
         return fit_report(data.y, yhat)
+
+    def _model_for(self, data):
+        """The model of ``data`` if it is one of a joint fit's records (for a result read from a file: the record
+        of that name, length and sampling time), else :attr:`model`."""
+        for record, model in zip(self.records, self.models):
+            if record is data or (isinstance(record, dict) and record["name"] == data.name
+                                  and record["n_samples"] == len(data) and record["dt"] == data.dt):
+                return model
+        return self.model
 
     def residual_analysis(self, data=None, *, lags: int | None = None, initial_state: str | None = None
                           ) -> ResidualAnalysis:
@@ -310,7 +319,9 @@ class IdentificationResult(UncertainParameters):
         Without records: the estimation record, or every record of a joint fit.
         """
         from .plots import compare
-        return compare(list(records) or list(self.records) or [self._record()], self, **kwargs)
+        loaded = isinstance(self.data, dict)
+        return compare(list(records) or (list(self.records) if self.records and not loaded else [self._record()]),
+                       self, **kwargs)
 
     def to_frame(self):
         """Parameters (``value``, ``stderr``) as a pandas DataFrame (:func:`hammerstein_ctrl.display.result_frame`)."""

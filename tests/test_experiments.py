@@ -147,9 +147,19 @@ def test_a_paper_method_fits_several_records_from_a_whole_x0():
     assert res.success and res.fun == pytest.approx(fit(recs).fun, rel=1e-6)
 
 
-def test_a_result_of_several_records_saves_its_model_and_refuses_the_result_in_one_line(tmp_path):
-    res = fit(records(6))
+def test_a_result_of_several_records_survives_saving(tmp_path):
+    recs = records(6)
+    res = fit(recs)
     res.model.save(tmp_path / "m.json")
     assert hc.load_model(tmp_path / "m.json").offset == res.models[0].offset
-    with pytest.raises(ParameterError, match="cannot save a structure of type RecordsStructure"):
-        hc.save_result(res, tmp_path / "r.json")
+    hc.save_result(res, tmp_path / "r.json")
+    back = hc.load_result(tmp_path / "r.json")
+    assert back.structure.param_names == res.structure.param_names and back.structure.n_records == 3
+    np.testing.assert_array_equal(back.x, res.x)
+    assert back.stderr == pytest.approx(res.stderr, rel=1e-12) and back.dof == res.dof
+    assert [r["name"] for r in back.records] == [r.name for r in recs]
+    assert [m.offset for m in back.models] == [m.offset for m in res.models]
+    for a, b in zip(back.validate(recs), res.validate(recs)):
+        assert a == pytest.approx(b, rel=1e-12)
+    with pytest.raises(ParameterError, match="keeps only a description of its record"):
+        back.compare()
