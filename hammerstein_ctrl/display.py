@@ -50,10 +50,12 @@ PANDAS_HINT = "pip install hammerstein_ctrl[frames]"
 HTML_DIGITS = 6
 
 
+#: Display names of the methods (in tables, figures and reports).
+METHOD_LABELS = {"spsa": "SPSA", "nlspsa": "NL-SPSA", "nspsa": "N-SPSA", "amvo-sca": "AMVO-SCA", "lm": "LM*"}
+
+
 def method_label(method: str) -> str:
     """Display name of a method key (``"nspsa"`` -> ``"N-SPSA"``); unknown keys pass through."""
-    from .optimize import METHOD_LABELS
-
     return METHOD_LABELS.get(method, method)
 
 

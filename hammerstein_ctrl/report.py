@@ -8,7 +8,7 @@ import math
 
 import numpy as np
 
-from .optimize import METHOD_LABELS
+from .display import METHOD_LABELS
 
 __all__ = ["study_table", "best_models", "PAPER_TABLES"]
 

@@ -22,11 +22,11 @@ from ._common import (BUDGET_EXHAUSTED, CALLBACK_STOP, COMPLETED, DIVERGED, NO_F
 from .amvo_sca import amvo_sca
 from .least_squares import levenberg_marquardt
 from .gains import SPALL_ALPHA, SPALL_GAMMA, GainSequence, PerturbationGain, StepGain
-from .minimize import METHOD_LABELS, METHODS, SCIPY_METHODS, canonical_method, minimize
+from .minimize import METHODS, SCIPY_METHODS, canonical_method, minimize
 from .spsa import nlspsa, normalized_difference, nspsa, spsa
 
 __all__ = [
-    "METHOD_LABELS", "Budget", "BudgetExhausted",
+    "Budget", "BudgetExhausted",
     "minimize", "canonical_method", "METHODS", "SCIPY_METHODS",
     "spsa", "nlspsa", "nspsa", "amvo_sca", "levenberg_marquardt", "normalized_difference",
     "GainSequence", "StepGain", "PerturbationGain", "SPALL_ALPHA", "SPALL_GAMMA",

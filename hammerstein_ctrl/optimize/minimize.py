@@ -37,13 +37,11 @@ from .amvo_sca import amvo_sca
 from .least_squares import levenberg_marquardt
 from .spsa import nlspsa, nspsa, spsa
 
-__all__ = ["minimize", "canonical_method", "METHODS", "METHOD_LABELS", "SCIPY_METHODS"]
+__all__ = ["minimize", "canonical_method", "METHODS", "SCIPY_METHODS"]
 
 #: The paper's methods and the least-squares rival, by canonical name.
 METHODS = {"spsa": spsa, "nlspsa": nlspsa, "nspsa": nspsa, "amvo-sca": amvo_sca,
            "lm": levenberg_marquardt}
-#: Display names of the methods (in tables, figures and reports).
-METHOD_LABELS = {"spsa": "SPSA", "nlspsa": "NL-SPSA", "nspsa": "N-SPSA", "amvo-sca": "AMVO-SCA", "lm": "LM*"}
 
 #: Local methods of :func:`scipy.optimize.minimize` that can be used through
 #: :func:`minimize` with the same counting and budget rules.
