@@ -69,3 +69,22 @@ def no_work(monkeypatch):
     monkeypatch.setattr(importlib.import_module("hammerstein_ctrl.study"), "run_study",
                         lambda *a, **k: started.append("study"))
     return started
+
+
+@pytest.fixture
+def coulomb_record():
+    """Make ``y = 1/(p^2 + 2p + 4) (u + 0.3 sign u + offset)`` with 1 % noise, simulated by python-control."""
+    import control
+
+    from hammerstein_ctrl import IOData
+
+    def make(n_samples=3000, offset=-0.5):
+        dt = 0.01
+        t = dt * np.arange(n_samples)
+        u = np.sin(t) + 0.5 * np.sin(3.3 * t)
+        g = 1.0 * u + 0.3 * np.sign(u) + offset
+        y = control.forced_response(control.tf([1], [1, 2, 4]), t, g).outputs
+        y = y + 0.01 * np.random.default_rng(0).standard_normal(t.size)
+        return IOData(u, y, dt=dt)
+
+    return make

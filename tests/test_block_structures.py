@@ -15,10 +15,11 @@ import pytest
 import scipy.signal
 
 from hammerstein_ctrl import (
-    Coulomb, DeadZone, HammersteinWienerModel, HammersteinWienerStructure, IOData, LinearStructure,
+    Coulomb, CustomNonlinearity, DeadZone, HammersteinWienerModel, HammersteinWienerStructure, IOData, LinearStructure,
     ParameterError, Polynomial, Saturation, Tanh, WienerModel, WienerStructure, identify, load_result, read_record,
 )
 from hammerstein_ctrl.cli import main
+from hammerstein_ctrl.exceptions import HammersteinError
 from hammerstein_ctrl.objective import HammersteinCost
 
 from test_known_truth import DT, J_SLACK, K_SIGMA, companion, multilevel_prbs, multisine, standard_errors
@@ -263,3 +264,37 @@ def test_cli_identifies_block_structures(name, extra, model_type, tmp_path, caps
     assert np.sum((back.y - yhat) ** 2) == pytest.approx(saved.fun, rel=1e-9)
     # and it is the truth to within a few per cent (the statistical test is above)
     np.testing.assert_allclose(saved.x, TRUTHS[name]["beta"], rtol=0.05)
+
+
+@pytest.mark.parametrize("order", [2, 9])       # 2: compiled output map; 9: numpy map after the recursion
+def test_wiener_with_a_nan_saturation_limit_scores_inf_on_every_route(order):
+    """A NaN saturation limit gives NaN outputs in numpy (np.clip) but is ignored by the compiled
+    output map (min/max drop NaN), so for n <= 8 the cost is finite (the unsaturated value)."""
+    t = 0.01 * np.arange(800)
+    data = IOData(np.sin(3 * t), 0.3 * np.cos(2 * t), dt=0.01)
+    structure = WienerStructure(LinearStructure(0, order), Saturation())
+    den = np.poly(-np.arange(1.0, order + 1))[::-1][:order]          # stable, poles -1 .. -n
+    beta = np.r_[den, 2.0 * np.prod(np.arange(1.0, order + 1)), np.nan]
+    cost = HammersteinCost(data, structure)
+    assert cost(beta) == np.inf
+    assert cost.batch(np.vstack([beta] * 3)).tolist() == [np.inf] * 3
+    assert np.isnan(cost.simulate(beta)).any()
+
+
+def test_wiener_with_a_parameterless_custom_output_map():
+    """WienerStructure accepts a CustomNonlinearity with no parameters, but every cost evaluation then
+    failed inside numpy ('cannot reshape array of size 0 into shape (0)').  Either the structure is refused
+    with a clear error, or its cost is the sum of squares of y - h(H u), simulated here by python-control."""
+    h = CustomNonlinearity(lambda v, p: np.tanh(v), 0)
+    try:
+        structure = WienerStructure(LinearStructure(0, 2), h)
+    except HammersteinError:
+        return
+    t = 0.01 * np.arange(2000)
+    u = np.sin(t) + 0.5 * np.sin(3.3 * t)
+    y = np.cos(t)
+    cost = HammersteinCost(IOData(u, y, dt=0.01), structure)
+    x = np.array([2.0, 3.0])                        # H = 1 / (p^2 + 3 p + 2)
+    assert structure.param_names == ("a0", "a1")
+    expected = np.tanh(ct.forced_response(ct.tf([1.0], [1.0, 3.0, 2.0]), t, u).outputs)
+    assert cost(x) == pytest.approx(float(np.sum((y - expected) ** 2)), rel=1e-6)

@@ -7,9 +7,15 @@ from every call in every process until the folder was deleted by hand.
 
 import json
 import os
+import shutil
 import subprocess
 import sys
 from pathlib import Path
+
+import pytest
+
+import hammerstein_ctrl as hc
+from hammerstein_ctrl import kernels
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -59,3 +65,181 @@ def test_damaged_cache_files_are_compiled_again_with_a_warning(tmp_path):
     again = _run(tmp_path)                       # the cache was saved afresh and reads back
     assert again == first
 
+
+def test_a_generated_kernel_source_that_is_not_utf8_is_written_again(tmp_path):
+    """A generated kernel module in $HAMMERSTEIN_CTRL_CACHE damaged into bytes that are not UTF-8 (a
+    disk error, a bad copy) makes kernels._write_once raise UnicodeDecodeError (``path.read_text()``
+    catches only what it compares), so every call that needs that kernel fails, in every process,
+    until someone deletes the file -- what must never happen for a damaged cache
+    (a truncated source that is still UTF-8 is rewritten fine).  Reproduced end to end: random bytes in
+    ``kernels-*/hc_kernel_n2_outputs_foh.py`` and ``simulate_batch`` of a second-order system raised
+    UnicodeDecodeError from kernels.py:_write_once in every process.  The file must be written again."""
+    path = tmp_path / "hc_kernel_n2_outputs_foh.py"
+    src = kernels.kernel_source(2, "outputs", "foh")
+    path.write_bytes(b"\xff\xfe\xaa" + os.urandom(64))
+    kernels._write_once(path, src)
+    assert path.read_text() == src
+
+
+_FULL_DISK_CHILD = """
+import json, os, resource, signal, warnings
+import numpy as np
+limit = int(os.environ.get("TEST_FILE_SIZE_LIMIT", "0"))
+if limit:                                   # a full disk: every write past `limit` bytes fails (EFBIG)
+    signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
+    resource.setrlimit(resource.RLIMIT_FSIZE, (limit, limit))
+out = {"error": None, "h": None}
+with warnings.catch_warnings(record=True) as caught:
+    warnings.simplefilter("always")
+    try:
+        from hammerstein_ctrl import CacheWarning
+        from hammerstein_ctrl.normal_equations import forward_steps
+        out["h"] = [float(v).hex() for v in forward_steps(np.array([1.0, -2.0, 0.0, 3e5]))]
+    except Exception as exc:
+        out["error"] = f"{type(exc).__name__}: {exc}"
+    out["warnings"] = [str(w.message) for w in caught if w.category.__name__ == "CacheWarning"]
+print(json.dumps(out))
+"""
+
+
+def _full_disk_child(tmp_path, limit=0):
+    env = {**os.environ, "PYTHONPATH": str(REPO), "HAMMERSTEIN_CTRL_CACHE": str(tmp_path / "kernels"),
+           "NUMBA_CACHE_DIR": str(tmp_path / "numba"), "PYTHONDONTWRITEBYTECODE": "1",
+           "TEST_FILE_SIZE_LIMIT": str(limit)}
+    proc = subprocess.run([sys.executable, "-c", _FULL_DISK_CHILD], capture_output=True, text=True, env=env,
+                          timeout=600)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    return json.loads(proc.stdout.strip().splitlines()[-1])
+
+
+def test_a_damaged_cache_compiled_again_on_a_full_disk_does_not_raise(tmp_path):
+    """The cache guard wrapped only numba's load: the version compiled again is then saved by
+    numba's ``save_overload``, which raises OSError when the write fails -- the full disk (or a cache
+    directory that turned read-only) the README names as the cause of the damage.  Reproduced: a
+    damaged (emptied) data file of ``normal_equations._forward_steps``, then a process whose writes
+    past 64 bytes fail (RLIMIT_FSIZE, as a full disk): the CacheWarning is given and then
+    ``forward_steps`` raises ``OSError: [Errno 27] File too large`` from numba's caching.py to the user
+    (measured the same with the generated simulation kernel).  The compiled function works in
+    memory; failing to save it must not fail the call (a CacheWarning, as for a failed load)."""
+    healthy = _full_disk_child(tmp_path)
+    assert healthy["error"] is None and healthy["warnings"] == []
+    data = sorted((tmp_path / "numba").rglob("normal_equations._forward_steps-*.nbc"))
+    assert data, sorted(p.name for p in (tmp_path / "numba").rglob("*"))
+    for f in data:
+        f.write_bytes(b"")
+    full = _full_disk_child(tmp_path, limit=64)
+    assert full["error"] is None, full
+    assert full["h"] == healthy["h"]
+    assert any("_forward_steps" in w for w in full["warnings"]), full["warnings"]
+    after = _full_disk_child(tmp_path)                  # the disk has room again: saved, then read back
+    assert after["error"] is None and after["h"] == healthy["h"]
+    again = _full_disk_child(tmp_path)
+    assert again == healthy
+
+
+_TWO_SIGNATURES_MODULE = """
+from hammerstein_ctrl._jit import cached_njit
+
+
+@cached_njit()
+def twice(x):
+    return x + x
+"""
+
+
+_TWO_SIGNATURES_CHILD = """
+import json, warnings
+with warnings.catch_warnings(record=True) as caught:
+    warnings.simplefilter("always")
+    from two_signatures_module import twice
+    values = [twice(3), twice(1.5)]
+print(json.dumps({"values": values, "misses": sorted(str(k) for k in twice.stats.cache_misses),
+                  "warnings": [str(w.message) for w in caught if w.category.__name__ == "CacheWarning"]}))
+"""
+
+
+def _two_signatures_child(tmp_path):
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(REPO), str(tmp_path / "module")]),
+           "HAMMERSTEIN_CTRL_CACHE": str(tmp_path / "kernels"), "NUMBA_CACHE_DIR": str(tmp_path / "numba"),
+           "PYTHONDONTWRITEBYTECODE": "1"}
+    proc = subprocess.run([sys.executable, "-c", _TWO_SIGNATURES_CHILD], capture_output=True, text=True, env=env,
+                          timeout=600)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    return json.loads(proc.stdout.strip().splitlines()[-1])
+
+
+def test_a_damaged_data_file_costs_no_healthy_signature_of_the_same_function(tmp_path):
+    """The guard sets a damaged cache aside by deleting the whole index (``_set_aside``), even when only
+    one signature's data file is damaged and the index itself reads fine.  The version compiled again
+    is then saved under a fresh index as data file 1 -- overwriting the healthy data file of another
+    signature -- so the next process, with no warning, misses that healthy signature and compiles it
+    again (seconds per generated kernel on a cold compile; the package's ``_linalg._combine3`` has two
+    signatures).  Reproduced with a cached_njit function called with int64 and float64: empty the
+    float64 data file (``.2.nbc``); the damaged run warns and compiles float64 (right), and the next
+    process reports a cache miss for int64, whose file the previous run overwrote with float64's code
+    (a process reading the old index at that moment would load one signature's machine code for
+    another).  Expected: only the damaged entry is set aside; the next process hits both signatures."""
+    (tmp_path / "module").mkdir()
+    (tmp_path / "module" / "two_signatures_module.py").write_text(_TWO_SIGNATURES_MODULE)
+    cold = _two_signatures_child(tmp_path)
+    assert cold["values"] == [6, 3.0] and cold["warnings"] == []
+    warm = _two_signatures_child(tmp_path)
+    assert warm["misses"] == [] and warm["warnings"] == []
+    data = sorted((tmp_path / "numba").rglob("two_signatures_module.twice-*.nbc"))
+    assert [f.name.split(".")[-2] for f in data] == ["1", "2"], data
+    data[1].write_bytes(b"")                             # the second signature compiled (float64)
+    damaged = _two_signatures_child(tmp_path)
+    assert damaged["values"] == [6, 3.0]
+    assert damaged["misses"] == ["(float64,)"]
+    assert any("twice" in w for w in damaged["warnings"]), damaged["warnings"]
+    after = _two_signatures_child(tmp_path)
+    assert after["warnings"] == []
+    assert after["misses"] == [], "a healthy signature was compiled again after the damaged one was repaired"
+
+
+_RUN_LM = """
+import numpy as np
+import hammerstein_ctrl as hc
+from hammerstein_ctrl.objective import HammersteinCost
+from hammerstein_ctrl.optimize import levenberg_marquardt, normal_lm
+rng = np.random.default_rng(0)
+u = np.repeat(rng.uniform(-2.0, 2.0, 20), 20)
+data = hc.IOData(u, np.sin(np.arange(400) * 0.01), dt=0.01, name="syn")
+cost = HammersteinCost(data, hc.HammersteinStructure(hc.LinearStructure(1, 2), hc.Polynomial(2)))
+try:
+    levenberg_marquardt(cost, [0.5, 2.0, 3.0, 0.3, 1.2])
+    outcome = "ran"
+except Exception as exc:
+    outcome = type(exc).__name__
+print(outcome, len(normal_lm._compiled_loop.stats.cache_hits))
+"""
+
+
+@pytest.mark.slow
+def test_the_compiled_loop_is_not_loaded_from_numbas_cache_after_the_kernel_module_changes(tmp_path):
+    """_compiled_loop calls the pass kernel through a pointer, its argument types checked by
+    kernels.call_normal_kernel only when _compiled_loop is compiled.  numba's disk cache of _compiled_loop
+    is keyed on normal_lm.py alone (its bytecode and the file's stamp), so after an edit of kernels.py
+    (here: the check made to refuse every call, as a changed kernel signature would) a fresh process
+    loaded the stale machine code and called the kernel unchecked; the generated kernels themselves
+    are keyed on kernels.py's source (kernels.cache_dir).  Oracle: numba's own cache statistics."""
+    package = Path(hc.__file__).parent
+    root = tmp_path / "copy"
+    shutil.copytree(package, root / "hammerstein_ctrl")        # copy2: the stamps numba's cache checks are kept
+    env = {**os.environ, "PYTHONPATH": str(root), "HAMMERSTEIN_CTRL_CACHE": str(tmp_path / "kernels")}
+
+    def run():
+        out = subprocess.run([sys.executable, "-c", _RUN_LM], env=env, cwd=tmp_path, capture_output=True, text=True,
+                             timeout=600)     # cwd: "-c" puts it first on sys.path
+        assert out.returncode == 0, out.stderr[-2000:]
+        outcome, hits = out.stdout.split()
+        return outcome, int(hits)
+
+    run()
+    assert run() == ("ran", 1)          # the control: the second process loads _compiled_loop from the cache
+    kernels = root / "hammerstein_ctrl" / "kernels.py"
+    text = kernels.read_text()
+    check = "    if address != numba.types.int64 or"
+    assert check in text
+    kernels.write_text(text.replace(check, "    if True or address != numba.types.int64 or"))
+    assert run() == ("TypingError", 0)

@@ -1,9 +1,18 @@
 import json
+import os
+import signal
+import sys
+import warnings
 
 import pytest
 
 from hammerstein_ctrl import load_trs
 from hammerstein_ctrl.cli import main
+from hammerstein_ctrl.study import run_study
+
+from _processes import alive, children, cli, lines, wait_for
+
+linux = pytest.mark.skipif(not sys.platform.startswith("linux"), reason="uses /proc and fork")
 
 
 @pytest.fixture
@@ -12,7 +21,7 @@ def trs_csv(tmp_path):
 
 
 def run(capsys, *argv):
-    code = main(list(argv))
+    code = main([str(a) for a in argv])
     out, err = capsys.readouterr()
     return code, out, err
 
@@ -129,3 +138,101 @@ def test_select_ranks_structures_and_writes_the_table_and_the_best_fit(capsys, t
 def test_select_refuses_bad_arguments_with_one_line(capsys, trs_csv, argv, message):
     code, out, err = run(capsys, *[a.replace("{csv}", str(trs_csv)) for a in argv])
     assert code == 2 and err.startswith("hammerstein-ctrl: error: ") and message in err.splitlines()[0]
+
+
+def test_reproduce_runs_duplicate_method_names_once(capsys, tmp_path):
+    code, out, err = run(capsys, "reproduce", "trs", "--trials", 3, "--methods", "nspsa", "n-spsa", "NSPSA",
+                         "--out", tmp_path, "--no-figures", "--jobs", 1)
+    assert code == 0, err
+    assert "only 1 different ones (nspsa)" in err
+    assert "over 3 independent trials" in out
+    assert sum(row.startswith("N-SPSA ") for row in out.splitlines()) == 1
+    assert "rank-sum" not in out  # one method: nothing to compare
+    assert len(lines(tmp_path / "results.jsonl")) == 3
+    assert json.loads((tmp_path / "summary.json").read_text())["nspsa"]["n"] == 3
+
+
+def test_reproduce_with_every_trial_diverged_writes_tables_and_figures(capsys, tmp_path):
+    code, out, err = run(capsys, "reproduce", "trs", "--methods", "spsa", "--trials", 1, "--seed", 1,
+                         "--out", tmp_path, "--jobs", 1)
+    assert code == 0, err
+    assert "1/1" in out  # the diverged column
+    assert "no trial ended with a finite J" in out
+    names = {p.stem for p in (tmp_path / "figures").glob("*.png")}
+    assert {"time_response", "error", "psd", "nonlinearity", "convergence", "final_cost"} <= names
+    assert "bode" not in names  # no linear block to draw
+    best = json.loads((tmp_path / "best_models.json").read_text())
+    assert best["spsa"]["diverged"] is True
+
+
+def test_debug_shows_the_traceback(capsys, tmp_path):
+    code, out, err = run(capsys, "reproduce", "emps", "--data", tmp_path / "none")
+    assert code == 2 and "Traceback" not in err
+    code, out, err = run(capsys, "--debug", "reproduce", "emps", "--data", tmp_path / "none")
+    assert code == 2 and "Traceback (most recent call last)" in err
+    assert err.rstrip().splitlines()[-1].startswith("hammerstein-ctrl: error: --data ")
+    code, out, err = run(capsys, "reproduce", "trs", "--debug", "--out", "/proc/forbidden")
+    assert code == 2 and "Traceback (most recent call last)" in err
+
+
+@pytest.fixture
+def thousand_sample_trs_csv(tmp_path):
+    return load_trs()[:1000].to_csv(tmp_path / "trs.csv")
+
+
+def test_identify_out_writes_standard_json_for_a_diverged_fit(capsys, tmp_path, thousand_sample_trs_csv):
+    out_path = tmp_path / "m.json"
+    code, out, err = run(capsys, "identify", "--data", thousand_sample_trs_csv, "--structure", "trs",
+                         "--method", "spsa", "--maxfev", 201, "--gain-a", 50, "--out", out_path)
+    text = out_path.read_text()
+
+    def reject(constant):
+        raise AssertionError(f"non-standard JSON constant {constant}")
+
+    model = json.loads(text, parse_constant=reject)
+    assert code == 1 and model  # spsa with a huge gain diverges: J is not finite
+    assert "Infinity" not in text and "NaN" not in text
+
+
+def test_reproduce_reports_the_trials_it_reuses(capsys, tmp_path):
+    argv = ["reproduce", "trs", "--methods", "nspsa", "--out", tmp_path, "--no-figures", "--jobs", 1]
+    assert run(capsys, *argv, "--trials", 4)[0] == 0
+    code, out, err = run(capsys, *argv, "--trials", 2)
+    assert code == 0 and "2 trials, " in out and "(2 trials reused from" in out
+
+
+@linux
+@pytest.mark.parametrize("sig", [signal.SIGKILL, pytest.param(signal.SIGTERM, marks=pytest.mark.slow)],
+                         ids=["SIGKILL", "SIGTERM"])
+def test_workers_end_with_a_killed_run_and_the_resumed_run_matches(capsys, tmp_path, trs_case, sig):
+    trials = 10
+    proc = cli("reproduce", "trs", "--methods", "nspsa", "--trials", trials, "--jobs", 2, "--out", tmp_path,
+               "--no-figures", "--no-progress")
+    try:
+        assert wait_for(lambda: len(children(proc.pid)) == 2 and lines(tmp_path / "results.jsonl")), \
+            "the run never started two workers and a first trial"
+        workers = children(proc.pid)
+        os.kill(proc.pid, sig)
+        proc.wait(timeout=30)
+        assert wait_for(lambda: not any(map(alive, workers)), timeout=5.0), \
+            f"workers {[w for w in workers if alive(w)]} still alive 5 s after the parent's {sig.name}"
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+        proc.communicate()
+    # A SIGKILL can land inside the write of a line (Linux stops a write to a file between pages on a fatal
+    # signal): that trial was never saved.  Saved are the complete lines; a torn last one must be rejected.
+    text = (tmp_path / "results.jsonl").read_text()
+    saved = text.count("\n")
+    torn = 0 if text.endswith("\n") or not text else 1
+    assert 1 <= saved < trials
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        resumed = run_study(trs_case, ["nspsa"], trials=trials, seed=0, jobs=2,
+                            results_path=tmp_path / "results.jsonl")
+    assert resumed.resumed == saved
+    assert len(resumed.rejected) == torn, (resumed.rejected, [str(w.message) for w in caught])
+    reference = run_study(trs_case, ["nspsa"], trials=trials, seed=0, executor="serial")
+    a, b = resumed.summary()["nspsa"], reference.summary()["nspsa"]
+    for key in ("n", "mean", "best", "worst", "std", "median", "nfev", "diverged"):
+        assert a[key] == b[key], key

@@ -5,7 +5,9 @@ import pytest
 import scipy.io
 
 from hammerstein_ctrl import DataError, IOData, load_emps, load_trs, read_record
+from hammerstein_ctrl._checks import as_signal
 from hammerstein_ctrl.datasets import TRS_SEED, DataNotFoundError, make_trs_reconstruction
+from hammerstein_ctrl.simulate import lsim
 
 
 # -- IOData validation ---------------------------------------------------------
@@ -151,3 +153,13 @@ def test_read_record_errors(tmp_path):
     (tmp_path / "notime.csv").write_text("u,y\n1,2\n3,4\n")
     with pytest.raises(DataError, match="no time column"):
         read_record(tmp_path / "notime.csv")
+
+
+def test_complex_and_object_signals_are_refused():
+    with pytest.raises(DataError, match="complex"):
+        as_signal(np.ones(5) + 1j, "u")
+    with pytest.raises(DataError, match="numeric"):
+        as_signal(np.array([1.0, None, 2.0], dtype=object), "u")
+    t = np.arange(0.0, 1.0, 0.1)
+    with pytest.raises(DataError, match="complex"):
+        lsim(([1.0], [1.0, 1.0]), t, np.ones_like(t) * (1 + 1e-3j))

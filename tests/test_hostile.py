@@ -10,6 +10,7 @@ The hostile *data files* (NPZ/MAT/CSV garbage, encodings) have their own
 corpus with ``read_record``; here the file is a valid record.
 """
 
+import importlib
 import os
 import re
 import subprocess
@@ -22,6 +23,8 @@ from hammerstein_ctrl import load_trs
 from hammerstein_ctrl.cli import main
 
 from _processes import REPO
+
+linux = pytest.mark.skipif(not sys.platform.startswith("linux"), reason="uses /proc and fork")
 
 TRS = ["--structure", "trs"]
 ORDERS = ["--orders", "1", "2", "--nonlinearity", "tanh"]
@@ -132,7 +135,7 @@ AT_THE_OPTIMISER = [
 
 def _run(capsys, argv):
     try:
-        code = main(argv)
+        code = main([str(a) for a in argv])
     except SystemExit as exc:
         code = exc.code
     out, err = capsys.readouterr()
@@ -287,3 +290,71 @@ def test_round3_refused_in_one_line_with_nothing_written(capsys, tmp_path, hosti
 
 def test_round3_corpus_size():
     assert len(ROUND3) >= 150
+
+
+# -- a wrong data path, bad arguments, bounds, orders and records, a killed worker: one line each --------------------
+@pytest.fixture
+def trs_csv(tmp_path):
+    return load_trs()[:1000].to_csv(tmp_path / "trs.csv")
+
+
+def test_a_wrong_emps_data_path_is_an_error_not_other_data(capsys, tmp_path):
+    code, out, err = _run(capsys, ["reproduce", "emps", "--data", tmp_path / "nonexistent", "--out", tmp_path / "o"])
+    _assert_one_error_line(code, err, re.escape("nonexistent: no such file or folder"))
+    assert not (tmp_path / "o").exists()
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["reproduce", "trs", "--seed", "-1"], "argument --seed: must be a non-negative integer"),
+    (["reproduce", "trs", "--jobs", "-1"], "argument --jobs: must be a positive integer"),
+    (["identify", "--data", "{csv}", "--structure", "trs", "--gain-a", "1", "2", "3", "4"],
+     "--gain-a takes at most 3 numbers, got 4"),
+    (["identify", "--data", "{csv}", "--structure", "trs", "--plot", "{tmp}/x.xyz"], "unknown figure format '.xyz'"),
+    (["identify", "--data", "{csv}", "--structure", "trs", "--method", "powell", "--maxfev", "0"],
+     "argument --maxfev: must be a positive integer"),
+    (["identify", "--data", "{csv}", "--structure", "trs", "--plot", "{tmp}/no/such/dir/x.png"], "does not exist"),
+    (["identify", "--data", "{csv}", "--structure", "trs", "--out", "{tmp}"], "is a directory"),
+])
+def test_bad_arguments_are_refused_in_one_line_before_any_work(capsys, tmp_path, trs_csv, no_work, argv, message):
+    argv = [a.replace("{csv}", str(trs_csv)).replace("{tmp}", str(tmp_path)) for a in argv]
+    code, out, err = _run(capsys, argv)
+    assert no_work == []
+    _assert_one_error_line(code, err, re.escape(message))
+
+
+@pytest.mark.parametrize("bounds, message", [
+    (["0", "1", "0", "10", "0", "10", "-10", "0", "0", "1"], r"x0\[0\] = -2 lies outside its bounds \[0, 1\]"),
+    (["-5", "-5", "0", "10", "0", "10", "-10", "0", "0", "1"], "needs low < high"),
+])
+def test_lm_bounds_problems_are_refused_in_one_line(capsys, trs_csv, bounds, message):
+    code, out, err = _run(capsys, ["identify", "--data", trs_csv, "--structure", "trs", "--method", "lm",
+                                   "--bounds", *bounds])
+    _assert_one_error_line(code, err, message)
+
+
+def test_orders_past_max_order_are_refused_before_any_work(capsys, trs_csv, no_work):
+    code, out, err = _run(capsys, ["identify", "--data", trs_csv, "--orders", 0, 50, "--nonlinearity", "tanh"])
+    assert no_work == []
+    _assert_one_error_line(code, err, re.escape("den_order 50 exceeds MAX_ORDER = 10"))
+
+
+def test_a_constant_output_is_refused_before_the_fit(capsys, tmp_path, no_work):
+    t = np.arange(0.0, 2.0, 0.01)
+    path = tmp_path / "flat.csv"
+    np.savetxt(path, np.column_stack([t, np.sin(t), np.full_like(t, 3.0)]), delimiter=",",
+               header="t,u,y", comments="")
+    code, out, err = _run(capsys, ["identify", "--data", path, "--structure", "trs"])
+    assert no_work == []
+    _assert_one_error_line(code, err, re.escape("output y is constant"))
+
+
+def _die(*args):  # a trial whose worker is killed (as by the OOM killer)
+    os._exit(9)
+
+
+@linux
+def test_a_killed_worker_is_reported_in_one_line(capsys, tmp_path, monkeypatch):
+    monkeypatch.setattr(importlib.import_module("hammerstein_ctrl.study"), "_run_trial", _die)
+    code, out, err = _run(capsys, ["reproduce", "trs", "--methods", "nspsa", "--trials", 2, "--jobs", 2,
+                                   "--out", tmp_path, "--no-figures"])
+    _assert_one_error_line(code, err, re.escape("a worker process died unexpectedly"))

@@ -1,3 +1,5 @@
+import warnings
+
 import control as ct
 import numpy as np
 import pytest
@@ -5,6 +7,11 @@ import pytest
 from hammerstein_ctrl import (
     Coulomb, HammersteinStructure, IOData, LinearStructure, ParameterError, Polynomial, identify,
 )
+from hammerstein_ctrl.auto import MIN_REFINE_BUDGET
+from hammerstein_ctrl.exceptions import HammersteinError
+from hammerstein_ctrl.objective import HammersteinCost
+
+DT = 0.01
 
 
 def test_identify_known_truth_polynomial_system():
@@ -71,3 +78,67 @@ def test_identify_accepts_a_nonlinear_benchmarks_style_record(trs_case):
     res = identify(record, trs_case.structure, maxfev=1500)
     assert res.data.name == "bench" and res.fun == pytest.approx(identify(d, trs_case.structure, maxfev=1500).fun)
     assert res.validate(record)["fit_percent"] == pytest.approx(res.fit_percent)
+
+
+def test_auto_with_a_small_budget_gives_a_usable_result_or_a_clear_error(coulomb_record):
+    """identify(method="auto", maxfev=10) returns x = NaN, model None and the message 'the final
+    model cannot be simulated'; result.validate(data) then fails with AttributeError."""
+    data = coulomb_record()
+    structure = HammersteinStructure(LinearStructure(0, 2), Coulomb())
+    res = identify(data, structure, method="auto", maxfev=10)
+    assert not res.success and "raise maxfev" in res.message
+    if res.model is None:
+        assert "no model" in res.message
+        with pytest.raises(HammersteinError):
+            res.validate(data)
+    else:
+        assert np.all(np.isfinite(res.x))
+    res = identify(data, structure, method="auto", maxfev=30)      # one short refinement
+    assert not res.success and "within maxfev = 30" in res.message
+    assert np.isfinite(res.validate(data)["fit_percent"])
+
+
+def test_auto_rejects_a_non_finite_x0_clearly(coulomb_record):
+    """identify(method="auto", x0=[nan, ...]) fails deep in numpy.roots with LinAlgError
+    (method="lm" says 'x0 must be finite')."""
+    data = coulomb_record(1000)
+    structure = HammersteinStructure(LinearStructure(0, 2), Coulomb())
+    with pytest.raises(HammersteinError):
+        identify(data, structure, method="auto", x0=[np.nan] * 5)
+
+
+def test_bad_seed_and_beta_types_give_package_errors(coulomb_record):
+    """A seed numpy cannot use (a string, a negative int), a beta of strings and a complex beta
+    reach numpy's own TypeError/ValueError/ComplexWarning instead of a ParameterError."""
+    data = coulomb_record(1000)
+    structure = HammersteinStructure(LinearStructure(0, 2), Coulomb())
+    x0 = [4.0, 2.0, 1.0, 0.3, -0.5]
+    for seed in ("abc", -1):
+        with pytest.raises(HammersteinError):
+            identify(data, structure, method="nspsa", x0=x0, seed=seed, maxfev=50)
+    cost = HammersteinCost(data, structure)
+    with pytest.raises(HammersteinError):
+        cost(["a"] * 5)
+    with pytest.raises(HammersteinError):
+        cost(np.array(x0) + 1e-3j)
+
+
+def test_identify_of_an_overflowing_model_does_not_leak_numpy_warnings():
+    """LM from an unstable start ends at a model whose output overflows; summarising it
+    (metrics.fit / rmse, a norm) prints numpy RuntimeWarnings ('overflow encountered in square')."""
+    t = DT * np.arange(40000)
+    data = IOData(np.sin(t), np.cos(t), dt=DT)
+    structure = HammersteinStructure(LinearStructure(0, 2), Coulomb())
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RuntimeWarning)
+        res = identify(data, structure, method="lm", x0=[0.0, -1.0, 1.0, 0.1, 0.1], maxfev=300)
+    assert not res.success
+
+
+def test_auto_does_not_say_the_budget_ran_out_with_half_of_it_left(trs_case):
+    """maxfev=60 on TRS: the start search spends its half (30), no start is found, and the result says
+    'evaluation budget of 60 exhausted' with 30 evaluations unspent (EMPS: maxfev=30 gives a model,
+    maxfev=40 none, with 18 spent)."""
+    r = identify(trs_case.data, "trs", method="auto", maxfev=60, seed=0)
+    if r.model is None and "exhausted" in r.message:
+        assert r.nfev > 60 - MIN_REFINE_BUDGET, r.message

@@ -6,13 +6,18 @@ scipy's ``"2-point"`` differences give (same steps, same formula), count one
 evaluation per column exactly as before, and so leave the whole run unchanged.
 """
 
+import warnings
+
 import numpy as np
 import pytest
 from scipy.optimize import least_squares
 from scipy.optimize._numdiff import approx_derivative
 
+import hammerstein_ctrl as hc
+from hammerstein_ctrl.nonlinearities import Coulomb
 from hammerstein_ctrl.optimize import levenberg_marquardt
 from hammerstein_ctrl.optimize.least_squares import _BatchedJacobian, _CountedResiduals
+from hammerstein_ctrl.structure import HammersteinStructure, LinearStructure
 
 
 class ResidualsOnly:
@@ -119,3 +124,30 @@ def test_lm_reaches_the_emps_optimum_with_batched_jacobian(emps_case):
     r = levenberg_marquardt(emps_case.cost, emps_case.x0, maxfev=2501)
     # the least-squares optimum of the EMPS record (below every value of the paper's Table 7)
     assert abs(r.fun - 0.208517) < 1e-6 and r.nfev < 400
+
+
+def test_lm_with_bounds_never_evaluates_outside_the_box(coulomb_record):
+    """The trf Jacobian's forward steps flip only at the upper bound: at a negative lower bound
+    the neighbour x - h lies outside the box (scipy's "2-point" flips at both bounds)."""
+    structure = HammersteinStructure(LinearStructure(0, 2), Coulomb())
+    cost = hc.HammersteinCost(coulomb_record(), structure)
+    lo = np.array([0.1, 0.1, 0.1, 0.0, -0.3])   # the true offset -0.5 lies below the box: the optimum is at -0.3
+    hi = np.array([10.0, 10.0, 5.0, 2.0, 1.0])
+    seen = []
+    batch, single = cost.residuals_batch, cost.residuals
+    cost.residuals_batch = lambda X: (seen.extend(np.atleast_2d(X)), batch(X))[1]
+    cost.residuals = lambda x: (seen.append(np.asarray(x)), single(x))[1]
+    res = hc.minimize(cost, [3.0, 1.5, 0.8, 0.2, 0.0], method="lm", bounds=list(zip(lo, hi)))
+    assert res.x[4] == pytest.approx(-0.3)
+    S = np.array(seen)
+    outside = np.any((S < lo) | (S > hi), axis=1)
+    assert not outside.any(), f"{outside.sum()} of {len(S)} evaluations outside the box, e.g. {S[outside][0]}"
+
+
+def test_counted_residuals_book_huge_residuals_without_a_numpy_warning():
+    """auto's MINPACK refinements book residuals of 1e150 stand-ins: their sum of squares is inf, silently."""
+    counted = _CountedResiduals(lambda x: np.full(3, 1e200), None)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RuntimeWarning)
+        r = counted(np.zeros(2))
+    assert r.shape == (3,) and counted.history.as_dict()["fun"].tolist() == [np.inf]

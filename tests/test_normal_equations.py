@@ -5,6 +5,9 @@ Jacobian (``residuals_batch``), scipy's own 2-point Jacobian, and
 ``scipy.optimize.least_squares(method="lm")`` (MINPACK) for the optimum.
 """
 
+import tracemalloc
+import warnings
+
 import numpy as np
 import pytest
 from scipy.optimize import least_squares
@@ -13,9 +16,13 @@ from scipy.optimize._numdiff import approx_derivative
 import hammerstein_ctrl as hc
 from hammerstein_ctrl import identify
 from hammerstein_ctrl import objective
+from hammerstein_ctrl import presets, simulate, streamed_lstsq
+from hammerstein_ctrl.auto import auto_minimize
+from hammerstein_ctrl.exceptions import HammersteinError, ParameterError
 from hammerstein_ctrl.normal_equations import forward_steps, from_residuals, neighbours
 from hammerstein_ctrl.objective import HammersteinCost
 from hammerstein_ctrl.optimize import BUDGET_EXHAUSTED, COMPLETED, levenberg_marquardt, minimize, normal_lm
+from hammerstein_ctrl.optimize import least_squares as ls
 
 
 def _stored(cost, x):
@@ -665,3 +672,289 @@ def test_a_subclass_that_redefines_its_evaluation_gets_no_compiled_lm_loop(emps_
     plain = levenberg_marquardt(emps_case.cost, x)
     assert len(calls) == res.nfev // (x.size + 1) > 0
     assert res.fun == plain.fun and res.nit == plain.nit
+
+
+def test_normal_equations_checks_its_steps(coulomb_record):
+    """normal_equations(beta, steps) with a wrong number of steps raises numpy's reshape ValueError,
+    and zero steps give NaN gradients silently."""
+    structure = hc.HammersteinStructure(hc.LinearStructure(0, 2), hc.Coulomb())
+    cost = hc.HammersteinCost(coulomb_record(400), structure)
+    beta = np.array([4.0, 2.0, 1.0, 0.3, -0.5])
+    with pytest.raises(HammersteinError):
+        cost.normal_equations(beta, steps=np.ones(6))
+    with pytest.raises(HammersteinError):
+        cost.normal_equations(beta, steps=np.zeros(5))
+
+
+def test_lm_does_not_claim_convergence_at_a_rejected_unstable_start(emps_dir):
+    """reject_unstable makes every residual of an unstable point (and of its neighbours) 1e150: the
+    Jacobian is zero there, and LM stopped at once with 'gtol termination condition is satisfied',
+    success=True, at a point the cost scores inf (before bf7386c it walked to J = 0.2085)."""
+    p = presets.emps(path=emps_dir, reject_unstable=True)
+    res = minimize(p.cost, p.x0, method="lm")
+    if not np.isfinite(p.cost(res.x)):
+        assert not res.success, res.message
+        assert "gtol" not in res.message
+
+
+def _piecewise_record(N, hold="foh"):
+    rng = np.random.default_rng(0)
+    u = np.repeat(rng.uniform(-2, 2, N // 30 + 1), 30)[:N]
+    t = np.arange(N) * 0.01
+    return hc.IOData(u, 0.01 * (np.sin(t) + 0.3), dt=0.01, intersample=hold)
+
+
+def test_normal_equations_of_a_finite_point_with_a_nonfinite_neighbour_keep_its_value():
+    """Tanh with d1 = inf: g = d0 sign(u) and J is finite (cost 0.0163), but its neighbour d1 + h is NaN.
+    The kernel poisoned f when ANY lane's last signal was non-finite, and normal_equations booked the
+    point as inf instead of cost(x)."""
+    cost = HammersteinCost(_piecewise_record(7), hc.HammersteinStructure(hc.LinearStructure(1, 2), hc.Tanh()))
+    x = np.array([1.0, 2.0, 3.0, 1.5, np.inf])
+    J = cost(x)
+    assert np.isfinite(J)
+    assert cost.normal_equations(x).fun == pytest.approx(J, rel=1e-12)
+
+
+def test_normal_factor_of_a_finite_point_with_a_nonfinite_neighbour_keeps_its_value():
+    """Saturation with limit = inf is linear (cost finite); normal_factor says inf (one NaN lane makes R all NaN)."""
+    cost = HammersteinCost(_piecewise_record(8193), hc.WienerStructure(hc.LinearStructure(1, 2), hc.Saturation()))
+    x = np.array([1.0, 2.0, 3.0, 1.2, np.inf])
+    J = cost(x)
+    assert np.isfinite(J) and cost.normal_equations(x).fun == pytest.approx(J, rel=1e-12)
+    assert cost.normal_factor(x).fun == pytest.approx(J, rel=1e-12)
+
+
+@pytest.mark.parametrize("value", [np.nan, np.inf])
+def test_normal_factor_of_a_nonfinite_point_does_not_raise(value):
+    """normal_equations(x) answers at a NaN / inf parameter; normal_factor raised ParameterError
+    ('steps must be 5 finite, non-zero numbers'): its fallback passes the point's non-finite steps on."""
+    cost = HammersteinCost(_piecewise_record(8193), hc.HammersteinStructure(hc.LinearStructure(1, 2), hc.Tanh()))
+    x = np.array([value, 2.0, 3.0, 1.5, 0.7])
+    ne = cost.normal_equations(x)
+    qr = cost.normal_factor(x)
+    assert qr.fun == ne.fun or not np.isfinite(qr.fun)
+
+
+def test_normal_factor_of_a_record_shorter_than_its_parameters():
+    """Residual fallback (custom output map) on 3 samples, 4 parameters: np.linalg.qr gives a 3 x 5 R and
+    from_factor raised ValueError('a factor of shape (3, 5) does not fit 4 steps')."""
+    cubic = hc.CustomNonlinearity(lambda v, p: p[0] * v + p[1] * v ** 3, n_params=2)
+    cost = HammersteinCost(_piecewise_record(3), hc.WienerStructure(hc.LinearStructure(0, 2), cubic))
+    x = np.array([2.0, 3.0, 1.5, 0.1])
+    ne = cost.normal_equations(x)
+    qr = cost.normal_factor(x)
+    assert qr.fun == pytest.approx(ne.fun, rel=1e-12)
+    np.testing.assert_allclose(qr.gram, ne.gram, rtol=1e-8, atol=1e-12 * np.abs(ne.gram).max())
+
+
+def test_lm_past_minpack_max_bytes_takes_the_factor_route(emps_case, monkeypatch):
+    """From EMPS's x0 the Gram matrix is ill-conditioned: past MINPACK_MAX_BYTES the passes must be
+    normal_factor's, not MINPACK's (reaching the optimum alone would not show which route was taken)."""
+    calls = []
+    original = HammersteinCost.normal_factor
+    monkeypatch.setattr(HammersteinCost, "normal_factor", lambda self, *a: calls.append(1) or original(self, *a))
+    monkeypatch.setattr(ls, "MINPACK_MAX_BYTES", 0)
+    res = levenberg_marquardt(emps_case.cost, emps_case.x0)
+    assert calls and res.success
+    assert "MINPACK" not in res.message
+
+
+DT = 0.01
+KNOTS = np.linspace(-0.9, 0.9, 11)
+
+
+def _pwl_structure():
+    """17 lanes (16 parameters), 11 basis signals: past one compiled pass on both counts."""
+    return hc.HammersteinStructure(hc.LinearStructure(1, 3), hc.PiecewiseLinear(KNOTS), offset=True)
+
+
+def _long_enough(lanes):
+    """A record just long enough that ``lanes`` candidates' outputs pass GROUPS_MIN_BYTES (no monkeypatch)."""
+    n = simulate.GROUPS_MIN_BYTES // (8 * lanes) + 1000
+    t = DT * np.arange(n)
+    return hc.IOData(np.sin(0.3 * t) + 0.5 * np.sin(3.3 * t), np.cos(t), dt=DT)
+
+
+def _stable_pwl_point(structure):
+    x = np.random.default_rng(1).uniform(0.5, 2.0, structure.n_params)
+    x[:4] = [1.0, 1.0, 3.0, 3.0]                    # H = 1 / (p + 1)^3, stable
+    return x
+
+
+@pytest.mark.parametrize("index, value, method", [
+    (8, np.inf, "normal_equations"),      # default steps are NaN there: inf - inf in _LaneGroups.prepare
+    (8, np.inf, "normal_factor"),
+    (13, 1.5e308, "normal_factor"),       # row 0's signal overflows in _LaneGroups.output_blocks
+])
+def test_lane_groups_leak_no_numpy_warning_at_a_nonfinite_point(index, value, method):
+    """A g parameter at inf or 1.5e308 (the cost is inf) on a record just long enough for lane groups.
+    numpy's warnings escaped from two lines of _LaneGroups that ran outside any errstate: 'invalid value
+    encountered in subtract' (``Pg - P[0, cols]`` in ``prepare``, a neighbour's NaN step moving a column
+    that is inf) and 'overflow encountered in matmul' (``reference = self.P[0] @ part`` in
+    ``output_blocks``; ``normal_pass`` hid that one only because ``_sum_blocks`` wraps the generator in an
+    errstate, ``factor_of_blocks`` did not).  Under the project's warning filter the call then raises
+    instead of returning fun = inf as the single pass does."""
+    structure = _pwl_structure()
+    cost = HammersteinCost(_long_enough(structure.n_params + 1), structure)
+    x = _stable_pwl_point(structure)
+    x[index] = value
+    assert cost(x) == np.inf
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RuntimeWarning)
+        ne = getattr(cost, method)(x)
+    assert ne.fun == np.inf
+
+
+def test_normal_factor_of_an_overflowing_point_leaks_no_numpy_warning():
+    """A g parameter at 1.5e308 (cost inf) on a short record (stored residuals, no groups): ``from_factor``
+    divided the factor by the steps outside its errstate and numpy's 'overflow encountered in divide'
+    escaped (normal_equations.py, ``RJ = R[:p, :p] / steps``)."""
+    t = DT * np.arange(3000)
+    data = hc.IOData(np.sin(t) + 0.5 * np.sin(3.3 * t), np.cos(t), dt=DT)
+    structure = hc.HammersteinStructure(
+        hc.LinearStructure(1, 3),
+        hc.CustomNonlinearity(lambda u, p: sum(p[k] * np.sin((k + 1) * u) for k in range(10)), 10),
+        offset=True)
+    cost = HammersteinCost(data, structure)
+    x = _stable_pwl_point(structure)
+    x[5] = 1.5e308
+    assert cost(x) == np.inf
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RuntimeWarning)
+        qr = cost.normal_factor(x)
+    assert not np.isfinite(qr.fun)
+
+
+def test_normal_pass_with_an_empty_basis_on_a_long_record_gives_no_index_error():
+    """``normal_pass`` (public) with a basis of no signals (P of shape (3, 0)) returns None on a short
+    record; on a record long enough for lane groups ``_group_signals`` picked column 0 of an empty
+    P (``np.arange(1)``) and numpy's IndexError escapes.  Either None (the pass does not apply) or a
+    clear HammersteinError is acceptable."""
+    n = simulate.GROUPS_MIN_BYTES // (8 * 3) + 1000
+    y = np.zeros(n)
+    try:
+        ne = simulate.normal_pass([[1.0]], [[1.0, 2.0, 1.0]], DT, y, np.zeros((3, 0)), [np.zeros((0, n))],
+                                  [1e-6, 1e-6])
+    except HammersteinError:
+        return
+    assert ne is None
+
+
+def test_normal_factor_runs_its_small_qr_factorisations_in_one_blas_thread(monkeypatch):
+    """The public ``normal_factor`` (any route; lane groups make it wider) reduces blocks of 8192 x (p + 1)
+    differences with LAPACK's geqrf, but only identify / minimize / levenberg_marquardt hold BLAS to one thread.
+    Called directly (as its own docstring does), OpenBLAS threaded each small QR: measured on this 2-core
+    machine at 1e6 samples, 17 lanes, 2 to 12 s instead of 0.2 to 0.26 s (the project's rule: small dense
+    linear algebra in single-threaded BLAS, threadpool_limits(1) around the entry points)."""
+    from threadpoolctl import threadpool_info
+
+    if max(info["num_threads"] for info in threadpool_info() if info["user_api"] == "blas") < 2:
+        pytest.skip("BLAS runs one thread here anyway")
+    structure = _pwl_structure()
+    cost = HammersteinCost(_long_enough(structure.n_params + 1), structure)
+    threads = []
+    geqrf = streamed_lstsq._GEQRF
+
+    def spy(*args, **kwargs):
+        if not threads:                             # threadpool_info is slow: look once
+            threads.append(max(info["num_threads"] for info in threadpool_info() if info["user_api"] == "blas"))
+        return geqrf(*args, **kwargs)
+    monkeypatch.setattr(streamed_lstsq, "_GEQRF", spy)
+    qr = cost.normal_factor(_stable_pwl_point(structure))
+    assert np.isfinite(qr.fun)
+    assert threads == [1]
+
+
+@pytest.mark.parametrize("case", ["unstable point, reject_unstable", "b0 = inf"])
+def test_normal_equations_of_a_point_scored_inf_store_no_residual_vectors(case):
+    """At a point the cost scores inf -- unstable under reject_unstable=True, or a linear parameter at inf
+    (no clean discretisation, so neither one pass nor the groups apply) -- the p + 1 residual vectors were
+    simulated and stored whole (the single pass did the same), undoing lane groups' bounded memory: measured
+    392 to 414 B/sample at 1e6 samples, 17 lanes, three times the 8 (p + 1) = 136 B of the vectors themselves
+    (4 GB at 1e7 samples), for a point no solver can use.  With b0 = inf the result was not even scored inf
+    (fun = 1e306 while cost(x) = inf)."""
+    structure = _pwl_structure()
+    lanes = structure.n_params + 1
+    data = _long_enough(lanes)
+    n = 4 * data.u.size                             # p + 1 residual vectors: 4 x GROUPS_MIN_BYTES = 64 MB
+    t = DT * np.arange(n)
+    data = hc.IOData(np.sin(0.3 * t) + 0.5 * np.sin(3.3 * t), np.cos(t), dt=DT)
+    x = _stable_pwl_point(structure)
+    if case == "b0 = inf":
+        cost = HammersteinCost(data, structure)
+        x[0] = np.inf
+    else:
+        cost = HammersteinCost(data, structure, reject_unstable=True)
+        x[3] = -1e-12                               # a2 < 0: a pole in the right half-plane
+    assert cost(x) == np.inf
+    tracemalloc.start()
+    try:
+        ne = cost.normal_equations(x)
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert ne.fun == np.inf
+    assert peak < 8 * lanes * n / 2, peak / n       # well under p + 1 stored residual vectors
+
+
+@pytest.mark.parametrize("maxfev", [41, 44])
+def test_lm_stopped_by_maxfev_counts_the_step_whose_trial_point_it_returns(emps_case, maxfev):
+    """On exhaustion, nit leaves out the step whose trial point was evaluated (and is returned as x).
+
+    From the N-SPSA vector the unlimited run takes 8 steps in 45 evaluations (5 per pass).  With 41-44
+    evaluations the 8th step's pass is cut short after its trial point (row 0) and some neighbours: that
+    trial point is evaluated, is the best point, and is returned as x, bit for bit the unlimited run's
+    x; but nit said 7, because _iterate counted a step only after its whole pass.  The rule
+    ("nit counts the steps whose trial point was evaluated") and the MINPACK/trf routes (a trial counts
+    as soon as its residual vector is evaluated) give 8.
+    """
+    beta = np.asarray(emps_case.paper["nspsa"]["beta"])
+    full = levenberg_marquardt(emps_case.cost, beta)
+    assert full.status == COMPLETED and full.nfev == 45 and full.nit == 8
+    r = levenberg_marquardt(emps_case.cost, beta, maxfev=maxfev)
+    assert r.status == BUDGET_EXHAUSTED and r.nfev == maxfev
+    assert np.array_equal(r.x, full.x)                       # the 8th step's trial point
+    assert r.nit == full.nit, f"x is the point of step {full.nit}, nit says {r.nit}"
+
+
+def test_auto_with_no_budget_for_a_refinement_reports_budget_exhausted(trs_case):
+    """auto stopped by maxfev before any refinement says SOLVER_FAILED (4): no solver ran or failed.
+
+    With maxfev = 30 the starts' scan spends its share (15) and the 15 left are below a refinement's
+    minimum: the message says "raise maxfev", the status table says 4 is "a solver stopped
+    without converging" and 5 "ran out of maxfev first".  auto with maxfev = 60 (one refinement cut
+    short) already says 5, and 800 converges (status 0).
+    """
+    assert auto_minimize(trs_case.cost, maxfev=60, seed=0).status == BUDGET_EXHAUSTED
+    r = auto_minimize(trs_case.cost, maxfev=30, seed=0)
+    assert not r.success and r.nit == 0 and "raise maxfev" in r.message
+    assert r.status == BUDGET_EXHAUSTED, (r.status, r.message)
+
+
+def _polynomial_cost(hold="foh", N=400, seed=0):
+    """A plain Hammerstein cost ((p + b0) / (p^2 + a1 p + a0), a cubic-free polynomial g): 5 parameters."""
+    rng = np.random.default_rng(seed)
+    u = np.repeat(rng.uniform(-2.0, 2.0, N // 20), 20)
+    y = np.sin(np.arange(N) * 0.01) + 0.1 * rng.normal(size=N)
+    data = hc.IOData(u, y, dt=0.01, intersample=hold, name="syn")
+    return HammersteinCost(data, hc.HammersteinStructure(hc.LinearStructure(1, 2), hc.Polynomial(2)))
+
+
+def _python_loop(monkeypatch):
+    """Hide the compiled loop: LM then runs its loop in Python around the same pass."""
+    monkeypatch.setattr(HammersteinCost, "direct_pass", lambda self: None)
+
+
+@pytest.mark.parametrize("hide", [True, False], ids=["python loop", "compiled loop"])
+def test_lm_refuses_a_start_of_the_wrong_length_in_the_compiled_and_the_python_loop(hide, monkeypatch):
+    """A start one entry longer than the cost's parameters: the Python loop refuses it (ParameterError,
+    naming the parameters); the compiled loop ran the pass kernel with 7 lanes on a 5-parameter
+    structure (the sixth entry moving nothing) and, with a gtol any start meets, reported success with
+    a 6-vector for a 5-parameter model.  (Shorter starts have the compiled loop read past the end of
+    its arrays: not run here.)"""
+    cost = _polynomial_cost()
+    x0 = np.r_[0.5, 2.0, 3.0, 0.3, 1.2, 0.7]
+    if hide:
+        _python_loop(monkeypatch)
+    with pytest.raises(ParameterError, match="beta must have 5 entries"):
+        levenberg_marquardt(cost, x0, gtol=1.0)

@@ -1,11 +1,16 @@
 """Every notebook runs top to bottom (issue 5) and is committed with its outputs (issue 12);
 the EMPS one reads the data through the normal loader."""
 
+import json
+import re
 from pathlib import Path
 
 import pytest
 
-NOTEBOOKS = sorted((Path(__file__).resolve().parents[1] / "notebooks").glob("*.ipynb"))
+import hammerstein_ctrl as hc
+
+ROOT = Path(__file__).resolve().parents[1]
+NOTEBOOKS = sorted((ROOT / "notebooks").glob("*.ipynb"))
 
 
 #: Notebooks that read the EMPS benchmark record.
@@ -60,3 +65,20 @@ def test_notebook_executes(path, request, monkeypatch):
     errors = [o for c in nb.cells if c.cell_type == "code" for o in c.get("outputs", [])
               if o.get("output_type") == "error"]
     assert not errors
+
+
+def test_quickstart_notebook_shows_the_lm_message_the_code_gives(trs_case):
+    """Notebook 01's committed LM output shows the message the code no longer gives.
+
+    The cell ``lm = hc.identify(data, structure, method="lm", ..., maxfev=2000)`` is committed with
+    "[FAILED: evaluation budget of 2000 exhausted before convergence [evaluation budget of 2000
+    exhausted]]" (the old _assess problem plus the old optimiser message); the same call now says
+    "[FAILED: evaluation budget of 2000 exhausted before convergence]".
+    """
+    nb = json.loads((ROOT / "notebooks" / "01_quickstart.ipynb").read_text())
+    cell = next(c for c in nb["cells"]
+                if c["cell_type"] == "code" and "".join(c["source"]).startswith("lm = hc.identify("))
+    shown = "".join(next(o for o in cell["outputs"] if "data" in o)["data"]["text/plain"]).splitlines()[0]
+    lm = hc.identify(trs_case.data, trs_case.structure, method="lm", x0=[-2.0, 0.0, 5.0, -5.0, 0.0], maxfev=2000)
+    tail = re.compile(r" s (\[.*\])$")
+    assert tail.search(shown).group(1) == tail.search(lm.summary().splitlines()[0]).group(1)

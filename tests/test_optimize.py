@@ -3,13 +3,14 @@ import warnings
 
 import numpy as np
 import pytest
+import scipy.optimize
 
 from hammerstein_ctrl import ParameterError, UnknownNameError, minimize
 from hammerstein_ctrl.optimize import (
-    CALLBACK_STOP, COMPLETED, DIVERGED, NO_FINITE_VALUE, SOLVER_FAILED, PerturbationGain, StepGain, amvo_sca,
-    normalized_difference, nspsa,
+    BUDGET_EXHAUSTED, CALLBACK_STOP, COMPLETED, DIVERGED, NO_FINITE_VALUE, SOLVER_FAILED, PerturbationGain, StepGain,
+    amvo_sca, normalized_difference, nspsa,
 )
-from hammerstein_ctrl.optimize.presets import eq8_methods, eq8_objective
+from hammerstein_ctrl.optimize.presets import TRS_BOUNDS, eq8_methods, eq8_objective
 
 SEEDS = range(5)
 
@@ -270,3 +271,69 @@ def test_the_spsa_family_never_returns_a_point_worse_than_its_start(method):
 def test_the_paper_presets_score_the_last_iterate(trs_case):
     for method in ("spsa", "nlspsa", "nspsa"):
         assert trs_case.methods[method]["options"]["estimate"] == "last"
+
+
+def _rosenbrock(x):
+    return float(100.0 * (x[1] - x[0] ** 2) ** 2 + (1.0 - x[0]) ** 2)
+
+
+@pytest.mark.parametrize("method", ["nelder-mead", "powell"])
+def test_nelder_mead_and_powell_stopped_by_maxfev_report_budget_exhausted(method):
+    """Nelder-Mead and Powell stopped by our maxfev say SOLVER_FAILED (4), not BUDGET_EXHAUSTED (5).
+
+    minimize hands maxfev to scipy for these two, so scipy stops itself at the budget ("Maximum number
+    of function evaluations has been exceeded.", its status 1) and _scipy_minimize maps every scipy
+    failure to SOLVER_FAILED; the other scipy methods, stopped by BudgetExhausted, say 5.  Unlimited,
+    both converge (status 0) on Rosenbrock from (-1.2, 1) in 159 and 607 evaluations.
+    """
+    x0 = np.array([-1.2, 1.0])
+    full = minimize(_rosenbrock, x0, method=method)
+    assert full.status == COMPLETED and full.success and full.nfev > 100
+    bfgs = minimize(_rosenbrock, x0, method="bfgs", maxfev=50)
+    assert bfgs.status == BUDGET_EXHAUSTED                    # the rule for scipy's methods
+    r = minimize(_rosenbrock, x0, method=method, maxfev=50)
+    assert r.nfev == 50 and not r.success
+    assert r.status == BUDGET_EXHAUSTED, (r.status, r.message)
+    assert "exhausted before convergence" in r.message
+
+
+def test_tnc_runs_and_agrees_with_scipy():
+    f = lambda x: float(np.sum((x - np.array([1.0, -2.0])) ** 2))  # noqa: E731
+    seen = []
+    r = minimize(f, np.zeros(2), method="tnc", maxfev=200, callback=lambda res: seen.append(res.x.copy()))
+    ref = scipy.optimize.minimize(f, np.zeros(2), method="tnc")
+    assert r.success and r.nfev <= 200 and seen
+    np.testing.assert_allclose(r.x, ref.x, atol=1e-6)
+    np.testing.assert_allclose(r.x, [1.0, -2.0], atol=1e-4)
+
+
+class _Counted:
+    def __init__(self):
+        self.calls = 0
+
+    def __call__(self, x):
+        self.calls += 1
+        return float(np.sum((np.asarray(x) - 1.0) ** 2))
+
+
+@pytest.mark.parametrize("method", ["spsa", "nlspsa", "nspsa"])
+def test_maxfev_alone_sets_the_spsa_family_iterations(method):
+    f = _Counted()
+    r = minimize(f, np.zeros(2), method=method, maxfev=20_001, seed=0)
+    # not 1 000 iterations / 2 001 evaluations; 8 evaluations calibrate the (automatic) gains, 1 scores the start
+    assert r.nit == (20_001 - 1 - 8 - 1) // 2 and r.nfev == 20_001 - 1 == f.calls
+
+
+def test_monitor_evaluations_are_paid_from_maxfev():
+    f = _Counted()
+    r = minimize(f, np.zeros(3), method="nspsa", maxfev=201, seed=0, options={"monitor": 50})
+    assert f.calls == r.nfev + r.nfev_monitor <= 201
+    assert r.nfev_monitor > 0 and np.isfinite(r.history["estimate"]).sum() > 1
+
+
+@pytest.mark.parametrize("method", ["lm", "nelder-mead", "powell", "bfgs", "nspsa", "amvo-sca"])
+@pytest.mark.parametrize("maxfev", [float("nan"), 0, -5, 2.5, float("inf")])
+def test_a_maxfev_that_is_not_a_positive_integer_is_refused(trs_case, method, maxfev):
+    bounds = TRS_BOUNDS if method == "amvo-sca" else None
+    with pytest.raises(ParameterError, match="maxfev must be a positive integer"):
+        minimize(trs_case.cost, trs_case.x0, method=method, maxfev=maxfev, bounds=bounds)

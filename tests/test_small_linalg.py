@@ -1,5 +1,10 @@
 """The compiled small dense linear algebra of :mod:`hammerstein_ctrl._linalg` against numpy and scipy."""
 
+import json
+import os
+import subprocess
+import sys
+
 import numpy as np
 import pytest
 import scipy.linalg
@@ -93,3 +98,87 @@ def test_strings_are_not_numbers():
     with pytest.raises(ParameterError, match="text"):
         as_real_array(["1.5"], "beta")
     assert as_real_array(np.array([1, None, 2.0], dtype=object)[[0, 2]], "beta").tolist() == [1.0, 2.0]
+
+
+def test_symmetric_eigenvalues_of_large_entries():
+    """The skip test |a_pq| <= eps sqrt(|a_pp a_qq|) overflows past 1e154: no rotation, diagonal returned."""
+    for S in (np.array([[1e200, 1e200], [1e200, 1e200]]), np.array([[1e160, 0.9e160], [0.9e160, 1e160]])):
+        w = np.linalg.eigvalsh(S)
+        np.testing.assert_allclose(symmetric_eigenvalues(S), w, rtol=0, atol=1e-13 * np.abs(w).max())
+
+
+_TWO_THREADS = """
+import json, threading
+import scipy.linalg  # both BLAS libraries (numpy's, scipy's) loaded before the first count
+import threadpoolctl
+from hammerstein_ctrl._linalg import single_threaded_blas
+
+def threads():
+    return [lib["num_threads"] for lib in threadpoolctl.threadpool_info()]
+
+before = threads()
+a_in, b_in, a_out = threading.Event(), threading.Event(), threading.Event()
+
+def first():
+    with single_threaded_blas():
+        a_in.set()
+        b_in.wait(10)
+    a_out.set()
+
+def second():
+    a_in.wait(10)
+    with single_threaded_blas():
+        b_in.set()
+        a_out.wait(10)
+
+workers = [threading.Thread(target=first), threading.Thread(target=second)]
+for w in workers:
+    w.start()
+for w in workers:
+    w.join()
+print(json.dumps({"before": before, "after": threads()}))
+"""
+
+
+def test_single_threaded_blas_restores_the_limits_after_two_threads():
+    """Limits are process-wide but the bookkeeping is per thread: with thread A in, thread B in, A out,
+    B out, B restores what it saw on entry (A's limit of 1) and the process stays single-threaded.
+
+    Run in a child process with two BLAS threads (threadpoolctl gives OpenBLAS to one controlling
+    thread at a time, so the scenario must not share this process's state)."""
+    pytest.importorskip("threadpoolctl")
+    env = dict(os.environ, OPENBLAS_NUM_THREADS="2", OMP_NUM_THREADS="2")
+    out = subprocess.run([sys.executable, "-c", _TWO_THREADS], capture_output=True, text=True, env=env,
+                         check=True, timeout=300).stdout.strip().splitlines()[-1]
+    r = json.loads(out)
+    if not r["before"] or set(r["before"]) <= {1}:
+        pytest.skip("no BLAS pool with more than one thread in the child")
+    assert r["after"] == r["before"]
+
+
+_FIRST_BLOCK_BEFORE_SCIPY = ("""
+import json, sys
+import numpy as np
+from hammerstein_ctrl._linalg import single_threaded_blas
+loaded = "scipy.linalg" in sys.modules
+with single_threaded_blas():
+    import threadpoolctl
+    inside = {lib["filepath"]: lib["num_threads"] for lib in threadpoolctl.threadpool_info() """
+                             """if lib["user_api"] == "blas"}
+after = {lib["filepath"]: lib["num_threads"] for lib in threadpoolctl.threadpool_info() if lib["user_api"] == "blas"}
+print(json.dumps({"loaded": loaded, "inside": inside, "after": after}))
+""")
+
+
+def test_single_threaded_blas_opened_before_scipy_linalg_also_holds_scipys_blas():
+    """numpy and scipy wheels each bring their own OpenBLAS; a block opened before scipy.linalg was
+    imported must still hold both (scipy's serves expm, lstsq and MINPACK's neighbours), and restore both."""
+    pytest.importorskip("threadpoolctl")
+    env = dict(os.environ, OPENBLAS_NUM_THREADS="2", OMP_NUM_THREADS="2")
+    r = json.loads(subprocess.run([sys.executable, "-c", _FIRST_BLOCK_BEFORE_SCIPY], capture_output=True, text=True,
+                                  env=env, check=True, timeout=300).stdout.strip().splitlines()[-1])
+    assert not r["loaded"]
+    if set(r["after"].values()) <= {1}:
+        pytest.skip("no BLAS pool with more than one thread in the child")
+    assert len(r["inside"]) >= 2 and set(r["inside"].values()) == {1}, r
+    assert r["after"] == {k: 2 for k in r["inside"]}, r

@@ -8,7 +8,9 @@ import time
 import pytest
 
 from hammerstein_ctrl import presets
-from hammerstein_ctrl.study import ranksum, run_study, trial_seed
+from hammerstein_ctrl import study as study_module
+from hammerstein_ctrl.optimize import BUDGET_EXHAUSTED, COMPLETED
+from hammerstein_ctrl.study import ResultsFileWarning, ranksum, record_digest, run_study, trial_seed
 
 SMALL = {  # short budgets keep these tests quick; the paper's settings are exercised below
     "nspsa": {"method": "nspsa", "maxiter": 150,
@@ -137,3 +139,76 @@ def test_reproduce_trs_table3(trs_case):
     assert s["spsa"]["diverged"] == 25
     assert s["ranksum"]["nlspsa vs nspsa"]["p"] < 0.05
     assert s["nspsa"]["std"] < s["nlspsa"]["std"] < s["amvo-sca"]["std"]
+
+
+def test_resumed_study_does_not_mix_lm_records_of_the_old_status(trs_case, tmp_path, monkeypatch):
+    """A results file written before the change is resumed as is: one LM run with two statuses.
+
+    The fingerprint (RECORD_VERSION 3) did not change with the meaning of status/success/nit, so a
+    rerun of ``reproduce`` keeps the parent commit's TRS LM trial (status 0, success True, nit = nfev
+    = 2001, "evaluation budget of 2001 exhausted") beside new trials of the same deterministic run
+    (status 5, success False, nit 346).  The old record is rebuilt here as 8c2b3cb wrote it, with its
+    RECORD_VERSION 3 (checked against a real run of that commit: config b29493283d3cc5c2, the same
+    seed and fields).
+    """
+    path = tmp_path / "results.jsonl"
+    with monkeypatch.context() as m:
+        m.setattr(study_module, "RECORD_VERSION", 3)        # the parent commit's
+        new = run_study(trs_case, ["lm"], trials=1, seed=0).records[0]
+    assert new["status"] == BUDGET_EXHAUSTED and new["nfev"] == 2001
+    old = {**new, "status": COMPLETED, "success": True, "nit": new["nfev"],
+           "message": f"evaluation budget of {new['nfev']} exhausted"}
+    old["digest"] = record_digest(old)
+    path.write_text(json.dumps(old) + "\n")
+    study = run_study(trs_case, ["lm"], trials=2, seed=0, results_path=path)
+    statuses = {(r["status"], r["success"], r["nit"]) for r in study.records}
+    assert len(statuses) == 1, f"one deterministic run, {study.resumed} resumed: {statuses}"
+
+
+def test_run_study_canonicalises_and_deduplicates_method_names(trs_case):
+    study = run_study(trs_case, ["N-SPSA", "nspsa", "n-spsa"], trials=2, executor="serial")
+    assert study.methods == ["nspsa"] and len(study.records) == 2
+
+
+def _lines(path):
+    """The lines of a results file (``_processes`` is imported here, not at the top: a child process of
+    test_interrupted_study_resumes_to_the_same_summary imports this module without tests/ on its path)."""
+    from _processes import lines
+
+    return lines(path)
+
+
+def _study_lines(trs, path):
+    run_study(trs, ["nspsa"], trials=2, seed=0, executor="serial", results_path=path)
+    return _lines(path)
+
+
+@pytest.mark.parametrize("damage", ["42", "null", b"\xff\xfe{}", "trial_null", "fun_abc", "no_curve",
+                                    "edited_fun"])
+def test_untrustworthy_results_lines_are_set_aside_and_their_trials_rerun(trs_case, tmp_path, damage):
+    path = tmp_path / "results.jsonl"
+    good = _study_lines(trs_case, path)
+    rec = json.loads(good[1])
+    if damage == "trial_null":
+        rec["trial"] = None
+    elif damage == "fun_abc":
+        rec["fun"] = "abc"
+    elif damage == "no_curve":
+        del rec["curve"]
+    elif damage == "edited_fun":
+        rec["fun"] = -1.67e8
+    raw = damage if isinstance(damage, bytes) else (damage if damage in ("42", "null") else json.dumps(rec)).encode()
+    if damage != "edited_fun":  # replace trial 1 with the damaged line; the edit is appended as a copy
+        path.write_bytes((good[0] + "\n").encode() + raw + b"\n")
+    else:
+        path.write_bytes("".join(g + "\n" for g in good).encode() + raw + b"\n")
+    with pytest.warns(ResultsFileWarning, match=r"1 line\(s\) rejected"):
+        study = run_study(trs_case, ["nspsa"], trials=2, seed=0, executor="serial", results_path=path)
+    assert study.resumed == (2 if damage == "edited_fun" else 1)
+    after = [json.loads(x) for x in _lines(path)]  # trusted lines only, one per trial
+    assert sorted((r["trial"], r["fun"]) for r in after) == [(r["trial"], r["fun"]) for r in map(json.loads, good)]
+    assert study.values("nspsa").tolist() == [json.loads(g)["fun"] for g in good]
+    assert (tmp_path / "results.rejected.jsonl").read_bytes() == raw + b"\n"
+    # a clean file afterwards: no warning, every trial reused
+    again = run_study(trs_case, ["nspsa"], trials=2, seed=0, executor="serial", results_path=path)
+    assert again.resumed == 2 and again.rejected == []
