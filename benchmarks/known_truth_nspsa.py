@@ -17,7 +17,7 @@ from test_known_truth import make_case  # noqa: E402
 
 from hammerstein_ctrl import identify  # noqa: E402
 from hammerstein_ctrl.objective import HammersteinCost  # noqa: E402
-from hammerstein_ctrl.optimize.presets import emps_methods, trs_methods  # noqa: E402
+from hammerstein_ctrl.paper.settings import emps_methods, trs_methods  # noqa: E402
 
 SIX = ["tanh_rhp_zero", "coulomb_integrator", "saturation_first_order_10pct", "deadzone_third_order",
        "cubic_resonance_zeta005", "pwl_fourth_order"]

@@ -31,13 +31,13 @@ from .exceptions import (CacheWarning, DataError, HammersteinError, Identificati
 __version__ = "0.1.0"
 
 #: Sub-modules exposed as attributes of the package.
-_SUBMODULES = ("datasets", "iodata", "metrics", "nonlinearities", "optimize", "plots", "presets", "records",
-               "simulate", "study", "control_design", "exact_export", "persistence", "display", "uncertainty",
-               "diagnostics", "residual_analysis", "selection", "config")
+_SUBMODULES = ("iodata", "metrics", "nonlinearities", "optimize", "plots", "records",
+               "simulate", "control_design", "exact_export", "persistence", "display", "uncertainty",
+               "diagnostics", "residual_analysis", "selection", "config", "paper")
 
 #: Public name -> the sub-module that defines it.
 _LAZY_NAMES = {
-    "load_emps": "datasets", "load_trs": "datasets", "make_trs_reconstruction": "datasets",
+    "load_emps": "paper.datasets", "load_trs": "paper.datasets", "make_trs_reconstruction": "paper.datasets",
     "IOData": "iodata", "read_record": "records",
     "IdentificationResult": "result", "identify": "identify",
     "fit_percent": "metrics", "fit_report": "metrics", "nrmse": "metrics", "rmse": "metrics", "sse": "metrics",
@@ -52,13 +52,13 @@ _LAZY_NAMES = {
     "HammersteinWienerStructure": "structure", "LinearStructure": "structure",
     "load_model": "persistence", "save_model": "persistence", "load_result": "persistence",
     "save_result": "persistence",
-    "StudyResult": "study", "run_study": "study",
+    "StudyResult": "paper.study", "run_study": "paper.study",
     "select_structure": "selection", "candidate_structures": "selection", "SelectionResult": "selection",
 }
 
 __all__ = [
     "datasets", "iodata", "metrics", "nonlinearities", "optimize", "plots", "presets", "records", "simulate",
-    "study", "control_design", "exact_export", "persistence", "display", "config", "load_model", "save_model",
+    "study", "paper", "control_design", "exact_export", "persistence", "display", "config", "load_model", "save_model",
     "load_result",
     "save_result",
     "IOData", "load_emps", "load_trs", "make_trs_reconstruction", "read_record",
@@ -76,10 +76,15 @@ __all__ = [
 ]
 
 
+#: Short names of the paper layer's modules (:mod:`hammerstein_ctrl.paper`).
+_PAPER_MODULES = {"presets": "paper.presets", "datasets": "paper.datasets", "study": "paper.study",
+                  "report": "paper.report"}
+
+
 def __getattr__(name):
     """Import a sub-module or public name on first access (PEP 562)."""
-    if name in _SUBMODULES:
-        value = importlib.import_module(f"{__name__}.{name}")
+    if name in _SUBMODULES or name in _PAPER_MODULES:
+        value = importlib.import_module(f"{__name__}.{_PAPER_MODULES.get(name, name)}")
     elif name in _LAZY_NAMES:
         value = getattr(importlib.import_module(f"{__name__}.{_LAZY_NAMES[name]}"), name)
     else:

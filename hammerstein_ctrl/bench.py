@@ -233,7 +233,7 @@ def synthetic_record(n_samples: int, *, seed: int = 0):
     """
     from .iodata import IOData
     from .objective import HammersteinCost
-    from .presets import emps_structure
+    from .paper.presets import emps_structure
 
     rng = np.random.default_rng(seed)
     levels = rng.uniform(-1.0, 1.0, n_samples // _HOLD_SAMPLES + 1)
@@ -250,8 +250,8 @@ def identify_long_record(data, method: str, **options):
     paper's EMPS box with a population of half the budget (two iterations).
     """
     from .identify import identify
-    from .optimize.presets import EMPS_BOUNDS
-    from .presets import emps_structure
+    from .paper.settings import EMPS_BOUNDS
+    from .paper.presets import emps_structure
 
     kwargs = {"maxfev": MEMORY_BUDGETS[method], "seed": 0}
     if method != "auto":

@@ -132,6 +132,6 @@ def format_structure_report(result: dict) -> str:
 
 
 if __name__ == "__main__":  # pragma: no cover - manual benchmark
-    from .presets import emps
+    from .paper.presets import emps
 
     print(format_structure_report(structure_cost_ratios(emps().data)))

@@ -119,7 +119,7 @@ def _output_dir(path: str) -> Path:
 
 
 def _cmd_bench(args) -> int:
-    from . import presets
+    from .paper import presets
     from .bench import full_report
 
     cases = []
@@ -146,12 +146,12 @@ def _cmd_reproduce(args) -> int:
     import json
     from pathlib import Path
 
-    from . import presets
+    from .paper import presets
     from .plots import study_figures
     from ._writer import json_safe
-    from .report import best_models
+    from .paper.report import best_models
     from .safe_io import write_text
-    from .study import run_study
+    from .paper.study import run_study
 
     kwargs = {"path": args.data} if (args.case == "emps" and args.data) else {}
     if args.case == "trs" and args.data:
@@ -247,7 +247,7 @@ def _print_cost_comparison(case, study, out):
 
 
 def _structure_from_args(args):
-    from . import presets
+    from .paper import presets
     from .nonlinearities import nonlinearity_from_name
     from .structure import HammersteinStructure, HammersteinWienerStructure, LinearStructure, WienerStructure
 

@@ -3,7 +3,7 @@
 * :func:`as_models` turns one model, a list, a dict of named models or an
   :class:`~hammerstein_ctrl.identify.IdentificationResult` into the
   ``{label: model}`` mapping every plot helper works on.
-* :func:`as_iodata` accepts an :class:`~hammerstein_ctrl.datasets.IOData` or any
+* :func:`as_iodata` accepts an :class:`~hammerstein_ctrl.iodata.IOData` or any
   record with ``u``, ``y`` and ``sampling_time`` attributes, such as the
   ``nonlinear_benchmarks`` package's ``Input_output_data``.
 * :func:`result_html`, :func:`study_html` render results as HTML tables
@@ -160,7 +160,7 @@ def labelled(models, *, arrays: bool = False, allow_empty: bool = False) -> dict
 
 
 def as_iodata(obj):
-    """Return ``obj`` as an :class:`~hammerstein_ctrl.datasets.IOData` record.
+    """Return ``obj`` as an :class:`~hammerstein_ctrl.iodata.IOData` record.
 
     Accepts an ``IOData`` (returned unchanged) or any object with ``u``, ``y``
     and ``sampling_time`` attributes and optionally ``name`` -- the

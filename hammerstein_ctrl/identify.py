@@ -100,9 +100,8 @@ def identify(
         (:mod:`~hammerstein_ctrl.experiments`; ``x`` and ``structure.param_names``
         then list the block parameters once and the record's nuisance
         parameters as ``y0[k]``, ``xi0[k]``, ...).
-    structure : HammersteinStructure, WienerStructure, HammersteinWienerStructure or {"trs", "emps"}
-        The model structure (a preset name uses that case's structure and,
-        for the paper's methods when ``x0`` is omitted, its initial point).
+    structure : HammersteinStructure, WienerStructure or HammersteinWienerStructure
+        The model structure (the paper's cases: ``hc.presets.trs().structure``, ``...emps()``).
     method : str, default "auto"
         ``"auto"`` (data-driven starts, least-squares refinement, restarts;
         needs no ``x0`` or tuning), or any method of
@@ -203,15 +202,9 @@ def _as_record(data) -> IOData:
 
 def _resolve_structure(data, structure, method, x0):
     if isinstance(structure, str):
-        from . import presets
-
-        if structure.lower() not in presets.PRESETS:
-            raise ParameterError(
-                f"unknown structure {structure!r}: give a HammersteinStructure or one of {sorted(presets.PRESETS)}"
-            )
-        if x0 is None and str(method).strip().lower() != AUTO:
-            x0 = presets.X0[structure.lower()]
-        structure = presets.STRUCTURES[structure.lower()]()
+        raise ParameterError(f"structure must be a HammersteinStructure, WienerStructure or "
+                             f"HammersteinWienerStructure, got the name {structure!r}; the paper's cases are "
+                             f"hc.presets.trs() and hc.presets.emps() (their .structure and .x0)")
     if not isinstance(structure, BlockStructure):
         raise ParameterError("structure must be a HammersteinStructure, WienerStructure or "
                              f"HammersteinWienerStructure, got {type(structure).__name__}")

@@ -10,7 +10,7 @@ that draw one axes also accept ``ax`` (then they draw into your figure).
 Wherever a model is expected you may pass one model, a list, a dict
 ``{label: model}`` or an :class:`~hammerstein_ctrl.identify.IdentificationResult`
 (see :func:`hammerstein_ctrl.display.as_models`); wherever a record is expected,
-an :class:`~hammerstein_ctrl.datasets.IOData` or a ``nonlinear_benchmarks``
+an :class:`~hammerstein_ctrl.iodata.IOData` or a ``nonlinear_benchmarks``
 record (see :func:`hammerstein_ctrl.display.as_iodata`).
 
 Examples

@@ -66,7 +66,7 @@ def no_work(monkeypatch):
     started = []
     monkeypatch.setattr(importlib.import_module("hammerstein_ctrl.identify"), "identify",
                         lambda *a, **k: started.append("fit"))
-    monkeypatch.setattr(importlib.import_module("hammerstein_ctrl.study"), "run_study",
+    monkeypatch.setattr(importlib.import_module("hammerstein_ctrl.paper.study"), "run_study",
                         lambda *a, **k: started.append("study"))
     return started
 

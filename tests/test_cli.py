@@ -8,7 +8,7 @@ import pytest
 
 from hammerstein_ctrl import load_trs
 from hammerstein_ctrl.cli import main
-from hammerstein_ctrl.study import run_study
+from hammerstein_ctrl.paper.study import run_study
 
 from _processes import alive, children, cli, lines, wait_for
 

@@ -6,7 +6,7 @@ import scipy.io
 
 from hammerstein_ctrl import DataError, IOData, load_emps, load_trs, read_record
 from hammerstein_ctrl._checks import as_signal
-from hammerstein_ctrl.datasets import TRS_SEED, DataNotFoundError, make_trs_reconstruction
+from hammerstein_ctrl.paper.datasets import TRS_SEED, DataNotFoundError, make_trs_reconstruction
 from hammerstein_ctrl.simulate import lsim
 
 

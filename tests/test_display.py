@@ -10,7 +10,7 @@ import pytest
 import hammerstein_ctrl as hc
 from hammerstein_ctrl import display
 from hammerstein_ctrl.exceptions import DataError, ParameterError
-from hammerstein_ctrl.study import run_study
+from hammerstein_ctrl.paper.study import run_study
 
 
 class Input_output_data:

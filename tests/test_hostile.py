@@ -354,7 +354,7 @@ def _die(*args):  # a trial whose worker is killed (as by the OOM killer)
 
 @linux
 def test_a_killed_worker_is_reported_in_one_line(capsys, tmp_path, monkeypatch):
-    monkeypatch.setattr(importlib.import_module("hammerstein_ctrl.study"), "_run_trial", _die)
+    monkeypatch.setattr(importlib.import_module("hammerstein_ctrl.paper.study"), "_run_trial", _die)
     code, out, err = _run(capsys, ["reproduce", "trs", "--methods", "nspsa", "--trials", 2, "--jobs", 2,
                                    "--out", tmp_path, "--no-figures"])
     _assert_one_error_line(code, err, re.escape("a worker process died unexpectedly"))

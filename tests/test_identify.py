@@ -45,8 +45,8 @@ def test_identify_trs_nspsa_result_is_usable_in_python_control(trs_case):
     assert "fit =" in res.summary()
 
 
-def test_identify_emps_by_preset_name_and_validation(emps_case):
-    res = identify(emps_case.data, "emps", method="lm", maxfev=600)
+def test_identify_emps_from_the_paper_start_and_validation(emps_case):
+    res = identify(emps_case.data, emps_case.structure, method="lm", x0=emps_case.x0, maxfev=600)
     assert res.fun == pytest.approx(0.208517, abs=2e-6)
     assert res.nfev < 600
     val = res.validate(emps_case.validation())
@@ -61,7 +61,7 @@ def test_identify_input_errors(trs_case):
         identify(trs_case.data, s, options={"a": 1.0}, maxiter=3)
     with pytest.raises(ParameterError, match="beta must have 4 entries"):
         identify(trs_case.data, s, x0=[1, 2, 3])
-    with pytest.raises(ParameterError, match="unknown structure 'cstr'"):
+    with pytest.raises(ParameterError, match="got the name 'cstr'; the paper's cases are hc.presets.trs()"):
         identify(trs_case.data, "cstr")
     with pytest.raises(ParameterError, match="data must be an IOData"):
         identify(np.zeros(10), s, x0=[1, 1, 1, 1])
@@ -139,6 +139,6 @@ def test_auto_does_not_say_the_budget_ran_out_with_half_of_it_left(trs_case):
     """maxfev=60 on TRS: the start search spends its half (30), no start is found, and the result says
     'evaluation budget of 60 exhausted' with 30 evaluations unspent (EMPS: maxfev=30 gives a model,
     maxfev=40 none, with 18 spent)."""
-    r = identify(trs_case.data, "trs", method="auto", maxfev=60, seed=0)
+    r = identify(trs_case.data, trs_case.structure, method="auto", maxfev=60, seed=0)
     if r.model is None and "exhausted" in r.message:
         assert r.nfev > 60 - MIN_REFINE_BUDGET, r.message

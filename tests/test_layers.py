@@ -142,3 +142,27 @@ def test_a_lower_layer_never_reaches_a_higher_one(lower, higher):
     graph = import_graph()
     reached = {m.split(".")[1] for m in _reaches(graph, lower) if m.count(".") >= 1}
     assert reached.isdisjoint(higher), f"{lower} reaches {sorted(reached & set(higher))}"
+
+
+#: Modules that may use the paper's material: the paper layer itself, the command line and the benchmarks
+#: (applications), and the package namespace (its short names ``hc.presets``, ``hc.load_emps``, ...).
+PAPER_USERS = ("paper", "cli", "cli_select", "cli_tune", "bench", "bench_structures")
+
+
+def test_general_code_never_reaches_the_paper_layer():
+    graph = import_graph()
+    general = [m for m in graph if m.count(".") >= 1 and m.split(".")[1] not in PAPER_USERS]
+    assert len(general) > 40
+    offenders = {m: sorted(w for w in _reaches(graph, m) if w.startswith("hammerstein_ctrl.paper"))
+                 for m in general}
+    offenders = {m: w for m, w in offenders.items() if w}
+    assert not offenders, f"general modules reaching the paper layer: {offenders}"
+
+
+def test_the_paper_layer_holds_the_paper_facts():
+    """The EMPS loader, the presets, the paper's optimiser settings and its tables are all under paper/."""
+    graph = import_graph()
+    for name in ("presets", "datasets", "settings", "study", "report"):
+        assert f"hammerstein_ctrl.paper.{name}" in graph
+    for moved in ("presets", "datasets", "study", "report"):
+        assert f"hammerstein_ctrl.{moved}" not in graph

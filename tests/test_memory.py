@@ -14,7 +14,7 @@ import pytest
 
 from hammerstein_ctrl import bench
 from hammerstein_ctrl.objective import CHUNK_BYTES, HammersteinCost
-from hammerstein_ctrl.presets import emps_structure
+from hammerstein_ctrl.paper.presets import emps_structure
 
 N = 10**6
 
@@ -156,7 +156,7 @@ def test_a_wide_structure_in_bounded_memory(record, method):
 def test_normal_equations_of_a_g_without_basis_stream_its_signals(record, intersample):
     """tanh has no basis: its distinct signals (the point's and one per parameter of g) are evaluated a
     block at a time inside the compiled pass, with the numbers of the stored N x p Jacobian and no p x N array."""
-    from hammerstein_ctrl.datasets import IOData
+    from hammerstein_ctrl.paper.datasets import IOData
     from hammerstein_ctrl.nonlinearities import Tanh
     from hammerstein_ctrl.normal_equations import forward_steps, from_residuals, neighbours
     from hammerstein_ctrl.structure import HammersteinStructure, LinearStructure

@@ -428,9 +428,9 @@ def test_scipy_methods_and_identify_report_the_budgets_end(emps_case):
     """The same status from scipy's methods stopped by our budget, and a failed identification that says why."""
     r = minimize(emps_case.cost, np.asarray(emps_case.paper["nspsa"]["beta"]), method="l-bfgs-b", maxfev=12)
     assert r.status == BUDGET_EXHAUSTED and not r.success and r.nfev == 12
-    res = identify(emps_case.data, "emps", method="lm", maxfev=20)
+    res = identify(emps_case.data, emps_case.structure, method="lm", x0=emps_case.x0, maxfev=20)
     assert not res.success and "exhausted before convergence" in res.message
-    auto = identify(emps_case.data, "emps", maxfev=60, seed=0)
+    auto = identify(emps_case.data, emps_case.structure, maxfev=60, seed=0)
     assert not auto.success and auto.optimize_result.status == BUDGET_EXHAUSTED
 
 

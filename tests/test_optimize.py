@@ -10,7 +10,7 @@ from hammerstein_ctrl.optimize import (
     BUDGET_EXHAUSTED, CALLBACK_STOP, COMPLETED, DIVERGED, NO_FINITE_VALUE, SOLVER_FAILED, PerturbationGain, StepGain,
     amvo_sca, normalized_difference, nspsa,
 )
-from hammerstein_ctrl.optimize.presets import TRS_BOUNDS, eq8_methods, eq8_objective
+from hammerstein_ctrl.paper.settings import TRS_BOUNDS, eq8_methods, eq8_objective
 
 SEEDS = range(5)
 

@@ -12,8 +12,8 @@ from matplotlib.figure import Figure  # noqa: E402
 import hammerstein_ctrl as hc  # noqa: E402
 from hammerstein_ctrl import minimize, plots  # noqa: E402
 from hammerstein_ctrl.exceptions import ParameterError  # noqa: E402
-from hammerstein_ctrl.optimize.presets import eq8_methods, eq8_objective  # noqa: E402
-from hammerstein_ctrl.study import run_study  # noqa: E402
+from hammerstein_ctrl.paper.settings import eq8_methods, eq8_objective  # noqa: E402
+from hammerstein_ctrl.paper.study import run_study  # noqa: E402
 
 
 def assert_labelled(fig, *, units=True):

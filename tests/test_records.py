@@ -7,7 +7,7 @@ import pytest
 import scipy.signal
 
 from hammerstein_ctrl import DataError, IOData, load_emps, read_record
-from hammerstein_ctrl.datasets import DataNotFoundError
+from hammerstein_ctrl.paper.datasets import DataNotFoundError
 from hammerstein_ctrl.records import add_record_arguments, record_from_args
 
 DT = 1e-3

@@ -10,7 +10,7 @@ import pytest
 from hammerstein_ctrl import presets
 from hammerstein_ctrl import study as study_module
 from hammerstein_ctrl.optimize import BUDGET_EXHAUSTED, COMPLETED
-from hammerstein_ctrl.study import ResultsFileWarning, ranksum, record_digest, run_study, trial_seed
+from hammerstein_ctrl.paper.study import ResultsFileWarning, ranksum, record_digest, run_study, trial_seed
 
 SMALL = {  # short budgets keep these tests quick; the paper's settings are exercised below
     "nspsa": {"method": "nspsa", "maxiter": 150,
@@ -49,7 +49,7 @@ def test_interrupted_study_resumes_to_the_same_summary(trs_case, tmp_path):
     path = tmp_path / "results.jsonl"
     script = (
         "from hammerstein_ctrl import presets\n"
-        "from hammerstein_ctrl.study import run_study\n"
+        "from hammerstein_ctrl.paper.study import run_study\n"
         "import tests.test_study as T\n"
         f"run_study(presets.trs(), ['nspsa', 'nlspsa'], trials=8, seed=5, executor='serial', "
         f"results_path={str(path)!r}, settings=T.KILLABLE)\n"

@@ -8,7 +8,7 @@ import pytest
 
 from hammerstein_ctrl import presets
 from hammerstein_ctrl.cli import main
-from hammerstein_ctrl.study import (RECORD_SCHEMA, ResultsFileWarning, StudyLockedError, record_digest,
+from hammerstein_ctrl.paper.study import (RECORD_SCHEMA, ResultsFileWarning, StudyLockedError, record_digest,
                                     run_study, validate_record)
 
 from _processes import cli, lines, wait_for

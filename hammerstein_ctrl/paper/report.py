@@ -8,7 +8,7 @@ import math
 
 import numpy as np
 
-from .display import METHOD_LABELS
+from ..display import METHOD_LABELS
 
 __all__ = ["study_table", "best_models", "PAPER_TABLES"]
 
@@ -105,7 +105,7 @@ def best_models(study, validation=None) -> dict:
     "validation"?}}``; ``validation`` (an IOData record) adds ``sse, rmse, nrmse, fit_percent``
     for every method that did not diverge.
     """
-    from .metrics import fit_report
+    from ..metrics import fit_report
 
     out = {}
     for m in study.methods:

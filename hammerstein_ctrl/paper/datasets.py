@@ -31,10 +31,10 @@ from pathlib import Path
 
 import numpy as np
 
-from .exceptions import DataError
-from .iodata import IOData
-from .records import DataNotFoundError, read_record
-from .safe_io import MAX_INPUT_BYTES, check_input
+from ..exceptions import DataError
+from ..iodata import IOData
+from ..records import DataNotFoundError, read_record
+from ..safe_io import MAX_INPUT_BYTES, check_input
 
 __all__ = [
     "IOData",
@@ -227,8 +227,8 @@ def make_trs_reconstruction(
     -------
     IOData
     """
-    from .nonlinearities import Tanh
-    from .simulate import simulate
+    from ..nonlinearities import Tanh
+    from ..simulate import simulate
 
     rng = np.random.default_rng(seed)
     n = int(round(duration / dt)) + 1
@@ -246,7 +246,7 @@ def make_trs_reconstruction(
 
 
 def _bundled(name: str) -> Path:
-    here = Path(__file__).resolve().parent
+    here = Path(__file__).resolve().parent.parent         # the package folder (this file is in paper/)
     for cand in (here / "_bundled" / name, here.parent / "data" / name):
         if cand.is_file():
             return cand

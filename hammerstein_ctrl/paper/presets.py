@@ -23,10 +23,10 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .datasets import TRS_TRUE_BETA, IOData, load_emps, load_trs
-from .exceptions import UnknownNameError
-from .nonlinearities import Coulomb, Tanh
-from .objective import HammersteinCost
-from .structure import HammersteinStructure, LinearStructure
+from ..exceptions import UnknownNameError
+from ..nonlinearities import Coulomb, Tanh
+from ..objective import HammersteinCost
+from ..structure import HammersteinStructure, LinearStructure
 
 __all__ = ["Preset", "trs", "emps", "get", "PRESETS", "STRUCTURES", "X0",
            "trs_structure", "emps_structure"]
@@ -87,7 +87,7 @@ class Preset:
 
     def minimize_kwargs(self, method: str) -> dict:
         """Keyword arguments for :func:`hammerstein_ctrl.minimize` for one method."""
-        from .optimize import canonical_method
+        from ..optimize import canonical_method
 
         key = canonical_method(method)
         if key not in self.methods:
@@ -111,11 +111,11 @@ def trs(data: IOData | None = None, *, reject_unstable: bool = False) -> Preset:
     Parameters
     ----------
     data : IOData, optional
-        Another TRS-like record (default: :func:`~hammerstein_ctrl.datasets.load_trs`).
+        Another TRS-like record (default: :func:`~hammerstein_ctrl.paper.datasets.load_trs`).
     reject_unstable : bool, default False
         Passed to :class:`~hammerstein_ctrl.objective.HammersteinCost`.
     """
-    from .optimize.presets import trs_methods
+    from .settings import trs_methods
 
     data = load_trs() if data is None else data
     structure = trs_structure()
@@ -150,7 +150,7 @@ def emps(path=None, *, duration: float = 12.0, reject_unstable: bool = False) ->
     Parameters
     ----------
     path : str or Path, optional
-        Where the EMPS files are (see :func:`~hammerstein_ctrl.datasets.load_emps`).
+        Where the EMPS files are (see :func:`~hammerstein_ctrl.paper.datasets.load_emps`).
     duration : float, default 12.0
         Seconds of the estimation record to use.
     reject_unstable : bool, default False
@@ -158,7 +158,7 @@ def emps(path=None, *, duration: float = 12.0, reject_unstable: bool = False) ->
         paper's initial point is unstable (``a1 = -1``), so rejecting unstable
         candidates changes the problem.
     """
-    from .optimize.presets import emps_methods
+    from .settings import emps_methods
 
     data = load_emps("estimation", duration=duration, path=path)
     structure = emps_structure()

@@ -42,12 +42,12 @@ from pathlib import Path
 import numpy as np
 import scipy.stats
 
-from ._linalg import single_threaded_blas
-from .exceptions import HammersteinError, ParameterError
-from .executors import make_executor
-from .safe_io import MAX_INPUT_BYTES, check_output, open_append, open_lock, read_bytes, write_bytes, write_text
-from .optimize import canonical_method, minimize
-from ._writer import encode_float as json_float, json_safe
+from .._linalg import single_threaded_blas
+from ..exceptions import HammersteinError, ParameterError
+from ..executors import make_executor
+from ..safe_io import MAX_INPUT_BYTES, check_output, open_append, open_lock, read_bytes, write_bytes, write_text
+from ..optimize import canonical_method, minimize
+from .._writer import encode_float as json_float, json_safe
 
 __all__ = ["run_study", "StudyResult", "trial_seed", "ranksum", "validate_record", "record_digest", "RECORD_SCHEMA",
            "StudyLockedError", "StudyInterrupted", "ResultsFileWarning"]
@@ -321,7 +321,7 @@ def run_study(case, methods, trials: int = 25, seed: int = 0, executor=None, res
     Parameters
     ----------
     case : Preset or str
-        A :class:`~hammerstein_ctrl.presets.Preset` (or ``"trs"``/``"emps"``).
+        A :class:`~hammerstein_ctrl.paper.presets.Preset` (or ``"trs"``/``"emps"``).
     methods : sequence of str
         Methods to compare (aliases such as ``"N-SPSA"`` name the same method
         and are counted once); each uses the case's paper settings
@@ -565,10 +565,10 @@ class StudyResult:
 
     # -- notebook display (logic in display.py) -----------------------------------
     def _repr_html_(self) -> str:
-        from .display import study_html
+        from ..display import study_html
         return study_html(self)
 
     def to_frame(self, trials: bool = False):
         """Summary per method, or one row per trial, as a DataFrame (:func:`hammerstein_ctrl.display.study_frame`)."""
-        from .display import study_frame
+        from ..display import study_frame
         return study_frame(self, trials=trials)

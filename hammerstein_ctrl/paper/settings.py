@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .gains import PerturbationGain, StepGain
+from ..optimize.gains import PerturbationGain, StepGain
 
 __all__ = ["trs_methods", "emps_methods", "eq8_objective", "eq8_methods", "TRS_BOUNDS", "EMPS_BOUNDS"]
 
