@@ -460,7 +460,7 @@ def check_delay(value, *, estimate: bool = True):
             tau = float(value)
         except (TypeError, ValueError, OverflowError):
             tau = math.nan
-        if math.isfinite(tau) and tau >= 0:
+        if math.isfinite(tau) and 0 <= tau <= MAX_MAGNITUDE:
             return tau
     allowed = " or 'estimate'" if estimate else ""
     raise ParameterError(f"delay must be a finite number >= 0 (seconds){allowed}, got {value!r}")

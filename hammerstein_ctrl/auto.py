@@ -344,4 +344,8 @@ def auto_delayed(cost, x0=None, *, maxfev: int | None = None, seed=None, allow_u
     result = _result(cost, best, budget, runs + 1, len(shifts), merged, allow_unstable, started)
     result.message = (f"{result.message}; dead time started from {best_shift} sample(s) "
                       f"(of {len(shifts)} whole-sample candidates), then refined continuously")
+    top = min(config.get("delay.max_samples"), len(data) // 4)
+    if s.linear.estimates_delay and shifts[0] >= top:
+        result.message += (f"; the best whole-sample dead time lies at the end of the scan ({top} samples): a longer "
+                           "one is possible (raise hc.config.defaults['delay.max_samples'])")
     return result

@@ -1133,7 +1133,9 @@ def closed_loop(model, pid: PIDResult, u_limit=None, *, dt: float | None = None,
     ``to_iosys(dt, intersample="zoh")``, the PID discretised); without, it is
     continuous (plant ``to_iosys()``).  Input ``r`` (absolute, e.g.
     ``y0 + step``); outputs ``y`` and ``u``; from zero initial conditions the
-    loop is at the operating point.
+    loop is at the operating point.  A model with a dead time enters as its
+    Pade form (:meth:`~hammerstein_ctrl.model.BlockModel.without_delay`), the
+    plant :func:`tune_pid` designed and verified the loop on.
 
     Examples
     --------

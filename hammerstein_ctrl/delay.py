@@ -16,8 +16,10 @@ interval, at ``k T + theta``:
 Each part is integrated exactly (the matrix exponential of the linear block
 over ``theta`` and over ``T - theta``), so the sampled output equals that of
 the continuous system driven by the exactly delayed input.  Before the
-record starts the input is taken to be its first sample (the rig rested at
-that input), which makes ``tau = 0`` the undelayed simulation.
+record the samples of ``v`` are zero, as the state at rest (``x = 0``) says
+(the same hold joins them to the record's first sample); a record that starts
+elsewhere needs its initial state estimated.  ``tau = 0`` is the undelayed
+simulation.
 
 Examples
 --------
@@ -85,11 +87,13 @@ def delay_matrices(num, den, dt: float, delay: float, intersample: str = "foh"):
 
 
 def _delayed_samples(v: np.ndarray, d: int, a: float, hold: str) -> tuple[np.ndarray, np.ndarray]:
-    """``(w0, w1)``: the delayed input at ``k dt`` and at ``k dt + a dt`` (the first sample before the record)."""
+    """``(w0, w1)``: the delayed input at ``k dt`` and at ``k dt + a dt`` (zero samples before the record)."""
     N = v.size
+    padded = np.concatenate((np.zeros(min(d + 1, N + 1)), v))       # padded[j + d + 1] = v[j], zeros before
     k = np.arange(N)
-    now = v[np.clip(k - d, 0, N - 1)]
-    before = v[np.clip(k - d - 1, 0, N - 1)]
+    start = min(d + 1, N + 1)
+    now = padded[np.clip(k - d + start, 0, None)]
+    before = padded[np.clip(k - d - 1 + start, 0, None)]
     if hold == "zoh":
         return (before if a > 0 else now), now
     return a * before + (1.0 - a) * now, now

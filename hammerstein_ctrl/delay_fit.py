@@ -73,6 +73,10 @@ class DelayedCost:
         if not isinstance(structure, BlockStructure):
             raise ParameterError("structure must be a HammersteinStructure, WienerStructure or "
                                  f"HammersteinWienerStructure, got {type(structure).__name__}")
+        delay = structure.linear.delay
+        if not structure.linear.estimates_delay and delay >= data.duration:
+            raise ParameterError(f"the dead time {delay:g} s is not shorter than the record {data.name!r} "
+                                 f"({data.duration:g} s): the record shows no response to its input")
         self.data = data
         self.structure = structure
         self.base = structure.with_delay(None)

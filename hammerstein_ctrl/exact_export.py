@@ -197,6 +197,10 @@ def sampled_iosys(model, dt: float, *, intersample: str | None = None, name: str
                          name=name or getattr(model, "name", None) or "hammerstein")
 
 
+#: Most samples of dead time the exact discrete export holds as states.
+MAX_DELAY_STATES = 100_000
+
+
 def _delayed_iosys(model, dt: float, intersample, *, name, inputs, outputs):
     """:func:`sampled_iosys` of a model with a dead time (:func:`~hammerstein_ctrl.delay.delay_matrices`)."""
     import control
@@ -209,14 +213,18 @@ def _delayed_iosys(model, dt: float, intersample, *, name, inputs, outputs):
         mode = check_intersample(mode)
     except DataError as exc:
         raise ParameterError(str(exc)) from None
+    if model.delay / dt > MAX_DELAY_STATES:
+        raise ParameterError(f"a dead time of {model.delay:g} s is {model.delay / dt:.3g} samples of {dt:g} s: the "
+                             f"exact discrete system would need that many states (at most {MAX_DELAY_STATES}); use a "
+                             "longer dt, or model.to_iosys() with its Pade approximant")
     M, Pa, Pb, Pc, C, D, d, a = delay_matrices(*_num_den(model), dt, model.delay, mode)
     x0, offset = settings["initial_state"], settings["offset"]
     n, L = M.shape[0], d + 1
     g, h = model.g, model.h
 
     def delayed(z, v):
-        """``(w0, w1)``: the delayed input now and ``a dt`` later; before the record, its first sample."""
-        past = z[n:n + L] if z[n + L] else np.full(L, v)
+        """``(w0, w1)``: the delayed input now and ``a dt`` later; before the record, zero."""
+        past = z[n:n + L] if z[n + L] else np.zeros(L)
         s = np.concatenate(([v], past))                # s[i] = v[k - i], i = 0 .. d + 1
         now, before = s[d], s[d + 1]
         if mode == "zoh":
@@ -231,7 +239,7 @@ def _delayed_iosys(model, dt: float, intersample, *, name, inputs, outputs):
         w0, w1 = delayed(z, v)
         out = np.empty(n + L + 1)
         out[:n] = M @ state(z, w0) + Pa * w0 + Pb * w1
-        past = z[n:n + L] if z[n + L] else np.full(L, v)
+        past = z[n:n + L] if z[n + L] else np.zeros(L)
         out[n] = v
         out[n + 1:n + L] = past[:L - 1]
         out[n + L] = 1.0

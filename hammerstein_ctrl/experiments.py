@@ -9,7 +9,7 @@ experiments); this module holds the two pieces it needs:
 
 * :class:`RecordsStructure`: the parameter layout, the block parameters once
   and then each record's offset and initial state, named ``y0[k]``,
-  ``x0_0[k]``, ...;
+  ``xi0[k]``, ...;
 * :class:`RecordsCost`: the sum of the records' squared output errors, with
   the least-squares protocol of a single-record cost (``residuals``,
   ``residuals_batch``, ``normal_equations``), so every optimiser, the
@@ -85,6 +85,13 @@ class RecordsStructure:
     kind = property(lambda self: self.base.kind)
     core_names = property(lambda self: self.base.core_names)
     n_core = property(lambda self: self.base.n_core)
+
+    def __getattr__(self, name):
+        # what one record's layout knows and this class does not redefine (e.g. the verdicts' view of the
+        # blocks) is the base structure's
+        if name == "base":
+            raise AttributeError(name)
+        return getattr(self.base, name)
 
     @property
     def n_params(self) -> int:

@@ -268,6 +268,10 @@ def sampled_plant(model, dt: float, *, x0=None) -> SampledPlant:
     nonlinearity families; ``x0`` overrides its initial state (e.g. an
     equilibrium: :func:`~hammerstein_ctrl.operating_point.operating_point`).
     """
+    if getattr(model, "delay", 0):
+        raise ParameterError(f"the compiled loop simulator has no dead time (the model's is {model.delay:g} s): "
+                             "pass model.without_delay() (a Pade approximant, as tune_pid does) or build the loop "
+                             "with sampled_loop_iosys, whose plant carries the dead time exactly")
     Ad, B0, _, C, D = sampled_matrices(model, dt, "zoh")
     if D != 0.0:
         raise ParameterError("a sampled loop needs a strictly proper linear block (no direct feedthrough)")

@@ -323,7 +323,7 @@ class BlockModel:
                                      name="delay"))
         return control.interconnect(blocks, inputs=[inputs], outputs=[outputs], name=name or self.name)
 
-    def linearize(self, u0: float = 0.0, *, z0: float | None = None):
+    def linearize(self, u0: float = 0.0, *, z0: float | None = None, pade_order: int | None = None):
         """Small-signal transfer function ``h'(z0) H(p) g'(u0)`` around the input ``u0``.
 
         Parameters
@@ -334,6 +334,8 @@ class BlockModel:
             Operating point of ``H``'s output, for an output nonlinearity.
             Default: the steady state ``H(0) g(u0)``; required when ``H`` has
             a pole at the origin (no steady state).
+        pade_order : int, optional
+            Order of the Pade approximant of a dead time (default ``config.defaults["delay.pade_order"]``).
 
         Returns
         -------
@@ -346,7 +348,7 @@ class BlockModel:
         if self.output_nonlinearity is not None:
             z0 = self._steady_state(u0) if z0 is None else float(as_signal(z0, "z0")[0])
             gain *= float(np.asarray(self.output_nonlinearity.derivative(np.array([z0]), self.output_params))[0])
-        return gain * self.linear_block()
+        return gain * self.linear_block(pade_order)
 
     def linear_block(self, pade_order: int | None = None):
         """``H(p)``, times a Pade approximant of ``e^{-tau p}`` of order ``pade_order`` when the model has a dead time.

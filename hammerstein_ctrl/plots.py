@@ -416,7 +416,8 @@ def bode(models, *, omega=None, u0: float | None = None, title=None, confidence:
             systems.append(m.linearize(float(u0)))
             labels.append(f"{label}: g'({float(u0):.3g})·H(p)")
         else:
-            systems.append(m.linear if hasattr(m, "linear") else m)
+            # a dead time is drawn as the model's Pade form, as linearize() gives it
+            systems.append(m.linear_block() if hasattr(m, "linear_block") else m.linear if hasattr(m, "linear") else m)
             labels.append(label)
     default = ("Bode plot of the identified linear blocks H(p)" if u0 is None else
                f"Small-signal plant g'(u0)·H(p) at u0 = {float(u0):.3g}")
@@ -765,7 +766,7 @@ def compare_fits(records, models) -> dict:
     return out
 
 
-def compare(records, models, *, title=None):
+def compare(records, models, *, title=None, paired: bool = False):
     """Measured against simulated output on each record, with fit % per model (MATLAB's ``compare``).
 
     Parameters
@@ -773,17 +774,25 @@ def compare(records, models, *, title=None):
     records : IOData, benchmark record or a list of them
         One row of the figure per record.
     models : model, list, dict or IdentificationResult
+        Every model on every record; with ``paired=True`` a list of one model
+        per record (a fit to several records: each with its own offset and state).
     """
+    from .metrics import fit_percent
+
     records = _records(records)
-    models = as_models(models)
-    fits = compare_fits(records, models)
+    if paired:
+        if not isinstance(models, (list, tuple)) or len(models) != len(records):
+            raise ParameterError(f"paired=True needs one model per record ({len(records)}), got {models!r}")
+        rows = [(data, as_models(m)) for data, m in zip(records, models)]
+    else:
+        rows = [(data, as_models(models)) for data in records]
     fig, axes = _new_figure(len(records), 1, figsize=(_WIDTH, 1.2 + 2.6 * len(records)))
-    for a, data in zip(axes[:, 0], records):
-        ys, bad = _outputs(data, models)
+    for a, (data, row_models) in zip(axes[:, 0], rows):
+        ys, bad = _outputs(data, row_models)
         a.plot(data.t, data.y, label="measured", **_MEASURED)
-        for label in models:
+        for label in row_models:
             if label in ys:
-                a.plot(data.t, ys[label], lw=1.0, label=f"{label}: fit {fits[data.name][label]:.1f} %")
+                a.plot(data.t, ys[label], lw=1.0, label=f"{label}: fit {fit_percent(data.y, ys[label]):.1f} %")
         _mark_unusable(a, bad)
         _finish(a, xlabel="time (s)", ylabel=_label(data.output_name, data.output_unit),
                 title=f"{data.name}" if len(records) > 1 or title is None else None)
@@ -799,6 +808,13 @@ def result_figure(result, *, zoom=None):
     data, model, label = result.data, result.model, method_label(result.method)
     with np.errstate(all="ignore"):
         yhat = np.asarray(model.simulate(data), dtype=float)
+    fit, J, where = result.fit_percent, result.fun, data.name
+    if getattr(result, "records", ()):      # a joint fit: this record's own figures, not the fit's over all records
+        from .metrics import fit_percent
+
+        with np.errstate(all="ignore"):
+            fit, J = fit_percent(data.y, yhat), float(np.sum((data.y - yhat) ** 2))
+        where = f"{data.name} (record 1 of {len(result.records)})"
     blocks = [b for b in ("input", "output") if _has_block(model, b)]
     fig, axes = _new_figure(2 + len(blocks), 1, figsize=(_WIDTH, 3.0 + 2.8 * (len(blocks) + 1)))
     (a, b), static = axes[:2, 0], axes[2:, 0]
@@ -806,14 +822,14 @@ def result_figure(result, *, zoom=None):
     ylabel = _label(data.output_name, data.output_unit)
     a.plot(data.t[sel], data.y[sel], label="measured", **_MEASURED)
     if np.all(np.isfinite(yhat)):
-        a.plot(data.t[sel], yhat[sel], lw=1.0, label=f"{label}: fit {result.fit_percent:.1f} %")
+        a.plot(data.t[sel], yhat[sel], lw=1.0, label=f"{label}: fit {fit:.1f} %")
         unit = f" {data.output_unit}" if data.output_unit else ""
         b.plot(data.t[sel], (data.y - yhat)[sel], lw=0.8, color="C1", label=f"RMS {_rms(data.y - yhat):.3g}{unit}")
     else:
         _mark_unusable(a, [label])
     b.axhline(0.0, color="k", lw=0.6)
     _finish(a, xlabel="time (s)", ylabel=ylabel,
-            title=f"{label} on {data.name}: J = {result.fun:.6g}, NFE = {result.nfev}"
+            title=f"{label} on {where}: J = {J:.6g}, NFE = {result.nfev}"
                   + ("" if result.success else " [FAILED]"))
     _finish(b, xlabel="time (s)", ylabel=_label(f"residual in {data.output_name}", data.output_unit),
             title="residual y - yhat")

@@ -177,10 +177,15 @@ class IdentificationResult(UncertainParameters):
         """The model of ``data`` if it is one of a joint fit's records (for a result read from a file: the record
         of that name, length and sampling time), else :attr:`model`."""
         for record, model in zip(self.records, self.models):
-            if record is data or (isinstance(record, dict) and record["name"] == data.name
-                                  and record["n_samples"] == len(data) and record["dt"] == data.dt):
+            if record is data:
                 return model
-        return self.model
+        alike = [m for r, m in zip(self.records, self.models) if isinstance(r, dict) and r["name"] == data.name
+                 and r["n_samples"] == len(data) and r["dt"] == data.dt]
+        if len(alike) > 1:
+            raise ParameterError(f"{len(alike)} records of this fit are named {data.name!r} with the same length and "
+                                 "sampling time: give the records distinct names to validate one with its own offset "
+                                 "and initial state")
+        return alike[0] if alike else self.model
 
     def residual_analysis(self, data=None, *, lags: int | None = None, initial_state: str | None = None
                           ) -> ResidualAnalysis:
@@ -319,9 +324,9 @@ class IdentificationResult(UncertainParameters):
         Without records: the estimation record, or every record of a joint fit.
         """
         from .plots import compare
-        loaded = isinstance(self.data, dict)
-        return compare(list(records) or (list(self.records) if self.records and not loaded else [self._record()]),
-                       self, **kwargs)
+        if not records and self.records and not isinstance(self.data, dict):
+            return compare(list(self.records), list(self.models), paired=True, **kwargs)
+        return compare(list(records) or [self._record()], self, **kwargs)
 
     def to_frame(self):
         """Parameters (``value``, ``stderr``) as a pandas DataFrame (:func:`hammerstein_ctrl.display.result_frame`)."""

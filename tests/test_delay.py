@@ -20,15 +20,17 @@ FINE = 50          # oracle grid: dt / FINE, on which every delay below falls ex
 
 
 def _delayed_oracle(num, den, v, dt, tau, hold):
-    """The sampled output computed independently: python-control on a grid of dt/FINE holding the breakpoints."""
+    """The sampled output computed independently: python-control on a grid of dt/FINE holding the breakpoints
+    (the input is zero before the record, joined to it by the same hold)."""
     N = v.size
     t = np.arange(N) * dt
     tf = np.arange((N - 1) * FINE + 1) * dt / FINE
     G = ct.tf(num, den)
     if hold == "foh":
-        w = np.interp(tf - tau, t, v, left=v[0])
+        w = np.interp(tf - tau, np.r_[-dt, t], np.r_[0.0, v])          # zero samples before the record
         return ct.forced_response(G, tf, w).outputs[::FINE]
-    w = v[np.clip(np.floor((tf - tau) / dt + 1e-9).astype(int), 0, N - 1)]
+    k = np.floor((tf - tau) / dt + 1e-9).astype(int)
+    w = np.where(k >= 0, v[np.clip(k, 0, N - 1)], 0.0)
     return ct.forced_response(ct.c2d(ct.ss(G), dt / FINE, "zoh"), np.arange(tf.size) * dt / FINE, w).outputs[::FINE]
 
 
@@ -219,3 +221,57 @@ def test_delayed_cost_follows_the_least_squares_protocol():
     assert ne.fun == pytest.approx(r @ r, rel=1e-12) and ne.gram.shape == (5, 5)
     np.testing.assert_allclose(cost.from_base(cost.to_base(beta), 0.37), beta)
     assert not np.isfinite(cost(np.array([0.7, 1.0, 0.8, -0.1, 0.1])))      # a negative dead time: no model
+
+
+@pytest.mark.parametrize("hold", ["foh", "zoh"])
+def test_a_delayed_step_from_rest_waits_for_the_dead_time(hold):
+    """At rest the samples before the record are zero: nothing moves before tau (under FOH the ramp from the zero
+    sample before the record to the first one arrives one sample earlier), in simulate and in the export."""
+    m = HammersteinModel(ct.tf([1.0], [1.0, 1.0]), Tanh(), [2.0, 1.0], delay=0.5, intersample=hold)
+    t = np.arange(20) * 0.05
+    y = m.simulate(t, np.ones(20))
+    quiet = 0.5 - (0.05 if hold == "foh" else 0.0)
+    assert np.all(y[t <= quiet + 1e-12] == 0.0) and np.all(y[t > quiet + 1e-12] > 0)
+    np.testing.assert_allclose(ct.input_output_response(m.to_iosys(dt=0.05), t, np.ones(20)).outputs, y,
+                               rtol=0, atol=1e-14)
+
+
+def test_the_compiled_loop_simulator_refuses_a_dead_time_it_cannot_simulate():
+    from hammerstein_ctrl.loop_sim import simulate_loops
+
+    m = HammersteinModel(ct.tf([1.0], [1.0, 1.0]), Tanh(), [2.0, 1.0], delay=0.5, intersample="zoh")
+    with pytest.raises(ParameterError, match="compiled loop simulator has no dead time.*without_delay"):
+        simulate_loops(m, [[1.0, 0.5, 0.0, 0.0]], np.ones(50), 0.05)
+    Y, _ = simulate_loops(m.without_delay(), [[1.0, 0.5, 0.0, 0.0]], np.ones(50), 0.05)
+    assert np.isfinite(Y).all()
+
+
+def test_bode_draws_the_dead_time():
+    from hammerstein_ctrl import plots
+
+    m = HammersteinModel(ct.tf([1.0], [1.0, 1.0]), Tanh(), [2.0, 1.0], delay=0.37)
+    fig = plots.bode(m)
+    phase_line = fig.axes[1].get_lines()[0]
+    w, ph = phase_line.get_xdata(), phase_line.get_ydata()
+    k = np.argmin(np.abs(w - 5.0))
+    exact = np.degrees(np.unwrap(np.angle(1 / (1j * w + 1) * np.exp(-0.37j * w))))[k]
+    assert ph[k] == pytest.approx(exact, abs=0.5)
+
+
+@pytest.mark.parametrize("build, match", [
+    (lambda: LinearStructure(0, 1, delay=1e300), "delay must be a finite number >= 0"),
+    (lambda: HammersteinModel(ct.tf([1.0], [1.0, 1.0]), Tanh(), [1.0, 1.0], delay=1e20).to_iosys(dt=0.1),
+     "would need that many states"),
+])
+def test_dead_times_beyond_any_use_are_refused_in_one_line(build, match):
+    with pytest.raises(ParameterError, match=match):
+        build()
+
+
+def test_a_negative_dead_time_in_x0_and_a_fixed_one_longer_than_the_record_are_refused_before_any_work():
+    data = _fopdt_record(0, "foh", N=100)
+    s = HammersteinStructure(LinearStructure(0, 1, delay="estimate"), Tanh())
+    with pytest.raises(ParameterError, match="x0's delay must be a dead time >= 0"):
+        hc.identify(data, s, method="nspsa", x0=[0.7, 1.0, 0.8, -0.3], maxfev=50, seed=0)
+    with pytest.raises(ParameterError, match="dead time 12 s is not shorter than the record"):
+        hc.identify(data, s.with_delay(12.0))

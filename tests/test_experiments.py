@@ -163,3 +163,34 @@ def test_a_result_of_several_records_survives_saving(tmp_path):
         assert a == pytest.approx(b, rel=1e-12)
     with pytest.raises(ParameterError, match="keeps only a description of its record"):
         back.compare()
+
+
+def test_a_joint_fit_compares_each_record_with_its_own_model():
+    recs = records(7)
+    res = fit(recs)
+    fig = res.compare()
+    shown = [float(line.get_label().rsplit("fit ", 1)[1].split(" %")[0])
+             for ax in fig.axes for line in ax.get_lines() if "fit" in line.get_label()]
+    assert shown == pytest.approx([v["fit_percent"] for v in res.validate(list(recs))], abs=0.05)
+
+
+def test_a_loaded_joint_fit_refuses_to_guess_between_records_of_one_name(tmp_path):
+    recs = [IOData(r.u[:900], r.y[:900], dt=DT) for r in records(8)]        # all named "data", same length
+    res = fit(recs)
+    hc.save_result(res, tmp_path / "r.json")
+    with pytest.raises(ParameterError, match="3 records of this fit are named 'data'"):
+        hc.load_result(tmp_path / "r.json").validate(recs[1])
+
+
+def test_a_joint_fit_with_an_undetermined_parameter_gets_a_verdict_not_a_traceback():
+    t = np.arange(600) * 0.05
+    recs = []
+    for seed in (1, 2):
+        rng = np.random.default_rng(seed)
+        u = np.repeat(rng.uniform(-2, 2, 20), 30)
+        y = ct.forced_response(ct.tf([1], [1, 2, 0]), t, np.tanh(u)).outputs + 0.3 + 1e-3 * rng.standard_normal(600)
+        recs.append(IOData(u, y, dt=0.05))
+    s = hc.HammersteinStructure(hc.LinearStructure(0, 2, fixed={"a0": 0.0}), hc.Tanh(), offset=True,
+                                initial_state="estimate")
+    res = hc.identify(recs, s, seed=0)
+    assert not res.success and res.verdicts
