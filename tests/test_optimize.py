@@ -337,3 +337,10 @@ def test_a_maxfev_that_is_not_a_positive_integer_is_refused(trs_case, method, ma
     bounds = TRS_BOUNDS if method == "amvo-sca" else None
     with pytest.raises(ParameterError, match="maxfev must be a positive integer"):
         minimize(trs_case.cost, trs_case.x0, method=method, maxfev=maxfev, bounds=bounds)
+
+
+def test_tnc_stays_within_maxfev_and_lowers_the_trs_cost_without_leaking_numpy_warnings(trs_case):
+    """scipy's finite differences meet candidates scored inf (inf - inf): no RuntimeWarning reaches the user
+    (this file turns every warning into an error)."""
+    r = minimize(trs_case.cost, trs_case.x0, method="tnc", maxfev=150)
+    assert r.nfev <= 150 and math.isfinite(r.fun) and r.fun < trs_case.cost(trs_case.x0)

@@ -206,8 +206,3 @@ def test_spsa_family_uses_the_whole_budget_without_maxiter(method):
     r = minimize(f, np.zeros(2), method=method, maxfev=4002, seed=3)
     # 8: gain calibration, 1: the start, 1: the last iterate
     assert r.nit == (4002 - 8 - 1 - 1) // 2 and f.calls == r.nfev == 4002
-
-
-def test_tnc_stays_within_maxfev_and_lowers_the_trs_cost(trs_case):
-    r = minimize(trs_case.cost, trs_case.x0, method="tnc", maxfev=150)
-    assert r.nfev <= 150 and math.isfinite(r.fun) and r.fun < trs_case.cost(trs_case.x0)

@@ -192,8 +192,9 @@ def _scipy_minimize(method, fun, x0, *, args, maxfev, maxiter, options, callback
     if maxiter is not None:
         opts.setdefault("maxiter", maxiter)
     try:
-        res = scipy.optimize.minimize(wrapped, x0, method=method, bounds=bounds, options=opts,
-                                      callback=step)
+        with np.errstate(all="ignore"):     # scipy's finite differences of an objective scored inf: inf - inf
+            res = scipy.optimize.minimize(wrapped, x0, method=method, bounds=bounds, options=opts,
+                                          callback=step)
         x, fun_x, message = res.x, float(res.fun), str(res.message)
         status = COMPLETED if res.success else SOLVER_FAILED
         if _stopped_by_budget(method, res, obj):     # scipy's own stop on our maxfev
