@@ -255,7 +255,8 @@ def _structure_from_args(args):
         extra = [flag for flag, given in (("--orders", args.orders), ("--nonlinearity", args.nonlinearity),
                                           ("--output-nonlinearity", args.output_nonlinearity),
                                           ("--fix", args.fix), ("--degree", args.degree is not None),
-                                          ("--breakpoints", args.breakpoints), ("--free-gain", args.free_gain))
+                                          ("--breakpoints", args.breakpoints), ("--free-gain", args.free_gain),
+                                          ("--delay", args.delay is not None))
                  if given]
         if extra:
             raise HammersteinError(f"{', '.join(extra)} cannot be combined with --structure {args.structure} "
@@ -273,7 +274,8 @@ def _structure_from_args(args):
             fixed[name.strip()] = float(value)
         except ValueError:
             raise HammersteinError(f"--fix {item!r}: {value!r} is not a number") from None
-    linear = LinearStructure(args.orders[0], args.orders[1], monic_numerator=not args.free_gain, fixed=fixed)
+    linear = LinearStructure(args.orders[0], args.orders[1], monic_numerator=not args.free_gain, fixed=fixed,
+                             delay=args.delay)
     g = h = None
     if args.nonlinearity:
         g = nonlinearity_from_name(args.nonlinearity, **_family_options(args.degree, args.breakpoints))
@@ -377,6 +379,8 @@ def _add_identify_arguments(ide):
                      help="piecewise-linear breakpoints of the output nonlinearity")
     ide.add_argument("--fix", nargs="+", metavar="NAME=VALUE", help="fixed coefficients, e.g. a0=0")
     ide.add_argument("--free-gain", action="store_true", help="do not fix the leading numerator coefficient to 1")
+    ide.add_argument("--delay", metavar="SECONDS|estimate",
+                     help="input dead time of the linear block: fixed in seconds, or 'estimate' (a parameter)")
     ide.add_argument("--method", default="auto",
                      help="auto (default: needs no x0 or tuning), nspsa, nlspsa, spsa, amvo-sca, lm, nelder-mead, ...")
     ide.add_argument("--x0", type=_number(), nargs="+",

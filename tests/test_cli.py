@@ -36,6 +36,30 @@ def test_identify_a_users_csv(capsys, tmp_path, trs_csv):
     assert (tmp_path / "m.png").stat().st_size > 10_000
 
 
+def test_identify_estimates_a_dead_time_from_the_command_line(capsys, tmp_path):
+    import control as ct
+    import numpy as np
+
+    from hammerstein_ctrl import IOData
+
+    rng = np.random.default_rng(0)
+    t = np.arange(600) * 0.1
+    u = np.repeat(rng.uniform(-2, 2, 40), 15)
+    w = np.r_[np.zeros(4), 1.5 * np.tanh(0.8 * u)][:600]                 # a dead time of 4 samples, ZOH
+    y = ct.forced_response(ct.c2d(ct.ss(ct.tf([1.0], [1.5, 1.0])), 0.1, "zoh"), t, w).outputs
+    path = IOData(u, y + 0.01 * rng.standard_normal(600), dt=0.1, intersample="zoh").to_csv(tmp_path / "dead.csv")
+    code, out, err = run(capsys, "identify", "--data", path, "--orders", "0", "1", "--nonlinearity", "tanh",
+                         "--delay", "estimate", "--intersample", "zoh")
+    assert code == 0, err
+    delay = float(out.split("delay = ")[1].split()[0])
+    assert abs(delay - 0.4) < 0.01
+    code, out, err = run(capsys, "identify", "--data", path, "--orders", "0", "1", "--nonlinearity", "tanh",
+                         "--delay", "soon")
+    assert code == 2 and "delay must be a finite number >= 0" in err and len(err.strip().splitlines()) == 1
+    code, out, err = run(capsys, "identify", "--data", path, "--structure", "trs", "--delay", "0.1")
+    assert code == 2 and "--delay cannot be combined with --structure trs" in err
+
+
 def test_identify_with_explicit_structure(capsys, trs_csv):
     code, out, err = run(capsys, "identify", "--data", str(trs_csv), "--orders", "1", "2",
                          "--nonlinearity", "tanh", "--x0", "-2", "0.1", "5", "-5", "0.1",
