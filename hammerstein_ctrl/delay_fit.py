@@ -39,7 +39,7 @@ from . import config
 from .delay import delayed_response
 from .exceptions import ParameterError
 from .iodata import IOData
-from .normal_equations import NONFINITE_RESIDUAL, NormalEquations, forward_steps, from_residuals, neighbours
+from .normal_equations import NONFINITE_RESIDUAL, NormalEquations, from_residuals, neighbours, point_and_steps
 from .simulate import unstable
 from .structure import BlockStructure
 
@@ -148,12 +148,7 @@ class DelayedCost:
 
     def normal_equations(self, beta, steps=None) -> NormalEquations:
         """``r @ r``, ``J.T @ r`` and ``J.T @ J`` from forward differences with ``steps``."""
-        b = self.structure.check_beta(beta)
-        if b.ndim != 1:
-            raise ParameterError("normal_equations(beta) takes one vector")
-        h = forward_steps(b) if steps is None else np.asarray(steps, dtype=float)
-        if h.shape != b.shape:
-            raise ParameterError(f"steps must be {b.size} numbers (one per parameter), got shape {h.shape}")
+        b, h = point_and_steps(self.structure, beta, steps)
         return from_residuals(self.residuals_batch(neighbours(b, h)), h)
 
     def __repr__(self):

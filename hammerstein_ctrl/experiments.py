@@ -38,7 +38,7 @@ import numpy as np
 from ._checks import as_count
 from .exceptions import DataError, ParameterError
 from .iodata import IOData
-from .normal_equations import NormalEquations, forward_steps
+from .normal_equations import NormalEquations, point_and_steps
 from .objective import HammersteinCost
 from .structure import BlockStructure
 
@@ -281,12 +281,7 @@ class RecordsCost:
         A record's sums involve only the block parameters and its own offset
         and initial state; they are added into the rows and columns of those.
         """
-        b = self.structure.check_beta(beta)
-        if b.ndim != 1:
-            raise ParameterError("normal_equations(beta) takes one vector")
-        h = forward_steps(b) if steps is None else np.asarray(steps, dtype=float)
-        if h.shape != b.shape:
-            raise ParameterError(f"steps must be {b.size} numbers (one per parameter), got shape {h.shape}")
+        b, h = point_and_steps(self.structure, beta, steps)
         fun, gradient, gram = 0.0, np.zeros(b.size), np.zeros((b.size, b.size))
         for k, cost in enumerate(self.costs):
             idx = self.structure.indices(k)

@@ -30,10 +30,13 @@ from typing import NamedTuple
 
 import numpy as np
 
+from ._checks import as_real_array
 from ._jit import cached_njit
+from .exceptions import ParameterError
 
 __all__ = ["NormalEquations", "from_residuals", "from_difference_sums", "from_factor", "scored_inf", "forward_steps",
-           "neighbours", "compiled_neighbourhood", "compiled_sums", "FD_REL_STEP", "NONFINITE_RESIDUAL"]
+           "point_and_steps", "neighbours", "compiled_neighbourhood", "compiled_sums", "FD_REL_STEP",
+           "NONFINITE_RESIDUAL"]
 
 #: Relative step of the forward-difference Jacobian (scipy's "2-point" default, sqrt(eps)).
 FD_REL_STEP = float(np.sqrt(np.finfo(float).eps))
@@ -129,6 +132,43 @@ def _forward_steps(x, upper, lower):  # pragma: no cover - compiled
                 step = up - x[i] if up - x[i] >= x[i] - lo else lo - x[i]
         h[i] = (x[i] + step) - x[i]
     return h
+
+
+def point_and_steps(structure, beta, steps=None, method: str = "normal_equations"):
+    """``(b, h)``: one checked beta of ``structure`` and its forward-difference steps (:func:`forward_steps`
+    by default; given ones must be one finite, non-zero number per parameter), else a :class:`ParameterError`.
+
+    Examples
+    --------
+    >>> from hammerstein_ctrl import HammersteinStructure, LinearStructure, Tanh
+    >>> s = HammersteinStructure(LinearStructure(0, 1), Tanh())
+    >>> point_and_steps(s, [1.0, 2.0, 0.5], [0.1, 0.1, 0.1])[1].tolist()
+    [0.1, 0.1, 0.1]
+    >>> try:
+    ...     point_and_steps(s, [1.0, 2.0, 0.5], [0.1, 0.0, 0.1])
+    ... except ValueError as exc:
+    ...     print(exc)
+    steps must be 3 finite, non-zero numbers (one per parameter), got [0.1 0.  0.1]
+    """
+    b = structure.check_beta(beta)
+    if b.ndim != 1:
+        raise ParameterError(f"{method}(beta) takes one vector")
+    if steps is None:
+        return b, forward_steps(b)
+    h = steps if type(steps) is np.ndarray and steps.dtype == np.float64 else as_real_array(steps, "steps")
+    if h.shape != b.shape or not _usable_steps(h.ravel()):
+        raise ParameterError(f"steps must be {b.size} finite, non-zero numbers (one per parameter), "
+                             f"got {np.array2string(h, threshold=12)}")
+    return b, h
+
+
+@cached_njit()
+def _usable_steps(h):  # pragma: no cover - compiled
+    """Whether every step is finite and non-zero."""
+    for v in h:
+        if not (np.isfinite(v) and v != 0.0):
+            return False
+    return True
 
 
 def neighbours(x, steps) -> np.ndarray:

@@ -42,13 +42,12 @@ from typing import NamedTuple
 import numba
 import numpy as np
 
-from ._checks import as_real_array
 from ._jit import cached_njit
 from ._linalg import single_threaded_blas, tf_discrete
 from .exceptions import ParameterError
 from .kernels import MAX_LANE_BASIS, MAX_NORMAL_LANES, MAX_UNROLLED_STATES, get_coefficient_kernel, get_normal_kernel
-from .normal_equations import (NONFINITE_RESIDUAL, NormalEquations, forward_steps, from_difference_sums, from_factor,
-                               from_residuals, neighbours, scored_inf)
+from .normal_equations import (NONFINITE_RESIDUAL, NormalEquations, from_difference_sums, from_factor,
+                               from_residuals, neighbours, point_and_steps, scored_inf)
 from .simulate import (COMPILED_EXPM_MAX_NORM, GROUPS_MIN_BYTES, normal_factor, normal_pass, output_terms,
                        simulate_batch, sse_basis_batch, sse_batch, unstable)
 from .structure import BlockStructure
@@ -93,15 +92,6 @@ def _combine(P, basis, out, start):  # pragma: no cover - compiled
             c, bj = P[b, j], basis[j]
             for i in range(n):
                 row[i] += c * bj[i]
-
-
-@cached_njit()
-def _usable_steps(h):  # pragma: no cover - compiled
-    """Whether every step is finite and non-zero."""
-    for v in h:
-        if not (np.isfinite(v) and v != 0.0):
-            return False
-    return True
 
 
 #: Methods of :class:`HammersteinCost` that evaluate it: a subclass redefining one gets no compiled LM loop.
@@ -534,20 +524,8 @@ class HammersteinCost:
 
     def _neighbourhood(self, beta, steps, method: str):
         """``(b, h, X)``: the checked point, its forward-difference steps and the point with its neighbours."""
-        b = self.structure.check_beta(beta)
-        if b.ndim != 1:
-            raise ParameterError(f"{method}(beta) takes one vector")
-        h = forward_steps(b) if steps is None else self._checked_steps(steps, b.shape)
+        b, h = point_and_steps(self.structure, beta, steps, method)
         return b, h, neighbours(b, h)
-
-    @staticmethod
-    def _checked_steps(steps, shape) -> np.ndarray:
-        """Forward-difference steps: one finite, non-zero step per parameter (else a :class:`ParameterError`)."""
-        h = steps if type(steps) is np.ndarray and steps.dtype == np.float64 else as_real_array(steps, "steps")
-        if h.shape != shape or not _usable_steps(h.ravel()):
-            raise ParameterError(f"steps must be {shape[0]} finite, non-zero numbers (one per parameter), "
-                                 f"got {np.array2string(h, threshold=12)}")
-        return h
 
     def _fused_normal_equations(self, X, h, driver=normal_pass):
         """The compiled pass of :func:`~hammerstein_ctrl.simulate.normal_pass` (or ``driver``), or ``None`` where it

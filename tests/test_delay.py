@@ -221,6 +221,9 @@ def test_delayed_cost_follows_the_least_squares_protocol():
     assert ne.fun == pytest.approx(r @ r, rel=1e-12) and ne.gram.shape == (5, 5)
     np.testing.assert_allclose(cost.from_base(cost.to_base(beta), 0.37), beta)
     assert not np.isfinite(cost(np.array([0.7, 1.0, 0.8, -0.1, 0.1])))      # a negative dead time: no model
+    for bad in ([0.1, 0.1], [1e-6, 0.0, 1e-6, 1e-6, 1e-6], [1e-6, np.nan, 1e-6, 1e-6, 1e-6]):
+        with pytest.raises(ParameterError, match="steps must be 5 finite, non-zero numbers"):
+            cost.normal_equations(beta, bad)
 
 
 @pytest.mark.parametrize("hold", ["foh", "zoh"])

@@ -194,3 +194,12 @@ def test_a_joint_fit_with_an_undetermined_parameter_gets_a_verdict_not_a_traceba
                                 initial_state="estimate")
     res = hc.identify(recs, s, seed=0)
     assert not res.success and res.verdicts
+
+
+def test_the_joint_normal_equations_refuse_unusable_steps_as_a_single_cost_does():
+    recs = records(9)
+    cost = RecordsCost(recs, structure())
+    beta = fit(recs).x
+    for bad in (np.ones(3), np.r_[0.0, np.full(beta.size - 1, 1e-6)]):
+        with pytest.raises(ParameterError, match=f"steps must be {beta.size} finite, non-zero numbers"):
+            cost.normal_equations(beta, bad)
