@@ -45,7 +45,8 @@ from ._jit import cached_njit
 from .exceptions import ParameterError
 from .simulate import companion_realization, discretize
 
-__all__ = ["check_delay", "split_delay", "delayed_response", "delay_matrices", "simulate_delayed", "ESTIMATE"]
+__all__ = ["check_delay", "split_delay", "delayed_response", "delayed_values", "delay_matrices", "simulate_delayed",
+           "ESTIMATE"]
 
 def split_delay(delay: float, dt: float) -> tuple[int, float]:
     """``(d, a)`` with ``delay = (d + a) dt``, ``d`` an integer and ``0 <= a < 1``.
@@ -92,8 +93,13 @@ def _delayed_samples(v: np.ndarray, d: int, a: float, hold: str) -> tuple[np.nda
     padded = np.concatenate((np.zeros(min(d + 1, N + 1)), v))       # padded[j + d + 1] = v[j], zeros before
     k = np.arange(N)
     start = min(d + 1, N + 1)
-    now = padded[np.clip(k - d + start, 0, None)]
-    before = padded[np.clip(k - d - 1 + start, 0, None)]
+    return delayed_values(padded[np.clip(k - d + start, 0, None)], padded[np.clip(k - d - 1 + start, 0, None)],
+                          a, hold)
+
+
+def delayed_values(now, before, a: float, hold: str):
+    """``(w0, w1)`` from ``now = v[k - d]`` and ``before = v[k - d - 1]`` (numbers or arrays): the delayed input
+    at ``k dt`` and at ``k dt + a dt`` (see the module notes)."""
     if hold == "zoh":
         return (before if a > 0 else now), now
     return a * before + (1.0 - a) * now, now

@@ -205,7 +205,7 @@ def _delayed_iosys(model, dt: float, intersample, *, name, inputs, outputs):
     """:func:`sampled_iosys` of a model with a dead time (:func:`~hammerstein_ctrl.delay.delay_matrices`)."""
     import control
 
-    from .delay import delay_matrices
+    from .delay import delay_matrices, delayed_values
 
     settings = model_settings(model)
     mode = settings["intersample"] if intersample is None else intersample
@@ -222,32 +222,28 @@ def _delayed_iosys(model, dt: float, intersample, *, name, inputs, outputs):
     n, L = M.shape[0], d + 1
     g, h = model.g, model.h
 
-    def delayed(z, v):
-        """``(w0, w1)``: the delayed input now and ``a dt`` later; before the record, zero."""
+    def inputs_now(z, u):
+        """``(v, past, w0, w1)``: ``g(u)``, the last ``d + 1`` samples of it (zero before the record) and the
+        delayed input now and ``a dt`` later."""
+        v = float(g(np.atleast_1d(u)[:1])[0])
         past = z[n:n + L] if z[n + L] else np.zeros(L)
         s = np.concatenate(([v], past))                # s[i] = v[k - i], i = 0 .. d + 1
-        now, before = s[d], s[d + 1]
-        if mode == "zoh":
-            return (before if a > 0 else now), now
-        return a * before + (1.0 - a) * now, now
+        return (v, past, *delayed_values(s[d], s[d + 1], a, mode))
 
     def state(z, w0):
         return z[:n] + (Pc * w0 if z[n + L] else x0)
 
     def update(t, z, u, p):
-        v = float(g(np.atleast_1d(u)[:1])[0])
-        w0, w1 = delayed(z, v)
+        v, past, w0, w1 = inputs_now(z, u)
         out = np.empty(n + L + 1)
         out[:n] = M @ state(z, w0) + Pa * w0 + Pb * w1
-        past = z[n:n + L] if z[n + L] else np.zeros(L)
         out[n] = v
         out[n + 1:n + L] = past[:L - 1]
         out[n + L] = 1.0
         return out
 
     def output(t, z, u, p):
-        v = float(g(np.atleast_1d(u)[:1])[0])
-        w0, _ = delayed(z, v)
+        _, _, w0, _ = inputs_now(z, u)
         return np.array([float(h(np.array([C @ state(z, w0) + D * w0]))[0]) + offset])
 
     return control.nlsys(update, output, inputs=[inputs], outputs=[outputs],
