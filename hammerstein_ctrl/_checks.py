@@ -9,7 +9,8 @@ import numpy as np
 from .exceptions import DataError, ParameterError
 
 __all__ = ["GRID_TOLERANCE", "INTERSAMPLE", "MAX_ORDER", "MAX_MAGNITUDE", "check_intersample", "as_signal",
-           "as_real_array", "as_count", "check_transfer_function", "uniform_grid", "check_delay", "ESTIMATE"]
+           "as_real_array", "as_count", "check_transfer_function", "uniform_grid", "check_delay", "ESTIMATE",
+           "as_channels"]
 
 #: Largest allowed deviation of a sample time from the uniform grid ``t0 + k*dt``,
 #: as a fraction of ``dt``.  Grids within this tolerance are regularised to exactly
@@ -107,6 +108,37 @@ def as_count(value, name: str, *, minimum: int = 0) -> int:
         shown = repr(value)
         raise ParameterError(f"{name} must be {kind}, got {shown if len(shown) <= 40 else shown[:40] + '...'}")
     return int(value)
+
+
+def as_channels(x, name: str) -> np.ndarray:
+    """``x`` as a finite signal: 1-D ``(N,)`` for one channel, ``(N, m)`` float columns for several.
+
+    A 2-D array with more than one column holds one channel per column (each
+    checked as :func:`as_signal` checks a signal, its errors naming the column);
+    one with more columns than rows is refused as a likely transposition.
+
+    Examples
+    --------
+    >>> as_channels([[1, 2], [3, 4], [5, 6]], "u").shape
+    (3, 2)
+    >>> as_channels([[1], [2]], "u").shape
+    (2,)
+    """
+    if isinstance(x, np.ma.MaskedArray):
+        if np.ma.getmaskarray(x).any():
+            return as_signal(x, name)                   # refused there, naming the masked samples
+        x = np.ma.getdata(x)
+    raw = x
+    shape = np.shape(raw)
+    if len(shape) != 2 or 1 in shape:
+        return as_signal(x, name)
+    rows, cols = shape
+    if cols > rows:
+        raise DataError(f"{name} has shape {shape}: channels must be columns, one row per sample (N, {rows}); "
+                        f"pass {name}.T")
+    arr = np.asarray(raw)
+    columns = [as_signal(arr[:, j], f"{name}[:, {j}]") for j in range(cols)]
+    return np.ascontiguousarray(np.column_stack(columns))
 
 
 def as_real_array(x, name: str) -> np.ndarray:

@@ -37,6 +37,7 @@ import numpy as np
 
 from ._checks import (
     GRID_TOLERANCE,
+    as_channels,
     as_signal,
     check_dt,
     check_intersample,
@@ -67,22 +68,45 @@ def _check_choice(value, choices, what: str) -> str:
     return key
 
 
+def _linear(grid, t, x):
+    """``x`` (one channel, or channels as columns) interpolated linearly at ``grid``."""
+    if x.ndim == 1:
+        return np.interp(grid, t, x)
+    return np.column_stack([np.interp(grid, t, x[:, j]) for j in range(x.shape[1])])
+
+
 def _interpolate(t, u, y, grid, method: str, dt: float):
     """Values of ``u`` (linear or held) and ``y`` (linear) at the times ``grid``."""
-    y_new = np.interp(grid, t, y)
+    y_new = _linear(grid, t, y)
     if method == "linear":
-        return np.interp(grid, t, u), y_new
+        return _linear(grid, t, u), y_new
     idx = np.searchsorted(t, grid + _ON_GRID * dt, side="right") - 1
     return u[np.clip(idx, 0, t.size - 1)], y_new
 
 
+def _channel_labels(value, count: int, default: str, what: str, unique: bool = True) -> tuple:
+    """One label per channel: a sequence of ``count`` strings, or one string (indexed ``name[k]`` for several)."""
+    if value is None:
+        value = default
+    if isinstance(value, str):
+        return (value,) if count == 1 else tuple(f"{value}[{k}]" for k in range(count))
+    labels = tuple(str(v) for v in value)
+    if len(labels) != count:
+        raise DataError(f"{what} has {len(labels)} label(s) {list(labels)} for {count} channel(s)")
+    if unique and len(set(labels)) != len(labels):
+        raise DataError(f"{what} repeats a label: {list(labels)}")
+    return labels
+
+
 class IOData:
-    """A SISO input/output record on a uniform time grid.
+    """An input/output record on a uniform time grid, with one or several channels.
 
     Parameters
     ----------
-    u, y : array_like, shape (N,)
-        Input and output samples (``(N, 1)`` columns are accepted).
+    u, y : array_like, shape (N,) or (N, m) and (N, p)
+        Input and output samples (``(N, 1)`` columns are accepted).  A 2-D
+        array holds one channel per column: a record of a MIMO plant
+        (:mod:`~hammerstein_ctrl.mimo`).
     t : array_like, shape (N,), optional
         Sample times, strictly increasing.  Without ``resample`` they must be
         uniform to within ``tolerance * dt`` and are regularised to exactly
@@ -92,8 +116,10 @@ class IOData:
         interval of the resampled grid.
     name : str
         Label used in reports and plots.
-    input_name, output_name, input_unit, output_unit : str
-        Labels and units used on plot axes.
+    input_name, output_name, input_unit, output_unit : str or sequence of str
+        Labels and units used on plot axes; one per channel (a single string
+        names the channels ``name[0]``, ``name[1]``, ..., python-control's
+        convention, and gives every channel the same unit).
     tolerance : float, default 1e-3
         Allowed deviation of ``t`` from the uniform grid, as a fraction of dt
         (``0 <= tolerance < 0.5``).  Time stamps that are noisy readings of a
@@ -125,6 +151,14 @@ class IOData:
     >>> d = IOData(2 * t, 3 * t, t, resample="linear")
     >>> d.dt, d.y.round(12).tolist()
     (0.1, [0.0, 0.3, 0.6, 0.9, 1.2, 1.5])
+
+    Two inputs and two outputs, named:
+
+    >>> m = IOData(np.ones((4, 2)), np.zeros((4, 2)), dt=0.1, input_name=["pitch", "yaw"], output_name="y")
+    >>> m.n_inputs, m.n_outputs, m.input_names, m.output_names
+    (2, 2, ('pitch', 'yaw'), ('y[0]', 'y[1]'))
+    >>> m.channel(outputs="y[1]")
+    IOData('data', N=4, dt=0.1 s, t=[0, 0.3] s, 2 inputs, 1 output)
     """
 
     def __init__(
@@ -135,24 +169,24 @@ class IOData:
         *,
         dt: float | None = None,
         name: str = "data",
-        input_name: str = "u",
-        output_name: str = "y",
-        input_unit: str = "",
-        output_unit: str = "",
+        input_name="u",
+        output_name="y",
+        input_unit="",
+        output_unit="",
         tolerance: float = GRID_TOLERANCE,
         intersample: str = "foh",
         resample: str | None = None,
     ):
         self.intersample = check_intersample(intersample)
         tolerance = check_tolerance(tolerance)
-        u = as_signal(u, "u")
-        y = as_signal(y, "y")
-        if u.size != y.size:
-            raise DataError(f"length mismatch: u has {u.size} samples but y has {y.size}")
+        u = as_channels(u, "u")
+        y = as_channels(y, "y")
+        if len(u) != len(y):
+            raise DataError(f"length mismatch: u has {len(u)} samples but y has {len(y)}")
         if t is not None:
             t_arr = as_signal(t, "t")
-            if t_arr.size != u.size:
-                raise DataError(f"length mismatch: t has {t_arr.size} samples but u and y have {u.size}")
+            if t_arr.size != len(u):
+                raise DataError(f"length mismatch: t has {t_arr.size} samples but u and y have {len(u)}")
             if resample is not None:
                 method = _check_choice(resample, RESAMPLE_METHODS, "resample")
                 t_grid, step = resampling_grid(t_arr, dt)
@@ -167,19 +201,99 @@ class IOData:
             if dt is None:
                 raise DataError("give the sample times t or the sampling interval dt")
             step = check_dt(dt)
-            t_grid = step * np.arange(u.size)
-        if u.size < 2:
+            t_grid = step * np.arange(len(u))
+        if len(u) < 2:
             raise DataError("a record needs at least two samples")
         for a in (t_grid, u, y):
             a.setflags(write=False)
         self.t, self.u, self.y, self.dt = t_grid, u, y, float(step)
         self.name = str(name)
-        self.input_name, self.output_name = input_name, output_name
-        self.input_unit, self.output_unit = input_unit, output_unit
+        self._labels(input_name, output_name, input_unit, output_unit)
+
+    def _labels(self, input_name, output_name, input_unit, output_unit) -> None:
+        m, p = self.n_inputs, self.n_outputs
+        self.input_names = _channel_labels(input_name, m, "u", "input_name")
+        self.output_names = _channel_labels(output_name, p, "y", "output_name")
+        self.input_units = (input_unit,) * m if isinstance(input_unit, str) else _channel_labels(
+            input_unit, m, "", "input_unit", unique=False)
+        self.output_units = (output_unit,) * p if isinstance(output_unit, str) else _channel_labels(
+            output_unit, p, "", "output_unit", unique=False)
+        # one string per side: the channel's own for a single channel, the labels joined for several
+        self.input_name, self.output_name = ", ".join(self.input_names), ", ".join(self.output_names)
+        self.input_unit = self.input_units[0] if len(set(self.input_units)) == 1 else ", ".join(self.input_units)
+        self.output_unit = self.output_units[0] if len(set(self.output_units)) == 1 else ", ".join(self.output_units)
+
+    # -- channels -----------------------------------------------------------------
+    @property
+    def n_inputs(self) -> int:
+        """Number of input channels."""
+        return 1 if self.u.ndim == 1 else self.u.shape[1]
+
+    @property
+    def n_outputs(self) -> int:
+        """Number of output channels."""
+        return 1 if self.y.ndim == 1 else self.y.shape[1]
+
+    @property
+    def is_siso(self) -> bool:
+        """Whether the record has one input and one output."""
+        return self.u.ndim == 1 and self.y.ndim == 1
+
+    @property
+    def inputs(self) -> np.ndarray:
+        """The input samples as columns, shape ``(N, m)`` (also for one input)."""
+        return self.u.reshape(len(self), -1)
+
+    @property
+    def outputs(self) -> np.ndarray:
+        """The output samples as columns, shape ``(N, p)`` (also for one output)."""
+        return self.y.reshape(len(self), -1)
+
+    def _channel_index(self, which, names, what: str) -> list:
+        if which is None:
+            return list(range(len(names)))
+        items = [which] if isinstance(which, (str, int, np.integer)) else list(which)
+        out = []
+        for item in items:
+            if isinstance(item, str):
+                if item not in names:
+                    raise DataError(f"record {self.name!r} has no {what} channel {item!r}; it has {list(names)}")
+                out.append(names.index(item))
+            elif isinstance(item, (int, np.integer)) and not isinstance(item, bool) and 0 <= item < len(names):
+                out.append(int(item))
+            else:
+                raise DataError(f"{what} channel {item!r} is neither a name in {list(names)} nor an index "
+                                f"0..{len(names) - 1}")
+        if not out:
+            raise DataError(f"select at least one {what} channel")
+        return out
+
+    def channel(self, inputs=None, outputs=None) -> "IOData":
+        """The record with only some channels (by name or index; ``None`` keeps all).
+
+        One input and one output give a SISO record; e.g. ``data.channel(0, 1)``
+        is the record from input 0 to output 1.
+        """
+        i = self._channel_index(inputs, self.input_names, "input")
+        o = self._channel_index(outputs, self.output_names, "output")
+        u, y = self.inputs[:, i], self.outputs[:, o]
+        return self._replace(u=u[:, 0] if len(i) == 1 else u, y=y[:, 0] if len(o) == 1 else y,
+                             input_name=[self.input_names[k] for k in i],
+                             output_name=[self.output_names[k] for k in o],
+                             input_unit=[self.input_units[k] for k in i],
+                             output_unit=[self.output_units[k] for k in o])
+
+    def require_siso(self, what: str) -> "IOData":
+        """``self`` if it has one input and one output, else a :class:`DataError` saying what to use instead."""
+        if not self.is_siso:
+            raise DataError(f"record {self.name!r} has {self.n_inputs} inputs and {self.n_outputs} outputs; {what} "
+                            f"takes one of each: pick channels (data.channel(input, output)) or use a MIMO "
+                            f"structure (hc.MIMOHammersteinStructure, ...)")
+        return self
 
     # -- container protocol -------------------------------------------------
     def __len__(self) -> int:
-        return self.u.size
+        return self.u.shape[0]
 
     def __iter__(self):
         return iter((self.u, self.y))
@@ -197,9 +311,9 @@ class IOData:
 
     def _replace(self, **changes) -> "IOData":
         kw = dict(
-            u=self.u, y=self.y, t=self.t, name=self.name, input_name=self.input_name,
-            output_name=self.output_name, input_unit=self.input_unit, output_unit=self.output_unit,
-            intersample=self.intersample,
+            u=self.u, y=self.y, t=self.t, name=self.name, input_name=list(self.input_names),
+            output_name=list(self.output_names), input_unit=list(self.input_units),
+            output_unit=list(self.output_units), intersample=self.intersample,
         )
         kw.update(changes)
         return IOData(**kw)
@@ -266,9 +380,9 @@ class IOData:
 
         def trend_free(x):
             if kind == "constant":
-                return x - x.mean()
+                return x - x.mean(axis=0)
             slope, intercept = np.polyfit(tau, x, 1)
-            return x - (intercept + slope * tau)
+            return x - (intercept + np.multiply.outer(tau, slope))
 
         return self._replace(
             u=trend_free(self.u) if which in ("u", "both") else self.u,
@@ -348,10 +462,15 @@ class IOData:
         identify
         """
         problems = []
-        if np.ptp(self.y) == 0:
-            problems.append(f"output y is constant (every sample is {self.y[0]:g}); nothing to identify")
-        if not np.any(self.u):
-            problems.append("input u is zero throughout; nothing excites the system")
+        siso = self.is_siso
+        for k, y in enumerate(self.outputs.T):
+            if np.ptp(y) == 0:
+                label = "output y" if siso else f"output {self.output_names[k]!r}"
+                problems.append(f"{label} is constant (every sample is {y[0]:g}); nothing to identify")
+        for k, u in enumerate(self.inputs.T):
+            if not np.any(u):
+                label = "input u" if siso else f"input {self.input_names[k]!r}"
+                problems.append(f"{label} is zero throughout; nothing excites the system")
         if n_params is not None and len(self) < n_params:
             problems.append(f"only {len(self)} samples for {n_params} parameters")
         if problems:
@@ -360,16 +479,19 @@ class IOData:
     def to_csv(self, path) -> Path:
         """Write ``t,u,y`` with full precision (readable by :func:`~hammerstein_ctrl.records.read_record`)."""
         path = Path(path)
+        columns = "t,u,y" if self.is_siso else ",".join(("t",) + self.input_names + self.output_names)
         header = (
             f"# {self.name}\n# input: {self.input_name} [{self.input_unit}], "
-            f"output: {self.output_name} [{self.output_unit}], dt = {self.dt!r} s\nt,u,y"
+            f"output: {self.output_name} [{self.output_unit}], dt = {self.dt!r} s\n{columns}"
         )
         np.savetxt(path, np.column_stack([self.t, self.u, self.y]), delimiter=",", fmt="%.17g",
                    header=header, comments="")
         return path
 
     def __repr__(self) -> str:
+        channels = "" if self.is_siso else (
+            f", {self.n_inputs} input{'s' * (self.n_inputs > 1)}, {self.n_outputs} output{'s' * (self.n_outputs > 1)}")
         return (
             f"IOData({self.name!r}, N={len(self)}, dt={self.dt:g} s, "
-            f"t=[{self.t[0]:g}, {self.t[-1]:g}] s)"
+            f"t=[{self.t[0]:g}, {self.t[-1]:g}] s{channels})"
         )
