@@ -37,7 +37,7 @@ from .initialize import Budget, initial_points, nuisance_estimate, stabilize
 from .optimize import BUDGET_EXHAUSTED, COMPLETED, SOLVER_FAILED, History, as_rng, as_x0, levenberg_marquardt
 from .simulate import unstable
 
-__all__ = ["auto_minimize", "auto_records", "auto_delayed", "RESTART_SPREAD", "MAX_RESTARTS"]
+__all__ = ["auto_minimize", "auto_records", "auto_delayed", "auto_mimo", "RESTART_SPREAD", "MAX_RESTARTS"]
 
 #: Relative size of the random perturbations of a restart.
 RESTART_SPREAD = 0.3
@@ -88,11 +88,13 @@ def _user_start(cost, x0, budget: Budget):
 def _acceptable(cost, x, fun, allow_unstable: bool) -> bool:
     """Finite, better than a constant, and stable (a pole within its uncertainty of the imaginary axis counts
     as marginal, not unstable: :func:`~hammerstein_ctrl.diagnostics.linear_verdicts`)."""
-    num, den = cost.structure.linear.coefficients(x[:cost.structure.linear.n_params])
     y = np.asarray(cost.data.y, dtype=float)
-    trivial = float(np.sum((y - y.mean()) ** 2))
+    trivial = float(np.sum((y - y.mean(axis=0)) ** 2))
     if not (np.isfinite(fun) and fun < trivial):
         return False
+    if hasattr(cost.structure, "unstable"):            # a MIMO structure: every row's denominator
+        return allow_unstable or not cost.structure.unstable(x)[0]
+    num, den = cost.structure.linear.coefficients(x[:cost.structure.linear.n_params])
     return allow_unstable or not unstable(den)[0] or _marginal(cost, x)
 
 
@@ -349,3 +351,50 @@ def auto_delayed(cost, x0=None, *, maxfev: int | None = None, seed=None, allow_u
         result.message += (f"; the best whole-sample dead time lies at the end of the scan ({top} samples): a longer "
                            "one is possible (raise hc.config.defaults['delay.max_samples'])")
     return result
+
+
+def auto_mimo(cost, x0=None, *, maxfev: int | None = None, seed=None, allow_unstable: bool = False,
+              callback=None):
+    """:func:`auto_minimize` for a MIMO structure (a :class:`~hammerstein_ctrl.mimo_fit.MIMOCost`).
+
+    The start comes from the data (:func:`~hammerstein_ctrl.mimo_fit.mimo_starts`),
+    with the user's ``x0`` (a whole beta, stabilised) as one more; each is
+    refined by Levenberg-Marquardt on all outputs together, then seeded
+    restarts around the best while it is unacceptable (unstable or no better
+    than constants).  Parameters and return value as :func:`auto_minimize`.
+    """
+    from .mimo_fit import mimo_starts, stabilized
+
+    started = time.perf_counter()
+    budget, merged, rng = Budget(_total(maxfev)), _Merged(), as_rng(seed)
+    s = cost.structure
+    try:
+        starts = mimo_starts(cost.data, s)
+    except ParameterError:
+        if x0 is None:
+            raise
+        starts = []
+    budget.charge(min(len(s.param_names), int(budget.remaining)))    # the starts' regressions, as one batch
+    if x0 is not None:
+        starts.append(stabilized(s, as_x0(x0)))
+    best, best_key, runs, restarts = None, None, 0, 0
+    queue = list(starts)
+    while budget.remaining >= MIN_REFINE_BUDGET:
+        if not queue:
+            if best is None or best_key[0] or restarts >= MAX_RESTARTS:
+                break
+            x = np.array(best.x, dtype=float)
+            x += RESTART_SPREAD * np.maximum(np.abs(x), RESTART_FLOOR) * rng.standard_normal(x.size)
+            queue.append(stabilized(s, x))
+            restarts += 1
+        res = _refine(cost, queue.pop(0), budget, max(int(budget.remaining // max(len(queue) + 1, 1)),
+                                                      MIN_REFINE_BUDGET), merged)
+        runs += 1
+        key = (_acceptable(cost, res.x, res.fun, allow_unstable), -res.fun)
+        if best is None or key > best_key:
+            best, best_key = res, key
+        if callback is not None and callback(res):
+            break
+    if best is None:
+        return _unrefined(cost, starts, len(starts), budget, merged, started)
+    return _result(cost, best, budget, runs, len(starts), merged, allow_unstable, started)

@@ -53,6 +53,8 @@ from .diagnostics import (FAILURE, STILL_IMPROVING, Verdict, budget_advice, iden
 from .exceptions import IdentificationWarning, ParameterError
 from .initialize import static_affine_sse
 from .metrics import fit_report
+from .mimo import MIMOStructure
+from .mimo_fit import MIMOCost
 from .objective import HammersteinCost
 from .result import IdentificationResult
 from .optimize import BUDGET_EXHAUSTED, DIVERGED, SCIPY_METHODS, canonical_method, minimize
@@ -100,8 +102,10 @@ def identify(
         (:mod:`~hammerstein_ctrl.experiments`; ``x`` and ``structure.param_names``
         then list the block parameters once and the record's nuisance
         parameters as ``y0[k]``, ``xi0[k]``, ...).
-    structure : HammersteinStructure, WienerStructure or HammersteinWienerStructure
-        The model structure (the paper's cases: ``hc.presets.trs().structure``, ``...emps()``).
+    structure : HammersteinStructure, WienerStructure, HammersteinWienerStructure or a MIMO structure
+        The model structure (the paper's cases: ``hc.presets.trs().structure``,
+        ``...emps()``).  A record with several inputs or outputs takes a MIMO
+        structure (:mod:`~hammerstein_ctrl.mimo`: ``MIMOHammersteinStructure``, ...).
     method : str, default "auto"
         ``"auto"`` (data-driven starts, least-squares refinement, restarts;
         needs no ``x0`` or tuning), or any method of
@@ -156,7 +160,11 @@ def identify(
             x0 = _starting_point(cost.structure, x0, bounds)
             res = minimize(cost, x0, method=key, maxfev=maxfev, maxiter=maxiter, seed=seed,
                            options=options, callback=callback, bounds=bounds)
-        result = _result(cost, res, key, x0, started, _Checks(allow_unstable, uncertainty, noise, maxfev, seed))
+        checks = _Checks(allow_unstable, uncertainty, noise, maxfev, seed)
+        if isinstance(cost, MIMOCost):
+            result = _mimo_result(cost, res, key, x0, started, checks)
+        else:
+            result = _result(cost, res, key, x0, started, checks)
     for v in result.verdicts:
         _warnings.warn(v.message, IdentificationWarning, stacklevel=2)
     return result
@@ -174,6 +182,14 @@ def _as_records(data) -> tuple:
 def _cost(records, structure, reject_unstable):
     """The cost of one record, or the shared-block cost of several
     (:class:`~hammerstein_ctrl.experiments.RecordsCost`)."""
+    if isinstance(structure, MIMOStructure):
+        if len(records) > 1:
+            raise ParameterError("several records in one MIMO fit are not supported yet: fit one record, or join "
+                                 "records that follow each other")
+        records[0].check_identifiable(structure.n_params)
+        return MIMOCost(records[0], structure, reject_unstable=reject_unstable)
+    for rec in records:
+        rec.require_siso(f"a {structure.kind} structure")
     if len(records) == 1:
         records[0].check_identifiable(structure.n_params)
         if structure.linear.delay:
@@ -205,9 +221,9 @@ def _resolve_structure(data, structure, method, x0):
         raise ParameterError(f"structure must be a HammersteinStructure, WienerStructure or "
                              f"HammersteinWienerStructure, got the name {structure!r}; the paper's cases are "
                              f"hc.presets.trs() and hc.presets.emps() (their .structure and .x0)")
-    if not isinstance(structure, BlockStructure):
+    if not isinstance(structure, (BlockStructure, MIMOStructure)):
         raise ParameterError("structure must be a HammersteinStructure, WienerStructure or "
-                             f"HammersteinWienerStructure, got {type(structure).__name__}")
+                             f"HammersteinWienerStructure (or a MIMO structure), got {type(structure).__name__}")
     return structure, x0
 
 
@@ -233,7 +249,7 @@ def _starting_point(structure, x0, bounds):
 
 
 def _run_auto(cost, x0, maxfev, seed, options, bounds, maxiter, callback, allow_unstable):
-    from .auto import auto_delayed, auto_minimize, auto_records
+    from .auto import auto_delayed, auto_mimo, auto_minimize, auto_records
 
     unused = [name for name, value in (("options", options), ("bounds", bounds), ("maxiter", maxiter))
               if value is not None]
@@ -241,6 +257,8 @@ def _run_auto(cost, x0, maxfev, seed, options, bounds, maxiter, callback, allow_
         raise ParameterError(f"method 'auto' does not take {', '.join(unused)}; use maxfev (and x0, seed)")
     if isinstance(cost, DelayedCost):
         return auto_delayed(cost, x0, maxfev=maxfev, seed=seed, allow_unstable=allow_unstable, callback=callback)
+    if isinstance(cost, MIMOCost):
+        return auto_mimo(cost, x0, maxfev=maxfev, seed=seed, allow_unstable=allow_unstable, callback=callback)
     if isinstance(cost, RecordsCost):
         return auto_records(cost, x0, maxfev=maxfev, seed=seed, allow_unstable=allow_unstable, callback=callback)
     if x0 is not None:
@@ -392,3 +410,95 @@ def _records_of(cost, x, model) -> dict:
     models = () if model is None else tuple(
         cost.structure.model(x, k, intersample=rec.intersample, name=rec.name) for k, rec in enumerate(cost.records))
     return {"data": cost.records[0], "records": cost.records, "models": models}
+
+
+# -- MIMO ------------------------------------------------------------------------------------------
+def _mimo_report(data, Y) -> tuple[dict, dict]:
+    """``(overall figures, fit % per output)``: the overall fit is the outputs' mean, the RMSE over every sample."""
+    if not np.all(np.isfinite(Y)):
+        return {"fit_percent": -np.inf, "rmse": np.inf, "nrmse": np.inf}, {n: -np.inf for n in data.output_names}
+    reports = [fit_report(data.outputs[:, i], Y[:, i]) for i in range(data.n_outputs)]
+    E = data.outputs - Y
+    overall = {"fit_percent": float(np.mean([r["fit_percent"] for r in reports])),
+               "rmse": float(np.sqrt(np.mean(E * E))), "nrmse": float(np.mean([r["nrmse"] for r in reports]))}
+    return overall, {n: r["fit_percent"] for n, r in zip(data.output_names, reports)}
+
+
+def _mimo_basic_verdicts(cost, res, key, x0, fits: dict) -> list[Verdict]:
+    x = np.asarray(res.x, dtype=float)
+    if not np.all(np.isfinite(x)):
+        return [Verdict("no-model", FAILURE, "no model: the optimiser returned no finite parameters")]
+    if not np.isfinite(res.fun):
+        return [Verdict("no-model", FAILURE, "the final model cannot be simulated (non-finite output)")]
+    out = [Verdict("no-better", FAILURE, f"output {name!r}: fit {fit:.1f} % is no better than a constant; check "
+                   "that this output responds to the inputs, or raise the orders") for name, fit in fits.items()
+           if fit <= 0]
+    if key not in _CONVERGING and key != AUTO and x0 is not None and res.status != DIVERGED:
+        f0 = cost(x0)
+        if np.isfinite(f0) and res.fun >= f0:
+            out.append(Verdict("stalled", FAILURE, f"stalled: no improvement on the initial point (J = {f0:.6g})"))
+    return out
+
+
+def _mimo_stability(model, data, allow_unstable: bool) -> list[Verdict]:
+    out = []
+    for name, poles in zip(data.output_names, model.poles()):
+        bad = poles[poles.real >= 0]
+        if bad.size and not allow_unstable:
+            listed = ", ".join(f"{p:.4g}" for p in bad)
+            out.append(Verdict("unstable", FAILURE, f"output {name!r}: the row's denominator has right-half-plane "
+                               f"pole(s) {listed}; the model diverges from rest: try other orders, offset=True, or "
+                               "allow_unstable=True for a plant that is really unstable"))
+    return out
+
+
+def _mimo_trust(cost, x, model, checks: _Checks):
+    """``(verdicts, uncertainty, first analysis)`` of a finite MIMO fit."""
+    s, data = cost.structure, cost.data
+    r = cost.residuals(x)
+    verdicts = _mimo_stability(model, data, checks.allow_unstable)
+    if not checks.uncertainty:
+        return verdicts, None, None
+    unc, _ = estimate_uncertainty(cost, x, noise=checks.noise, residuals=r)
+    verdicts = identifiability_verdicts(s, x, unc) + verdicts
+    analysis = None
+    for i, (name, e) in enumerate(zip(data.output_names, cost.split(r))):
+        verdict = offset_verdict(s, e, None)
+        if verdict is not None:
+            verdicts.append(Verdict(verdict.code, verdict.severity, f"output {name!r}: {verdict.message}"))
+        for j, u in enumerate(data.inputs.T):
+            found = residual_analysis(e, u, dt=data.dt, output=data.outputs[:, i],
+                                      name=f"{data.name}: {name} against {data.input_names[j]}")
+            analysis = analysis or found
+            if found.findings:
+                verdicts.append(Verdict("inadequate", "warning", f"output {name!r} against input "
+                                        f"{data.input_names[j]!r}: {found.verdict()}"))
+    return verdicts, unc, analysis
+
+
+def _mimo_result(cost, res, key, x0, started, checks: _Checks) -> IdentificationResult:
+    """The result of a MIMO fit: per-output figures, the same verdicts and covariance as a SISO fit."""
+    s, data = cost.structure, cost.data
+    x = np.asarray(res.x, dtype=float)
+    finite = bool(np.all(np.isfinite(x)))
+    with np.errstate(all="ignore"):
+        Y = cost.simulate(x) if finite else np.full(data.outputs.shape, np.nan)
+    report, fits = _mimo_report(data, Y)
+    model = s.model(x, intersample=data.intersample, input_names=data.input_names,
+                    output_names=data.output_names) if finite else None
+    verdicts = _mimo_basic_verdicts(cost, res, key, x0, fits)
+    unc = analysis = None
+    if model is not None and np.all(np.isfinite(Y)):
+        with np.errstate(all="ignore"):
+            trust, unc, analysis = _mimo_trust(cost, x, model, checks)
+        still = _out_of_budget(res, key) and late_improvement(res.history) > STILL_IMPROVING
+        if not still and not any(v.code == "no-better" for v in verdicts):
+            verdicts += trust
+    success = bool(res.success) and not any(v.severity == FAILURE for v in verdicts) and not _out_of_budget(res, key)
+    return IdentificationResult(
+        model=model, x=x, fun=float(res.fun), nfev=int(res.nfev), fit_percent=report["fit_percent"],
+        rmse=report["rmse"], nrmse=report["nrmse"], method=key, success=success,
+        message=_message(res, key, verdicts, checks), history=res.history, elapsed=time.perf_counter() - started,
+        structure=s, optimize_result=res, covariance=None if unc is None else unc.covariance,
+        warnings=[v.message for v in verdicts], verdicts=verdicts, uncertainty=unc, analysis=analysis, data=data,
+        output_fits=fits)

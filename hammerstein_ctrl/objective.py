@@ -164,7 +164,7 @@ class HammersteinCost:
         if structure.linear.delay:
             raise ParameterError("this structure has a dead time, which HammersteinCost does not simulate: use "
                                  "hammerstein_ctrl.delay_fit.DelayedCost (identify chooses it)")
-        self.data = data
+        self.data = data.require_siso(f"a {structure.kind} structure")
         self.structure = structure
         self.reject_unstable = bool(reject_unstable)
         self._y = np.ascontiguousarray(data.y, dtype=float)

@@ -77,6 +77,10 @@ class IdentificationResult(UncertainParameters):
     models : tuple of BlockModel
         After a fit to several records, each record's model: the shared blocks
         with that record's offset and initial state; else empty.
+    output_fits : dict
+        After a MIMO fit (:mod:`~hammerstein_ctrl.mimo`), the fit % of each
+        output by name (``fit_percent`` is their mean, ``rmse`` over every
+        output's samples); else empty.
     """
 
     #: Lets the display and plotting layers recognise a result without importing this module.
@@ -103,6 +107,7 @@ class IdentificationResult(UncertainParameters):
     analysis: ResidualAnalysis | None = field(default=None, repr=False)
     records: tuple = field(default=(), repr=False)
     models: tuple = field(default=(), repr=False)
+    output_fits: dict = field(default_factory=dict)
     saved: dict = field(default_factory=dict, repr=False)
 
     @property

@@ -1,0 +1,705 @@
+"""MIMO block-oriented structures and models: several inputs, several outputs.
+
+A plant with inputs ``u_0 .. u_{m-1}`` and outputs ``y_0 .. y_{p-1}`` (the
+twin-rotor system: two rotor voltages, pitch and yaw) is modelled as
+
+* **Hammerstein**: ``y_i = sum_j B_ij(p)/F_i(p) g_j(u_j) + y0_i``, one static
+  nonlinearity per input (the actuators');
+* **Wiener**: ``y_i = h_i(sum_j B_ij(p)/F_i(p) u_j) + y0_i``, one per output (the sensors');
+* **Hammerstein-Wiener**: both.
+
+**One denominator per output.**  The linear block is a ``p x m`` matrix of
+transfer functions whose row ``i`` shares the denominator ``F_i``: the
+dynamics that output ``i`` shows are one set of modes excited by every
+input, as in a physical plant where the inputs act on the same states, and
+the row is the MISO model of that output (MATLAB's ``nlhw`` keeps one
+denominator per element instead: ``m`` times as many poles for what is
+usually one plant).  A Wiener row is then identified as a whole: its output
+nonlinearity sees the sum of all inputs' contributions.  Where outputs
+really have different modes (two decoupled axes), each row finds its own.
+
+**Gain convention.**  A gain moves freely between a nonlinearity and the
+transfer functions it feeds or reads; fixing one coefficient per ambiguity
+makes the parameters unique:
+
+* an input nonlinearity ``g_j`` feeds column ``j``: the numerator ``B_0j``
+  (from input ``j`` to the first output) is monic, ``g_j`` carries the gain;
+* an output nonlinearity ``h_i`` reads row ``i``: ``B_i0`` (from the first
+  input) is monic, ``h_i`` carries the gain;
+* with both (Hammerstein-Wiener), ``g_j``'s gain parameter is fixed to 1
+  instead (as in the SISO structure) and the rows keep ``B_i0`` monic.
+
+A monic reference element must really be there: an input that does not
+act on the first output (Hammerstein) needs its outputs ordered otherwise.
+
+Parameters are named after their channel, 0-based as python-control names
+signals: ``b0[1,0]`` (numerator of output 1 from input 0), ``a1[0]``
+(denominator of output 0), ``d1[g1]`` (parameter ``d1`` of input 1's
+nonlinearity), ``gain[h0]``, ``y0[1]``.
+
+The sampled simulation is exact under first- and zero-order hold: each
+element ``B_ij/F_i`` is simulated by the compiled SISO pass
+(:func:`~hammerstein_ctrl.simulate.simulate_batch`) on its input's
+nonlinearity and the row's elements are summed (linearity).
+
+Examples
+--------
+>>> from hammerstein_ctrl import LinearStructure, Tanh
+>>> s = MIMOHammersteinStructure(LinearStructure(0, 1), [Tanh(), Tanh()], n_outputs=2)
+>>> s.param_names                    # B_00 and B_01 are monic: g_0 and g_1 carry the gains into y_0
+('a0[0]', 'b0[1,0]', 'b0[1,1]', 'a0[1]', 'd0[g0]', 'd1[g0]', 'd0[g1]', 'd1[g1]')
+>>> num, den = s.coefficients([2.0, 0.5, 0.7, 3.0, 1.0, 1.0, 2.0, 0.5])
+>>> num[0].tolist(), den[0].tolist()          # B (rows: outputs, columns: inputs), F per row
+([[[1.0], [1.0]], [[0.5], [0.7]]], [[1.0, 2.0], [1.0, 3.0]])
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ._checks import as_count, check_intersample
+from .exceptions import DataError, ParameterError
+from .nonlinearities import Nonlinearity
+from .structure import LinearStructure
+
+__all__ = ["MIMOStructure", "MIMOHammersteinStructure", "MIMOWienerStructure", "MIMOHammersteinWienerStructure",
+           "MIMOModel", "simulate_mimo_batch", "observable_realization"]
+
+
+def _nonlinearity_list(value, count, label: str) -> tuple:
+    """One nonlinearity per channel: a list of them, or one family for every channel."""
+    if value is None:
+        return None
+    items = [value] * count if isinstance(value, Nonlinearity) else list(value)
+    for k, nl in enumerate(items):
+        if not isinstance(nl, Nonlinearity):
+            raise ParameterError(f"{label}[{k}] must be a Nonlinearity, got {type(nl).__name__}")
+    if len(items) != count:
+        raise ParameterError(f"{label} has {len(items)} nonlinearities for {count} channels")
+    return tuple(items)
+
+
+def _check_linear(linear) -> LinearStructure:
+    if not isinstance(linear, LinearStructure):
+        raise ParameterError(f"linear must be a LinearStructure (the orders of every element), got "
+                             f"{type(linear).__name__}")
+    extra = {k: v for k, v in linear.fixed.items() if k != f"b{linear.num_order}"}
+    if extra or not linear.monic_numerator or linear.delay:
+        raise ParameterError("a MIMO structure takes the orders of its LinearStructure only (no fixed "
+                             "coefficients, monic_numerator or delay yet): LinearStructure(num_order, den_order)")
+    return linear
+
+
+class MIMOStructure:
+    """Parameter layout of a MIMO block-oriented model (see the module's description).
+
+    Parameters
+    ----------
+    linear : LinearStructure
+        Orders of every element ``B_ij/F_i`` (numerator ``num_order``, denominator ``den_order``).
+    input_nonlinearities : sequence of Nonlinearity or Nonlinearity, optional
+        One per input (one family is used for every input); ``None``: no input nonlinearity.
+    output_nonlinearities : sequence of Nonlinearity or Nonlinearity, optional
+        One per output; ``None``: none.
+    n_inputs, n_outputs : int
+        Channel counts (taken from the nonlinearity lists where given).
+    offset : bool, default False
+        Estimate a constant ``y0[i]`` added to each output.
+    """
+
+    kind = "mimo"
+
+    def __init__(self, linear: LinearStructure, input_nonlinearities=None, output_nonlinearities=None, *,
+                 n_inputs: int | None = None, n_outputs: int | None = None, offset: bool = False,
+                 initial_state: str = "zero"):
+        self.linear = _check_linear(linear)
+        if initial_state != "zero":
+            raise ParameterError("a MIMO structure starts from rest (initial_state='zero'); estimating x(0) is "
+                                 "not supported yet: trim the record to start at rest, or use offset=True")
+        m = self._count(input_nonlinearities, n_inputs, "n_inputs")
+        p = self._count(output_nonlinearities, n_outputs, "n_outputs")
+        if m * p < 2:
+            raise ParameterError("a MIMO structure needs several inputs or outputs; for one of each use "
+                                 "HammersteinStructure, WienerStructure or HammersteinWienerStructure")
+        self.n_inputs, self.n_outputs = m, p
+        self.input_nonlinearities = _nonlinearity_list(input_nonlinearities, m, "input_nonlinearities")
+        self.output_nonlinearities = _nonlinearity_list(output_nonlinearities, p, "output_nonlinearities")
+        if self.input_nonlinearities is None and self.output_nonlinearities is None:
+            raise ParameterError("give input or output nonlinearities (a MIMO linear model is a LinearStructure "
+                                 "with identity nonlinearities: use Polynomial(1))")
+        self.offset = bool(offset)
+        self.initial_state = "zero"
+        self._fixed_gain = None
+        if self.input_nonlinearities is not None and self.output_nonlinearities is not None:
+            self._fixed_gain = [nl.gain_index for nl in self.input_nonlinearities]
+            if None in self._fixed_gain:
+                raise ParameterError("the input nonlinearities of a Hammerstein-Wiener structure need a gain "
+                                     "parameter to fix to 1")
+        self._layout()
+
+    @staticmethod
+    def _count(nonlinearities, given, label: str) -> int:
+        if nonlinearities is not None and not isinstance(nonlinearities, Nonlinearity):
+            count = len(list(nonlinearities))
+            if given is not None and as_count(given, label, minimum=1) != count:
+                raise ParameterError(f"{label} = {given} but {count} nonlinearities are given")
+            return count
+        if given is None:
+            raise ParameterError(f"give {label} (or one nonlinearity per channel)")
+        return as_count(given, label, minimum=1)
+
+    # -- layout ---------------------------------------------------------------------
+    def _monic(self, i: int, j: int) -> bool:
+        """Whether element ``(i, j)``'s numerator is monic (the gain convention)."""
+        return i == 0 if self.output_nonlinearities is None else j == 0
+
+    def _layout(self) -> None:
+        lin, m, p = self.linear, self.n_inputs, self.n_outputs
+        nb, nf = lin.num_order, lin.den_order
+        num0 = np.zeros((p, m, nb + 1))
+        den0 = np.zeros((p, nf + 1))
+        den0[:, 0] = 1.0
+        names, num_pos, den_pos = [], [], []
+        for i in range(p):
+            for j in range(m):
+                for k in range(nb + 1):
+                    if k == nb and self._monic(i, j):
+                        num0[i, j, 0] = 1.0
+                        continue
+                    names.append(f"b{k}[{i},{j}]")
+                    num_pos.append(np.ravel_multi_index((i, j, nb - k), num0.shape))
+            for k in range(nf):
+                names.append(f"a{k}[{i}]")
+                den_pos.append(np.ravel_multi_index((i, nf - k), den0.shape))
+        self.n_linear = len(names)
+        self._num0, self._den0 = num0, den0
+        self._num_pos, self._den_pos = np.array(num_pos, dtype=int), np.array(den_pos, dtype=int)
+        self._g_slices, self._h_slices = [], []
+        for j, nl in enumerate(self.input_nonlinearities or ()):
+            free = [n for q, n in enumerate(nl.param_names) if self._fixed_gain is None or q != self._fixed_gain[j]]
+            self._g_slices.append(slice(len(names), len(names) + len(free)))
+            names += [f"{n}[g{j}]" for n in free]
+        for i, nl in enumerate(self.output_nonlinearities or ()):
+            self._h_slices.append(slice(len(names), len(names) + nl.n_params))
+            names += [f"{n}[h{i}]" for n in nl.param_names]
+        self.core_names = tuple(names)
+        self.param_names = self.core_names + (tuple(f"y0[{i}]" for i in range(p)) if self.offset else ())
+
+    @property
+    def n_params(self) -> int:
+        """Length of beta."""
+        return len(self.param_names)
+
+    @property
+    def n_core(self) -> int:
+        """Parameters of the blocks (without the offsets)."""
+        return len(self.core_names)
+
+    @property
+    def input_nonlinearity(self):
+        """``None``: a MIMO structure's input blocks are :attr:`input_nonlinearities` (one per input)."""
+        return None
+
+    output_nonlinearity = input_nonlinearity
+
+    def check_beta(self, beta) -> np.ndarray:
+        """beta as a float array of shape ``(n,)`` or ``(B, n)`` (a :class:`ParameterError` naming the layout)."""
+        from ._checks import as_real_array
+
+        b = beta if type(beta) is np.ndarray and beta.dtype == np.float64 else as_real_array(beta, "beta")
+        if b.ndim not in (1, 2) or b.shape[-1] != self.n_params:
+            got = b.shape[-1] if b.ndim else "a scalar"
+            raise ParameterError(f"beta must have {self.n_params} entries {list(self.param_names)}, got {got}")
+        return b
+
+    def coefficients(self, beta):
+        """``(num, den)``: numerators ``(B, p, m, nb+1)`` and row denominators ``(B, p, nf+1)``, descending powers."""
+        b = np.atleast_2d(self.check_beta(beta))
+        n = b.shape[0]
+        num = np.broadcast_to(self._num0, (n,) + self._num0.shape).reshape(n, -1).copy()
+        den = np.broadcast_to(self._den0, (n,) + self._den0.shape).reshape(n, -1).copy()
+        num[:, self._num_pos] = b[:, [q for q, name in enumerate(self.param_names[:self.n_linear])
+                                      if name.startswith("b")]]
+        den[:, self._den_pos] = b[:, [q for q, name in enumerate(self.param_names[:self.n_linear])
+                                      if name.startswith("a")]]
+        return num.reshape((n,) + self._num0.shape), den.reshape((n,) + self._den0.shape)
+
+    def input_params(self, beta) -> list | None:
+        """Full parameters of each input nonlinearity (fixed gains inserted), ``[(B, n_j) or (n_j,)]``."""
+        if self.input_nonlinearities is None:
+            return None
+        b = self.check_beta(beta)
+        out = []
+        for j, sl in enumerate(self._g_slices):
+            free = b[..., sl]
+            out.append(free if self._fixed_gain is None else np.insert(free, self._fixed_gain[j], 1.0, axis=-1))
+        return out
+
+    def output_params(self, beta) -> list | None:
+        """Parameters of each output nonlinearity."""
+        if self.output_nonlinearities is None:
+            return None
+        b = self.check_beta(beta)
+        return [b[..., sl] for sl in self._h_slices]
+
+    def offsets(self, beta) -> np.ndarray:
+        """The output offsets ``(p,)`` or ``(B, p)`` (zeros without ``offset``)."""
+        b = self.check_beta(beta)
+        if not self.offset:
+            return np.zeros(b.shape[:-1] + (self.n_outputs,))
+        return b[..., self.n_core:]
+
+    def normalize(self, beta) -> np.ndarray:
+        """beta with each nonlinearity's parameters in canonical form (the model is unchanged)."""
+        b = np.array(self.check_beta(beta), dtype=float)
+        if self.input_nonlinearities is not None and self._fixed_gain is None:
+            for nl, sl in zip(self.input_nonlinearities, self._g_slices):
+                b[..., sl] = nl.normalize(b[..., sl])
+        for nl, sl in zip(self.output_nonlinearities or (), self._h_slices):
+            b[..., sl] = nl.normalize(b[..., sl])
+        return b
+
+    def unstable(self, beta) -> np.ndarray:
+        """Whether each candidate has a row denominator with a root in the closed right half-plane."""
+        from .simulate import unstable
+
+        _, den = self.coefficients(beta)
+        return unstable(den.reshape(-1, den.shape[-1])).reshape(den.shape[:2]).any(axis=1)
+
+    # -- beta <-> models ----------------------------------------------------------------
+    def model(self, beta, **kwargs) -> "MIMOModel":
+        """The :class:`MIMOModel` of one beta (``kwargs``: ``intersample``, ``name``, ``input_names``, ...)."""
+        b = self.check_beta(beta)
+        if b.ndim != 1:
+            raise ParameterError("model() takes a single beta vector, not a batch")
+        num, den = self.coefficients(b)
+        return MIMOModel(num[0], den[0], input_nonlinearities=self.input_nonlinearities,
+                         input_params=self.input_params(b), output_nonlinearities=self.output_nonlinearities,
+                         output_params=self.output_params(b), offset=self.offsets(b), kind=self.kind, **kwargs)
+
+    def beta(self, model: "MIMOModel") -> np.ndarray:
+        """The beta of a model with this structure (the inverse of :meth:`model`)."""
+        num, den = model.numerators, model.denominators
+        if num.shape != self._num0.shape or den.shape != self._den0.shape:
+            raise ParameterError(f"the model's blocks have shape {num.shape}/{den.shape}, the structure's "
+                                 f"{self._num0.shape}/{self._den0.shape}")
+        flat_num, flat_den = num.reshape(-1), den.reshape(-1)
+        lin = np.empty(self.n_linear)
+        is_b = np.array([n.startswith("b") for n in self.param_names[:self.n_linear]])
+        lin[is_b], lin[~is_b] = flat_num[self._num_pos], flat_den[self._den_pos]
+        parts = [lin]
+        for j in range(len(self.input_nonlinearities or ())):
+            q = np.asarray(model.input_params[j], dtype=float)
+            parts.append(q if self._fixed_gain is None else np.delete(q, self._fixed_gain[j]))
+        parts += [np.asarray(q, dtype=float) for q in (model.output_params or ())]
+        if self.offset:
+            parts.append(np.asarray(model.offset, dtype=float))
+        return np.concatenate(parts)
+
+    def with_options(self, *, offset: bool | None = None, initial_state: str | None = None):
+        """The same blocks with another offset option."""
+        return type(self)._rebuilt(self, self.offset if offset is None else offset,
+                                   "zero" if initial_state is None else initial_state)
+
+    @staticmethod
+    def _rebuilt(s, offset, initial_state):
+        return MIMOStructure(s.linear, s.input_nonlinearities, s.output_nonlinearities, n_inputs=s.n_inputs,
+                             n_outputs=s.n_outputs, offset=offset, initial_state=initial_state)
+
+    def describe(self) -> str:
+        """One line: the matrix, its orders and the nonlinearities."""
+        parts = [f"{self.n_outputs}x{self.n_inputs} H(p) = [B_ij(p)/F_i(p)], deg B = {self.linear.num_order}, "
+                 f"deg F = {self.linear.den_order}"]
+        if self.input_nonlinearities:
+            parts.append("g = " + ", ".join(nl.name for nl in self.input_nonlinearities))
+        if self.output_nonlinearities:
+            parts.append("h = " + ", ".join(nl.name for nl in self.output_nonlinearities))
+        return "; ".join(parts) + (" + y0" if self.offset else "")
+
+    def __repr__(self):
+        return (f"{type(self).__name__}({self.linear!r}, inputs={self.n_inputs}, outputs={self.n_outputs}"
+                + (", offset=True" if self.offset else "") + ")")
+
+
+class MIMOHammersteinStructure(MIMOStructure):
+    """``y_i = sum_j B_ij(p)/F_i(p) g_j(u_j)``: one nonlinearity per input, then the MIMO linear block.
+
+    Parameters
+    ----------
+    linear : LinearStructure
+        Orders of each element.
+    nonlinearities : sequence of Nonlinearity
+        ``g_j``, one per input.
+    n_outputs : int
+        Number of outputs.
+    offset : bool, default False
+
+    Examples
+    --------
+    >>> from hammerstein_ctrl import LinearStructure, Tanh
+    >>> MIMOHammersteinStructure(LinearStructure(1, 2), [Tanh(), Tanh()], n_outputs=2).n_params
+    14
+    """
+
+    kind = "mimo-hammerstein"
+
+    def __init__(self, linear: LinearStructure, nonlinearities, n_outputs: int, *, offset: bool = False,
+                 initial_state: str = "zero"):
+        if nonlinearities is None or isinstance(nonlinearities, Nonlinearity):
+            raise ParameterError("nonlinearities must be a list with one Nonlinearity per input")
+        super().__init__(linear, nonlinearities, None, n_outputs=n_outputs, offset=offset,
+                         initial_state=initial_state)
+
+    @staticmethod
+    def _rebuilt(s, offset, initial_state):
+        return MIMOHammersteinStructure(s.linear, s.input_nonlinearities, s.n_outputs, offset=offset,
+                                        initial_state=initial_state)
+
+
+class MIMOWienerStructure(MIMOStructure):
+    """``y_i = h_i(sum_j B_ij(p)/F_i(p) u_j)``: the MIMO linear block, then one nonlinearity per output.
+
+    Examples
+    --------
+    >>> from hammerstein_ctrl import LinearStructure, Saturation
+    >>> MIMOWienerStructure(LinearStructure(0, 1), [Saturation(), Saturation()], n_inputs=2).param_names[:4]
+    ('b0[0,1]', 'a0[0]', 'b0[1,1]', 'a0[1]')
+    """
+
+    kind = "mimo-wiener"
+
+    def __init__(self, linear: LinearStructure, nonlinearities, n_inputs: int, *, offset: bool = False,
+                 initial_state: str = "zero"):
+        if nonlinearities is None or isinstance(nonlinearities, Nonlinearity):
+            raise ParameterError("nonlinearities must be a list with one Nonlinearity per output")
+        super().__init__(linear, None, nonlinearities, n_inputs=n_inputs, offset=offset,
+                         initial_state=initial_state)
+
+    @staticmethod
+    def _rebuilt(s, offset, initial_state):
+        return MIMOWienerStructure(s.linear, s.output_nonlinearities, s.n_inputs, offset=offset,
+                                   initial_state=initial_state)
+
+
+class MIMOHammersteinWienerStructure(MIMOStructure):
+    """``y_i = h_i(sum_j B_ij(p)/F_i(p) g_j(u_j))``: nonlinearities on both sides (``g_j`` with unit gain).
+
+    Examples
+    --------
+    >>> from hammerstein_ctrl import LinearStructure, DeadZone, Saturation
+    >>> s = MIMOHammersteinWienerStructure(LinearStructure(0, 1), [DeadZone()] * 2, [Saturation()] * 2)
+    >>> s.param_names[-4:]
+    ('gain[h0]', 'limit[h0]', 'gain[h1]', 'limit[h1]')
+    """
+
+    kind = "mimo-hammerstein-wiener"
+
+    def __init__(self, linear: LinearStructure, input_nonlinearities, output_nonlinearities, *,
+                 offset: bool = False, initial_state: str = "zero"):
+        for value, label in ((input_nonlinearities, "input"), (output_nonlinearities, "output")):
+            if value is None or isinstance(value, Nonlinearity):
+                raise ParameterError(f"{label}_nonlinearities must be a list with one Nonlinearity per {label}")
+        super().__init__(linear, input_nonlinearities, output_nonlinearities, offset=offset,
+                         initial_state=initial_state)
+
+    @staticmethod
+    def _rebuilt(s, offset, initial_state):
+        return MIMOHammersteinWienerStructure(s.linear, s.input_nonlinearities, s.output_nonlinearities,
+                                              offset=offset, initial_state=initial_state)
+
+
+# -- simulation ----------------------------------------------------------------------------
+def _input_signals(inputs, input_nonlinearities, input_params, batch: int) -> np.ndarray:
+    """``(batch, m, N)``: each candidate's ``g_j(u_j)`` (or the inputs themselves)."""
+    n_samples, m = inputs.shape
+    if input_nonlinearities is None:
+        return np.broadcast_to(inputs.T, (batch, m, n_samples))
+    V = np.empty((batch, m, n_samples))
+    with np.errstate(all="ignore"):
+        for j, nl in enumerate(input_nonlinearities):
+            V[:, j] = nl(inputs[:, j], np.asarray(input_params[j], dtype=float).reshape(batch, -1))
+    return V
+
+
+def simulate_mimo_batch(num, den, inputs, dt: float, *, input_nonlinearities=None, input_params=None,
+                        output_nonlinearities=None, output_params=None, offsets=None,
+                        intersample: str = "foh") -> np.ndarray:
+    """Outputs ``(B, p, N)`` of a batch of MIMO block models, exact under FOH/ZOH.
+
+    Parameters
+    ----------
+    num, den : array_like, shapes (B, p, m, nb+1) and (B, p, nf+1)
+        Numerators of every element and each row's denominator (descending powers).
+    inputs : ndarray, shape (N, m)
+    dt : float
+    input_nonlinearities, output_nonlinearities : sequences of Nonlinearity, optional
+    input_params, output_params : lists of arrays ``(B, n_j)``, optional
+    offsets : array_like, shape (B, p), optional
+    intersample : {"foh", "zoh"}
+
+    Examples
+    --------
+    Element ``(i, j)`` of the result is what python-control gives for that element alone:
+
+    >>> import numpy as np, control as ct
+    >>> t = np.arange(200) * 0.05; u = np.column_stack([np.sin(t), np.cos(2 * t)])
+    >>> num = np.array([[[[1.0], [0.5]]]]); den = np.array([[[1.0, 2.0]]])
+    >>> y = simulate_mimo_batch(num, den, u, 0.05)[0, 0]
+    >>> ref = sum(ct.forced_response(ct.tf(b, [1, 2.0]), t, u[:, j]).outputs for j, b in enumerate([1.0, 0.5]))
+    >>> bool(np.allclose(y, ref, rtol=1e-10, atol=1e-12))
+    True
+    """
+    from .simulate import simulate_batch
+
+    num, den = np.asarray(num, dtype=float), np.asarray(den, dtype=float)
+    batch, p, m = num.shape[:3]
+    V = _input_signals(inputs, input_nonlinearities, input_params, batch)
+    n_samples = V.shape[-1]
+    signals = np.ascontiguousarray(V).reshape(batch * m, n_samples) if input_nonlinearities is not None or \
+        batch == 1 else None
+    Y = np.empty((batch, p, n_samples))
+    for i in range(p):
+        rows_num = num[:, i].reshape(batch * m, -1)
+        rows_den = np.repeat(den[:, i], m, axis=0)
+        if signals is None:        # the same inputs for every candidate: tile them
+            S = np.ascontiguousarray(np.broadcast_to(V, (batch, m, n_samples))).reshape(batch * m, n_samples)
+        else:
+            S = signals
+        Z = simulate_batch(rows_num, rows_den, S, dt, intersample=intersample).reshape(batch, m, n_samples)
+        Y[:, i] = Z.sum(axis=1)
+    if output_nonlinearities is not None:
+        with np.errstate(all="ignore"):
+            for i, nl in enumerate(output_nonlinearities):
+                Y[:, i] = nl(Y[:, i], np.asarray(output_params[i], dtype=float).reshape(batch, -1))
+    if offsets is not None:
+        Y += np.asarray(offsets, dtype=float).reshape(batch, p, 1)
+    return Y
+
+
+def observable_realization(num, den):
+    """``(A, B, C, D)`` of a MIMO block ``[B_ij/F_i]`` with one observable canonical form per row.
+
+    Row ``i`` gets ``deg F_i`` states (its modes are shared by every input),
+    so the realisation has ``p * deg F`` states and is minimal when no
+    element's zeros cancel the row's poles.
+
+    Examples
+    --------
+    >>> A, B, C, D = observable_realization([[[1.0], [2.0]]], [[1.0, 3.0]])
+    >>> A.tolist(), B.tolist(), C.tolist(), D.tolist()
+    ([[-3.0]], [[1.0, 2.0]], [[1.0]], [[0.0, 0.0]])
+    """
+    num, den = np.asarray(num, dtype=float), np.asarray(den, dtype=float)
+    p, m = num.shape[:2]
+    n = den.shape[1] - 1
+    A, B = np.zeros((p * n, p * n)), np.zeros((p * n, m))
+    C, D = np.zeros((p, p * n)), np.zeros((p, m))
+    for i in range(p):
+        f = den[i] / den[i, 0]
+        s = slice(i * n, (i + 1) * n)
+        block = np.zeros((n, n))
+        block[:, 0] = -f[1:]
+        block[:n - 1, 1:] = np.eye(n - 1)
+        A[s, s] = block
+        C[i, i * n] = 1.0
+        for j in range(m):
+            b = np.concatenate([np.zeros(n + 1 - num[i, j].size), num[i, j]]) / den[i, 0]
+            D[i, j] = b[0]
+            B[s, j] = b[1:] - b[0] * f[1:]
+    return A, B, C, D
+
+
+class MIMOModel:
+    """A MIMO block-oriented model ``y_i = h_i(sum_j B_ij(p)/F_i(p) g_j(u_j)) + y0_i``.
+
+    Parameters
+    ----------
+    numerators : array_like, shape (p, m, nb+1)
+        ``B_ij`` in descending powers.
+    denominators : array_like, shape (p, nf+1)
+        ``F_i``, one per output row.
+    input_nonlinearities, output_nonlinearities : sequences of Nonlinearity, optional
+    input_params, output_params : sequences of array_like, optional
+    offset : array_like, shape (p,), optional
+    intersample : {"foh", "zoh"}, default "foh"
+    name : str, optional
+    input_names, output_names : sequences of str, optional
+        Signal names of the python-control exports (default ``u[j]``, ``y[i]``).
+    kind : str, optional
+        Structure family, for reports.
+    """
+
+    def __init__(self, numerators, denominators, *, input_nonlinearities=None, input_params=None,
+                 output_nonlinearities=None, output_params=None, offset=None, intersample: str = "foh",
+                 name: str | None = None, input_names=None, output_names=None, kind: str = "mimo"):
+        from ._checks import as_real_array
+
+        self.numerators = np.array(as_real_array(numerators, "numerators"), dtype=float)
+        self.denominators = np.array(as_real_array(denominators, "denominators"), dtype=float)
+        if self.numerators.ndim != 3 or self.denominators.ndim != 2 or \
+                self.numerators.shape[0] != self.denominators.shape[0]:
+            raise ParameterError(f"numerators must be (p, m, nb+1) and denominators (p, nf+1), got "
+                                 f"{self.numerators.shape} and {self.denominators.shape}")
+        if not (np.all(np.isfinite(self.numerators)) and np.all(np.isfinite(self.denominators))) or \
+                np.any(self.denominators[:, 0] == 0):
+            raise ParameterError("the MIMO linear block needs finite coefficients and non-zero leading "
+                                 "denominator coefficients")
+        p, m = self.numerators.shape[:2]
+        self.input_nonlinearities = _nonlinearity_list(input_nonlinearities, m, "input_nonlinearities")
+        self.output_nonlinearities = _nonlinearity_list(output_nonlinearities, p, "output_nonlinearities")
+        self.input_params = self._params(self.input_nonlinearities, input_params, "input")
+        self.output_params = self._params(self.output_nonlinearities, output_params, "output")
+        self.offset = np.zeros(p) if offset is None else np.array(offset, dtype=float).reshape(p)
+        self.intersample = check_intersample(intersample)
+        self.kind = str(kind)
+        self.name = name or self.kind.replace("-", "_")
+        self.input_names = tuple(input_names) if input_names is not None else tuple(f"u[{j}]" for j in range(m))
+        self.output_names = tuple(output_names) if output_names is not None else tuple(f"y[{i}]" for i in range(p))
+        if len(self.input_names) != m or len(self.output_names) != p:
+            raise ParameterError(f"give {m} input and {p} output names")
+
+    @staticmethod
+    def _params(nonlinearities, params, label):
+        if nonlinearities is None:
+            return None
+        if params is None or len(params) != len(nonlinearities):
+            raise ParameterError(f"give one parameter vector per {label} nonlinearity")
+        out = []
+        for nl, q in zip(nonlinearities, params):
+            q = np.array(nl.check_params(q), dtype=float)
+            if q.ndim != 1 or not np.all(np.isfinite(q)):
+                raise ParameterError(f"{label} nonlinearity {nl.name!r} needs one finite parameter vector")
+            out.append(q)
+        return out
+
+    @property
+    def n_inputs(self) -> int:
+        return self.numerators.shape[1]
+
+    @property
+    def n_outputs(self) -> int:
+        return self.numerators.shape[0]
+
+    @property
+    def order(self) -> int:
+        """States of the realisation: ``p * deg F``."""
+        return self.n_outputs * (self.denominators.shape[1] - 1)
+
+    @property
+    def linear(self):
+        """The linear block as a MIMO :class:`control.TransferFunction` with named signals."""
+        import control
+
+        num = [[list(self.numerators[i, j]) for j in range(self.n_inputs)] for i in range(self.n_outputs)]
+        den = [[list(self.denominators[i]) for _ in range(self.n_inputs)] for i in range(self.n_outputs)]
+        return control.tf(num, den, inputs=list(self.input_names), outputs=list(self.output_names),
+                          name=f"{self.name}_linear")
+
+    def poles(self) -> list:
+        """The poles of each output row."""
+        return [np.roots(d) for d in self.denominators]
+
+    def is_stable(self) -> bool:
+        """Whether every row's poles lie in the open left half-plane."""
+        return all(np.all(r.real < 0) for r in self.poles())
+
+    def to_ss(self):
+        """The linear block as a :class:`control.StateSpace` (one observable canonical form per row)."""
+        import control
+
+        A, B, C, D = observable_realization(self.numerators, self.denominators)
+        return control.ss(A, B, C, D, inputs=list(self.input_names), outputs=list(self.output_names),
+                          name=f"{self.name}_linear")
+
+    def g(self, u) -> np.ndarray:
+        """The input nonlinearities applied to ``u`` ``(N, m)`` (the identity where there are none)."""
+        u = np.asarray(u, dtype=float).reshape(-1, self.n_inputs)
+        if self.input_nonlinearities is None:
+            return u.copy()
+        return np.column_stack([nl(u[:, j], q) for j, (nl, q) in
+                                enumerate(zip(self.input_nonlinearities, self.input_params))])
+
+    def h(self, z) -> np.ndarray:
+        """The output nonlinearities applied to ``z`` ``(N, p)``."""
+        z = np.asarray(z, dtype=float).reshape(-1, self.n_outputs)
+        if self.output_nonlinearities is None:
+            return z.copy()
+        return np.column_stack([nl(z[:, i], q) for i, (nl, q) in
+                                enumerate(zip(self.output_nonlinearities, self.output_params))])
+
+    def _inputs(self, t, u, intersample):
+        from .iodata import IOData
+
+        if isinstance(t, IOData):
+            if u is not None:
+                raise ParameterError("give a record, or t and u, not both")
+            data = t
+            return data.inputs, data.dt, data.intersample if intersample is None else intersample
+        from ._checks import as_signal, uniform_grid
+
+        t = as_signal(t, "t")
+        _, dt = uniform_grid(t)
+        u = np.asarray(u, dtype=float)
+        if u.ndim == 1 and self.n_inputs == 1:
+            u = u[:, None]
+        if u.ndim != 2 or u.shape != (t.size, self.n_inputs):
+            raise DataError(f"u must have shape (N, {self.n_inputs}) = ({t.size}, {self.n_inputs}), one column per "
+                            f"input, got {u.shape}")
+        if not np.all(np.isfinite(u)):
+            raise DataError("u contains non-finite values")
+        return u, dt, self.intersample if intersample is None else intersample
+
+    def simulate(self, t, u=None, *, intersample: str | None = None) -> np.ndarray:
+        """The sampled response ``(N, p)`` from rest to a record or to ``u`` ``(N, m)`` on the grid ``t``.
+
+        Exact under the record's (or ``intersample``'s) hold, as the identification simulates.
+        """
+        inputs, dt, hold = self._inputs(t, u, intersample)
+        Y = simulate_mimo_batch(self.numerators[None], self.denominators[None], inputs, dt,
+                                input_nonlinearities=self.input_nonlinearities,
+                                input_params=None if self.input_params is None else [q[None] for q in
+                                                                                     self.input_params],
+                                output_nonlinearities=self.output_nonlinearities,
+                                output_params=None if self.output_params is None else [q[None] for q in
+                                                                                       self.output_params],
+                                offsets=self.offset[None], intersample=check_intersample(hold))
+        return Y[0].T
+
+    def to_iosys(self, name: str | None = None):
+        """A continuous-time :class:`control.NonlinearIOSystem` with the model's named inputs and outputs.
+
+        States: the observable canonical form of each row (:meth:`to_ss`);
+        ``dx/dt = A x + B g(u)``, ``y = h(C x + D g(u)) + y0``.
+        """
+        import control
+
+        A, B, C, D = observable_realization(self.numerators, self.denominators)
+        model = self
+
+        def updfcn(t, x, u, params):
+            return A @ x + B @ model.g(u)[0]
+
+        def outfcn(t, x, u, params):
+            return model.h(C @ x + D @ model.g(u)[0])[0] + model.offset
+
+        return control.nlsys(updfcn, outfcn, inputs=list(self.input_names), outputs=list(self.output_names),
+                             states=A.shape[0], name=name or self.name)
+
+    def describe(self) -> str:
+        """The blocks, one line each."""
+        lines = [f"{self.kind}: {self.n_outputs} outputs, {self.n_inputs} inputs"]
+        for i in range(self.n_outputs):
+            f = np.poly1d(self.denominators[i])
+            terms = ", ".join(f"{self.input_names[j]}: {np.poly1d(self.numerators[i, j])}".replace("\n", " ")
+                              for j in range(self.n_inputs))
+            lines.append(f"  {self.output_names[i]}: F = {str(f).strip()}; B = {terms}")
+        for label, nls, ps, names in (("g", self.input_nonlinearities, self.input_params, self.input_names),
+                                      ("h", self.output_nonlinearities, self.output_params, self.output_names)):
+            for nl, q, n in zip(nls or (), ps or (), names):
+                lines.append(f"  {label}[{n}] = {nl.describe(q)}")
+        if np.any(self.offset):
+            lines.append("  y0 = " + ", ".join(f"{v:.6g}" for v in self.offset))
+        return "\n".join(lines)
+
+    def __repr__(self):
+        return f"MIMOModel({self.kind!r}, outputs={self.n_outputs}, inputs={self.n_inputs}, order={self.order})"
