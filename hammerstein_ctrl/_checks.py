@@ -110,12 +110,17 @@ def as_count(value, name: str, *, minimum: int = 0) -> int:
     return int(value)
 
 
+#: Most channels a signal may have: a wider array is taken as transposed (samples along the rows).
+MAX_CHANNELS = 64
+
+
 def as_channels(x, name: str) -> np.ndarray:
     """``x`` as a finite signal: 1-D ``(N,)`` for one channel, ``(N, m)`` float columns for several.
 
     A 2-D array with more than one column holds one channel per column (each
     checked as :func:`as_signal` checks a signal, its errors naming the column);
-    one with more columns than rows is refused as a likely transposition.
+    one with more columns than rows and more than :data:`MAX_CHANNELS` columns
+    is refused as a likely transposition.
 
     Examples
     --------
@@ -133,9 +138,9 @@ def as_channels(x, name: str) -> np.ndarray:
     if len(shape) != 2 or 1 in shape:
         return as_signal(x, name)
     rows, cols = shape
-    if cols > rows:
-        raise DataError(f"{name} has shape {shape}: channels must be columns, one row per sample (N, {rows}); "
-                        f"pass {name}.T")
+    if cols > rows and cols > MAX_CHANNELS:
+        raise DataError(f"{name} has shape {shape}: channels must be columns, one row per sample "
+                        f"({cols}, {rows}); pass {name}.T")
     arr = np.asarray(raw)
     columns = [as_signal(arr[:, j], f"{name}[:, {j}]") for j in range(cols)]
     return np.ascontiguousarray(np.column_stack(columns))

@@ -51,7 +51,7 @@ from .experiments import RecordsCost
 from .diagnostics import (FAILURE, STILL_IMPROVING, Verdict, budget_advice, identifiability_verdicts,
                           late_improvement, linear_verdicts, offset_verdict)
 from .exceptions import IdentificationWarning, ParameterError
-from .initialize import static_affine_sse
+from .initialize import static_affine_sse, static_affine_sse_columns
 from .metrics import fit_report
 from .mimo import MIMOStructure
 from .mimo_fit import MIMOCost
@@ -430,9 +430,17 @@ def _mimo_basic_verdicts(cost, res, key, x0, fits: dict) -> list[Verdict]:
         return [Verdict("no-model", FAILURE, "no model: the optimiser returned no finite parameters")]
     if not np.isfinite(res.fun):
         return [Verdict("no-model", FAILURE, "the final model cannot be simulated (non-finite output)")]
-    out = [Verdict("no-better", FAILURE, f"output {name!r}: fit {fit:.1f} % is no better than a constant; check "
-                   "that this output responds to the inputs, or raise the orders") for name, fit in fits.items()
-           if fit <= 0]
+    residuals = cost.split(cost.residuals(x))
+    out = []
+    for i, (name, fit) in enumerate(fits.items()):
+        y = cost.data.outputs[:, i]
+        if fit <= 0:
+            out.append(Verdict("no-better", FAILURE, f"output {name!r}: fit {fit:.1f} % is no better than a "
+                               "constant; check that this output responds to the inputs, or raise the orders"))
+        elif residuals[i] @ residuals[i] >= static_affine_sse_columns(cost.data.inputs, y):
+            out.append(Verdict("no-better", FAILURE, f"output {name!r}: fit {fit:.1f} % is no better than the best "
+                               "static affine map of the inputs y = K u + c; check that this output responds to the "
+                               "inputs, or raise the orders"))
     if key not in _CONVERGING and key != AUTO and x0 is not None and res.status != DIVERGED:
         f0 = cost(x0)
         if np.isfinite(f0) and res.fun >= f0:

@@ -54,6 +54,7 @@ from .streamed_lstsq import (constant_column, factor_of_blocks, factor_of_column
                              residual_of_columns, solve_minimum_norm, solve_scaled, triangular_factor)
 
 __all__ = ["initial_points", "stabilize", "nuisance_estimate", "estimate_initial_state", "static_affine_sse",
+           "static_affine_sse_columns",
            "Budget", "POLE_PATTERNS"]
 
 #: Frequencies scanned per pole pattern (at least; see :data:`SCAN_PER_DECADE`).
@@ -672,8 +673,17 @@ def static_affine_sse(data) -> float:
     True
     """
     u, y = np.asarray(data.u, dtype=float), np.asarray(data.y, dtype=float)
+    if u.ndim == 2 or y.ndim == 2:          # several channels: each output's best affine map of all the inputs
+        return float(sum(static_affine_sse_columns(data.inputs, y) for y in data.outputs.T))
     R = triangular_factor([u, constant_column(u.size)], y)
     return factor_sse(R, solve_minimum_norm(R, u.size))
+
+
+def static_affine_sse_columns(inputs, y) -> float:
+    """Sum of squared errors of ``y = K u + c`` over the input columns ``inputs`` ``(N, m)``."""
+    R = triangular_factor([np.ascontiguousarray(c) for c in np.asarray(inputs, dtype=float).T]
+                          + [constant_column(len(y))], np.asarray(y, dtype=float))
+    return factor_sse(R, solve_minimum_norm(R, len(y)))
 
 
 def estimate_initial_state(model, data) -> np.ndarray:

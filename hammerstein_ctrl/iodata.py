@@ -182,7 +182,9 @@ class IOData:
         u = as_channels(u, "u")
         y = as_channels(y, "y")
         if len(u) != len(y):
-            raise DataError(f"length mismatch: u has {len(u)} samples but y has {len(y)}")
+            hint = next((f" (channels are columns: pass {name}.T?)" for name, a, b in (("u", u, y), ("y", y, u))
+                         if a.ndim == 2 and a.shape[1] == len(b)), "")
+            raise DataError(f"length mismatch: u has {len(u)} samples but y has {len(y)}{hint}")
         if t is not None:
             t_arr = as_signal(t, "t")
             if t_arr.size != len(u):

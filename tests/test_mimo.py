@@ -1,0 +1,255 @@
+"""MIMO block-oriented models: records with several channels, structures, exact simulation, identification."""
+
+import warnings
+
+import control as ct
+import numpy as np
+import pytest
+
+import hammerstein_ctrl as hc
+from hammerstein_ctrl.exceptions import DataError, ParameterError
+from hammerstein_ctrl.mimo import (MIMOHammersteinStructure, MIMOHammersteinWienerStructure, MIMOModel,
+                                   MIMOWienerStructure, observable_realization)
+from hammerstein_ctrl.mimo_fit import MIMOCost
+
+DT, N, SIGMA = 0.05, 3000, 0.01
+#: The cross-coupled 2 x 2 plant: row 0 shares 1/(s^2 + 1.2 s + 2), row 1 1/(s^2 + 2.5 s + 1.5).
+NUM = [[[1.0, 2.0], [1.0, 0.5]], [[0.6, 1.0], [0.8, 3.0]]]
+DEN = [[1.0, 1.2, 2.0], [1.0, 2.5, 1.5]]
+
+
+def plant() -> ct.TransferFunction:
+    return ct.tf(NUM, [[DEN[i]] * 2 for i in range(2)], inputs=["u[0]", "u[1]"], outputs=["y[0]", "y[1]"])
+
+
+def mimo_statespace(G: ct.TransferFunction) -> ct.StateSpace:
+    """python-control's own MIMO state space of ``G``: its SISO elements' realisations appended, the inputs fanned
+    out and the outputs summed (python-control converts MIMO transfer functions only with Slycot)."""
+    p, m = G.noutputs, G.ninputs
+    parts = [ct.ss(G[i, j]) for i in range(p) for j in range(m)]
+    app = ct.append(*parts)
+    fan = np.zeros((p * m, m))
+    total = np.zeros((p, p * m))
+    for i in range(p):
+        for j in range(m):
+            fan[i * m + j, j] = 1.0
+            total[i, i * m + j] = 1.0
+    return ct.ss(app.A, app.B @ fan, total @ app.C, total @ app.D @ fan)
+
+
+def steps(rng, n=N, width=(5, 40), level=2.0):
+    """A random staircase input (levels held 5-40 samples)."""
+    lengths = rng.integers(*width, size=n)
+    return np.repeat(rng.uniform(-level, level, size=n), lengths)[:n]
+
+
+def record(kind: str, seed: int, sigma=SIGMA):
+    """A known-truth 2 x 2 record simulated by python-control, with its true beta."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(N) * DT
+    u = np.column_stack([steps(rng), steps(rng)])
+    G = mimo_statespace(plant())
+    if kind == "hammerstein":
+        v = np.column_stack([2.0 * np.tanh(1.5 * u[:, 0]), 0.8 * np.tanh(0.7 * u[:, 1])])
+        y = ct.forced_response(G, t, v.T).outputs.T
+        # B_0j monic: g_j carries B_0j's leading coefficient
+        truth = [2.0, 0.5, 2.0, 1.2, 1.0, 0.6, 3.0, 0.8, 1.5, 2.5, 2.0, 1.5, 0.8, 0.7]
+        s = MIMOHammersteinStructure(hc.LinearStructure(1, 2), [hc.Tanh(), hc.Tanh()], n_outputs=2)
+    else:
+        z = ct.forced_response(G, t, u.T).outputs.T
+        y = np.column_stack([2.0 * np.tanh(0.5 * z[:, 0]), 1.5 * np.tanh(0.3 * z[:, 1])])
+        # B_i0 monic: row 1's numerators divided by 0.6, h_1's input scale multiplied by it
+        truth = [2.0, 0.5, 1.0, 2.0, 1.2, 1.0 / 0.6, 3.0 / 0.6, 0.8 / 0.6, 1.5, 2.5, 2.0, 0.5, 1.5, 0.18]
+        s = MIMOWienerStructure(hc.LinearStructure(1, 2), [hc.Tanh(), hc.Tanh()], n_inputs=2)
+    y = y + sigma * rng.standard_normal(y.shape)
+    return hc.IOData(u, y, dt=DT, name=f"{kind}-{seed}"), s, np.array(truth)
+
+
+# -- records ---------------------------------------------------------------------------
+def test_a_record_takes_named_channels_and_selects_them():
+    d = hc.IOData(np.ones((5, 2)), np.arange(15.0).reshape(5, 3), dt=0.1, input_name=["pitch", "yaw"],
+                  output_unit=["rad", "rad", "V"])
+    assert (d.n_inputs, d.n_outputs, d.is_siso) == (2, 3, False)
+    assert d.output_names == ("y[0]", "y[1]", "y[2]") and d.output_units == ("rad", "rad", "V")
+    siso = d.channel("yaw", 2)
+    assert siso.is_siso and siso.input_name == "yaw" and siso.output_unit == "V"
+    assert siso.y.tolist() == [2.0, 5.0, 8.0, 11.0, 14.0]
+    assert d[1:3].outputs.shape == (2, 3)
+    assert np.allclose(d.detrend().y.mean(axis=0), 0.0)
+
+
+@pytest.mark.parametrize("u, y, words", [
+    (np.ones((2, 500)), np.ones(500), "channels must be columns"),
+    (np.ones((2, 50)), np.ones(50), "pass u.T?"),
+    (np.ones(50), np.ones((3, 50)), "pass y.T?"),
+    (np.ones((50, 2)), np.ones(49), "length mismatch"),
+    (np.column_stack([np.ones(50), np.r_[np.ones(49), np.nan]]), np.ones(50), "u[:, 1] contains 1 non-finite"),
+])
+def test_a_malformed_multichannel_record_is_refused_in_one_line(u, y, words):
+    with pytest.raises(DataError, match=None) as err:
+        hc.IOData(u, y, dt=0.1)
+    assert words in str(err.value) and "\n" not in str(err.value)
+
+
+def test_channel_labels_must_match_the_channels():
+    with pytest.raises(DataError, match="3 label"):
+        hc.IOData(np.ones((5, 2)), np.ones(5), dt=0.1, input_name=["a", "b", "c"])
+    with pytest.raises(DataError, match="no input channel 'c'"):
+        hc.IOData(np.ones((5, 2)), np.ones(5), dt=0.1).channel("c")
+
+
+def test_a_siso_structure_refuses_a_mimo_record_saying_what_to_do():
+    data, _, _ = record("hammerstein", 0)
+    with pytest.raises(DataError, match=r"2 inputs and 2 outputs.*data.channel.*MIMO"):
+        hc.identify(data, hc.HammersteinStructure(hc.LinearStructure(1, 2), hc.Tanh()))
+
+
+def test_a_mimo_structure_refuses_a_record_with_other_channels():
+    data, s, _ = record("hammerstein", 0)
+    with pytest.raises(DataError, match="has 2 input"):
+        hc.identify(data.channel(outputs=0), s)
+
+
+# -- structures ------------------------------------------------------------------------------
+def test_the_gain_convention_fixes_one_numerator_per_ambiguity():
+    lin = hc.LinearStructure(0, 1)
+    ham = MIMOHammersteinStructure(lin, [hc.Tanh()] * 2, n_outputs=2)
+    wie = MIMOWienerStructure(lin, [hc.Tanh()] * 2, n_inputs=2)
+    hw = MIMOHammersteinWienerStructure(lin, [hc.Saturation()] * 2, [hc.Tanh()] * 2)
+    assert [n for n in ham.param_names if n.startswith("b")] == ["b0[1,0]", "b0[1,1]"]       # row 0 monic
+    assert [n for n in wie.param_names if n.startswith("b")] == ["b0[0,1]", "b0[1,1]"]       # column 0 monic
+    assert [n for n in hw.param_names if n.endswith("[g0]")] == ["limit[g0]"]                # g's gain fixed
+    beta = np.arange(1.0, ham.n_params + 1)
+    assert np.array_equal(ham.beta(ham.model(beta)), beta)
+
+
+@pytest.mark.parametrize("make, words", [
+    (lambda: MIMOHammersteinStructure(hc.LinearStructure(0, 1), hc.Tanh(), n_outputs=2), "one Nonlinearity per"),
+    (lambda: MIMOHammersteinStructure(hc.LinearStructure(0, 1), [hc.Tanh()], n_outputs=1), "several inputs"),
+    (lambda: MIMOHammersteinStructure(hc.LinearStructure(0, 1, delay=0.1), [hc.Tanh()] * 2, n_outputs=2),
+     "orders of its LinearStructure only"),
+    (lambda: MIMOWienerStructure(hc.LinearStructure(0, 1), [hc.Tanh(), "tanh"], n_inputs=2), "must be a Nonlinearity"),
+])
+def test_a_malformed_mimo_structure_is_refused(make, words):
+    with pytest.raises(ParameterError, match=words):
+        make()
+
+
+# -- simulation ----------------------------------------------------------------------------------
+@pytest.mark.parametrize("hold", ["foh", "zoh"])
+def test_the_simulation_equals_python_controls_mimo_response(hold):
+    """After the nonlinearities, the sampled simulation is forced_response of python-control's MIMO system (FOH),
+    or of its ZOH discretisation."""
+    rng = np.random.default_rng(3)
+    t = np.arange(800) * DT
+    u = np.column_stack([steps(rng, 800), np.sin(0.9 * t)])
+    s = MIMOHammersteinStructure(hc.LinearStructure(1, 2), [hc.Tanh(), hc.Tanh()], n_outputs=2)
+    _, _, truth = record("hammerstein", 0)
+    model = s.model(truth, intersample=hold)
+    y = model.simulate(t, u)
+    G = mimo_statespace(plant())
+    v = model.g(u)
+    if hold == "foh":
+        ref = ct.forced_response(G, t, v.T).outputs.T
+    else:
+        ref = ct.forced_response(ct.sample_system(G, DT, "zoh"), t, v.T).outputs.T
+    assert np.max(np.abs(y - ref)) <= 1e-9 * np.max(np.abs(ref))
+
+
+def test_the_exports_are_the_same_linear_block():
+    _, s, truth = record("hammerstein", 0)
+    model = s.model(truth)
+    G, S = model.linear, model.to_ss()
+    assert (G.ninputs, G.noutputs, S.nstates) == (2, 2, 4)
+    assert S.input_labels == ["u[0]", "u[1]"] and G.output_labels == ["y[0]", "y[1]"]
+    for w in (0.1, 1.0, 7.0):
+        assert np.allclose(G(1j * w), S(1j * w), rtol=1e-12)
+        assert np.allclose(G(1j * w), plant()(1j * w), rtol=1e-12)     # row 0's leading coefficients are 1
+
+
+def test_the_observable_realisation_matches_each_element():
+    A, B, C, D = observable_realization(np.array(NUM)[:, :, :], np.array(DEN))
+    S = ct.ss(A, B, C, D)
+    G = plant()
+    for s_ in (0.3j, 2.0 + 1j, 5.0):
+        assert np.allclose(S(s_), G(s_), rtol=1e-12)
+
+
+def test_the_nonlinear_export_has_named_signals_and_simulates_the_model():
+    _, s, truth = record("hammerstein", 0)
+    model = s.model(truth, input_names=["pitch", "yaw"], output_names=["a", "b"])
+    sys = model.to_iosys()
+    assert sys.input_labels == ["pitch", "yaw"] and sys.output_labels == ["a", "b"] and sys.nstates == 4
+    t = np.arange(0, 10, 0.01)
+    u = np.column_stack([np.sin(0.5 * t), 0.5 * np.cos(0.3 * t)])      # slow: g(u) is nearly linear per step
+    ref = ct.input_output_response(sys, t, u.T, solve_ivp_kwargs={"rtol": 1e-10, "atol": 1e-12}).outputs.T
+    assert np.max(np.abs(model.simulate(t, u) - ref)) < 1e-5 * np.max(np.abs(ref))
+
+
+# -- identification ----------------------------------------------------------------------------------
+def _identify(data, s, **kwargs):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return hc.identify(data, s, **kwargs)
+
+
+@pytest.mark.parametrize("kind", ["hammerstein", "wiener"])
+def test_a_cross_coupled_plant_is_identified_with_no_x0_within_four_standard_errors(kind):
+    """Over four seeds: J at the noise level, every parameter within 4 standard errors of the truth."""
+    for seed in range(4):
+        data, s, truth = record(kind, seed)
+        res = _identify(data, s)
+        assert res.success, res.message
+        se = np.sqrt(np.diag(res.covariance))
+        assert np.all(np.abs(res.x - truth) < 4 * se), (seed, (res.x - truth) / se)
+        assert abs(res.fun / (2 * N) / SIGMA**2 - 1) < 0.15
+        assert set(res.output_fits) == {"y[0]", "y[1]"} and min(res.output_fits.values()) > 90
+
+
+def test_the_standard_errors_match_the_spread_over_seeds():
+    """The estimates' spread over 12 seeds agrees with the reported standard errors (ratio within 0.6-1.6)."""
+    xs, ses = [], []
+    for seed in range(12):
+        data, s, truth = record("hammerstein", 100 + seed)
+        res = _identify(data, s)
+        xs.append(res.x)
+        ses.append(np.sqrt(np.diag(res.covariance)))
+    ratio = np.std(xs, axis=0, ddof=1) / np.mean(ses, axis=0)
+    assert np.all((ratio > 0.5) & (ratio < 1.7)), ratio
+    assert 0.75 < np.median(ratio) < 1.3
+
+
+def test_a_hammerstein_wiener_plant_is_identified_with_no_x0():
+    rng = np.random.default_rng(7)
+    t = np.arange(N) * DT
+    u = np.column_stack([steps(rng), steps(rng)])
+    s = MIMOHammersteinWienerStructure(hc.LinearStructure(1, 2), [hc.Polynomial(3)] * 2, [hc.Tanh()] * 2)
+    num = np.array(NUM) / np.array(NUM)[:, :1, :1]                  # B_i0 monic
+    truth = MIMOModel(num, DEN, input_nonlinearities=s.input_nonlinearities,
+                      input_params=[[1.0, 0.0, 0.3], [1.0, 0.2, -0.1]], output_nonlinearities=s.output_nonlinearities,
+                      output_params=[[2.0, 0.4], [1.0, 0.5]])
+    y = truth.simulate(t, u) + SIGMA * rng.standard_normal((N, 2))
+    res = _identify(hc.IOData(u, y, dt=DT), s)
+    assert res.success, res.message
+    assert abs(res.fun / (2 * N) / SIGMA**2 - 1) < 0.15
+    se = np.sqrt(np.diag(res.covariance))
+    assert np.all(np.abs(res.x - s.beta(truth)) < 4 * se)
+
+
+def test_an_output_the_inputs_do_not_drive_fails_naming_it():
+    data, s, _ = record("hammerstein", 1)
+    rng = np.random.default_rng(0)
+    y = data.outputs.copy()
+    y[:, 1] = rng.standard_normal(N)
+    res = _identify(hc.IOData(data.inputs, y, dt=DT, output_name=["pitch", "yaw"]), s)
+    assert not res.success
+    assert "'yaw'" in res.message
+
+
+def test_the_mimo_cost_keeps_the_least_squares_protocol():
+    data, s, truth = record("wiener", 2)
+    cost = MIMOCost(data, s)
+    R = cost.residuals_batch(np.vstack([truth, truth * 1.01]))
+    assert R.shape == (2, 2 * N)
+    assert np.isclose(R[1] @ R[1], cost(truth * 1.01))
+    assert np.allclose(cost.split(R[0])[1], data.outputs[:, 1] - s.model(truth).simulate(data)[:, 1])
