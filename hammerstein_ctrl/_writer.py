@@ -90,14 +90,36 @@ def _block_to_dict(nl, params) -> dict | None:
     return out
 
 
+def _mimo_model_to_dict(model) -> dict:
+    """The ``"model"`` object of a MIMO model: every element's numerator, each row's denominator, one block
+    per channel, and the channels' names."""
+    def blocks(nls, params):
+        return None if nls is None else [_block_to_dict(nl, q) for nl, q in zip(nls, params)]
+
+    out = {"name": str(model.name), "kind": model.kind,
+           "linear": {"num": model.numerators.tolist(), "den": model.denominators.tolist()},
+           "inputs": list(model.input_names), "outputs": list(model.output_names),
+           "input_nonlinearities": blocks(model.input_nonlinearities, model.input_params),
+           "output_nonlinearities": blocks(model.output_nonlinearities, model.output_params),
+           "offset": model.offset.tolist(), "intersample": model.intersample}
+    params = [v for key in ("input_nonlinearities", "output_nonlinearities") for b in (out[key] or ())
+              for v in b["params"].values()]
+    numbers = model.numerators.ravel().tolist() + model.denominators.ravel().tolist() + params + out["offset"]
+    if not all(math.isfinite(v) for v in numbers):
+        raise ParameterError("cannot save a model with non-finite coefficients or parameters")
+    return out
+
+
 def model_to_dict(model) -> dict:
-    """The ``"model"`` object of the schema for a Hammerstein, Wiener or Hammerstein-Wiener model.
+    """The ``"model"`` object of the schema for a Hammerstein, Wiener or Hammerstein-Wiener model (SISO or MIMO).
 
     Raises
     ------
     ParameterError
         For a custom nonlinearity (code cannot be stored) or non-finite numbers.
     """
+    if str(getattr(model, "kind", "")).startswith("mimo"):
+        return _mimo_model_to_dict(model)
     settings = model_settings(model)
     num = np.trim_zeros(np.asarray(model.linear.num[0][0], dtype=float), "f")
     den = np.trim_zeros(np.asarray(model.linear.den[0][0], dtype=float), "f")

@@ -62,8 +62,8 @@ from .exceptions import DataError, ParameterError
 from .nonlinearities import Nonlinearity
 from .structure import LinearStructure
 
-__all__ = ["MIMOStructure", "MIMOHammersteinStructure", "MIMOWienerStructure", "MIMOHammersteinWienerStructure",
-           "MIMOModel", "simulate_mimo_batch", "observable_realization"]
+__all__ = ["MIMOStructure", "mimo_structure", "MIMOHammersteinStructure", "MIMOWienerStructure",
+           "MIMOHammersteinWienerStructure", "MIMOModel", "simulate_mimo_batch", "observable_realization"]
 
 
 def _nonlinearity_list(value, count, label: str) -> tuple:
@@ -249,6 +249,14 @@ class MIMOStructure:
             return np.zeros(b.shape[:-1] + (self.n_outputs,))
         return b[..., self.n_core:]
 
+    def row_denominator(self, row: int) -> tuple[np.ndarray, np.ndarray]:
+        """``(positions, indices)``: where row ``row``'s free denominator coefficients sit in its coefficient
+        array (descending powers) and in beta."""
+        width = self.linear.den_order + 1
+        idx = [q for q, name in enumerate(self.param_names[:self.n_linear]) if name.startswith("a")]
+        pairs = [(pos % width, q) for pos, q in zip(self._den_pos, idx) if pos // width == row]
+        return np.array([p for p, _ in pairs], dtype=int), np.array([q for _, q in pairs], dtype=int)
+
     def normalize(self, beta) -> np.ndarray:
         """beta with each nonlinearity's parameters in canonical form (the model is unchanged)."""
         b = np.array(self.check_beta(beta), dtype=float)
@@ -406,6 +414,33 @@ class MIMOHammersteinWienerStructure(MIMOStructure):
     def _rebuilt(s, offset, initial_state):
         return MIMOHammersteinWienerStructure(s.linear, s.input_nonlinearities, s.output_nonlinearities,
                                               offset=offset, initial_state=initial_state)
+
+
+def mimo_structure(linear: LinearStructure, input_nonlinearities=None, output_nonlinearities=None, *,
+                   n_inputs: int | None = None, n_outputs: int | None = None, offset: bool = False,
+                   initial_state: str = "zero") -> MIMOStructure:
+    """The MIMO structure of the right family for the blocks given (Hammerstein, Wiener or both).
+
+    Examples
+    --------
+    >>> from hammerstein_ctrl import LinearStructure, Tanh
+    >>> type(mimo_structure(LinearStructure(0, 1), None, [Tanh()] * 2, n_inputs=3)).__name__
+    'MIMOWienerStructure'
+    """
+    if input_nonlinearities is not None and output_nonlinearities is not None:
+        return MIMOHammersteinWienerStructure(linear, input_nonlinearities, output_nonlinearities, offset=offset,
+                                              initial_state=initial_state)
+    if input_nonlinearities is not None:
+        s = MIMOHammersteinStructure(linear, input_nonlinearities, n_outputs, offset=offset,
+                                     initial_state=initial_state)
+    elif output_nonlinearities is not None:
+        s = MIMOWienerStructure(linear, output_nonlinearities, n_inputs, offset=offset, initial_state=initial_state)
+    else:
+        raise ParameterError("give input or output nonlinearities")
+    for label, given, actual in (("n_inputs", n_inputs, s.n_inputs), ("n_outputs", n_outputs, s.n_outputs)):
+        if given is not None and given != actual:
+            raise ParameterError(f"{label} = {given} but the nonlinearities give {actual}")
+    return s
 
 
 # -- simulation ----------------------------------------------------------------------------
@@ -664,6 +699,16 @@ class MIMOModel:
                                                                                        self.output_params],
                                 offsets=self.offset[None], intersample=check_intersample(hold))
         return Y[0].T
+
+    def h_input(self, t, u=None, *, intersample: str | None = None) -> np.ndarray:
+        """The signals ``z`` ``(N, p)`` entering the output nonlinearities (the linear block's outputs)."""
+        inputs, dt, hold = self._inputs(t, u, intersample)
+        Z = simulate_mimo_batch(self.numerators[None], self.denominators[None], inputs, dt,
+                                input_nonlinearities=self.input_nonlinearities,
+                                input_params=None if self.input_params is None else [q[None] for q in
+                                                                                     self.input_params],
+                                intersample=check_intersample(hold))
+        return Z[0].T
 
     def to_iosys(self, name: str | None = None):
         """A continuous-time :class:`control.NonlinearIOSystem` with the model's named inputs and outputs.

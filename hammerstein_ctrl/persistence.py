@@ -31,6 +31,13 @@ Schema, version 4 (a model file; a result file has ``"format":
 ``kind`` is ``"hammerstein"``, ``"wiener"`` or ``"hammerstein-wiener"`` and
 must agree with which of the two nonlinearities are present.
 
+A MIMO model (:mod:`~hammerstein_ctrl.mimo`; ``kind`` ``"mimo-hammerstein"``,
+``"mimo-wiener"`` or ``"mimo-hammerstein-wiener"``) stores ``linear.num`` as
+one list of numerators per output and input, ``linear.den`` as one
+denominator per output, ``inputs``/``outputs`` (the channels' names),
+``input_nonlinearities``/``output_nonlinearities`` as lists of blocks (or
+null) and ``offset`` as one number per output.
+
 Examples
 --------
 >>> import control as ct, tempfile, os
@@ -208,15 +215,101 @@ def _block_structure_to_dict(structure) -> dict:
             "offset": structure.offset, "initial_state": structure.initial_state}
 
 
+def _mimo_structure_to_dict(structure) -> dict:
+    lin = structure.linear
+    return {"kind": structure.kind, "linear": {"num_order": lin.num_order, "den_order": lin.den_order,
+                                               "monic_numerator": True, "fixed": {}},
+            **{key: None if nls is None else [_nonlinearity_to_dict(nl) for nl in nls]
+               for key, nls in (("input_nonlinearities", structure.input_nonlinearities),
+                                ("output_nonlinearities", structure.output_nonlinearities))},
+            "n_inputs": structure.n_inputs, "n_outputs": structure.n_outputs, "offset": structure.offset,
+            "initial_state": structure.initial_state}
+
+
 def _structure_to_dict(structure) -> dict:
     """A block structure's object; a fit to several records adds ``n_records`` (its blocks shared by them)."""
+    if str(structure.kind).startswith("mimo"):
+        return _mimo_structure_to_dict(structure)
     base = getattr(structure, "base", None)
     if base is not None and hasattr(structure, "n_records"):
         return {**_block_structure_to_dict(base), "n_records": int(structure.n_records)}
     return _block_structure_to_dict(structure)
 
 
+#: MIMO kinds and which lists of nonlinearities (input, output) each has.
+_MIMO_KINDS = {"mimo-hammerstein": (True, False), "mimo-wiener": (False, True),
+               "mimo-hammerstein-wiener": (True, True)}
+
+
+def _mimo_kind(obj, where: str) -> str:
+    kind = _string(obj["kind"], f"{where}.kind")
+    if kind not in _MIMO_KINDS:
+        raise UnknownNameError(f"{where}.kind: unknown structure {kind!r}; known: {', '.join(_MIMO_KINDS)}")
+    for present, key in zip(_MIMO_KINDS[kind], ("input_nonlinearities", "output_nonlinearities")):
+        value = obj[key]
+        if present != (value is not None) or (present and (not isinstance(value, list) or not value)):
+            raise ParameterError(f"{where}.{key} must be {'a list of blocks' if present else 'null'} in a {kind} "
+                                 "structure")
+    return kind
+
+
+def _mimo_structure_from_dict(obj, where: str):
+    from .mimo import mimo_structure
+    from .structure import LinearStructure
+
+    _keys(obj, where, ("kind", "linear", "input_nonlinearities", "output_nonlinearities", "n_inputs", "n_outputs",
+                       "offset", "initial_state"))
+    _mimo_kind(obj, where)
+    lin = _keys(obj["linear"], f"{where}.linear", ("num_order", "den_order", "monic_numerator", "fixed"))
+    linear = LinearStructure(_integer(lin["num_order"], f"{where}.linear.num_order"),
+                             _integer(lin["den_order"], f"{where}.linear.den_order"))
+    blocks = {key: None if obj[key] is None else [
+        _nonlinearity_from_dict(_keys(b, f"{where}.{key}[{k}]", ("family", "options")), f"{where}.{key}[{k}]")
+        for k, b in enumerate(obj[key])] for key in ("input_nonlinearities", "output_nonlinearities")}
+    return mimo_structure(linear, blocks["input_nonlinearities"], blocks["output_nonlinearities"],
+                          n_inputs=_integer(obj["n_inputs"], f"{where}.n_inputs", minimum=1),
+                          n_outputs=_integer(obj["n_outputs"], f"{where}.n_outputs", minimum=1),
+                          offset=_boolean(obj["offset"], f"{where}.offset"),
+                          initial_state=_string(obj["initial_state"], f"{where}.initial_state"))
+
+
+def _mimo_model_from_dict(obj, where: str):
+    from .mimo import MIMOModel
+
+    _keys(obj, where, ("name", "kind", "linear", "inputs", "outputs", "input_nonlinearities",
+                       "output_nonlinearities", "offset", "intersample"))
+    kind = _mimo_kind(obj, where)
+    lin = _keys(obj["linear"], f"{where}.linear", ("num", "den"))
+    try:
+        num = np.array(lin["num"], dtype=float)
+        den = np.array(lin["den"], dtype=float)
+    except (TypeError, ValueError):
+        raise ParameterError(f"{where}.linear must hold numbers: num as outputs x inputs x coefficients, den as "
+                             "outputs x coefficients") from None
+    for name, value in (("inputs", obj["inputs"]), ("outputs", obj["outputs"])):
+        if not isinstance(value, list) or not all(isinstance(v, str) for v in value):
+            raise ParameterError(f"{where}.{name} must be a list of channel names")
+    blocks = {}
+    for key in ("input_nonlinearities", "output_nonlinearities"):
+        pairs = [] if obj[key] is None else [_block_from_dict(b, f"{where}.{key}[{k}]") for k, b in enumerate(obj[key])]
+        blocks[key] = (None, None) if obj[key] is None else ([p[0] for p in pairs], [p[1] for p in pairs])
+    intersample = _string(obj["intersample"], f"{where}.intersample")
+    if intersample not in INTERSAMPLE:
+        raise ParameterError(f"{where}.intersample must be one of {list(INTERSAMPLE)}, got {intersample!r}")
+    if np.abs(num).max(initial=0) > MAX_MAGNITUDE or np.abs(den).max(initial=0) > MAX_MAGNITUDE:
+        raise ParameterError(f"{where}.linear has coefficients beyond {MAX_MAGNITUDE:g}")
+    offset = _numbers(obj["offset"], f"{where}.offset")
+    return MIMOModel(num, den, input_nonlinearities=blocks["input_nonlinearities"][0],
+                     input_params=blocks["input_nonlinearities"][1],
+                     output_nonlinearities=blocks["output_nonlinearities"][0],
+                     output_params=blocks["output_nonlinearities"][1], offset=offset, intersample=intersample,
+                     name=_string(obj["name"], f"{where}.name"), input_names=obj["inputs"],
+                     output_names=obj["outputs"], kind=kind)
+
+
 def _structure_from_dict(obj, where: str):
+    if isinstance(obj, dict) and str(obj.get("kind", "")).startswith("mimo"):
+        return _mimo_structure_from_dict(obj, where)
     from .structure import (INITIAL_STATES, HammersteinStructure, HammersteinWienerStructure, LinearStructure,
                             WienerStructure)
 
@@ -271,6 +364,8 @@ def model_from_dict(obj, where: str = "model"):
 
     from .model import BlockModel
 
+    if isinstance(obj, dict) and str(obj.get("kind", "")).startswith("mimo"):
+        return _mimo_model_from_dict(obj, where)
     _keys(obj, where, _MODEL_KEYS, ("delay",))
     _check_kind(obj, where)
     lin = _keys(obj["linear"], f"{where}.linear", ("num", "den"))
@@ -391,10 +486,13 @@ SavedResult = IdentificationResult
 def _data_to_dict(data) -> dict:
     if data is None:
         return {k: None for k in _DATA_KEYS}
-    return {"name": str(getattr(data, "name", "data")), "dt": float(data.dt), "n_samples": len(data),
-            "input_name": getattr(data, "input_name", "u"), "output_name": getattr(data, "output_name", "y"),
-            "input_unit": getattr(data, "input_unit", ""), "output_unit": getattr(data, "output_unit", ""),
-            "intersample": getattr(data, "intersample", "foh")}
+    out = {"name": str(getattr(data, "name", "data")), "dt": float(data.dt), "n_samples": len(data),
+           "input_name": getattr(data, "input_name", "u"), "output_name": getattr(data, "output_name", "y"),
+           "input_unit": getattr(data, "input_unit", ""), "output_unit": getattr(data, "output_unit", ""),
+           "intersample": getattr(data, "intersample", "foh")}
+    if not getattr(data, "is_siso", True):        # several channels: their names too
+        out.update(input_names=list(data.input_names), output_names=list(data.output_names))
+    return out
 
 
 def result_to_dict(result) -> dict:
@@ -414,6 +512,8 @@ def result_to_dict(result) -> dict:
         "success": bool(getattr(result, "success", False)), "message": str(getattr(result, "message", "")),
         "status": _status(getattr(result, "status", None)), "elapsed_s": _encode(getattr(result, "elapsed", math.nan)),
         **_uncertainty_to_dict(result),
+        **({"output_fits": {k: _encode(v) for k, v in result.output_fits.items()}}
+           if getattr(result, "output_fits", None) else {}),
     }
 
 
@@ -469,8 +569,11 @@ def _status(status) -> int | None:
 
 
 def _data_from_dict(obj, where: str) -> dict:
-    _keys(obj, where, _DATA_KEYS)
+    _keys(obj, where, _DATA_KEYS, ("input_names", "output_names"))
     out = dict(obj)
+    for key in ("input_names", "output_names"):
+        if key in obj and (not isinstance(obj[key], list) or not all(isinstance(v, str) for v in obj[key])):
+            raise ParameterError(f"{where}.{key} must be a list of channel names")
     if obj["dt"] is not None:
         out["dt"] = _number(obj["dt"], f"{where}.dt")
         if out["dt"] <= 0:
@@ -490,7 +593,7 @@ def result_from_dict(obj, where: str = "result") -> IdentificationResult:
     :func:`result_to_dict` (``data``: the record's description; ``saved``: its status and dof)."""
     version = _header(obj, RESULT_FORMAT, where)
     _keys(obj, where, _RESULT_KEYS + (("status",) if version >= _STATUS_VERSION else ())
-          + (_UNCERTAINTY_KEYS if version >= _UNCERTAINTY_VERSION else ()), ("records",))
+          + (_UNCERTAINTY_KEYS if version >= _UNCERTAINTY_VERSION else ()), ("records", "output_fits"))
     model = model_from_dict(obj["model"], f"{where}: model")
     structure = _structure_from_dict(obj["structure"], f"{where}: structure")
     beta = _numbers(obj["beta"], f"{where}: beta")
@@ -521,8 +624,16 @@ def result_from_dict(obj, where: str = "result") -> IdentificationResult:
         data=_data_from_dict(obj["data"], f"{where}: data"), history={}, optimize_result=None, saved=saved,
         records=records, models=tuple(structure.model(beta, k, intersample=r["intersample"] or "foh", name=r["name"])
                                       for k, r in enumerate(records)),
-        **extra,
+        output_fits=_output_fits(obj.get("output_fits"), where), **extra,
     )
+
+
+def _output_fits(obj, where: str) -> dict:
+    if obj is None:
+        return {}
+    if not isinstance(obj, dict):
+        raise ParameterError(f"{where}: output_fits must map output names to fit percentages")
+    return {str(k): _number(v, f"{where}: output_fits.{k}", finite=False) for k, v in obj.items()}
 
 
 def _records_from(obj, structure, where: str) -> tuple:

@@ -780,6 +780,8 @@ def compare(records, models, *, title=None, paired: bool = False):
     from .metrics import fit_percent
 
     records = _records(records)
+    if any(not getattr(d, "is_siso", True) for d in records):
+        return _compare_channels(records, models, title=title, paired=paired)
     if paired:
         if not isinstance(models, (list, tuple)) or len(models) != len(records):
             raise ParameterError(f"paired=True needs one model per record ({len(records)}), got {models!r}")
@@ -801,10 +803,88 @@ def compare(records, models, *, title=None, paired: bool = False):
     return fig
 
 
+def _compare_channels(records, models, *, title=None, paired=False):
+    """:func:`compare` for records with several outputs: one row per output of each record."""
+    from .metrics import fit_percent
+
+    rows = [(data, as_models(m)) for data, m in zip(records, models)] if paired else [
+        (data, as_models(models)) for data in records]
+    panels = [(data, ms, i) for data, ms in rows for i in range(data.n_outputs)]
+    fig, axes = _new_figure(len(panels), 1, figsize=(_WIDTH, 1.2 + 2.4 * len(panels)))
+    for a, (data, row_models, i) in zip(axes[:, 0], panels):
+        ys, bad = _outputs_mimo(data, row_models)
+        y = data.outputs[:, i]
+        a.plot(data.t, y, label="measured", **_MEASURED)
+        for label in row_models:
+            if label in ys:
+                a.plot(data.t, ys[label][:, i], lw=1.0, label=f"{label}: fit {fit_percent(y, ys[label][:, i]):.1f} %")
+        _mark_unusable(a, bad)
+        _finish(a, xlabel="time (s)", ylabel=_label(data.output_names[i], data.output_units[i]),
+                title=f"{data.name}: {data.output_names[i]}")
+    if title:
+        fig.suptitle(title)
+    return fig
+
+
+def _outputs_mimo(data, models) -> tuple[dict, list]:
+    """Simulated outputs ``(N, p)`` of MIMO models on a record with as many outputs."""
+    ys, bad = {}, []
+    for label, m in models.items():
+        if getattr(m, "n_outputs", 1) != data.n_outputs or getattr(m, "n_inputs", 1) != data.n_inputs:
+            raise ParameterError(f"model {label!r} has {getattr(m, 'n_inputs', 1)} input(s) and "
+                                 f"{getattr(m, 'n_outputs', 1)} output(s); record {data.name!r} has "
+                                 f"{data.n_inputs} and {data.n_outputs}")
+        with np.errstate(all="ignore"):
+            y = np.asarray(m.simulate(data), dtype=float)
+        if np.all(np.isfinite(y)):
+            ys[label] = y
+        else:
+            bad.append(label)
+    return ys, bad
+
+
+def mimo_figure(result, *, zoom=None):
+    """Overview of a MIMO identification: per output, measured vs simulated and the residual; then each
+    channel's static nonlinearity over the range the record shows."""
+    from .metrics import fit_percent
+
+    data, model, label = result.data, result.model, method_label(result.method)
+    with np.errstate(all="ignore"):
+        Y = np.asarray(model.simulate(data), dtype=float)
+    sel = np.ones(len(data), bool) if zoom is None else _window(data, zoom)
+    statics = [("g", j, nl, q, data.inputs[:, j], data.input_names[j])
+               for j, (nl, q) in enumerate(zip(model.input_nonlinearities or (), model.input_params or ()))]
+    Z = model.h_input(data) if model.output_nonlinearities is not None else None
+    statics += [("h", i, nl, q, Z[:, i], f"linear output {i}")
+                for i, (nl, q) in enumerate(zip(model.output_nonlinearities or (), model.output_params or ()))]
+    p = data.n_outputs
+    fig, axes = _new_figure(2 * p + len(statics), 1, figsize=(_WIDTH, 2.0 + 2.3 * (2 * p + len(statics))))
+    for i in range(p):
+        a, b = axes[2 * i, 0], axes[2 * i + 1, 0]
+        y, yhat, name, unit = data.outputs[:, i], Y[:, i], data.output_names[i], data.output_units[i]
+        a.plot(data.t[sel], y[sel], label="measured", **_MEASURED)
+        if np.all(np.isfinite(yhat)):
+            a.plot(data.t[sel], yhat[sel], lw=1.0, label=f"{label}: fit {fit_percent(y, yhat):.1f} %")
+            b.plot(data.t[sel], (y - yhat)[sel], lw=0.8, color="C1", label=f"RMS {_rms(y - yhat):.3g}")
+        else:
+            _mark_unusable(a, [label])
+        b.axhline(0.0, color="k", lw=0.6)
+        _finish(a, xlabel="time (s)", ylabel=_label(name, unit),
+                title=f"{name}: {label} on {data.name}" + ("" if result.success else " [FAILED]"))
+        _finish(b, xlabel="time (s)", ylabel=_label(f"residual in {name}", unit))
+    for c, (kind, k, nl, q, signal, where) in zip(axes[2 * p:, 0], statics):
+        grid = np.linspace(np.min(signal), np.max(signal), 400)
+        c.plot(grid, nl(grid, q), lw=1.2, label=nl.describe(q))
+        _finish(c, xlabel=where, ylabel=f"{kind}{k}", title=f"{kind}{k}: static nonlinearity over the range seen")
+    return fig
+
+
 def result_figure(result, *, zoom=None):
     """Overview of one IdentificationResult: measured vs simulated, the residual, and ``g(u)`` / ``h(z)``."""
     if not is_identification_result(result):
         raise ParameterError(f"result_figure needs an IdentificationResult, got {type(result).__name__}")
+    if getattr(result.model, "n_outputs", 1) * getattr(result.model, "n_inputs", 1) > 1:
+        return mimo_figure(result, zoom=zoom)
     data, model, label = result.data, result.model, method_label(result.method)
     with np.errstate(all="ignore"):
         yhat = np.asarray(model.simulate(data), dtype=float)

@@ -167,6 +167,8 @@ class IdentificationResult(UncertainParameters):
         if isinstance(data, (list, tuple)) and data and all(hasattr(d, "u") for d in data):
             return [self.validate(d, initial_state=initial_state) for d in data]
         data = as_iodata(data)
+        if self.is_mimo:
+            return self._validate_channels(data, initial_state)
         mode = initial_state or self.structure.initial_state
         if mode not in ("zero", "estimate"):
             raise ParameterError(f"initial_state must be 'zero' or 'estimate', got {initial_state!r}")
@@ -177,6 +179,29 @@ class IdentificationResult(UncertainParameters):
         if not np.all(np.isfinite(yhat)):
             return {"sse": np.inf, "rmse": np.inf, "nrmse": np.inf, "fit_percent": -np.inf}
         return fit_report(data.y, yhat)
+
+    @property
+    def is_mimo(self) -> bool:
+        """Whether the fit is of a MIMO structure (:mod:`~hammerstein_ctrl.mimo`)."""
+        return str(getattr(self.structure, "kind", "")).startswith("mimo")
+
+    def _validate_channels(self, data, initial_state):
+        """:meth:`validate` of a MIMO model: the overall figures and ``outputs``, each output's own."""
+        if initial_state not in (None, "zero"):
+            raise ParameterError("a MIMO model is simulated from rest (initial_state='zero')")
+        model = self.model
+        if (data.n_inputs, data.n_outputs) != (model.n_inputs, model.n_outputs):
+            raise ParameterError(f"record {data.name!r} has {data.n_inputs} input(s) and {data.n_outputs} "
+                                 f"output(s); the model has {model.n_inputs} and {model.n_outputs}")
+        with np.errstate(all="ignore"):
+            Y = model.simulate(data)
+        if not np.all(np.isfinite(Y)):
+            return {"sse": np.inf, "rmse": np.inf, "nrmse": np.inf, "fit_percent": -np.inf, "outputs": {}}
+        reports = {name: fit_report(data.outputs[:, i], Y[:, i]) for i, name in enumerate(data.output_names)}
+        E = data.outputs - Y
+        return {"sse": float(np.sum(E * E)), "rmse": float(np.sqrt(np.mean(E * E))),
+                "nrmse": float(np.mean([r["nrmse"] for r in reports.values()])),
+                "fit_percent": float(np.mean([r["fit_percent"] for r in reports.values()])), "outputs": reports}
 
     def _model_for(self, data):
         """The model of ``data`` if it is one of a joint fit's records (for a result read from a file: the record
@@ -192,8 +217,8 @@ class IdentificationResult(UncertainParameters):
                                  "and initial state")
         return alike[0] if alike else self.model
 
-    def residual_analysis(self, data=None, *, lags: int | None = None, initial_state: str | None = None
-                          ) -> ResidualAnalysis:
+    def residual_analysis(self, data=None, *, lags: int | None = None, initial_state: str | None = None,
+                          output=0, input=0) -> ResidualAnalysis:
         """Residual analysis (MATLAB ``resid``) on the estimation record or on ``data``.
 
         Parameters
@@ -205,18 +230,29 @@ class IdentificationResult(UncertainParameters):
             Default ``config.defaults["residual_analysis.lags"]``.
         initial_state : {"zero", "estimate"}, optional
             For another record, as :meth:`validate` (default: as identified).
+        output, input : int or str, default 0
+            For a MIMO fit: the output whose residuals are analysed, against which input.
 
         Returns
         -------
         ResidualAnalysis
             Its ``plot()`` draws the correlations with their 99 % bounds.
         """
-        if data is None and self.analysis is not None and lags in (None, self.analysis.lags[-1]):
-            return self.analysis
         if self.model is None:
             raise ParameterError(f"this identification produced no model to analyse ({self.message})")
         from .display import as_iodata
 
+        if self.is_mimo:
+            record = (self._record() if data is None else as_iodata(data)).channel()
+            o = record._channel_index(output, record.output_names, "output")[0]
+            i = record._channel_index(input, record.input_names, "input")[0]
+            with np.errstate(all="ignore"):
+                yhat = self.model.simulate(record)[:, o]
+            return residual_analysis(record.outputs[:, o] - yhat, record.inputs[:, i], dt=record.dt, simulated=yhat,
+                                     lags=lags, name=f"{record.name}: {record.output_names[o]} against "
+                                                     f"{record.input_names[i]}")
+        if data is None and self.analysis is not None and lags in (None, self.analysis.lags[-1]):
+            return self.analysis
         record = self._record() if data is None else as_iodata(data)
         yhat = self._simulated(record, initial_state)
         if not np.all(np.isfinite(yhat)):
@@ -273,10 +309,12 @@ class IdentificationResult(UncertainParameters):
             Rows ``(quantity, value, stderr, low, high)``; renders in Jupyter,
             ``to_frame()`` gives a DataFrame.
         """
-        from .uncertainty import linear_characteristics
+        from .uncertainty import linear_characteristics, row_characteristics
 
         if self.covariance is None:
             raise ParameterError("this result carries no covariance (identify(..., uncertainty=False), or no model)")
+        if self.is_mimo:
+            return row_characteristics(self.structure, self.x, self.covariance, level=level, dof=self.dof)
         return linear_characteristics(self.structure, self.x, self.covariance, level=level, dof=self.dof)
 
     def summary(self) -> str:
@@ -293,6 +331,16 @@ class IdentificationResult(UncertainParameters):
 
     def to_dict(self) -> dict:
         """JSON-serialisable description of the fitted model and the run."""
+        if self.is_mimo:
+            from ._writer import json_safe, model_to_dict
+
+            return json_safe({
+                "method": self.method, "data": self.record_name, "structure": self.structure.describe(),
+                "params": self.params, "beta": self.x.tolist(), "J": self.fun, "nfev": self.nfev,
+                "fit_percent": self.fit_percent, "output_fits": dict(self.output_fits), "rmse": self.rmse,
+                "nrmse": self.nrmse, "success": self.success, "status": self.status, "message": self.message,
+                "elapsed_s": self.elapsed, "stderr": None if self.covariance is None else list(self.stderr.values()),
+                "warnings": list(self.warnings), "model": model_to_dict(self.model)})
         num = np.asarray(self.model.linear.num[0][0], dtype=float).tolist()
         den = np.asarray(self.model.linear.den[0][0], dtype=float).tolist()
         return {

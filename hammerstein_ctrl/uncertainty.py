@@ -689,6 +689,44 @@ def linear_characteristics(structure, x, covariance, *, level: float | None = No
     return rows
 
 
+def row_characteristics(structure, x, covariance, *, level: float | None = None, dof: int = 10**9
+                        ) -> CharacteristicsTable:
+    """:func:`linear_characteristics` of a MIMO structure: each output row's poles, then each element's DC gain.
+
+    The poles come from the exact root sensitivities of the row's
+    denominator; a DC gain ``B_ij(0)/F_i(0)`` from a forward-difference
+    gradient (it is smooth in beta).  Quantities are named after their row
+    (``pole 1 [y0]``) or element (``DC gain [y1, u0]``).
+    """
+    x = np.asarray(x, dtype=float)
+    cov = np.asarray(covariance, dtype=float)
+    k = t_factor(level, dof)
+    rows = CharacteristicsTable()
+    num, den = structure.coefficients(x)
+    for i in range(structure.n_outputs):
+        pos, idx = structure.row_denominator(i)
+        roots, grads = root_gradients(den[0, i], pos)
+        full = np.zeros((roots.size, x.size), dtype=complex)
+        full[:, idx] = grads
+        part = CharacteristicsTable()
+        _root_rows(part, "pole", roots, list(full), cov, k)
+        rows += [(f"{q} [y{i}]", *rest) for q, *rest in part]
+
+    def gains(b):
+        n, d = structure.coefficients(b)
+        return (n[0, :, :, -1] / d[0, :, -1:]).ravel()
+
+    from .normal_equations import forward_steps
+
+    h = forward_steps(x)
+    g0 = gains(x)
+    G = np.column_stack([(gains(x + h[j] * np.eye(x.size)[j]) - g0) / h[j] for j in range(x.size)])
+    for e, (value, grad) in enumerate(zip(g0, G)):
+        i, j = divmod(e, structure.n_inputs)
+        rows.append(_row(f"DC gain [y{i}, u{j}]", value, grad, cov, k))
+    return rows
+
+
 def linear_roots(structure, x) -> list[tuple[str, complex, np.ndarray]]:
     """``(kind, root, gradient)`` for each pole and zero of a structure's ``H``: the gradient (complex) is
     with respect to the whole beta (:func:`root_gradients` on the free coefficients).

@@ -253,3 +253,85 @@ def test_the_mimo_cost_keeps_the_least_squares_protocol():
     assert R.shape == (2, 2 * N)
     assert np.isclose(R[1] @ R[1], cost(truth * 1.01))
     assert np.allclose(cost.split(R[0])[1], data.outputs[:, 1] - s.model(truth).simulate(data)[:, 1])
+
+
+# -- persistence ----------------------------------------------------------------------------------------
+def test_a_mimo_model_and_result_save_and_load_bit_for_bit(tmp_path):
+    data, s, _ = record("wiener", 5)
+    res = _identify(data, s)
+    hc.save_result(res, tmp_path / "r.json")
+    back = hc.load_result(tmp_path / "r.json")
+    assert back.x.tolist() == res.x.tolist() and back.structure.param_names == s.param_names
+    assert type(back.structure) is type(s) and back.output_fits == res.output_fits
+    assert np.array_equal(back.covariance, res.covariance)
+    assert np.array_equal(back.model.simulate(data), res.model.simulate(data))
+    hc.save_model(res.model, tmp_path / "m.json")
+    model = hc.load_model(tmp_path / "m.json")
+    assert model.output_names == ("y[0]", "y[1]") and model.kind == "mimo-wiener"
+    assert np.array_equal(model.numerators, res.model.numerators)
+
+
+@pytest.mark.parametrize("edit, words", [
+    (lambda m: m.update(kind="mimo-nothing"), "unknown structure"),
+    (lambda m: m.update(input_nonlinearities=[]), "must be null"),
+    (lambda m: m["linear"].update(num=[[["a"]]]), "must hold numbers"),
+    (lambda m: m.update(outputs="y"), "list of channel names"),
+    (lambda m: m.update(offset=[0.0, "nan"]), "offset"),
+])
+def test_a_corrupt_mimo_model_file_is_refused_naming_the_field(tmp_path, edit, words):
+    import json
+
+    _, s, truth = record("wiener", 0)
+    hc.save_model(s.model(truth), tmp_path / "m.json")
+    obj = json.loads((tmp_path / "m.json").read_text())
+    edit(obj["model"])
+    (tmp_path / "m.json").write_text(json.dumps(obj))
+    with pytest.raises(hc.HammersteinError, match=words):
+        hc.load_model(tmp_path / "m.json")
+
+
+# -- results ----------------------------------------------------------------------------------------------
+@pytest.fixture(scope="module")
+def fitted():
+    data, s, truth = record("hammerstein", 0)
+    return data, truth, _identify(data, s)
+
+
+def test_validation_reports_each_output(fitted):
+    data, _, res = fitted
+    report = res.validate(data)
+    assert set(report["outputs"]) == {"y[0]", "y[1]"}
+    assert report["fit_percent"] == pytest.approx(res.fit_percent)
+    assert report["outputs"]["y[1]"]["fit_percent"] == pytest.approx(res.output_fits["y[1]"])
+    with pytest.raises(ParameterError, match="from rest"):
+        res.validate(data, initial_state="estimate")
+
+
+def test_characteristics_give_each_rows_poles_and_each_elements_gain_with_uncertainty(fitted):
+    _, truth, res = fitted
+    table = {q: (v, se) for q, v, se, _, _ in res.characteristics()}
+    true_poles = np.roots(DEN[1])                                  # row 1: real poles -0.75 +- ...
+    assert np.allclose(sorted(v for q, (v, _) in table.items() if q.startswith("pole") and "[y1]" in q),
+                       sorted(true_poles.real), atol=4 * max(se for q, (_, se) in table.items() if "[y1]" in q))
+    gain = table["DC gain [y1, u0]"]
+    assert abs(gain[0] - 1.0 / 1.5) < 4 * gain[1]                 # B_10(0)/F_1(0) = 1.0 / 1.5
+    prop = res.propagate(lambda m: [m.linear.dcgain()[1, 0]])
+    assert prop.stderr[0] == pytest.approx(gain[1], rel=0.02)
+
+
+def test_the_figures_show_every_channel(fitted):
+    import matplotlib.pyplot as plt
+
+    data, _, res = fitted
+    fig = res.plot()
+    titles = [a.get_title() for a in fig.axes]
+    assert sum(t.startswith("y[") for t in titles) == 2 and sum(t.startswith("g") for t in titles) == 2
+    fig2 = res.compare()
+    assert len(fig2.axes) == 2 and "fit" in fig2.axes[1].get_legend_handles_labels()[1][1]
+    plt.close("all")
+
+
+def test_residual_analysis_takes_an_output_and_an_input(fitted):
+    data, _, res = fitted
+    a = res.residual_analysis(output="y[1]", input=1)
+    assert "y[1] against u[1]" in a.name and a.passed
