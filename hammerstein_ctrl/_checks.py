@@ -135,6 +135,9 @@ def as_channels(x, name: str) -> np.ndarray:
         x = np.ma.getdata(x)
     raw = x
     shape = np.shape(raw)
+    if len(shape) > 2:
+        raise DataError(f"{name} must be one signal (N,) or channels as columns (N, m), got an array of shape "
+                        f"{shape}")
     if len(shape) != 2 or 1 in shape:
         return as_signal(x, name)
     rows, cols = shape

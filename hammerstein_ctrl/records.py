@@ -42,8 +42,8 @@ __all__ = ["read_record", "DataNotFoundError", "add_record_arguments", "record_f
 #: File suffixes :func:`read_record` reads.
 FILE_TYPES = (".csv", ".txt", ".mat", ".npz")
 _TIME_NAMES = ("t", "time")
-_INPUT_NAMES = ("u", "input", "vir")
-_OUTPUT_NAMES = ("y", "output", "qm")
+_INPUT_NAMES = ("u", "input")
+_OUTPUT_NAMES = ("y", "output")
 #: Longest excerpt of a bad field or parser message quoted in an error.
 _QUOTE = 60
 #: Most column names listed in an error.
@@ -371,22 +371,41 @@ def _pick(columns: dict, wanted, defaults, role: str, path) -> str | None:
     return matches[0] if matches else None
 
 
+def _channels(columns: dict, wanted, defaults, role: str, path) -> list:
+    """The columns of ``role``: one (a name or the default), or each of a list of names."""
+    if wanted is None or not isinstance(wanted, (list, tuple)):
+        key = _pick(columns, wanted, defaults, role, path)
+        if key is None:
+            raise DataError(f"{path}: cannot tell which column is the {role}; available: {_describe(columns)} "
+                            "(name it with input=/output=, or --input/--output on the command line)")
+        return [key]
+    wanted = list(wanted)
+    if not wanted:
+        raise DataError(f"{path}: give at least one {role} column")
+    return [_pick(columns, w, defaults, role, path) for w in wanted]
+
+
 def _select(path: Path, columns: dict, input, output, time, dt):
-    keys = {role: _pick(columns, w, d, role, path) for role, w, d in (
-        ("input", input, _INPUT_NAMES), ("output", output, _OUTPUT_NAMES), ("time", time, _TIME_NAMES))}
-    for role in ("input", "output"):
-        if keys[role] is None:
-            raise DataError(
-                f"{path}: cannot tell which column is the {role}; available: {_describe(columns)} "
-                "(name it with input=/output=, or --input/--output on the command line)"
-            )
-    chosen = [k for k in keys.values() if k is not None]
+    """``(u, y, t, names)``: the chosen columns (several channels as 2-D arrays) and their labels."""
+    ins, outs = _channels(columns, input, _INPUT_NAMES, "input", path), _channels(columns, output, _OUTPUT_NAMES,
+                                                                                  "output", path)
+    t_key = _pick(columns, time, _TIME_NAMES, "time", path)
+    chosen = ins + outs + ([t_key] if t_key is not None else [])
     if len(set(chosen)) < len(chosen):
-        raise DataError(f"{path}: the same column is chosen for two roles: {keys}")
-    if keys["time"] is None and dt is None:
+        raise DataError(f"{path}: the same column is chosen for two roles: input {ins}, output {outs}, time {t_key}")
+    if t_key is None and dt is None:
         raise DataError(f"{path}: no time column ({'/'.join(_TIME_NAMES)}); give dt (--dt)")
-    return [None if keys[r] is None else _vector(path, keys[r], columns[keys[r]])
-            for r in ("input", "output", "time")]
+
+    def signal(keys):
+        vectors = [_vector(path, k, columns[k]) for k in keys]
+        if len(vectors) == 1:
+            return vectors[0]
+        if len({v.size for v in vectors}) > 1:
+            raise DataError(f"{path}: the columns {keys} have different lengths {[v.size for v in vectors]}")
+        return np.column_stack(vectors)
+
+    names = {} if len(ins) == 1 and len(outs) == 1 else {"input_name": ins, "output_name": outs}
+    return signal(ins), signal(outs), None if t_key is None else _vector(path, t_key, columns[t_key]), names
 
 
 _READERS = {".csv": _read_text_columns, ".txt": _read_text_columns,
@@ -447,17 +466,24 @@ def read_record(
       semicolons (then decimal commas are accepted), tabs or blanks, with a
       header row naming the columns (``#`` lines are comments).  Names match
       without case or units: ``Time [s]`` is a time column.  By default the
-      time column is ``t``/``time``, the input ``u``/``input``/``vir`` and the
-      output ``y``/``output``/``qm``.  Without a header, 3 columns mean
-      ``t, u, y`` and 2 columns ``u, y`` (then ``dt`` is required).
+      time column is ``t``/``time``, the input ``u``/``input`` and the
+      output ``y``/``output``; other names are given with ``input=`` and
+      ``output=``.  Without a header, 3 columns mean ``t, u, y`` and 2
+      columns ``u, y`` (then ``dt`` is required).
     * **MAT** (``scipy.io.loadmat``, up to v7) or **NPZ** files with one vector
-      per variable, named as above (e.g. the EMPS files work unchanged).
+      per variable, named as above.
+
+    A record of a MIMO plant takes a list of columns for ``input`` and/or
+    ``output`` (one channel each, named after its column).
 
     Parameters
     ----------
     path : str or Path
-    input, output, time : str, optional
-        Column/variable names overriding the defaults.
+    input, output : str or list of str, optional
+        Column/variable names overriding the defaults; a list reads several
+        channels (an :class:`IOData` with one column per channel).
+    time : str, optional
+        The time column/variable.
     dt : float, optional
         Sampling interval when the file has no time column, or the interval of
         the resampled grid.
@@ -494,12 +520,12 @@ def read_record(
     columns = _columns(path)
     if dt is not None:
         dt = check_dt(dt)
-    u, y, t = _select(path, columns, input, output, time, dt)
+    u, y, t, names = _select(path, columns, input, output, time, dt)
     try:
         if t is not None and (start is not None or stop is not None):
             u, y, t = _window_raw(u, y, t, start, stop)
         data = IOData(u, y, t, dt=dt, name=name or path.stem, tolerance=tolerance,
-                      resample=resample, intersample=intersample)
+                      resample=resample, intersample=intersample, **names)
         if t is None and (start is not None or stop is not None):
             data = data.window(start, stop)
     except DataError as exc:

@@ -24,7 +24,7 @@ from hammerstein_ctrl.simulate import lsim
         (dict(u=[0, 1, 2], y=[0, 1, 2], t=[0, 1]), "length mismatch: t has 2 samples"),
         (dict(u=[0, 1, 2], y=[0, 1, 2]), "give the sample times t or the sampling interval dt"),
         (dict(u=[0, 1, 2], y=[0, 1, 2], dt=-0.1), "dt must be a positive finite number"),
-        (dict(u=[[0, 1], [2, 3]], y=[0, 1], dt=1.0), "u must be a 1-D signal"),
+        (dict(u=np.zeros((2, 2, 2)), y=[0, 1], dt=1.0), r"u must be one signal \(N,\) or channels as columns"),
         (dict(u=["a", "b"], y=[0, 1], dt=1.0), "u must be numeric"),
     ],
 )
@@ -127,7 +127,7 @@ def test_read_record_layouts(tmp_path, emps_dir):
     (tmp_path / "named.csv").write_text("time,volts,angle\n0,1,2\n1,3,4\n2,5,6\n")
     named = read_record(tmp_path / "named.csv", input="volts", output="angle")
     assert named.y.tolist() == [2, 4, 6]
-    mat = read_record(emps_dir / "DATA_EMPS.mat")
+    mat = read_record(emps_dir / "DATA_EMPS.mat", input="vir", output="qm")
     assert len(mat) == 24841 and mat.dt == 0.001
     np.savez(tmp_path / "r.npz", t=np.arange(5.0), u=np.ones(5), y=np.zeros(5))
     assert len(read_record(tmp_path / "r.npz")) == 5

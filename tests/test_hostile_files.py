@@ -114,7 +114,8 @@ case("csv-spaces-around", "r.csv", rows(sep=" ,  ", header="t , u , y"), Ok())
 case("csv-upper-suffix", "R.CSV", GOOD_CSV, Ok())
 case("csv-named-columns", "r.csv", rows(header="zeit,force,position"), Ok(),
      input="force", output="position", time="zeit")
-case("csv-emps-names", "r.csv", rows(header="t,vir,qm"), Ok())
+case("csv-names-given", "r.csv", rows(header="t,vir,qm"), Ok(), input="vir", output="qm")
+case("csv-names-unknown", "r.csv", rows(header="t,vir,qm"), Err("cannot tell which column is the input"))
 case("csv-negative-start", "r.csv", rows(t=T - 1.0), Ok(t=T - 1.0))
 case("csv-epoch-time", "r.csv", rows(t=T + 1.7e9), Ok(t=T + 1.7e9))
 case("csv-two-rows", "r.csv", rows(T[:2], U[:2], Y[:2]), Ok(U[:2], Y[:2], T[:2]))
@@ -345,7 +346,7 @@ case("npz-jitter", "r.npz", npz(t=T + 0.01 * np.r_[0, 0.2, 0, 0, 0, 0, 0, 0], u=
 # ---------------------------------------------------------------------------
 case("mat-plain", "r.mat", mat({"t": T, "u": U, "y": Y}), Ok())
 case("mat-columns", "r.mat", mat({"t": T[:, None], "u": U[:, None], "y": Y[:, None]}), Ok())
-case("mat-emps-names", "r.mat", mat({"t": T, "vir": U, "qm": Y}), Ok())
+case("mat-names-given", "r.mat", mat({"t": T, "vir": U, "qm": Y}), Ok(), input="vir", output="qm")
 case("mat-v4", "r.mat", mat({"t": T, "u": U, "y": Y}, format="4"), Ok())
 case("mat-compressed", "r.mat", mat({"t": T, "u": U, "y": Y}, do_compression=True), Ok())
 case("mat-ints", "r.mat", mat({"t": np.arange(3, dtype=np.int32), "u": np.array([1, 2, 3], np.int8),
