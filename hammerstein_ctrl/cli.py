@@ -310,7 +310,7 @@ def _cmd_identify(args) -> int:
     plot = _check_plot_path(args.plot) if args.plot else None
     out = _writable_file("--out", args.out) if args.out else None
     data = record_from_args(args)
-    structure, default_x0 = _structure_from_args(args)
+    structure, default_x0 = _structure_from_args(args) if data.is_siso else _mimo_structure_from_args(args, data)
     data.check_identifiable(structure.n_params)
     x0 = args.x0 if args.x0 is not None else (None if auto else default_x0)
     bounds = None
@@ -337,10 +337,40 @@ def _cmd_identify(args) -> int:
 
         from .safe_io import save_figure
 
-        fig = time_response(data, {result.method: result.model})
+        fig = time_response(data, {result.method: result.model}) if data.is_siso else result.compare()
         save_figure(fig, plot, dpi=120)
         print(f"figure written to {plot}")
     return 0 if result.success else 1
+
+
+def _mimo_structure_from_args(args, data):
+    """A MIMO structure for a record with several channels: --orders for every element, --nonlinearity on every
+    input, --output-nonlinearity on every output."""
+    from .mimo import mimo_structure
+    from .nonlinearities import nonlinearity_from_name
+    from .structure import LinearStructure
+
+    unsupported = [flag for flag, given in (("--structure", args.structure), ("--fix", args.fix),
+                                            ("--free-gain", args.free_gain), ("--delay", args.delay is not None),
+                                            ("--initial-state estimate", args.initial_state == "estimate"))
+                   if given]
+    if unsupported:
+        raise HammersteinError(f"{', '.join(unsupported)} cannot be used with a record of {data.n_inputs} inputs and "
+                               f"{data.n_outputs} outputs (a MIMO fit takes --orders, --nonlinearity, "
+                               "--output-nonlinearity and --offset)")
+    if not (args.orders and (args.nonlinearity or args.output_nonlinearity)):
+        raise HammersteinError("a MIMO record needs --orders L M and --nonlinearity NAME (every input) and/or "
+                               "--output-nonlinearity NAME (every output)")
+    g = h = None
+    if args.nonlinearity:
+        g = [nonlinearity_from_name(args.nonlinearity, **_family_options(args.degree, args.breakpoints))
+             for _ in range(data.n_inputs)]
+    if args.output_nonlinearity:
+        h = [nonlinearity_from_name(args.output_nonlinearity,
+                                    **_family_options(args.output_degree, args.output_breakpoints))
+             for _ in range(data.n_outputs)]
+    return mimo_structure(LinearStructure(args.orders[0], args.orders[1]), g, h, n_inputs=data.n_inputs,
+                          n_outputs=data.n_outputs), None
 
 
 def _gain_options(args) -> dict:

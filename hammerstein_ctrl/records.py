@@ -539,7 +539,8 @@ def read_record(
 def add_record_arguments(parser: argparse.ArgumentParser) -> None:
     """Add the options of :func:`read_record` to a command-line parser.
 
-    ``--data`` (required), ``--input``, ``--output``, ``--time``, ``--dt``,
+    ``--data`` (required), ``--input``, ``--output`` (or ``--inputs``/``--outputs``
+    with several names), ``--time``, ``--dt``,
     ``--start``, ``--stop``, ``--tolerance``, ``--resample`` and
     ``--intersample``; :func:`record_from_args` reads the record they describe.
 
@@ -553,8 +554,11 @@ def add_record_arguments(parser: argparse.ArgumentParser) -> None:
     """
     g = parser.add_argument_group("data")
     g.add_argument("--data", required=True, help="CSV, text, MAT or NPZ file")
-    g.add_argument("--input", help="input column/variable name")
-    g.add_argument("--output", help="output column/variable name")
+    ins, outs = g.add_mutually_exclusive_group(), g.add_mutually_exclusive_group()
+    ins.add_argument("--input", help="input column/variable name")
+    ins.add_argument("--inputs", nargs="+", metavar="NAME", help="several input columns (a MIMO record)")
+    outs.add_argument("--output", help="output column/variable name")
+    outs.add_argument("--outputs", nargs="+", metavar="NAME", help="several output columns (a MIMO record)")
     g.add_argument("--time", help="time column/variable name")
     g.add_argument("--dt", type=float, help="sampling interval when the file has no time column "
                    "(or of the resampled grid)")
@@ -572,7 +576,7 @@ def add_record_arguments(parser: argparse.ArgumentParser) -> None:
 def record_from_args(args: argparse.Namespace) -> IOData:
     """The record described by the options of :func:`add_record_arguments`."""
     return read_record(
-        args.data, input=args.input, output=args.output, time=args.time, dt=args.dt,
+        args.data, input=args.inputs or args.input, output=args.outputs or args.output, time=args.time, dt=args.dt,
         start=args.start, stop=args.stop, tolerance=args.tolerance, resample=args.resample,
         intersample=args.intersample,
     )

@@ -246,8 +246,8 @@ def select_structure(data, candidates, validation=None, criterion: str = "aic", 
     cands = list(candidates.values() if isinstance(candidates, Mapping) else candidates)
     if not cands or not all(isinstance(c, BlockStructure) for c in cands):
         raise ParameterError("candidates must be a non-empty sequence of structures (e.g. candidate_structures(...))")
-    data = as_iodata(data)
-    validation = None if validation is None else as_iodata(validation)
+    data = as_iodata(data).require_siso("select_structure")
+    validation = None if validation is None else as_iodata(validation).require_siso("select_structure")
     pool, owned = make_executor(executor, jobs)
     try:
         if pool is None:

@@ -104,6 +104,12 @@ def test_a_siso_structure_refuses_a_mimo_record_saying_what_to_do():
         hc.identify(data, hc.HammersteinStructure(hc.LinearStructure(1, 2), hc.Tanh()))
 
 
+def test_structure_selection_refuses_a_mimo_record():
+    data, _, _ = record("hammerstein", 0)
+    with pytest.raises(DataError, match="select_structure takes one of each"):
+        hc.select_structure(data)
+
+
 def test_a_mimo_structure_refuses_a_record_with_other_channels():
     data, s, _ = record("hammerstein", 0)
     with pytest.raises(DataError, match="has 2 input"):
@@ -335,3 +341,41 @@ def test_residual_analysis_takes_an_output_and_an_input(fitted):
     data, _, res = fitted
     a = res.residual_analysis(output="y[1]", input=1)
     assert "y[1] against u[1]" in a.name and a.passed
+
+
+# -- command line ------------------------------------------------------------------------------------------
+def test_the_command_line_identifies_a_mimo_record_from_named_columns(tmp_path, capsys):
+    from hammerstein_ctrl.cli import main
+
+    data, _, truth = record("hammerstein", 3)
+    path = tmp_path / "twin.csv"
+    columns = np.column_stack([data.t, data.inputs, data.outputs])
+    np.savetxt(path, columns, delimiter=",", header="t,v_pitch,v_yaw,pitch,yaw", comments="", fmt="%.17g")
+    code = main(["identify", "--data", str(path), "--inputs", "v_pitch", "v_yaw", "--outputs", "pitch", "yaw",
+                 "--orders", "1", "2", "--nonlinearity", "tanh", "--out", str(tmp_path / "r.json"),
+                 "--plot", str(tmp_path / "f.png")])
+    out = capsys.readouterr().out
+    assert code == 0, out
+    res = hc.load_result(tmp_path / "r.json")
+    assert set(res.output_fits) == {"pitch", "yaw"} and res.model.input_names == ("v_pitch", "v_yaw")
+    se = np.sqrt(np.diag(res.covariance))
+    assert np.all(np.abs(res.x - truth) < 4 * se)
+    assert (tmp_path / "f.png").stat().st_size > 0
+
+
+@pytest.mark.parametrize("extra, words", [
+    (["--fix", "a0=0"], "--fix cannot be used with a record of 2 inputs"),
+    (["--delay", "0.1"], "--delay cannot be used"),
+    ([], "needs --orders"),
+])
+def test_the_command_line_refuses_what_a_mimo_fit_cannot_take_in_one_line(tmp_path, capsys, extra, words):
+    from hammerstein_ctrl.cli import main
+
+    path = tmp_path / "twin.csv"
+    path.write_text("t,a,b,c,d\n" + "\n".join(f"{k * 0.1},{k % 3},{k % 5},{k % 7},{k % 2}" for k in range(50)))
+    args = ["identify", "--data", str(path), "--inputs", "a", "b", "--outputs", "c", "d"]
+    if words != "needs --orders":
+        args += ["--orders", "0", "1", "--nonlinearity", "tanh"]
+    code = main(args + extra)
+    err = capsys.readouterr().err
+    assert code == 2 and words in err and err.count("\n") == 1
