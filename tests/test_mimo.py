@@ -107,7 +107,7 @@ def test_a_siso_structure_refuses_a_mimo_record_saying_what_to_do():
 def test_structure_selection_refuses_a_mimo_record():
     data, _, _ = record("hammerstein", 0)
     with pytest.raises(DataError, match="select_structure takes one of each"):
-        hc.select_structure(data, hc.candidate_structures())
+        hc.select_structure(data, hc.candidate_structures([(0, 1)], [hc.Tanh()]))
 
 
 def test_a_mimo_structure_refuses_a_record_with_other_channels():
