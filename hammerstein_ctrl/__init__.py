@@ -33,7 +33,7 @@ __version__ = "0.1.0"
 #: Sub-modules exposed as attributes of the package.
 _SUBMODULES = ("iodata", "metrics", "nonlinearities", "optimize", "plots", "records",
                "simulate", "control_design", "exact_export", "persistence", "display", "uncertainty",
-               "diagnostics", "residual_analysis", "selection", "config", "paper")
+               "diagnostics", "residual_analysis", "selection", "config", "paper", "mimo")
 
 #: Public name -> the sub-module that defines it.
 _LAZY_NAMES = {
@@ -50,29 +50,29 @@ _LAZY_NAMES = {
     "PerturbationGain": "optimize", "StepGain": "optimize", "minimize": "optimize",
     "BlockStructure": "structure", "HammersteinStructure": "structure", "WienerStructure": "structure",
     "HammersteinWienerStructure": "structure", "LinearStructure": "structure",
+    "MIMOHammersteinStructure": "mimo", "MIMOWienerStructure": "mimo", "MIMOHammersteinWienerStructure": "mimo",
+    "MIMOModel": "mimo", "mimo_structure": "mimo",
     "load_model": "persistence", "save_model": "persistence", "load_result": "persistence",
     "save_result": "persistence",
     "StudyResult": "paper.study", "run_study": "paper.study",
     "select_structure": "selection", "candidate_structures": "selection", "SelectionResult": "selection",
 }
 
+#: The documented front door: records, structures, models, nonlinearities, identification and its result,
+#: persistence, errors.  Sub-modules (``hc.plots``, ``hc.control_design``, ``hc.mimo``, ``hc.config``, the paper
+#: layer ``hc.paper`` ...) are reached as attributes and are not star-exported.
 __all__ = [
-    "datasets", "iodata", "metrics", "nonlinearities", "optimize", "plots", "presets", "records", "simulate",
-    "study", "paper", "control_design", "exact_export", "persistence", "display", "config", "load_model", "save_model",
-    "load_result",
-    "save_result",
-    "IOData", "load_emps", "load_trs", "make_trs_reconstruction", "read_record",
-    "DataError", "HammersteinError", "ParameterError", "UnknownNameError", "CacheWarning",
-    "fit_percent", "fit_report", "nrmse", "rmse", "sse",
-    "BlockModel", "HammersteinModel", "WienerModel", "HammersteinWienerModel", "identify", "IdentificationResult",
+    "IOData", "read_record",
+    "LinearStructure", "HammersteinStructure", "WienerStructure", "HammersteinWienerStructure", "BlockStructure",
+    "MIMOHammersteinStructure", "MIMOWienerStructure", "MIMOHammersteinWienerStructure", "mimo_structure",
+    "BlockModel", "HammersteinModel", "WienerModel", "HammersteinWienerModel", "MIMOModel",
     "Nonlinearity", "Tanh", "Coulomb", "Polynomial", "Saturation", "DeadZone", "PiecewiseLinear", "Sigmoid",
     "CustomNonlinearity", "nonlinearity_from_name",
-    "HammersteinCost", "BlockStructure", "HammersteinStructure", "WienerStructure", "HammersteinWienerStructure",
-    "LinearStructure",
-    "minimize", "StepGain", "PerturbationGain", "run_study", "StudyResult",
-    "uncertainty", "diagnostics", "residual_analysis", "selection", "select_structure", "candidate_structures",
-    "SelectionResult", "IdentificationWarning", "SimulationWarning",
-    "__version__",
+    "identify", "IdentificationResult", "select_structure", "candidate_structures", "SelectionResult",
+    "minimize", "HammersteinCost", "fit_percent", "fit_report", "nrmse", "rmse", "sse",
+    "load_model", "save_model", "load_result", "save_result",
+    "DataError", "HammersteinError", "ParameterError", "UnknownNameError", "IdentificationWarning",
+    "SimulationWarning", "CacheWarning", "__version__",
 ]
 
 
@@ -94,7 +94,7 @@ def __getattr__(name):
 
 
 def __dir__():
-    return sorted(set(globals()) | set(__all__))
+    return sorted(set(globals()) | set(__all__) | set(_SUBMODULES) | set(_LAZY_NAMES) | set(_PAPER_MODULES))
 
 
 class _Package(types.ModuleType):
