@@ -171,15 +171,15 @@ def test_api_errors():
     with pytest.raises(UnknownNameError, match="unknown method 'pso'"):
         minimize(f, [1.0], method="pso")
     with pytest.raises(ParameterError, match=r"unknown option\(s\) \['alpha'\] for method 'nspsa'"):
-        minimize(f, [1.0], options={"alpha": 1})
+        minimize(f, [1.0], "nspsa", options={"alpha": 1})
     with pytest.raises(ParameterError, match="amvo-sca needs finite bounds"):
         minimize(f, [1.0], method="amvo-sca")
     with pytest.raises(ParameterError, match="bounds has 1 pairs but x0 has 2"):
-        minimize(f, [1.0, 2.0], bounds=[(0, 1)])
+        minimize(f, [1.0, 2.0], "nspsa", bounds=[(0, 1)])
     with pytest.raises(ParameterError, match="x0 must be finite"):
-        minimize(f, [np.nan])
+        minimize(f, [np.nan], "nspsa")
     with pytest.raises(ParameterError, match="option 'a' must be a StepGain"):
-        minimize(f, [1.0], options={"a": "big"})
+        minimize(f, [1.0], "nspsa", options={"a": "big"})
 
 
 def test_callback_and_bounds():
@@ -189,7 +189,7 @@ def test_callback_and_bounds():
         seen.append(res.x)
         return len(seen) == 5
 
-    r = minimize(lambda x: float(np.sum((x - 3) ** 2)), [0.0, 0.0], seed=0, bounds=[(-1, 1), (-1, 1)],
+    r = minimize(lambda x: float(np.sum((x - 3) ** 2)), [0.0, 0.0], "nspsa", seed=0, bounds=[(-1, 1), (-1, 1)],
                  options={"a": StepGain(1.0), "c": PerturbationGain(0.1)}, callback=cb)
     assert r.status == CALLBACK_STOP and r.nit == 5 and r.success
     assert np.all(np.abs(np.array(seen)) <= 1.0)
@@ -344,3 +344,10 @@ def test_tnc_stays_within_maxfev_and_lowers_the_trs_cost_without_leaking_numpy_w
     (this file turns every warning into an error)."""
     r = minimize(trs_case.cost, trs_case.x0, method="tnc", maxfev=150)
     assert r.nfev <= 150 and math.isfinite(r.fun) and r.fun < trs_case.cost(trs_case.x0)
+
+
+def test_the_default_method_is_least_squares_for_a_least_squares_cost_and_scipys_otherwise(trs_case):
+    assert minimize(trs_case.cost, trs_case.x0, maxfev=3000).method == "lm"
+    r = minimize(lambda x: float(np.sum((x - 3) ** 2)), [0.0, 0.0])
+    assert np.allclose(r.x, 3.0, atol=1e-5)
+    assert minimize(lambda x: float(np.sum((x - 3) ** 2)), [0.0], bounds=[(0, 1)]).x[0] == pytest.approx(1.0)

@@ -84,7 +84,7 @@ def canonical_method(method: str) -> str:
     return key
 
 
-def minimize(fun, x0, method: str = "nspsa", *, args=(), maxfev: int | None = None,
+def minimize(fun, x0, method: str | None = None, *, args=(), maxfev: int | None = None,
              maxiter: int | None = None, seed=None, options: dict | None = None,
              callback=None, bounds=None):
     """Minimise ``fun`` from ``x0`` with one of the paper's methods (or scipy's).
@@ -97,8 +97,10 @@ def minimize(fun, x0, method: str = "nspsa", *, args=(), maxfev: int | None = No
         population at a time by AMVO-SCA and a pair at a time by the SPSA family.
     x0 : array_like
         Initial point.
-    method : str, default "nspsa"
-        ``"spsa"``, ``"nlspsa"``, ``"nspsa"``, ``"amvo-sca"``, ``"lm"``
+    method : str, optional
+        Default: ``"lm"`` for a least-squares objective (one with a
+        ``residuals`` method), else scipy's choice (``"bfgs"``, or
+        ``"l-bfgs-b"`` with bounds).  ``"spsa"``, ``"nlspsa"``, ``"nspsa"``, ``"amvo-sca"``, ``"lm"``
         (Levenberg-Marquardt on the residuals; needs an objective with a
         ``residuals`` method such as :class:`~hammerstein_ctrl.objective.HammersteinCost`),
         or one of :data:`SCIPY_METHODS` (delegated to :func:`scipy.optimize.minimize`).
@@ -145,6 +147,8 @@ def minimize(fun, x0, method: str = "nspsa", *, args=(), maxfev: int | None = No
     against other work (entering the limit costs a few microseconds per call
     of ``minimize``, not per evaluation).
     """
+    if method is None:
+        method = "lm" if callable(getattr(fun, "residuals", None)) else ("l-bfgs-b" if bounds is not None else "bfgs")
     key = canonical_method(method)
     maxfev, maxiter = check_budget(maxfev, maxiter)
     if isinstance(options, str):
