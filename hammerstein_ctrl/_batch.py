@@ -56,7 +56,7 @@ def _apply_python_map(Y, fallback, offsets):
 
 
 def simulate_batch(num, den, V, dt: float, *, x0=None, offset=None, intersample: str = "foh",
-                   output_map=None) -> np.ndarray:
+                   output_map=None, out=None) -> np.ndarray:
     """Simulate a batch of linear blocks driven by a batch of intermediate signals.
 
     Parameters
@@ -76,11 +76,14 @@ def simulate_batch(num, den, V, dt: float, *, x0=None, offset=None, intersample:
         A static output nonlinearity ``h`` and its parameters: the output is
         ``h(H v) + offset`` (Wiener and Hammerstein-Wiener models), applied in
         the compiled pass where the family has a compiled form.
+    out : ndarray, shape (B, N), optional
+        A C-ordered float array to write the outputs into (a caller's reused
+        buffer: a fresh array of a long record costs its page faults on every call).
 
     Returns
     -------
     ndarray, shape (B, N)
-        Outputs; rows of candidates that cannot be simulated (non-finite
+        Outputs (``out`` when given); rows of candidates that cannot be simulated (non-finite
         coefficients, signals or overflow) contain NaN or inf.
     """
     hold = check_intersample(intersample)
@@ -89,7 +92,9 @@ def simulate_batch(num, den, V, dt: float, *, x0=None, offset=None, intersample:
     V = _signals(V, batch)
     if V.shape[1] == 0:
         raise DataError("the signals are empty")
-    Y = np.empty(V.shape)
+    if out is not None and (out.shape != V.shape or out.dtype != np.float64 or not out.flags.c_contiguous):
+        raise ParameterError(f"out must be a C-ordered float array of shape {V.shape}")
+    Y = np.empty(V.shape) if out is None else out
     outmap, map_args, fallback = _output_map(output_map, batch, n)
     offsets = _offset_rows(offset, batch)
     get_kernel(n, "outputs", hold, outmap)(E, C, D, _state_rows(x0, batch, n),

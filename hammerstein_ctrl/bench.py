@@ -686,7 +686,54 @@ def full_report(cases, methods=("nspsa",), *, memory_samples=MEMORY_SAMPLES, ech
             emit(format_memory([peak_memory(m, n) for n in memory_samples for m in MEMORY_BUDGETS]))
         emit(format_routes(identification_routes(case)))
         emit(format_uncertainty(uncertainty_cost(case)))
+        emit(format_mimo_speed(mimo_speed(len(case.data))))
     return "\n\n".join(sections)
+
+
+def mimo_speed(n_samples: int, *, batch: int = 15, pairs: int = 7, number: int = 50) -> dict:
+    """A 2 x 2 second-order Hammerstein evaluation against a SISO second-order one on records of one length.
+
+    Both with tanh input blocks, on random signals; single evaluations and
+    batches (per candidate) timed in interleaved pairs, medians of the
+    per-pair ratios.
+    """
+    from .iodata import IOData
+    from .mimo import MIMOHammersteinStructure
+    from .mimo_fit import MIMOCost
+    from .nonlinearities import Tanh
+    from .objective import HammersteinCost
+    from .structure import HammersteinStructure, LinearStructure
+
+    rng = np.random.default_rng(0)
+    u, y = rng.standard_normal((n_samples, 2)), rng.standard_normal((n_samples, 2))
+    mimo = MIMOCost(IOData(u, y, dt=1e-3), MIMOHammersteinStructure(LinearStructure(1, 2), [Tanh(), Tanh()],
+                                                                    n_outputs=2))
+    siso = HammersteinCost(IOData(u[:, 0], y[:, 0], dt=1e-3), HammersteinStructure(LinearStructure(1, 2), Tanh()))
+    b2 = np.array([2.0, 0.5, 2.0, 1.2, 1.0, 0.6, 3.0, 0.8, 1.5, 2.5, 2.0, 1.5, 0.8, 0.7])
+    b1 = np.array([2.0, 2.0, 1.2, 2.0, 1.5])
+    B2, B1 = np.tile(b2, (batch, 1)), np.tile(b1, (batch, 1))
+    out = {"n_samples": n_samples, "batch": batch}
+    for label, f1, f2, per in (("single", lambda: siso(b1), lambda: mimo(b2), 1),
+                               ("batched", lambda: siso.batch(B1), lambda: mimo.batch(B2), batch)):
+        f1(), f2()
+        t1, t2 = [], []
+        for _ in range(pairs):
+            t1.append(time_call(f1, repeat=1, number=number) / per)
+            t2.append(time_call(f2, repeat=1, number=number) / per)
+        out[label] = {"siso_s": float(np.median(t1)), "mimo_s": float(np.median(t2)),
+                      "ratio": float(np.median(np.array(t2) / np.array(t1)))}
+    return out
+
+
+def format_mimo_speed(r) -> str:
+    lines = [f"MIMO cost: a 2 x 2 second-order Hammerstein (tanh) against a SISO second-order one, "
+             f"{r['n_samples']} samples (target: <= 4x)", "",
+             f"{'evaluation':<22}{'SISO':>12}{'2 x 2':>12}{'ratio':>9}"]
+    for label in ("single", "batched"):
+        x = r[label]
+        name = label if label == "single" else f"batch of {r['batch']}, each"
+        lines.append(f"{name:<22}{x['siso_s'] * 1e6:>9.1f} us{x['mimo_s'] * 1e6:>9.1f} us{x['ratio']:>8.2f}x")
+    return "\n".join(lines)
 
 
 def format_contention(rows) -> str:

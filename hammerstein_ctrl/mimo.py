@@ -172,6 +172,8 @@ class MIMOStructure:
                 names.append(f"a{k}[{i}]")
                 den_pos.append(np.ravel_multi_index((i, nf - k), den0.shape))
         self.n_linear = len(names)
+        self._b_index = np.array([q for q, n in enumerate(names) if n.startswith("b")], dtype=int)
+        self._a_index = np.array([q for q, n in enumerate(names) if n.startswith("a")], dtype=int)
         self._num0, self._den0 = num0, den0
         self._num_pos, self._den_pos = np.array(num_pos, dtype=int), np.array(den_pos, dtype=int)
         self._g_slices, self._h_slices = [], []
@@ -218,10 +220,8 @@ class MIMOStructure:
         n = b.shape[0]
         num = np.broadcast_to(self._num0, (n,) + self._num0.shape).reshape(n, -1).copy()
         den = np.broadcast_to(self._den0, (n,) + self._den0.shape).reshape(n, -1).copy()
-        num[:, self._num_pos] = b[:, [q for q, name in enumerate(self.param_names[:self.n_linear])
-                                      if name.startswith("b")]]
-        den[:, self._den_pos] = b[:, [q for q, name in enumerate(self.param_names[:self.n_linear])
-                                      if name.startswith("a")]]
+        num[:, self._num_pos] = b[:, self._b_index]
+        den[:, self._den_pos] = b[:, self._a_index]
         return num.reshape((n,) + self._num0.shape), den.reshape((n,) + self._den0.shape)
 
     def input_params(self, beta) -> list | None:
@@ -444,21 +444,39 @@ def mimo_structure(linear: LinearStructure, input_nonlinearities=None, output_no
 
 
 # -- simulation ----------------------------------------------------------------------------
-def _input_signals(inputs, input_nonlinearities, input_params, batch: int) -> np.ndarray:
-    """``(batch, m, N)``: each candidate's ``g_j(u_j)`` (or the inputs themselves)."""
-    n_samples, m = inputs.shape
+def _buffer(workspace, key: str, shape: tuple) -> np.ndarray:
+    """An array of ``shape`` from ``workspace`` (a dict kept by the caller), made once per shape."""
+    if workspace is None:
+        return np.empty(shape)
+    a = workspace.get(key)
+    if a is None or a.shape != shape:
+        a = workspace[key] = np.empty(shape)
+    return a
+
+
+def _input_signals(inputs, input_nonlinearities, input_params, batch: int, workspace=None) -> np.ndarray:
+    """``(batch, m, N)``: each candidate's ``g_j(u_j)`` (or the inputs themselves).
+
+    The channels are read as contiguous rows (``inputs.T``; free when ``inputs``
+    is the transpose of a C-ordered ``(m, N)`` array, as :class:`~hammerstein_ctrl.mimo_fit.MIMOCost` keeps
+    it): a strided column makes a nonlinearity's evaluation several times slower.
+    """
+    U = np.ascontiguousarray(np.asarray(inputs, dtype=float).T)
+    m, n_samples = U.shape
     if input_nonlinearities is None:
-        return np.broadcast_to(inputs.T, (batch, m, n_samples))
-    V = np.empty((batch, m, n_samples))
+        return np.broadcast_to(U, (batch, m, n_samples))
+    V = _buffer(workspace, "V", (batch, m, n_samples))
     with np.errstate(all="ignore"):
         for j, nl in enumerate(input_nonlinearities):
-            V[:, j] = nl(inputs[:, j], np.asarray(input_params[j], dtype=float).reshape(batch, -1))
+            params = nl.check_params(np.asarray(input_params[j], dtype=float).reshape(batch, -1))
+            for b in range(batch):          # one candidate at a time: its temporaries stay in cache
+                V[b, j] = nl._evaluate(U[j], params[b])
     return V
 
 
 def simulate_mimo_batch(num, den, inputs, dt: float, *, input_nonlinearities=None, input_params=None,
                         output_nonlinearities=None, output_params=None, offsets=None,
-                        intersample: str = "foh") -> np.ndarray:
+                        intersample: str = "foh", workspace: dict | None = None) -> np.ndarray:
     """Outputs ``(B, p, N)`` of a batch of MIMO block models, exact under FOH/ZOH.
 
     Parameters
@@ -471,6 +489,9 @@ def simulate_mimo_batch(num, den, inputs, dt: float, *, input_nonlinearities=Non
     input_params, output_params : lists of arrays ``(B, n_j)``, optional
     offsets : array_like, shape (B, p), optional
     intersample : {"foh", "zoh"}
+    workspace : dict, optional
+        Buffers reused from call to call (a cost keeps one); the result is
+        then one of them, overwritten by the next call.
 
     Examples
     --------
@@ -488,20 +509,19 @@ def simulate_mimo_batch(num, den, inputs, dt: float, *, input_nonlinearities=Non
 
     num, den = np.asarray(num, dtype=float), np.asarray(den, dtype=float)
     batch, p, m = num.shape[:3]
-    V = _input_signals(inputs, input_nonlinearities, input_params, batch)
+    V = _input_signals(inputs, input_nonlinearities, input_params, batch, workspace)
     n_samples = V.shape[-1]
-    signals = np.ascontiguousarray(V).reshape(batch * m, n_samples) if input_nonlinearities is not None or \
-        batch == 1 else None
-    Y = np.empty((batch, p, n_samples))
+    # the row's m elements side by side in one compiled pass (their signals one row each)
+    S = np.ascontiguousarray(V).reshape(batch * m, n_samples)
+    Y = _buffer(workspace, "Y", (batch, p, n_samples))
+    out = _buffer(workspace, "Z", (batch * m, n_samples))
     for i in range(p):
-        rows_num = num[:, i].reshape(batch * m, -1)
-        rows_den = np.repeat(den[:, i], m, axis=0)
-        if signals is None:        # the same inputs for every candidate: tile them
-            S = np.ascontiguousarray(np.broadcast_to(V, (batch, m, n_samples))).reshape(batch * m, n_samples)
-        else:
-            S = signals
-        Z = simulate_batch(rows_num, rows_den, S, dt, intersample=intersample).reshape(batch, m, n_samples)
-        Y[:, i] = Z.sum(axis=1)
+        Z = simulate_batch(num[:, i].reshape(batch * m, -1), np.repeat(den[:, i], m, axis=0), S, dt,
+                           intersample=intersample, out=out).reshape(batch, m, n_samples)
+        row = Y[:, i]
+        np.copyto(row, Z[:, 0])
+        for j in range(1, m):
+            row += Z[:, j]
     if output_nonlinearities is not None:
         with np.errstate(all="ignore"):
             for i, nl in enumerate(output_nonlinearities):

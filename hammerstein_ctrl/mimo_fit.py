@@ -78,7 +78,8 @@ class MIMOCost:
                             f"structure has {structure.n_inputs} and {structure.n_outputs}")
         self.data, self.structure = data, structure
         self.reject_unstable = bool(reject_unstable)
-        self._inputs = np.ascontiguousarray(data.inputs)
+        self._inputs = np.ascontiguousarray(data.inputs.T).T        # (N, m) with each channel contiguous
+        self._workspace: dict = {}                                   # buffers reused by every evaluation
         self._y = np.ascontiguousarray(data.outputs.T).reshape(-1)
 
     @property
@@ -96,6 +97,15 @@ class MIMOCost:
 
     def simulate_batch(self, betas) -> np.ndarray:
         """Outputs ``(B, p, N)`` of a batch of candidates."""
+        return self._simulated(betas).copy()
+
+    def __getstate__(self):
+        state = dict(self.__dict__)
+        state["_workspace"] = {}
+        return state
+
+    def _simulated(self, betas) -> np.ndarray:
+        """:meth:`simulate_batch` in the cost's reused buffer (overwritten by the next evaluation)."""
         s = self.structure
         b = np.atleast_2d(s.check_beta(betas))
         num, den = s.coefficients(b)
@@ -104,7 +114,7 @@ class MIMOCost:
                                        input_nonlinearities=s.input_nonlinearities, input_params=s.input_params(b),
                                        output_nonlinearities=s.output_nonlinearities,
                                        output_params=s.output_params(b), offsets=s.offsets(b),
-                                       intersample=self.data.intersample)
+                                       intersample=self.data.intersample, workspace=self._workspace)
 
     def simulate(self, beta) -> np.ndarray:
         """The simulated outputs ``(N, p)`` at one beta."""
@@ -112,7 +122,7 @@ class MIMOCost:
 
     def residuals_batch(self, betas) -> np.ndarray:
         """Residual vectors ``(B, p N)``: each candidate's output errors, output by output."""
-        Y = self.simulate_batch(betas)
+        Y = self._simulated(betas)
         R = self._y - Y.reshape(Y.shape[0], -1)
         with np.errstate(all="ignore"):
             for r in R:
@@ -132,10 +142,11 @@ class MIMOCost:
     def batch(self, betas) -> np.ndarray:
         """J for each row of ``betas`` (``inf`` where the simulation fails or, with ``reject_unstable``, diverges)."""
         s = self.structure
-        Y = self.simulate_batch(betas)
+        Y = self._simulated(betas)
+        E = Y.reshape(Y.shape[0], -1)
         with np.errstate(all="ignore"):
-            E = self._y - Y.reshape(Y.shape[0], -1)
-            J = np.einsum("ij,ij->i", E, E)
+            E -= self._y
+            J = np.array([e @ e for e in E])
         J[~np.isfinite(J)] = np.inf
         if self.reject_unstable:
             J[s.unstable(betas)] = np.inf

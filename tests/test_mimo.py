@@ -379,3 +379,20 @@ def test_the_command_line_refuses_what_a_mimo_fit_cannot_take_in_one_line(tmp_pa
     code = main(args + extra)
     err = capsys.readouterr().err
     assert code == 2 and words in err and err.count("\n") == 1
+
+
+# -- speed (wall-clock: `make bench` runs these, never `make test`) ------------------------------------------
+def test_the_speed_report_compares_mimo_and_siso_on_one_record_length():
+    from hammerstein_ctrl.bench import format_mimo_speed, mimo_speed
+
+    r = mimo_speed(2000, batch=3, pairs=1, number=2)
+    assert set(r) == {"n_samples", "batch", "single", "batched"} and r["single"]["mimo_s"] > 0
+    assert "2 x 2" in format_mimo_speed(r)
+
+
+@pytest.mark.timing
+def test_a_2x2_evaluation_costs_at_most_four_siso_ones():
+    from hammerstein_ctrl.bench import mimo_speed
+
+    r = mimo_speed(24841)
+    assert r["single"]["ratio"] <= 4.0 and r["batched"]["ratio"] <= 4.0, r
