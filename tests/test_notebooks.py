@@ -22,6 +22,7 @@ def test_all_notebooks_are_present():
     assert [p.name for p in NOTEBOOKS] == [
         "01_quickstart.ipynb", "02_trs_reproduction.ipynb", "03_emps_reproduction.ipynb",
         "04_numerical_example.ipynb", "05_pid_tuning.ipynb", "06_block_structures.ipynb", "07_trust.ipynb",
+        "08_mimo.ipynb",
     ]
 
 
