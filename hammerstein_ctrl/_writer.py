@@ -102,9 +102,12 @@ def _mimo_model_to_dict(model) -> dict:
            "input_nonlinearities": blocks(model.input_nonlinearities, model.input_params),
            "output_nonlinearities": blocks(model.output_nonlinearities, model.output_params),
            "offset": model.offset.tolist(), "intersample": model.intersample}
+    if np.any(model.delays):            # only then: files of models without dead times stay as they were
+        out["delays"] = model.delays.tolist()
     params = [v for key in ("input_nonlinearities", "output_nonlinearities") for b in (out[key] or ())
               for v in b["params"].values()]
-    numbers = model.numerators.ravel().tolist() + model.denominators.ravel().tolist() + params + out["offset"]
+    numbers = (model.numerators.ravel().tolist() + model.denominators.ravel().tolist() + params + out["offset"]
+               + out.get("delays", []))
     if not all(math.isfinite(v) for v in numbers):
         raise ParameterError("cannot save a model with non-finite coefficients or parameters")
     return out

@@ -351,13 +351,13 @@ def _mimo_structure_from_args(args, data):
     from .structure import LinearStructure
 
     unsupported = [flag for flag, given in (("--structure", args.structure), ("--fix", args.fix),
-                                            ("--free-gain", args.free_gain), ("--delay", args.delay is not None),
+                                            ("--free-gain", args.free_gain),
                                             ("--initial-state estimate", args.initial_state == "estimate"))
                    if given]
     if unsupported:
         raise HammersteinError(f"{', '.join(unsupported)} cannot be used with a record of {data.n_inputs} inputs and "
                                f"{data.n_outputs} outputs (a MIMO fit takes --orders, --nonlinearity, "
-                               "--output-nonlinearity and --offset)")
+                               "--output-nonlinearity, --delay and --offset)")
     if not (args.orders and (args.nonlinearity or args.output_nonlinearity)):
         raise HammersteinError("a MIMO record needs --orders L M and --nonlinearity NAME (every input) and/or "
                                "--output-nonlinearity NAME (every output)")
@@ -370,7 +370,7 @@ def _mimo_structure_from_args(args, data):
                                     **_family_options(args.output_degree, args.output_breakpoints))
              for _ in range(data.n_outputs)]
     return mimo_structure(LinearStructure(args.orders[0], args.orders[1]), g, h, n_inputs=data.n_inputs,
-                          n_outputs=data.n_outputs), None
+                          n_outputs=data.n_outputs, delay=args.delay), None
 
 
 def _gain_options(args) -> dict:

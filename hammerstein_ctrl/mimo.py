@@ -32,6 +32,11 @@ makes the parameters unique:
 A monic reference element must really be there: an input that does not
 act on the first output (Hammerstein) needs its outputs ordered otherwise.
 
+**Dead time per input.**  ``delay=`` gives each input its transport delay
+``tau_j`` (``B_ij(p)/F_i(p) e^{-tau_j p}`` for every output): a number of
+seconds fixed, or ``"estimate"`` for a parameter ``delay[uj]``, continuous and
+simulated exactly under FOH and ZOH (:mod:`~hammerstein_ctrl.delay`).
+
 Parameters are named after their channel, 0-based as python-control names
 signals: ``b0[1,0]`` (numerator of output 1 from input 0), ``a1[0]``
 (denominator of output 0), ``d1[g1]`` (parameter ``d1`` of input 1's
@@ -57,7 +62,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._checks import as_count, check_intersample
+from ._checks import ESTIMATE, as_count, check_delay, check_intersample
 from .exceptions import DataError, ParameterError
 from .nonlinearities import Nonlinearity
 from .structure import LinearStructure
@@ -86,8 +91,19 @@ def _check_linear(linear) -> LinearStructure:
     extra = {k: v for k, v in linear.fixed.items() if k != f"b{linear.num_order}"}
     if extra or not linear.monic_numerator or linear.delay:
         raise ParameterError("a MIMO structure takes the orders of its LinearStructure only (no fixed "
-                             "coefficients, monic_numerator or delay yet): LinearStructure(num_order, den_order)")
+                             "coefficients or monic_numerator yet; dead times per input are the structure's "
+                             "delay=): LinearStructure(num_order, den_order)")
     return linear
+
+
+def _input_delays(delay, m: int) -> tuple:
+    """One dead time per input (seconds, or ``"estimate"``) from one value for all or a sequence."""
+    if delay is None or isinstance(delay, (str, int, float, np.integer, np.floating)):
+        return (check_delay(delay),) * m
+    values = list(delay)
+    if len(values) != m:
+        raise ParameterError(f"delay has {len(values)} values for {m} inputs: give one per input, or one for all")
+    return tuple(check_delay(v) for v in values)
 
 
 class MIMOStructure:
@@ -105,13 +121,16 @@ class MIMOStructure:
         Channel counts (taken from the nonlinearity lists where given).
     offset : bool, default False
         Estimate a constant ``y0[i]`` added to each output.
+    delay : float, "estimate" or sequence of them, optional
+        Each input's dead time in seconds (one value for every input, or one
+        per input); ``"estimate"`` makes it a parameter ``delay[uj]``.
     """
 
     kind = "mimo"
 
     def __init__(self, linear: LinearStructure, input_nonlinearities=None, output_nonlinearities=None, *,
                  n_inputs: int | None = None, n_outputs: int | None = None, offset: bool = False,
-                 initial_state: str = "zero"):
+                 initial_state: str = "zero", delay=None):
         self.linear = _check_linear(linear)
         if initial_state != "zero":
             raise ParameterError("a MIMO structure starts from rest (initial_state='zero'); estimating x(0) is "
@@ -129,6 +148,7 @@ class MIMOStructure:
                                  "with identity nonlinearities: use Polynomial(1))")
         self.offset = bool(offset)
         self.initial_state = "zero"
+        self.delays = _input_delays(delay, m)
         self._fixed_gain = None
         if self.input_nonlinearities is not None and self.output_nonlinearities is not None:
             self._fixed_gain = [nl.gain_index for nl in self.input_nonlinearities]
@@ -184,6 +204,9 @@ class MIMOStructure:
         for i, nl in enumerate(self.output_nonlinearities or ()):
             self._h_slices.append(slice(len(names), len(names) + nl.n_params))
             names += [f"{n}[h{i}]" for n in nl.param_names]
+        self._delay_index = {j: len(names) + k for k, j in enumerate(
+            j for j, d in enumerate(self.delays) if d == ESTIMATE)}
+        names += [f"delay[u{j}]" for j in self._delay_index]
         self.core_names = tuple(names)
         self.param_names = self.core_names + (tuple(f"y0[{i}]" for i in range(p)) if self.offset else ())
 
@@ -242,6 +265,23 @@ class MIMOStructure:
         b = self.check_beta(beta)
         return [b[..., sl] for sl in self._h_slices]
 
+    @property
+    def has_delay(self) -> bool:
+        """Whether any input has a dead time (fixed or estimated)."""
+        return any(d == ESTIMATE or d > 0 for d in self.delays)
+
+    def input_delays(self, beta) -> np.ndarray:
+        """Each input's dead time ``(m,)`` or ``(B, m)``: the ``delay[uj]`` entries, or the fixed values."""
+        b = self.check_beta(beta)
+        out = np.empty(b.shape[:-1] + (self.n_inputs,))
+        for j, d in enumerate(self.delays):
+            out[..., j] = b[..., self._delay_index[j]] if d == ESTIMATE else d
+        return out
+
+    def without_delays(self) -> "MIMOStructure":
+        """The same blocks with no dead time (the layout of the starts' shifted record)."""
+        return self._rebuilt(self, self.offset, self.initial_state, None)
+
     def offsets(self, beta) -> np.ndarray:
         """The output offsets ``(p,)`` or ``(B, p)`` (zeros without ``offset``)."""
         b = self.check_beta(beta)
@@ -283,7 +323,8 @@ class MIMOStructure:
         num, den = self.coefficients(b)
         return MIMOModel(num[0], den[0], input_nonlinearities=self.input_nonlinearities,
                          input_params=self.input_params(b), output_nonlinearities=self.output_nonlinearities,
-                         output_params=self.output_params(b), offset=self.offsets(b), kind=self.kind, **kwargs)
+                         output_params=self.output_params(b), offset=self.offsets(b), kind=self.kind,
+                         delays=self.input_delays(b) if self.has_delay else None, **kwargs)
 
     def beta(self, model: "MIMOModel") -> np.ndarray:
         """The beta of a model with this structure (the inverse of :meth:`model`)."""
@@ -300,6 +341,7 @@ class MIMOStructure:
             q = np.asarray(model.input_params[j], dtype=float)
             parts.append(q if self._fixed_gain is None else np.delete(q, self._fixed_gain[j]))
         parts += [np.asarray(q, dtype=float) for q in (model.output_params or ())]
+        parts.append(np.asarray([model.delays[j] for j in self._delay_index], dtype=float))
         if self.offset:
             parts.append(np.asarray(model.offset, dtype=float))
         return np.concatenate(parts)
@@ -307,12 +349,16 @@ class MIMOStructure:
     def with_options(self, *, offset: bool | None = None, initial_state: str | None = None):
         """The same blocks with another offset option."""
         return type(self)._rebuilt(self, self.offset if offset is None else offset,
-                                   "zero" if initial_state is None else initial_state)
+                                   "zero" if initial_state is None else initial_state, self.delays)
+
+    def with_delay(self, delay):
+        """The same blocks and options with other dead times (one for all inputs, or one per input)."""
+        return type(self)._rebuilt(self, self.offset, self.initial_state, delay)
 
     @staticmethod
-    def _rebuilt(s, offset, initial_state):
+    def _rebuilt(s, offset, initial_state, delay):
         return MIMOStructure(s.linear, s.input_nonlinearities, s.output_nonlinearities, n_inputs=s.n_inputs,
-                             n_outputs=s.n_outputs, offset=offset, initial_state=initial_state)
+                             n_outputs=s.n_outputs, offset=offset, initial_state=initial_state, delay=delay)
 
     def describe(self) -> str:
         """One line: the matrix, its orders and the nonlinearities."""
@@ -322,11 +368,15 @@ class MIMOStructure:
             parts.append("g = " + ", ".join(nl.name for nl in self.input_nonlinearities))
         if self.output_nonlinearities:
             parts.append("h = " + ", ".join(nl.name for nl in self.output_nonlinearities))
+        if self.has_delay:
+            parts.append("dead times " + ", ".join(f"u{j}: {d if d == ESTIMATE else f'{d:g} s'}"
+                                                   for j, d in enumerate(self.delays)))
         return "; ".join(parts) + (" + y0" if self.offset else "")
 
     def __repr__(self):
+        delay = f", delay={list(self.delays)!r}" if self.has_delay else ""
         return (f"{type(self).__name__}({self.linear!r}, inputs={self.n_inputs}, outputs={self.n_outputs}"
-                + (", offset=True" if self.offset else "") + ")")
+                + (", offset=True" if self.offset else "") + delay + ")")
 
 
 class MIMOHammersteinStructure(MIMOStructure):
@@ -352,16 +402,16 @@ class MIMOHammersteinStructure(MIMOStructure):
     kind = "mimo-hammerstein"
 
     def __init__(self, linear: LinearStructure, nonlinearities, n_outputs: int, *, offset: bool = False,
-                 initial_state: str = "zero"):
+                 initial_state: str = "zero", delay=None):
         if nonlinearities is None or isinstance(nonlinearities, Nonlinearity):
             raise ParameterError("nonlinearities must be a list with one Nonlinearity per input")
         super().__init__(linear, nonlinearities, None, n_outputs=n_outputs, offset=offset,
-                         initial_state=initial_state)
+                         initial_state=initial_state, delay=delay)
 
     @staticmethod
-    def _rebuilt(s, offset, initial_state):
+    def _rebuilt(s, offset, initial_state, delay):
         return MIMOHammersteinStructure(s.linear, s.input_nonlinearities, s.n_outputs, offset=offset,
-                                        initial_state=initial_state)
+                                        initial_state=initial_state, delay=delay)
 
 
 class MIMOWienerStructure(MIMOStructure):
@@ -377,16 +427,16 @@ class MIMOWienerStructure(MIMOStructure):
     kind = "mimo-wiener"
 
     def __init__(self, linear: LinearStructure, nonlinearities, n_inputs: int, *, offset: bool = False,
-                 initial_state: str = "zero"):
+                 initial_state: str = "zero", delay=None):
         if nonlinearities is None or isinstance(nonlinearities, Nonlinearity):
             raise ParameterError("nonlinearities must be a list with one Nonlinearity per output")
         super().__init__(linear, None, nonlinearities, n_inputs=n_inputs, offset=offset,
-                         initial_state=initial_state)
+                         initial_state=initial_state, delay=delay)
 
     @staticmethod
-    def _rebuilt(s, offset, initial_state):
+    def _rebuilt(s, offset, initial_state, delay):
         return MIMOWienerStructure(s.linear, s.output_nonlinearities, s.n_inputs, offset=offset,
-                                   initial_state=initial_state)
+                                   initial_state=initial_state, delay=delay)
 
 
 class MIMOHammersteinWienerStructure(MIMOStructure):
@@ -403,22 +453,22 @@ class MIMOHammersteinWienerStructure(MIMOStructure):
     kind = "mimo-hammerstein-wiener"
 
     def __init__(self, linear: LinearStructure, input_nonlinearities, output_nonlinearities, *,
-                 offset: bool = False, initial_state: str = "zero"):
+                 offset: bool = False, initial_state: str = "zero", delay=None):
         for value, label in ((input_nonlinearities, "input"), (output_nonlinearities, "output")):
             if value is None or isinstance(value, Nonlinearity):
                 raise ParameterError(f"{label}_nonlinearities must be a list with one Nonlinearity per {label}")
         super().__init__(linear, input_nonlinearities, output_nonlinearities, offset=offset,
-                         initial_state=initial_state)
+                         initial_state=initial_state, delay=delay)
 
     @staticmethod
-    def _rebuilt(s, offset, initial_state):
+    def _rebuilt(s, offset, initial_state, delay):
         return MIMOHammersteinWienerStructure(s.linear, s.input_nonlinearities, s.output_nonlinearities,
-                                              offset=offset, initial_state=initial_state)
+                                              offset=offset, initial_state=initial_state, delay=delay)
 
 
 def mimo_structure(linear: LinearStructure, input_nonlinearities=None, output_nonlinearities=None, *,
                    n_inputs: int | None = None, n_outputs: int | None = None, offset: bool = False,
-                   initial_state: str = "zero") -> MIMOStructure:
+                   initial_state: str = "zero", delay=None) -> MIMOStructure:
     """The MIMO structure of the right family for the blocks given (Hammerstein, Wiener or both).
 
     Examples
@@ -429,12 +479,13 @@ def mimo_structure(linear: LinearStructure, input_nonlinearities=None, output_no
     """
     if input_nonlinearities is not None and output_nonlinearities is not None:
         return MIMOHammersteinWienerStructure(linear, input_nonlinearities, output_nonlinearities, offset=offset,
-                                              initial_state=initial_state)
+                                              initial_state=initial_state, delay=delay)
     if input_nonlinearities is not None:
         s = MIMOHammersteinStructure(linear, input_nonlinearities, n_outputs, offset=offset,
-                                     initial_state=initial_state)
+                                     initial_state=initial_state, delay=delay)
     elif output_nonlinearities is not None:
-        s = MIMOWienerStructure(linear, output_nonlinearities, n_inputs, offset=offset, initial_state=initial_state)
+        s = MIMOWienerStructure(linear, output_nonlinearities, n_inputs, offset=offset, initial_state=initial_state,
+                                delay=delay)
     else:
         raise ParameterError("give input or output nonlinearities")
     for label, given, actual in (("n_inputs", n_inputs, s.n_inputs), ("n_outputs", n_outputs, s.n_outputs)):
@@ -476,7 +527,7 @@ def _input_signals(inputs, input_nonlinearities, input_params, batch: int, works
 
 def simulate_mimo_batch(num, den, inputs, dt: float, *, input_nonlinearities=None, input_params=None,
                         output_nonlinearities=None, output_params=None, offsets=None,
-                        intersample: str = "foh", workspace: dict | None = None) -> np.ndarray:
+                        intersample: str = "foh", workspace: dict | None = None, delays=None) -> np.ndarray:
     """Outputs ``(B, p, N)`` of a batch of MIMO block models, exact under FOH/ZOH.
 
     Parameters
@@ -492,6 +543,10 @@ def simulate_mimo_batch(num, den, inputs, dt: float, *, input_nonlinearities=Non
     workspace : dict, optional
         Buffers reused from call to call (a cost keeps one); the result is
         then one of them, overwritten by the next call.
+    delays : array_like, shape (B, m), optional
+        Each candidate's dead time per input (seconds; exact fractional
+        delays, :func:`~hammerstein_ctrl.delay.delayed_response`); a negative
+        or non-finite one gives that candidate NaN outputs.
 
     Examples
     --------
@@ -515,9 +570,12 @@ def simulate_mimo_batch(num, den, inputs, dt: float, *, input_nonlinearities=Non
     S = np.ascontiguousarray(V).reshape(batch * m, n_samples)
     Y = _buffer(workspace, "Y", (batch, p, n_samples))
     out = _buffer(workspace, "Z", (batch * m, n_samples))
+    delays = None if delays is None else np.asarray(delays, dtype=float).reshape(batch, m)
     for i in range(p):
         Z = simulate_batch(num[:, i].reshape(batch * m, -1), np.repeat(den[:, i], m, axis=0), S, dt,
                            intersample=intersample, out=out).reshape(batch, m, n_samples)
+        if delays is not None:
+            _delayed_elements(Z, num[:, i], den[:, i], V, dt, delays, intersample)
         row = Y[:, i]
         np.copyto(row, Z[:, 0])
         for j in range(1, m):
@@ -529,6 +587,20 @@ def simulate_mimo_batch(num, den, inputs, dt: float, *, input_nonlinearities=Non
     if offsets is not None:
         Y += np.asarray(offsets, dtype=float).reshape(batch, p, 1)
     return Y
+
+
+def _delayed_elements(Z, num, den, V, dt, delays, intersample):
+    """Overwrite the responses ``Z[b, j]`` of the elements whose input has a dead time with the exact delayed ones."""
+    from .delay import delayed_response
+
+    for b, j in zip(*np.nonzero(delays != 0)):
+        tau = delays[b, j]
+        if not (np.isfinite(tau) and tau >= 0 and np.all(np.isfinite(num[b, j])) and np.all(np.isfinite(den[b]))
+                and den[b, 0] != 0):
+            Z[b, j] = np.nan
+            continue
+        with np.errstate(all="ignore"):
+            Z[b, j] = delayed_response(num[b, j], den[b], V[b, j], dt, float(tau), intersample=intersample)
 
 
 def observable_realization(num, den):
@@ -582,11 +654,14 @@ class MIMOModel:
         Signal names of the python-control exports (default ``u[j]``, ``y[i]``).
     kind : str, optional
         Structure family, for reports.
+    delays : array_like, shape (m,), optional
+        Each input's dead time in seconds (default none), simulated exactly;
+        :meth:`to_iosys` carries it as a Pade approximant.
     """
 
     def __init__(self, numerators, denominators, *, input_nonlinearities=None, input_params=None,
                  output_nonlinearities=None, output_params=None, offset=None, intersample: str = "foh",
-                 name: str | None = None, input_names=None, output_names=None, kind: str = "mimo"):
+                 name: str | None = None, input_names=None, output_names=None, kind: str = "mimo", delays=None):
         from ._checks import as_real_array
 
         self.numerators = np.array(as_real_array(numerators, "numerators"), dtype=float)
@@ -612,6 +687,10 @@ class MIMOModel:
         self.output_names = tuple(output_names) if output_names is not None else tuple(f"y[{i}]" for i in range(p))
         if len(self.input_names) != m or len(self.output_names) != p:
             raise ParameterError(f"give {m} input and {p} output names")
+        self.delays = np.zeros(m) if delays is None else np.array(
+            [check_delay(d, estimate=False) for d in np.ravel(delays)], dtype=float)
+        if self.delays.size != m:
+            raise ParameterError(f"give one dead time per input ({m}), got {self.delays.size}")
 
     @staticmethod
     def _params(nonlinearities, params, label):
@@ -717,7 +796,8 @@ class MIMOModel:
                                 output_nonlinearities=self.output_nonlinearities,
                                 output_params=None if self.output_params is None else [q[None] for q in
                                                                                        self.output_params],
-                                offsets=self.offset[None], intersample=check_intersample(hold))
+                                offsets=self.offset[None], intersample=check_intersample(hold),
+                                delays=self.delays[None] if np.any(self.delays) else None)
         return Y[0].T
 
     def h_input(self, t, u=None, *, intersample: str | None = None) -> np.ndarray:
@@ -727,28 +807,51 @@ class MIMOModel:
                                 input_nonlinearities=self.input_nonlinearities,
                                 input_params=None if self.input_params is None else [q[None] for q in
                                                                                      self.input_params],
-                                intersample=check_intersample(hold))
+                                intersample=check_intersample(hold),
+                                delays=self.delays[None] if np.any(self.delays) else None)
         return Z[0].T
 
-    def to_iosys(self, name: str | None = None):
+    def _pade_inputs(self, order: int):
+        """``(Ap, Bp, Cp, Dp)``: the inputs' dead times as Pade approximants side by side (identity where none)."""
+        import control
+        from scipy.linalg import block_diag
+
+        blocks = []
+        for tau in self.delays:
+            if tau > 0:
+                P = control.ss(control.tf(*control.pade(float(tau), order)))
+                blocks.append((P.A, P.B, P.C, P.D))
+            else:
+                blocks.append((np.zeros((0, 0)), np.zeros((0, 1)), np.zeros((1, 0)), np.ones((1, 1))))
+        return tuple(block_diag(*[b[k] for b in blocks]) for k in range(4))
+
+    def to_iosys(self, name: str | None = None, *, pade_order: int | None = None):
         """A continuous-time :class:`control.NonlinearIOSystem` with the model's named inputs and outputs.
 
-        States: the observable canonical form of each row (:meth:`to_ss`);
-        ``dx/dt = A x + B g(u)``, ``y = h(C x + D g(u)) + y0``.
+        States: each input's dead time as a Pade approximant of order
+        ``pade_order`` (default ``config.defaults["delay.pade_order"]``; none
+        without dead times), then the observable canonical form of each row
+        (:meth:`to_ss`): ``w = Pade(g(u))``, ``dx/dt = A x + B w``, ``y = h(C x + D w) + y0``.
         """
         import control
 
+        from . import config
+
         A, B, C, D = observable_realization(self.numerators, self.denominators)
-        model = self
+        Ap, Bp, Cp, Dp = self._pade_inputs(config.get("delay.pade_order") if pade_order is None else pade_order)
+        k, model = Ap.shape[0], self
 
         def updfcn(t, x, u, params):
-            return A @ x + B @ model.g(u)[0]
+            g = model.g(u)[0]
+            w = Cp @ x[:k] + Dp @ g
+            return np.concatenate([Ap @ x[:k] + Bp @ g, A @ x[k:] + B @ w])
 
         def outfcn(t, x, u, params):
-            return model.h(C @ x + D @ model.g(u)[0])[0] + model.offset
+            w = Cp @ x[:k] + Dp @ model.g(u)[0]
+            return model.h(C @ x[k:] + D @ w)[0] + model.offset
 
         return control.nlsys(updfcn, outfcn, inputs=list(self.input_names), outputs=list(self.output_names),
-                             states=A.shape[0], name=name or self.name)
+                             states=k + A.shape[0], name=name or self.name)
 
     def describe(self) -> str:
         """The blocks, one line each."""
@@ -764,6 +867,8 @@ class MIMOModel:
                 lines.append(f"  {label}[{n}] = {nl.describe(q)}")
         if np.any(self.offset):
             lines.append("  y0 = " + ", ".join(f"{v:.6g}" for v in self.offset))
+        if np.any(self.delays):
+            lines.append("  dead times: " + ", ".join(f"{n}: {d:.6g} s" for n, d in zip(self.input_names, self.delays)))
         return "\n".join(lines)
 
     def __repr__(self):

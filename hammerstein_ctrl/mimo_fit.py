@@ -25,6 +25,10 @@ its denominator and the static blocks are fixed:
    scaled to the monic reference element, is the signal ``h_i`` is fitted to
    (least squares for a basis, a scanned shape with a least-squares scale otherwise).
 4. The offsets come from the same solves.
+5. **Dead times** (when the structure has them): whole-sample shifts of each
+   input, chosen one input at a time by the MISO ARX fits of all outputs,
+   give a shifted record on which steps 1-4 run without delay; the shifts
+   (in seconds) start the estimated dead times.
 
 Levenberg-Marquardt on :class:`MIMOCost` then refines everything
 (:func:`hammerstein_ctrl.auto.auto_mimo`).
@@ -39,7 +43,7 @@ from .iodata import IOData
 from .mimo import MIMOStructure, simulate_mimo_batch
 from .objective import NONFINITE_RESIDUAL
 
-__all__ = ["MIMOCost", "mimo_starts", "stabilized"]
+__all__ = ["MIMOCost", "mimo_starts", "stabilized", "delay_shifts"]
 
 
 class MIMOCost:
@@ -114,7 +118,8 @@ class MIMOCost:
                                        input_nonlinearities=s.input_nonlinearities, input_params=s.input_params(b),
                                        output_nonlinearities=s.output_nonlinearities,
                                        output_params=s.output_params(b), offsets=s.offsets(b),
-                                       intersample=self.data.intersample, workspace=self._workspace)
+                                       intersample=self.data.intersample, workspace=self._workspace,
+                                       delays=s.input_delays(b) if s.has_delay else None)
 
     def simulate(self, beta) -> np.ndarray:
         """The simulated outputs ``(N, p)`` at one beta."""
@@ -407,6 +412,8 @@ def mimo_starts(data: IOData, structure: MIMOStructure) -> list[np.ndarray]:
     True
     """
     s = structure
+    if s.has_delay:
+        return _delayed_starts(data, s)
     rows = _Rows(data, s)
     if s.input_nonlinearities is not None:
         signals, shapes = _input_signals(rows, s)
@@ -427,6 +434,62 @@ def mimo_starts(data: IOData, structure: MIMOStructure) -> list[np.ndarray]:
     return [_assemble(s, num, rows.dens, g_params, h_params, offsets)]
 
 
+def _arx_sse(Y, inputs, n: int, shifts, first: int) -> float:
+    """Sum over the outputs of the squared errors of MISO ARX fits with the inputs delayed by ``shifts`` samples."""
+    N = Y.shape[0]
+    rows = np.arange(first, N)
+    drives = [inputs[rows - d - k, j] for j, d in enumerate(shifts) for k in range(n + 1)]
+    total = 0.0
+    for y in Y.T:
+        X = np.column_stack([-y[rows - k] for k in range(1, n + 1)] + drives + [np.ones(rows.size)])
+        w, *_ = np.linalg.lstsq(X, y[rows], rcond=None)
+        r = y[rows] - X @ w
+        total += float(r @ r)
+    return total
+
+
+def delay_shifts(data: IOData, structure: MIMOStructure) -> list[int]:
+    """Whole-sample dead time of each input: fixed ones rounded, estimated ones scanned one input at a time
+    (``0 .. config.defaults["delay.max_samples"]``, at most a quarter of the record) by MISO ARX fits."""
+    from . import config
+    from .delay import ESTIMATE
+
+    dt, n = data.dt, structure.linear.den_order
+    shifts = [0 if d == ESTIMATE else int(round(d / dt)) for d in structure.delays]
+    top = min(config.get("delay.max_samples"), len(data) // 4)
+    first = top + max(shifts) + n + 1
+    if len(data) - first <= 4 * (n + 1) * (structure.n_inputs + 1):
+        return shifts
+    for j, d in enumerate(structure.delays):
+        if d != ESTIMATE:
+            continue
+        scores = [_arx_sse(data.outputs, data.inputs, n, shifts[:j] + [k] + shifts[j + 1:], first)
+                  for k in range(top + 1)]
+        best = int(np.argmin(scores))
+        shifts[j] = max(best - (1 if data.intersample == "zoh" else 0), 0)
+    return shifts
+
+
+def _shifted(data: IOData, shifts) -> IOData:
+    """The record with input ``j`` delayed by ``shifts[j]`` samples (zeros before the record, as at rest)."""
+    U = np.zeros_like(data.inputs)
+    for j, d in enumerate(shifts):
+        U[d:, j] = data.inputs[:len(data) - d, j]
+    return IOData(U, data.y, dt=data.dt, intersample=data.intersample, name=data.name,
+                  input_name=list(data.input_names), output_name=list(data.output_names))
+
+
+def _delayed_starts(data: IOData, s: MIMOStructure) -> list[np.ndarray]:
+    """Starts of a structure with dead times: the undelayed starts on the record shifted by whole samples."""
+    from .delay import ESTIMATE
+
+    shifts = delay_shifts(data, s)
+    base = s.without_delays()
+    delays = [shifts[j] * data.dt for j, d in enumerate(s.delays) if d == ESTIMATE]
+    return [np.concatenate([x[:base.n_core], delays, x[base.n_core:]])
+            for x in mimo_starts(_shifted(data, shifts), base)]
+
+
 def _assemble(s: MIMOStructure, num, dens, g_params, h_params, offsets) -> np.ndarray:
     from .mimo import MIMOModel
 
@@ -438,15 +501,11 @@ def _assemble(s: MIMOStructure, num, dens, g_params, h_params, offsets) -> np.nd
 def stabilized(structure: MIMOStructure, beta) -> np.ndarray:
     """``beta`` with every row's right-half-plane poles reflected into the left half-plane."""
     x = np.array(structure.check_beta(beta), dtype=float)
-    num, den = structure.coefficients(x)
+    _, den = structure.coefficients(x)
     for i in range(den.shape[1]):
         r = np.roots(den[0, i])
         if np.any(r.real >= 0):
             r = np.where(r.real >= 0, -np.abs(r.real) - 1e-6 + 1j * r.imag, r)
-            den[0, i] = np.real(np.poly(r))
-    from .mimo import MIMOModel
-
-    model = MIMOModel(num[0], den[0], input_nonlinearities=structure.input_nonlinearities,
-                      input_params=structure.input_params(x), output_nonlinearities=structure.output_nonlinearities,
-                      output_params=structure.output_params(x), offset=structure.offsets(x))
-    return structure.beta(model)
+            pos, idx = structure.row_denominator(i)
+            x[idx] = np.real(np.poly(r))[pos]
+    return x

@@ -223,7 +223,8 @@ def _mimo_structure_to_dict(structure) -> dict:
                for key, nls in (("input_nonlinearities", structure.input_nonlinearities),
                                 ("output_nonlinearities", structure.output_nonlinearities))},
             "n_inputs": structure.n_inputs, "n_outputs": structure.n_outputs, "offset": structure.offset,
-            "initial_state": structure.initial_state}
+            "initial_state": structure.initial_state,
+            **({"delays": list(structure.delays)} if structure.has_delay else {})}
 
 
 def _structure_to_dict(structure) -> dict:
@@ -258,8 +259,13 @@ def _mimo_structure_from_dict(obj, where: str):
     from .structure import LinearStructure
 
     _keys(obj, where, ("kind", "linear", "input_nonlinearities", "output_nonlinearities", "n_inputs", "n_outputs",
-                       "offset", "initial_state"))
+                       "offset", "initial_state"), ("delays",))
     _mimo_kind(obj, where)
+    delays = obj.get("delays")
+    if delays is not None:
+        if not isinstance(delays, list):
+            raise ParameterError(f"{where}.delays must be a list with one dead time per input")
+        delays = [_delay(d, f"{where}.delays[{k}]", estimate=True) for k, d in enumerate(delays)]
     lin = _keys(obj["linear"], f"{where}.linear", ("num_order", "den_order", "monic_numerator", "fixed"))
     linear = LinearStructure(_integer(lin["num_order"], f"{where}.linear.num_order"),
                              _integer(lin["den_order"], f"{where}.linear.den_order"))
@@ -270,14 +276,14 @@ def _mimo_structure_from_dict(obj, where: str):
                           n_inputs=_integer(obj["n_inputs"], f"{where}.n_inputs", minimum=1),
                           n_outputs=_integer(obj["n_outputs"], f"{where}.n_outputs", minimum=1),
                           offset=_boolean(obj["offset"], f"{where}.offset"),
-                          initial_state=_string(obj["initial_state"], f"{where}.initial_state"))
+                          initial_state=_string(obj["initial_state"], f"{where}.initial_state"), delay=delays)
 
 
 def _mimo_model_from_dict(obj, where: str):
     from .mimo import MIMOModel
 
     _keys(obj, where, ("name", "kind", "linear", "inputs", "outputs", "input_nonlinearities",
-                       "output_nonlinearities", "offset", "intersample"))
+                       "output_nonlinearities", "offset", "intersample"), ("delays",))
     kind = _mimo_kind(obj, where)
     lin = _keys(obj["linear"], f"{where}.linear", ("num", "den"))
     try:
@@ -304,7 +310,10 @@ def _mimo_model_from_dict(obj, where: str):
                      output_nonlinearities=blocks["output_nonlinearities"][0],
                      output_params=blocks["output_nonlinearities"][1], offset=offset, intersample=intersample,
                      name=_string(obj["name"], f"{where}.name"), input_names=obj["inputs"],
-                     output_names=obj["outputs"], kind=kind)
+                     output_names=obj["outputs"], kind=kind,
+                     delays=None if obj.get("delays") is None else [
+                         _delay(d, f"{where}.delays[{k}]", estimate=False) for k, d in enumerate(
+                             obj["delays"] if isinstance(obj["delays"], list) else [obj["delays"]])])
 
 
 def _structure_from_dict(obj, where: str):
