@@ -265,14 +265,15 @@ def auto_records(cost, x0=None, *, maxfev: int | None = None, seed=None, allow_u
     total = _total(maxfev)
     rs, longest = cost.structure, int(np.argmax([len(r) for r in cost.records]))
     joint_share = max(MIN_REFINE_BUDGET, int(config.get("auto.records_joint_share") * total))
-    first = auto_minimize(cost.costs[longest], _record_start(rs, x0, longest), maxfev=max(1, total - joint_share),
-                          seed=seed, allow_unstable=allow_unstable, callback=callback)
+    single = auto_delayed if rs.base.linear.delay else auto_minimize
+    first = single(cost.costs[longest], _record_start(rs, x0, longest), maxfev=max(1, total - joint_share),
+                   seed=seed, allow_unstable=allow_unstable, callback=callback)
     budget = Budget(total)
     budget.charge(min(int(first.nfev), total))
     if not np.all(np.isfinite(first.x)) or budget.remaining < MIN_REFINE_BUDGET:
         return first            # nothing to share: its message says why
     core = first.x[:rs.n_core]
-    betas = [first.x if k == longest else nuisance_estimate(rec, rs.base, core, budget)
+    betas = [first.x if k == longest else _nuisance(rec, rs.base, core, budget)
              for k, rec in enumerate(cost.records)]
     merged = _Merged()
     merged.add(first.history, 0)
@@ -280,6 +281,21 @@ def auto_records(cost, x0=None, *, maxfev: int | None = None, seed=None, allow_u
     result = _result(cost, joint, budget, first.nit + 1, first.starts, merged, allow_unstable, started)
     result.message = f"{result.message}; blocks started from record {longest}'s fit, then refined on all records"
     return result
+
+
+def _nuisance(record, structure, core, budget: Budget) -> np.ndarray:
+    """A record's offset and initial state by least squares for the blocks ``core`` (with a dead time: on the
+    record with its input delayed by the whole samples of it)."""
+    from .delay_fit import delayed_input
+
+    lin = structure.linear
+    if not lin.delay:
+        return nuisance_estimate(record, structure, core, budget)
+    base, i = structure.with_delay(None), structure.n_core - 1
+    tau = float(core[i]) if lin.estimates_delay else float(lin.delay)
+    x = nuisance_estimate(delayed_input(record, int(round(tau / record.dt))), base,
+                          np.delete(core, i) if lin.estimates_delay else core, budget)
+    return np.insert(x, base.n_core, tau) if lin.estimates_delay else x
 
 
 def _record_start(rs, x0, record: int):

@@ -155,6 +155,25 @@ class DelayedCost:
         return f"DelayedCost({self.data.name!r}, {len(self.data)} samples, {self.structure!r})"
 
 
+def delayed_input(data: IOData, samples: int) -> IOData:
+    """The record with its input delayed by ``samples`` (zeros before the record, as the state at rest says).
+
+    Unlike :func:`shifted` it keeps every output sample, so an initial state
+    or offset estimated on it belongs to the record's own ``t = 0``.
+
+    Examples
+    --------
+    >>> delayed_input(IOData([1.0, 2, 3, 4], [5.0, 6, 7, 8], dt=0.5), 1).u.tolist()
+    [0.0, 1.0, 2.0, 3.0]
+    """
+    if samples <= 0:
+        return data
+    u = np.zeros(len(data))
+    u[samples:] = data.u[:len(data) - samples]
+    return IOData(u, data.y, dt=data.dt, name=data.name, input_name=data.input_name, output_name=data.output_name,
+                  input_unit=data.input_unit, output_unit=data.output_unit, intersample=data.intersample)
+
+
 def shifted(data: IOData, samples: int) -> IOData:
     """The record with its output moved ``samples`` earlier (input ``u[:-samples]`` against ``y[samples:]``).
 

@@ -39,6 +39,7 @@ from ._checks import as_count
 from .exceptions import DataError, ParameterError
 from .iodata import IOData
 from .normal_equations import NormalEquations, point_and_steps
+from .delay_fit import DelayedCost
 from .objective import HammersteinCost
 from .structure import BlockStructure
 
@@ -198,8 +199,9 @@ class RecordsCost:
     ----------
     records : tuple of IOData
     structure : RecordsStructure
-    costs : tuple of HammersteinCost
-        One per record, in the base structure's layout.
+    costs : tuple of HammersteinCost or DelayedCost
+        One per record, in the base structure's layout (a :class:`~hammerstein_ctrl.delay_fit.DelayedCost`
+        when the blocks have a dead time, which the records share).
     data : IOData
         The records end to end (:func:`concatenated`): what statistics over all samples use.
 
@@ -223,7 +225,8 @@ class RecordsCost:
         self.records = _check_records(records)
         self.structure = RecordsStructure(structure, len(self.records))
         self.reject_unstable = bool(reject_unstable)
-        self.costs = tuple(HammersteinCost(r, structure, reject_unstable=reject_unstable) for r in self.records)
+        single = DelayedCost if structure.linear.delay else HammersteinCost      # a dead time: exact delayed passes
+        self.costs = tuple(single(r, structure, reject_unstable=reject_unstable) for r in self.records)
         self.data = concatenated(self.records)
         self._bounds = np.cumsum([0] + [len(r) for r in self.records])
 

@@ -195,9 +195,6 @@ def _cost(records, structure, reject_unstable):
         if structure.linear.delay:
             return DelayedCost(records[0], structure, reject_unstable=reject_unstable)
         return HammersteinCost(records[0], structure, reject_unstable=reject_unstable)
-    if structure.linear.delay:
-        raise ParameterError("several records in one fit do not take a dead time yet: fit the records one at a "
-                             "time, or leave out the delay")
     cost = RecordsCost(records, structure, reject_unstable=reject_unstable)
     for rec in records:
         rec.check_identifiable(structure.n_params)

@@ -207,8 +207,6 @@ def test_delayed_structures_are_refused_where_they_would_be_simulated_without_de
     data = _fopdt_record(0, "foh", N=100)
     with pytest.raises(ParameterError, match="dead time"):
         HammersteinCost(data, s)
-    with pytest.raises(ParameterError, match="dead time"):
-        hc.identify([data, data[:80]], s)
 
 
 def test_delayed_cost_follows_the_least_squares_protocol():

@@ -203,3 +203,25 @@ def test_the_joint_normal_equations_refuse_unusable_steps_as_a_single_cost_does(
     for bad in (np.ones(3), np.r_[0.0, np.full(beta.size - 1, 1e-6)]):
         with pytest.raises(ParameterError, match=f"steps must be {beta.size} finite, non-zero numbers"):
             cost.normal_equations(beta, bad)
+
+
+def test_three_records_share_an_estimated_dead_time():
+    """The plant behind a 0.37 s dead time (dt 0.05 s), three records with their own offsets and states:
+    the dead time within 0.1 dt and every shared parameter within 4 standard errors."""
+    from hammerstein_ctrl.delay import delayed_response
+
+    rng = np.random.default_rng(4)
+    recs = []
+    for k, (n, y0) in enumerate(zip((1500, 1200, 900), OFFSETS)):
+        u = np.repeat(rng.uniform(-2.0, 2.0, n // 25 + 1), 25)[:n]
+        y = delayed_response([2.0], [1.0, 1.2, 1.0], 1.5 * np.tanh(0.8 * u), DT, 0.37)
+        recs.append(IOData(u, y + y0 + NOISE * rng.standard_normal(n), dt=DT, name=f"run{k}"))
+    s = HammersteinStructure(LinearStructure(0, 2, delay="estimate"), Tanh(), offset=True)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", hc.IdentificationWarning)
+        res = hc.identify(recs, s, seed=0)
+    assert res.success, res.message
+    se = np.sqrt(np.diag(res.covariance))
+    assert abs(res.params["delay"] - 0.37) < 0.1 * DT
+    truth = np.r_[CORE, 0.37, OFFSETS]
+    assert np.all(np.abs(res.x - truth) < 4 * se), (res.x - truth) / se
