@@ -215,6 +215,7 @@ def approximate(model, u0: float | None = 0.0, dt: float | None = None, *, op: O
     >>> a["kind"], round(a["gain"], 3), round(a["tau1"], 2), round(a["tau2"], 3), round(a["theta"], 3)
     ('self-regulating', 8.915, 40.2, 0.211, 0.601)
     """
+    model = _siso_model(model, "approximate")
     op = op if op is not None else _operating_point(model, u0, None, None)
     slope = op.gain
     num, den = _polynomials(model)
@@ -732,6 +733,7 @@ def tune_pid(model, rule: str = "robust", *, kind: str = "pid", max_sensitivity:
         Unstable or non-finite model, unknown rule or criterion, a reference
         shorter than two samples, ``lo >= hi``, an unreachable operating point.
     """
+    model = _siso_model(model, "tune_pid")
     key, crit = _check_rule(rule), _check_criterion(criterion)
     limits = check_limits(u_limit)
     dt = _check_dt(dt)
@@ -763,6 +765,14 @@ def tune_pid(model, rule: str = "robust", *, kind: str = "pid", max_sensitivity:
     _check_gains(gains)
     return _verified(model, key, gains, op, record, dt=dt, limits=limits, u_limit=u_limit, step=step,
                      t_final=t_final, ms=ms, **extra)
+
+
+def _siso_model(model, what: str):
+    """``model`` if it has one input and one output; a MIMO model is refused naming ``model.element``."""
+    if getattr(model, "n_inputs", 1) * getattr(model, "n_outputs", 1) > 1 and hasattr(model, "element"):
+        raise ParameterError(f"{what} takes a SISO model; this one has {model.n_inputs} inputs and "
+                             f"{model.n_outputs} outputs: tune one loop on model.element(output, input)")
+    return model
 
 
 def _check_scalars(**values) -> None:
@@ -1146,6 +1156,7 @@ def closed_loop(model, pid: PIDResult, u_limit=None, *, dt: float | None = None,
     >>> loop.input_labels, loop.output_labels, loop.nstates
     (['r'], ['y', 'u'], 4)
     """
+    model = _siso_model(model, "closed_loop")
     import control
 
     from .operating_point import rest_model
@@ -1182,6 +1193,7 @@ def analyze_loop(model, pid: PIDResult, *, u_limit=None, reference="step", step:
         operating point, overshoot in %), ``iae``, ``ise``, ``itae``,
         ``max_overshoot`` (fraction) and the response ``t, r, y, u`` (absolute).
     """
+    model = _siso_model(model, "analyze_loop")
     model = _rational(model)
     op = pid.operating_point if pid.operating_point is not None else operating_point(model)
     P = small_signal(model, op)

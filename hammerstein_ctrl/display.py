@@ -89,10 +89,14 @@ def _default_label(obj, index: int | None) -> str:
     return f"model {index + 1}"
 
 
-def _check_item(label, obj, *, arrays: bool, systems: bool, need: tuple):
+def _check_item(label, obj, *, arrays: bool, systems: bool, need: tuple, siso: bool = True):
     """One model (IdentificationResult unwrapped), array or LTI system, checked for what is needed."""
     if is_identification_result(obj):
         obj = obj.model
+    if siso and getattr(obj, "n_inputs", 1) * getattr(obj, "n_outputs", 1) > 1 and hasattr(obj, "element"):
+        raise ParameterError(f"model {label!r} has {obj.n_inputs} inputs and {obj.n_outputs} outputs; this takes "
+                             "SISO models: pick one with model.element(output, input), or use result.compare() "
+                             "and result.plot(), which draw every channel")
     if isinstance(obj, (np.ndarray, list, tuple)) and arrays:
         return np.asarray(obj, dtype=float)
     if systems and _is_system(obj):
@@ -106,7 +110,7 @@ def _check_item(label, obj, *, arrays: bool, systems: bool, need: tuple):
 
 
 def as_models(models, *, arrays: bool = False, systems: bool = False, need=("simulate",),
-              allow_empty: bool = False) -> dict:
+              allow_empty: bool = False, siso: bool = True) -> dict:
     """Normalise what a user passes as "models" to ``{label: model}``.
 
     Parameters
@@ -122,13 +126,15 @@ def as_models(models, *, arrays: bool = False, systems: bool = False, need=("sim
         Attributes a model must have (e.g. ``("g",)`` for nonlinearity plots).
     allow_empty : bool
         Accept ``None`` or an empty collection (returns ``{}``).
+    siso : bool, default True
+        Refuse MIMO models (naming ``model.element``) where only SISO ones make sense.
 
     Raises
     ------
     ParameterError
         On an unsupported type, or an empty collection when not allowed.
     """
-    return {key: _check_item(key, obj, arrays=arrays, systems=systems, need=need)
+    return {key: _check_item(key, obj, arrays=arrays, systems=systems, need=need, siso=siso)
             for key, obj in labelled(models, arrays=arrays, allow_empty=allow_empty).items()}
 
 

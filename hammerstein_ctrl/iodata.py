@@ -285,12 +285,12 @@ class IOData:
                              input_unit=[self.input_units[k] for k in i],
                              output_unit=[self.output_units[k] for k in o])
 
-    def require_siso(self, what: str) -> "IOData":
+    def require_siso(self, what: str, *, mimo_hint: str = "use a MIMO structure (hc.MIMOHammersteinStructure, ...)"
+                     ) -> "IOData":
         """``self`` if it has one input and one output, else a :class:`DataError` saying what to use instead."""
         if not self.is_siso:
             raise DataError(f"record {self.name!r} has {self.n_inputs} inputs and {self.n_outputs} outputs; {what} "
-                            f"takes one of each: pick channels (data.channel(input, output)) or use a MIMO "
-                            f"structure (hc.MIMOHammersteinStructure, ...)")
+                            f"takes one of each: pick channels (data.channel(input, output)) or {mimo_hint}")
         return self
 
     # -- container protocol -------------------------------------------------

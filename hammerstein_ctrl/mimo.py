@@ -729,6 +729,53 @@ class MIMOModel:
         return control.tf(num, den, inputs=list(self.input_names), outputs=list(self.output_names),
                           name=f"{self.name}_linear")
 
+    def element(self, output=0, input=0):
+        """The SISO model from one input to one output, the other inputs held at zero.
+
+        ``y_i = h_i(B_ij(p)/F_i(p) e^{-tau_j p} g_j(u_j)) + y0_i`` as a
+        :class:`~hammerstein_ctrl.model.BlockModel` (Hammerstein, Wiener or
+        both): what the SISO tools (``tune_pid``, ``plots.bode``, ...) take,
+        e.g. to tune one loop of a decentralised controller.  With an output
+        nonlinearity this is exact only while the other inputs stay at zero.
+
+        Parameters
+        ----------
+        output, input : int or str
+            Channel index or name.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from hammerstein_ctrl import Tanh
+        >>> m = MIMOModel([[[1.0], [2.0]]], [[1.0, 3.0]], input_nonlinearities=[Tanh(), Tanh()],
+        ...               input_params=[[1.0, 1.0], [0.5, 2.0]], input_names=["a", "b"], output_names=["y"])
+        >>> e = m.element("y", "b")
+        >>> type(e).__name__, e.linear.num[0][0].tolist(), e.input_params.tolist()
+        ('HammersteinModel', [2.0], [0.5, 2.0])
+        """
+        import control
+
+        from .model import BlockModel
+
+        i = self._index(output, self.output_names, "output")
+        j = self._index(input, self.input_names, "input")
+        g = None if self.input_nonlinearities is None else self.input_nonlinearities[j]
+        h = None if self.output_nonlinearities is None else self.output_nonlinearities[i]
+        return BlockModel.build(control.tf(self.numerators[i, j], self.denominators[i]), input_nonlinearity=g,
+                                input_params=None if g is None else self.input_params[j], output_nonlinearity=h,
+                                output_params=None if h is None else self.output_params[i],
+                                offset=float(self.offset[i]), intersample=self.intersample,
+                                name=f"{self.name}_{self.output_names[i]}_{self.input_names[j]}",
+                                delay=float(self.delays[j]))
+
+    @staticmethod
+    def _index(which, names, what: str) -> int:
+        if isinstance(which, str) and which in names:
+            return names.index(which)
+        if isinstance(which, (int, np.integer)) and not isinstance(which, bool) and 0 <= which < len(names):
+            return int(which)
+        raise ParameterError(f"no {what} {which!r}: give a name in {list(names)} or an index 0..{len(names) - 1}")
+
     def poles(self) -> list:
         """The poles of each output row."""
         return [np.roots(d) for d in self.denominators]

@@ -111,6 +111,12 @@ def _outputs(data, models) -> tuple[dict, list]:
     return ys, bad
 
 
+def _siso_record(data):
+    """A record for a figure of one input and one output (a MIMO record: a one-line error naming the way out)."""
+    return as_iodata(data).require_siso("this figure", mimo_hint="draw every channel with plots.compare or "
+                                        "result.plot()")
+
+
 def _mark_unusable(a, bad):
     for label in bad:
         a.plot([], [], " ", label=f"{label}: non-finite output (not drawn)")
@@ -165,7 +171,7 @@ def time_response(data, models=None, *, zoom=None, title=None, ax=None):
     ax : matplotlib Axes, optional
         Draw the full record there (no zoom panel).
     """
-    data = as_iodata(data)
+    data = _siso_record(data)
     models = as_models(models, arrays=True, allow_empty=True)
     if zoom is not None:
         _window(data, zoom)
@@ -193,7 +199,7 @@ def error_response(data, models, *, zoom=None, title=None, ax=None):
     ``ax`` every model is drawn into that one axes, largest RMS error first
     and semi-transparent, so the smaller errors stay visible on top.
     """
-    data = as_iodata(data)
+    data = _siso_record(data)
     models = as_models(models, arrays=True)
     if zoom is not None:
         _window(data, zoom)
@@ -299,7 +305,7 @@ def dominant_frequency(data, models=None, *, nperseg: int = NPERSEG, fmin: float
         ``{"measured": f, label: f, ..., "resolution": Hz, "fmin": Hz}``; NaN
         where a spectrum has no peak above ``fmin``.
     """
-    data = as_iodata(data)
+    data = _siso_record(data)
     ys, _ = _outputs(data, as_models(models, arrays=True, allow_empty=True))
     df = _resolution(data, nperseg)
     fmin = MIN_PEAK_BINS * df if fmin is None else float(fmin)
@@ -323,7 +329,7 @@ def psd(data, models=None, *, nperseg: int = NPERSEG, fmin: float | None = None,
     marked and given in the legend; the title states the frequency resolution.
     ``logx`` puts frequency on a log axis (for spectra spanning decades).
     """
-    data = as_iodata(data)
+    data = _siso_record(data)
     ys, bad = _outputs(data, as_models(models, arrays=True, allow_empty=True))
     peaks = dominant_frequency(data, ys, nperseg=nperseg, fmin=fmin)
     fig, a = _single_axes(ax)
@@ -348,7 +354,7 @@ def psd(data, models=None, *, nperseg: int = NPERSEG, fmin: float | None = None,
 
 def input_signal(data, *, zoom=None, nperseg: int = NPERSEG, bins: int = 40, title=None):
     """The excitation (like the paper's Figs. 6 and 14): ``u(t)`` (and a zoom), its histogram and Welch PSD."""
-    data = as_iodata(data)
+    data = _siso_record(data)
     if int(bins) != bins or bins < 2:
         raise ParameterError(f"bins must be an integer >= 2, got {bins!r}")
     fig, axes = _new_figure(2, 2, figsize=(_WIDTH + 2, 6.5))
@@ -807,8 +813,8 @@ def _compare_channels(records, models, *, title=None, paired=False):
     """:func:`compare` for records with several outputs: one row per output of each record."""
     from .metrics import fit_percent
 
-    rows = [(data, as_models(m)) for data, m in zip(records, models)] if paired else [
-        (data, as_models(models)) for data in records]
+    rows = [(data, as_models(m, siso=False)) for data, m in zip(records, models)] if paired else [
+        (data, as_models(models, siso=False)) for data in records]
     panels = [(data, ms, i) for data, ms in rows for i in range(data.n_outputs)]
     fig, axes = _new_figure(len(panels), 1, figsize=(_WIDTH, 1.2 + 2.4 * len(panels)))
     for a, (data, row_models, i) in zip(axes[:, 0], panels):

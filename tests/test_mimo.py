@@ -467,3 +467,28 @@ def test_a_negative_or_mistyped_dead_time_is_refused():
         MIMOHammersteinStructure(hc.LinearStructure(0, 1), [hc.Tanh()] * 2, n_outputs=2, delay=[0.1, -1.0])
     with pytest.raises(ParameterError, match="3 values for 2 inputs"):
         MIMOHammersteinStructure(hc.LinearStructure(0, 1), [hc.Tanh()] * 2, n_outputs=2, delay=[0.1, 0.2, 0.3])
+
+
+# -- the SISO tools ----------------------------------------------------------------------------------------
+def test_an_element_is_the_siso_model_from_one_input_to_one_output():
+    data, s, truth = record("hammerstein", 0)
+    model = s.model(truth, input_names=["a", "b"], output_names=["p", "q"])
+    e = model.element("q", "a")
+    siso = data.channel(0, 1)
+    alone = hc.IOData(siso.u, siso.y, dt=DT)
+    U = np.column_stack([data.inputs[:, 0], np.zeros(N)])          # the other input held at zero
+    assert np.allclose(e.simulate(alone), model.simulate(data.t, U)[:, 1], rtol=1e-12, atol=1e-12)
+    pid = hc.control_design.tune_pid(model.element(0, 0))
+    assert np.isfinite(pid.kp)
+
+
+@pytest.mark.parametrize("call", [
+    lambda m, d: hc.control_design.tune_pid(m),
+    lambda m, d: hc.plots.bode(m),
+    lambda m, d: hc.plots.time_response(d, m),
+    lambda m, d: hc.plots.psd(d),
+])
+def test_the_siso_tools_refuse_a_mimo_model_or_record_naming_the_way_out(call):
+    data, s, truth = record("hammerstein", 0)
+    with pytest.raises(hc.HammersteinError, match=r"element\(output, input\)|data.channel"):
+        call(s.model(truth), data)
