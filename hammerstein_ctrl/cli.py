@@ -309,6 +309,10 @@ def _cmd_identify(args) -> int:
     options = _gain_options(args)
     plot = _check_plot_path(args.plot) if args.plot else None
     out = _writable_file("--out", args.out) if args.out else None
+    if args.structure == "emps" and not (args.input or args.inputs or args.output or args.outputs):
+        from .paper.datasets import EMPS_COLUMNS       # the case study's file: its own column names
+
+        args.input, args.output = EMPS_COLUMNS["input"], EMPS_COLUMNS["output"]
     data = record_from_args(args)
     structure, default_x0 = _structure_from_args(args) if data.is_siso else _mimo_structure_from_args(args, data)
     data.check_identifiable(structure.n_params)

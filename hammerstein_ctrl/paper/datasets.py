@@ -50,6 +50,8 @@ __all__ = [
 
 #: Environment variable naming the data directory (containing ``emps/``).
 ENV_DATA = "HAMMERSTEIN_CTRL_DATA"
+#: The EMPS files' variables: time, input (the motor force ``vir``) and output (the position ``qm``).
+EMPS_COLUMNS = {"time": "t", "input": "vir", "output": "qm"}
 
 
 # ---------------------------------------------------------------------------
@@ -128,10 +130,10 @@ def _read_emps(file: str, mtime: float):
         m = scipy.io.loadmat(file)
     except Exception as exc:  # noqa: BLE001 - a parser of foreign files can raise anything
         raise DataError(f"{file} is not a readable MAT file ({type(exc).__name__}: {exc})") from None
-    missing = [k for k in ("t", "vir", "qm") if k not in m]
+    missing = [k for k in EMPS_COLUMNS.values() if k not in m]
     if missing:
         raise DataError(f"{file} is not an EMPS file: missing variable(s) {missing}")
-    return m["t"].ravel(), m["vir"].ravel(), m["qm"].ravel()
+    return tuple(m[EMPS_COLUMNS[k]].ravel() for k in ("time", "input", "output"))
 
 
 def load_emps(kind: str = "estimation", duration: float | None = None, path=None) -> IOData:
