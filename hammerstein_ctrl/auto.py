@@ -382,8 +382,11 @@ def auto_mimo(cost, x0=None, *, maxfev: int | None = None, seed=None, allow_unst
     from .mimo_fit import mimo_starts, stabilized
 
     started = time.perf_counter()
-    budget, merged, rng = Budget(_total(maxfev)), _Merged(), as_rng(seed)
     s = cost.structure
+    if s.has_delay and x0 is None:
+        return _auto_mimo_delayed(cost, maxfev=maxfev, seed=seed, allow_unstable=allow_unstable, callback=callback,
+                                  started=started)
+    budget, merged, rng = Budget(_total(maxfev)), _Merged(), as_rng(seed)
     try:
         starts = mimo_starts(cost.data, s)
     except ParameterError:
@@ -414,3 +417,26 @@ def auto_mimo(cost, x0=None, *, maxfev: int | None = None, seed=None, allow_unst
     if best is None:
         return _unrefined(cost, starts, len(starts), budget, merged, started)
     return _result(cost, best, budget, runs, len(starts), merged, allow_unstable, started)
+
+
+def _auto_mimo_delayed(cost, *, maxfev, seed, allow_unstable, callback, started):
+    """:func:`auto_mimo` with dead times: the structure without them fitted on the record with its inputs shifted
+    by the whole samples :func:`~hammerstein_ctrl.mimo_fit.delay_shifts` finds (the same model with those dead
+    times), then everything refined with the dead times continuous."""
+    from .mimo_fit import MIMOCost, delay_shifts, shifted_inputs, with_delays
+
+    s, data, total = cost.structure, cost.data, _total(maxfev)
+    shifts = delay_shifts(data, s)
+    joint_share = max(MIN_REFINE_BUDGET, int(config.get("auto.delay_joint_share") * total))
+    part = auto_mimo(MIMOCost(shifted_inputs(data, shifts), s.without_delays(), reject_unstable=cost.reject_unstable),
+                     maxfev=max(1, total - joint_share), seed=seed, allow_unstable=allow_unstable, callback=callback)
+    budget, merged = Budget(total), _Merged()
+    budget.charge(min(int(part.nfev), total))
+    merged.add(part.history, 0)
+    if not np.all(np.isfinite(part.x)) or budget.remaining < MIN_REFINE_BUDGET:
+        return part
+    best = _refine(cost, with_delays(s, part.x, shifts, data.dt), budget, int(budget.remaining), merged)
+    result = _result(cost, best, budget, int(part.nit) + 1, int(part.starts), merged, allow_unstable, started)
+    result.message += (f"; dead times started from {list(shifts)} sample(s), found by ARX fits input by input, then "
+                       "refined continuously")
+    return result

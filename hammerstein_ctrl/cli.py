@@ -77,6 +77,16 @@ def _number(*, positive: bool = False, allow_inf: bool = False):
     return parse
 
 
+def _delay_value(text):
+    """argparse type of --delay: 'estimate', or a dead time in seconds (a finite number >= 0)."""
+    if text.strip().lower() == "estimate":
+        return "estimate"
+    value = _number()(text)
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"must be a dead time >= 0 in seconds, or 'estimate', got {text!r}")
+    return value
+
+
 def _writable_file(option: str, path: str) -> Path:
     """``path`` as a Path, after checking that a file can be written there (never through a link)."""
     from .safe_io import UnsafePathError, check_output
@@ -413,7 +423,7 @@ def _add_identify_arguments(ide):
                      help="piecewise-linear breakpoints of the output nonlinearity")
     ide.add_argument("--fix", nargs="+", metavar="NAME=VALUE", help="fixed coefficients, e.g. a0=0")
     ide.add_argument("--free-gain", action="store_true", help="do not fix the leading numerator coefficient to 1")
-    ide.add_argument("--delay", metavar="SECONDS|estimate",
+    ide.add_argument("--delay", metavar="SECONDS|estimate", type=_delay_value,
                      help="input dead time of the linear block: fixed in seconds, or 'estimate' (a parameter)")
     ide.add_argument("--method", default="auto",
                      help="auto (default: needs no x0 or tuning), nspsa, nlspsa, spsa, amvo-sca, lm, nelder-mead, ...")

@@ -271,11 +271,18 @@ class MIMOStructure:
         return any(d == ESTIMATE or d > 0 for d in self.delays)
 
     def input_delays(self, beta) -> np.ndarray:
-        """Each input's dead time ``(m,)`` or ``(B, m)``: the ``delay[uj]`` entries, or the fixed values."""
+        """Each input's dead time ``(m,)`` or ``(B, m)``: the magnitude of the ``delay[uj]`` entries, or the fixed
+        values.
+
+        An estimated dead time is ``|delay[uj]|``: a step of the optimiser past 0
+        stays a valid model (a dead time of 0 is often the answer, and a cost
+        undefined beyond it would stop the search at the boundary);
+        :meth:`normalize` reports the magnitude.
+        """
         b = self.check_beta(beta)
         out = np.empty(b.shape[:-1] + (self.n_inputs,))
         for j, d in enumerate(self.delays):
-            out[..., j] = b[..., self._delay_index[j]] if d == ESTIMATE else d
+            out[..., j] = np.abs(b[..., self._delay_index[j]]) if d == ESTIMATE else d
         return out
 
     def without_delays(self) -> "MIMOStructure":
@@ -305,6 +312,8 @@ class MIMOStructure:
                 b[..., sl] = nl.normalize(b[..., sl])
         for nl, sl in zip(self.output_nonlinearities or (), self._h_slices):
             b[..., sl] = nl.normalize(b[..., sl])
+        for k in self._delay_index.values():
+            b[..., k] = np.abs(b[..., k])
         return b
 
     def unstable(self, beta) -> np.ndarray:

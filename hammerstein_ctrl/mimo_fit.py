@@ -43,7 +43,7 @@ from .iodata import IOData
 from .mimo import MIMOStructure, simulate_mimo_batch
 from .objective import NONFINITE_RESIDUAL
 
-__all__ = ["MIMOCost", "mimo_starts", "stabilized", "delay_shifts"]
+__all__ = ["MIMOCost", "mimo_starts", "stabilized", "delay_shifts", "shifted_inputs", "with_delays"]
 
 
 class MIMOCost:
@@ -470,7 +470,7 @@ def delay_shifts(data: IOData, structure: MIMOStructure) -> list[int]:
     return shifts
 
 
-def _shifted(data: IOData, shifts) -> IOData:
+def shifted_inputs(data: IOData, shifts) -> IOData:
     """The record with input ``j`` delayed by ``shifts[j]`` samples (zeros before the record, as at rest)."""
     U = np.zeros_like(data.inputs)
     for j, d in enumerate(shifts):
@@ -479,15 +479,24 @@ def _shifted(data: IOData, shifts) -> IOData:
                   input_name=list(data.input_names), output_name=list(data.output_names))
 
 
-def _delayed_starts(data: IOData, s: MIMOStructure) -> list[np.ndarray]:
-    """Starts of a structure with dead times: the undelayed starts on the record shifted by whole samples."""
+def with_delays(s: MIMOStructure, x, shifts, dt: float) -> np.ndarray:
+    """A beta of ``s.without_delays()`` with the estimated dead times ``shifts * dt`` put in (the layout of ``s``).
+
+    A fit on the record shifted by whole samples (:func:`shifted_inputs`) is
+    the same model as ``s`` with those dead times.
+    """
     from .delay import ESTIMATE
 
-    shifts = delay_shifts(data, s)
     base = s.without_delays()
-    delays = [shifts[j] * data.dt for j, d in enumerate(s.delays) if d == ESTIMATE]
-    return [np.concatenate([x[:base.n_core], delays, x[base.n_core:]])
-            for x in mimo_starts(_shifted(data, shifts), base)]
+    delays = [shifts[j] * dt for j, d in enumerate(s.delays) if d == ESTIMATE]
+    x = np.asarray(x, dtype=float)
+    return np.concatenate([x[:base.n_core], delays, x[base.n_core:]])
+
+
+def _delayed_starts(data: IOData, s: MIMOStructure) -> list[np.ndarray]:
+    """Starts of a structure with dead times: the undelayed starts on the record shifted by whole samples."""
+    shifts = delay_shifts(data, s)
+    return [with_delays(s, x, shifts, data.dt) for x in mimo_starts(shifted_inputs(data, shifts), s.without_delays())]
 
 
 def _assemble(s: MIMOStructure, num, dens, g_params, h_params, offsets) -> np.ndarray:

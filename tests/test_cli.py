@@ -54,8 +54,13 @@ def test_identify_estimates_a_dead_time_from_the_command_line(capsys, tmp_path):
     delay = float(out.split("delay = ")[1].split()[0])
     assert abs(delay - 0.4) < 0.01
     code, out, err = run(capsys, "identify", "--data", path, "--orders", "0", "1", "--nonlinearity", "tanh",
-                         "--delay", "soon")
-    assert code == 2 and "delay must be a finite number >= 0" in err and len(err.strip().splitlines()) == 1
+                         "--delay", "0.4", "--intersample", "zoh")              # a dead time given in seconds
+    assert code == 0, err
+    assert "e^{-0.4 p}" in out
+    for bad in ("soon", "-0.1", "nan"):
+        code, out, err = run(capsys, "identify", "--data", path, "--orders", "0", "1", "--nonlinearity", "tanh",
+                             "--delay", bad)
+        assert code == 2 and "--delay" in err and len(err.strip().splitlines()) == 1, err
     code, out, err = run(capsys, "identify", "--data", path, "--structure", "trs", "--delay", "0.1")
     assert code == 2 and "--delay cannot be combined with --structure trs" in err
 

@@ -492,3 +492,15 @@ def test_the_siso_tools_refuse_a_mimo_model_or_record_naming_the_way_out(call):
     data, s, truth = record("hammerstein", 0)
     with pytest.raises(hc.HammersteinError, match=r"element\(output, input\)|data.channel"):
         call(s.model(truth), data)
+
+
+def test_estimated_dead_times_of_a_plant_without_any_come_out_at_zero():
+    """The boundary: dead times of 0 estimated as 0 (within 0.1 dt), the blocks as well as without the option."""
+    data, s, truth = record("hammerstein", 2)
+    res = _identify(data, s.with_delay("estimate"))
+    assert res.success, res.message
+    assert res.params["delay[u0]"] < 0.1 * DT and res.params["delay[u1]"] < 0.1 * DT
+    plain = _identify(data, s)
+    assert res.fun <= plain.fun * 1.0001
+    se = np.sqrt(np.diag(plain.covariance))
+    assert np.all(np.abs(res.x[:-2] - truth) < 4 * se)
