@@ -134,7 +134,13 @@ def as_channels(x, name: str) -> np.ndarray:
             return as_signal(x, name)                   # refused there, naming the masked samples
         x = np.ma.getdata(x)
     raw = x
-    shape = np.shape(raw)
+    try:
+        shape = np.shape(raw)
+    except ValueError:                          # a ragged nested list
+        raise DataError(f"{name} has rows of different lengths; give one row per sample with one value per "
+                        "channel") from None
+    if len(shape) == 2 and 0 in shape:
+        raise DataError(f"{name} is empty (an array of shape {shape})")
     if len(shape) > 2:
         raise DataError(f"{name} must be one signal (N,) or channels as columns (N, m), got an array of shape "
                         f"{shape}")

@@ -379,7 +379,7 @@ def auto_mimo(cost, x0=None, *, maxfev: int | None = None, seed=None, allow_unst
     restarts around the best while it is unacceptable (unstable or no better
     than constants).  Parameters and return value as :func:`auto_minimize`.
     """
-    from .mimo_fit import mimo_starts, stabilized
+    from .mimo_fit import completed, mimo_starts, stabilized
 
     started = time.perf_counter()
     s = cost.structure
@@ -395,7 +395,7 @@ def auto_mimo(cost, x0=None, *, maxfev: int | None = None, seed=None, allow_unst
         starts = []
     budget.charge(min(len(s.param_names), int(budget.remaining)))    # the starts' regressions, as one batch
     if x0 is not None:
-        starts.append(stabilized(s, as_x0(x0)))
+        starts.append(stabilized(s, completed(cost, as_x0(x0))))
     best, best_key, runs, restarts = None, None, 0, 0
     queue = list(starts)
     while budget.remaining >= MIN_REFINE_BUDGET:

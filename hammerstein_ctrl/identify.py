@@ -468,7 +468,7 @@ def _mimo_trust(cost, x, model, checks: _Checks):
     verdicts = identifiability_verdicts(s, x, unc) + verdicts
     analysis = None
     for i, (name, e) in enumerate(zip(data.output_names, cost.split(r))):
-        verdict = offset_verdict(s, e, None)
+        verdict = offset_verdict(s, e, unc)
         if verdict is not None:
             verdicts.append(Verdict(verdict.code, verdict.severity, f"output {name!r}: {verdict.message}"))
         for j, u in enumerate(data.inputs.T):

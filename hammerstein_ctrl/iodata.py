@@ -90,7 +90,9 @@ def _channel_labels(value, count: int, default: str, what: str, unique: bool = T
         value = default
     if isinstance(value, str):
         return (value,) if count == 1 else tuple(f"{value}[{k}]" for k in range(count))
-    labels = tuple(str(v) for v in value)
+    if not isinstance(value, (list, tuple)) or not all(isinstance(v, str) for v in value):
+        raise DataError(f"{what} must be a string or a list of strings (one per channel), got {value!r}")
+    labels = tuple(value)
     if len(labels) != count:
         raise DataError(f"{what} has {len(labels)} label(s) {list(labels)} for {count} channel(s)")
     if unique and len(set(labels)) != len(labels):
@@ -176,6 +178,7 @@ class IOData:
         tolerance: float = GRID_TOLERANCE,
         intersample: str = "foh",
         resample: str | None = None,
+        _sliced: bool = False,
     ):
         self.intersample = check_intersample(intersample)
         tolerance = check_tolerance(tolerance)
@@ -206,6 +209,10 @@ class IOData:
             t_grid = step * np.arange(len(u))
         if len(u) < 2:
             raise DataError("a record needs at least two samples")
+        channels = (1 if u.ndim == 1 else u.shape[1]) + (1 if y.ndim == 1 else y.shape[1])
+        if channels > len(u) and not _sliced:
+            raise DataError(f"u and y hold {channels} channels over {len(u)} samples: channels are columns, one row "
+                            "per sample; pass u.T and y.T")
         for a in (t_grid, u, y):
             a.setflags(write=False)
         self.t, self.u, self.y, self.dt = t_grid, u, y, float(step)
@@ -254,6 +261,11 @@ class IOData:
     def _channel_index(self, which, names, what: str) -> list:
         if which is None:
             return list(range(len(names)))
+        if isinstance(which, np.ndarray) and which.ndim == 0:
+            which = which.item()
+        if not isinstance(which, (str, int, np.integer, list, tuple)) or isinstance(which, bool):
+            raise DataError(f"{what} channel {which!r} is neither a name in {list(names)} nor an index "
+                            f"0..{len(names) - 1} (nor a list of them)")
         items = [which] if isinstance(which, (str, int, np.integer)) else list(which)
         out = []
         for item in items:
@@ -315,7 +327,7 @@ class IOData:
         kw = dict(
             u=self.u, y=self.y, t=self.t, name=self.name, input_name=list(self.input_names),
             output_name=list(self.output_names), input_unit=list(self.input_units),
-            output_unit=list(self.output_units), intersample=self.intersample,
+            output_unit=list(self.output_units), intersample=self.intersample, _sliced=True,
         )
         kw.update(changes)
         return IOData(**kw)

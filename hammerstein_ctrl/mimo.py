@@ -75,6 +75,9 @@ def _nonlinearity_list(value, count, label: str) -> tuple:
     """One nonlinearity per channel: a list of them, or one family for every channel."""
     if value is None:
         return None
+    if not isinstance(value, Nonlinearity) and not isinstance(value, (list, tuple)):
+        raise ParameterError(f"{label} must be a list of Nonlinearity objects (one per channel), got "
+                             f"{type(value).__name__}")
     items = [value] * count if isinstance(value, Nonlinearity) else list(value)
     for k, nl in enumerate(items):
         if not isinstance(nl, Nonlinearity):
@@ -82,6 +85,36 @@ def _nonlinearity_list(value, count, label: str) -> tuple:
     if len(items) != count:
         raise ParameterError(f"{label} has {len(items)} nonlinearities for {count} channels")
     return tuple(items)
+
+
+def _signal_names(names, count: int, prefix: str, label: str) -> tuple:
+    """``count`` distinct signal names (strings), python-control's ``u[j]`` by default."""
+    if names is None:
+        return tuple(f"{prefix}[{k}]" for k in range(count))
+    if isinstance(names, str) or not all(isinstance(n, str) and n for n in names):
+        raise ParameterError(f"{label} must be a list of {count} non-empty strings, got {names!r}")
+    names = tuple(names)
+    if len(names) != count or len(set(names)) != count:
+        raise ParameterError(f"{label} must be {count} distinct names, got {list(names)}")
+    return names
+
+
+def _channel_order(model_names, record_names, what: str, record: str) -> np.ndarray:
+    """For each of the model's channels, the record's column holding it (matched by name)."""
+    if len(model_names) != len(record_names):
+        raise DataError(f"record {record!r} has {len(record_names)} {what}(s) {list(record_names)}; the model has "
+                        f"{len(model_names)} {list(model_names)}")
+    if tuple(model_names) == tuple(record_names):
+        return np.arange(len(model_names))
+    if set(model_names) == set(record_names):
+        return np.array([list(record_names).index(n) for n in model_names])
+    prefix = "u" if what == "input" else "y"
+    default = tuple(f"{prefix}[{k}]" for k in range(len(model_names)))
+    singles = (prefix,)
+    if tuple(record_names) in (default, singles) or tuple(model_names) in (default, singles):
+        return np.arange(len(model_names))                # unnamed on one side: by position
+    raise DataError(f"record {record!r} names its {what}s {list(record_names)}, the model {list(model_names)}: "
+                    f"rename them (IOData(..., {what}_name=[...])) so they match")
 
 
 def _check_linear(linear) -> LinearStructure:
@@ -100,6 +133,9 @@ def _input_delays(delay, m: int) -> tuple:
     """One dead time per input (seconds, or ``"estimate"``) from one value for all or a sequence."""
     if delay is None or isinstance(delay, (str, int, float, np.integer, np.floating)):
         return (check_delay(delay),) * m
+    if not isinstance(delay, (list, tuple, np.ndarray)):
+        raise ParameterError(f"delay must be a number of seconds, 'estimate', or a list of them (one per input), "
+                             f"got {delay!r}")
     values = list(delay)
     if len(values) != m:
         raise ParameterError(f"delay has {len(values)} values for {m} inputs: give one per input, or one for all")
@@ -146,6 +182,8 @@ class MIMOStructure:
         if self.input_nonlinearities is None and self.output_nonlinearities is None:
             raise ParameterError("give input or output nonlinearities (a MIMO linear model is a LinearStructure "
                                  "with identity nonlinearities: use Polynomial(1))")
+        if not isinstance(offset, (bool, np.bool_)):
+            raise ParameterError(f"offset must be True or False, got {offset!r}")
         self.offset = bool(offset)
         self.initial_state = "zero"
         self.delays = _input_delays(delay, m)
@@ -159,8 +197,15 @@ class MIMOStructure:
 
     @staticmethod
     def _count(nonlinearities, given, label: str) -> int:
+        from ._checks import MAX_CHANNELS
+
+        if given is not None and as_count(given, label, minimum=1) > MAX_CHANNELS:
+            raise ParameterError(f"{label} = {given} exceeds {MAX_CHANNELS} channels")
         if nonlinearities is not None and not isinstance(nonlinearities, Nonlinearity):
-            count = len(list(nonlinearities))
+            if not isinstance(nonlinearities, (list, tuple)):
+                raise ParameterError(f"the nonlinearities must be a list (one per channel), got "
+                                     f"{type(nonlinearities).__name__}")
+            count = len(nonlinearities)
             if given is not None and as_count(given, label, minimum=1) != count:
                 raise ParameterError(f"{label} = {given} but {count} nonlinearities are given")
             return count
@@ -234,7 +279,8 @@ class MIMOStructure:
         b = beta if type(beta) is np.ndarray and beta.dtype == np.float64 else as_real_array(beta, "beta")
         if b.ndim not in (1, 2) or b.shape[-1] != self.n_params:
             got = b.shape[-1] if b.ndim else "a scalar"
-            raise ParameterError(f"beta must have {self.n_params} entries {list(self.param_names)}, got {got}")
+            raise ParameterError(f"beta must have {self.n_params} entries {list(self.param_names)}, got {got}"
+                                 + (f" (an array of shape {b.shape})" if b.ndim > 1 else ""))
         return b
 
     def coefficients(self, beta):
@@ -487,9 +533,9 @@ def mimo_structure(linear: LinearStructure, input_nonlinearities=None, output_no
     'MIMOWienerStructure'
     """
     if input_nonlinearities is not None and output_nonlinearities is not None:
-        return MIMOHammersteinWienerStructure(linear, input_nonlinearities, output_nonlinearities, offset=offset,
-                                              initial_state=initial_state, delay=delay)
-    if input_nonlinearities is not None:
+        s = MIMOHammersteinWienerStructure(linear, input_nonlinearities, output_nonlinearities, offset=offset,
+                                           initial_state=initial_state, delay=delay)
+    elif input_nonlinearities is not None:
         s = MIMOHammersteinStructure(linear, input_nonlinearities, n_outputs, offset=offset,
                                      initial_state=initial_state, delay=delay)
     elif output_nonlinearities is not None:
@@ -676,9 +722,11 @@ class MIMOModel:
         self.numerators = np.array(as_real_array(numerators, "numerators"), dtype=float)
         self.denominators = np.array(as_real_array(denominators, "denominators"), dtype=float)
         if self.numerators.ndim != 3 or self.denominators.ndim != 2 or \
-                self.numerators.shape[0] != self.denominators.shape[0]:
-            raise ParameterError(f"numerators must be (p, m, nb+1) and denominators (p, nf+1), got "
-                                 f"{self.numerators.shape} and {self.denominators.shape}")
+                self.numerators.shape[0] != self.denominators.shape[0] or 0 in self.numerators.shape or \
+                self.denominators.shape[1] < 2 or self.numerators.shape[2] > self.denominators.shape[1]:
+            raise ParameterError(f"numerators must be (p, m, nb+1) and denominators (p, nf+1) with p, m >= 1 and "
+                                 f"0 <= nb <= nf, nf >= 1; got {self.numerators.shape} and "
+                                 f"{self.denominators.shape}")
         if not (np.all(np.isfinite(self.numerators)) and np.all(np.isfinite(self.denominators))) or \
                 np.any(self.denominators[:, 0] == 0):
             raise ParameterError("the MIMO linear block needs finite coefficients and non-zero leading "
@@ -688,14 +736,15 @@ class MIMOModel:
         self.output_nonlinearities = _nonlinearity_list(output_nonlinearities, p, "output_nonlinearities")
         self.input_params = self._params(self.input_nonlinearities, input_params, "input")
         self.output_params = self._params(self.output_nonlinearities, output_params, "output")
-        self.offset = np.zeros(p) if offset is None else np.array(offset, dtype=float).reshape(p)
+        self.offset = np.zeros(p) if offset is None else np.array(as_real_array(offset, "offset"), dtype=float)
+        if self.offset.shape not in ((p,), ()) or not np.all(np.isfinite(self.offset)):
+            raise ParameterError(f"offset must be {p} finite number(s), one per output, got {offset!r}")
+        self.offset = np.broadcast_to(self.offset, (p,)).copy()
         self.intersample = check_intersample(intersample)
         self.kind = str(kind)
         self.name = name or self.kind.replace("-", "_")
-        self.input_names = tuple(input_names) if input_names is not None else tuple(f"u[{j}]" for j in range(m))
-        self.output_names = tuple(output_names) if output_names is not None else tuple(f"y[{i}]" for i in range(p))
-        if len(self.input_names) != m or len(self.output_names) != p:
-            raise ParameterError(f"give {m} input and {p} output names")
+        self.input_names = _signal_names(input_names, m, "u", "input_names")
+        self.output_names = _signal_names(output_names, p, "y", "output_names")
         self.delays = np.zeros(m) if delays is None else np.array(
             [check_delay(d, estimate=False) for d in np.ravel(delays)], dtype=float)
         if self.delays.size != m:
@@ -705,8 +754,9 @@ class MIMOModel:
     def _params(nonlinearities, params, label):
         if nonlinearities is None:
             return None
-        if params is None or len(params) != len(nonlinearities):
-            raise ParameterError(f"give one parameter vector per {label} nonlinearity")
+        if params is None or isinstance(params, (str, bytes)) or not hasattr(params, "__len__") or \
+                len(params) != len(nonlinearities):
+            raise ParameterError(f"give one parameter vector per {label} nonlinearity ({len(nonlinearities)})")
         out = []
         for nl, q in zip(nonlinearities, params):
             q = np.array(nl.check_params(q), dtype=float)
@@ -803,7 +853,10 @@ class MIMOModel:
 
     def g(self, u) -> np.ndarray:
         """The input nonlinearities applied to ``u`` ``(N, m)`` (the identity where there are none)."""
-        u = np.asarray(u, dtype=float).reshape(-1, self.n_inputs)
+        u = np.asarray(u, dtype=float)
+        if u.ndim > 2 or u.shape[-1] != self.n_inputs:
+            raise DataError(f"u must have {self.n_inputs} column(s), one per input, got an array of shape {u.shape}")
+        u = u.reshape(-1, self.n_inputs)
         if self.input_nonlinearities is None:
             return u.copy()
         return np.column_stack([nl(u[:, j], q) for j, (nl, q) in
@@ -811,7 +864,10 @@ class MIMOModel:
 
     def h(self, z) -> np.ndarray:
         """The output nonlinearities applied to ``z`` ``(N, p)``."""
-        z = np.asarray(z, dtype=float).reshape(-1, self.n_outputs)
+        z = np.asarray(z, dtype=float)
+        if z.ndim > 2 or z.shape[-1] != self.n_outputs:
+            raise DataError(f"z must have {self.n_outputs} column(s), one per output, got an array of shape {z.shape}")
+        z = z.reshape(-1, self.n_outputs)
         if self.output_nonlinearities is None:
             return z.copy()
         return np.column_stack([nl(z[:, i], q) for i, (nl, q) in
@@ -824,25 +880,38 @@ class MIMOModel:
             if u is not None:
                 raise ParameterError("give a record, or t and u, not both")
             data = t
-            return data.inputs, data.dt, data.intersample if intersample is None else intersample
-        from ._checks import as_signal, uniform_grid
+            order = _channel_order(self.input_names, data.input_names, "input", data.name)
+            return data.inputs[:, order], data.dt, data.intersample if intersample is None else intersample
+        from ._checks import as_channels, as_signal, uniform_grid
 
         t = as_signal(t, "t")
         _, dt = uniform_grid(t)
-        u = np.asarray(u, dtype=float)
+        u = as_channels(u, "u")
         if u.ndim == 1 and self.n_inputs == 1:
             u = u[:, None]
         if u.ndim != 2 or u.shape != (t.size, self.n_inputs):
             raise DataError(f"u must have shape (N, {self.n_inputs}) = ({t.size}, {self.n_inputs}), one column per "
                             f"input, got {u.shape}")
-        if not np.all(np.isfinite(u)):
-            raise DataError("u contains non-finite values")
         return u, dt, self.intersample if intersample is None else intersample
+
+    def _record_outputs(self, Y, t):
+        """The simulated outputs ``Y`` (the model's order) in the order of a record's outputs."""
+        from .iodata import IOData
+
+        if not isinstance(t, IOData):
+            return Y
+        order = _channel_order(self.output_names, t.output_names, "output", t.name)
+        back = np.empty_like(order)
+        back[order] = np.arange(order.size)
+        return Y[:, back]
 
     def simulate(self, t, u=None, *, intersample: str | None = None) -> np.ndarray:
         """The sampled response ``(N, p)`` from rest to a record or to ``u`` ``(N, m)`` on the grid ``t``.
 
         Exact under the record's (or ``intersample``'s) hold, as the identification simulates.
+        A record's channels are matched to the model's by name (its outputs
+        come back in the record's order); a record with other names is refused,
+        unless one side has python-control's default names ``u[j]``/``y[i]``.
         """
         inputs, dt, hold = self._inputs(t, u, intersample)
         Y = simulate_mimo_batch(self.numerators[None], self.denominators[None], inputs, dt,
@@ -854,7 +923,7 @@ class MIMOModel:
                                                                                        self.output_params],
                                 offsets=self.offset[None], intersample=check_intersample(hold),
                                 delays=self.delays[None] if np.any(self.delays) else None)
-        return Y[0].T
+        return self._record_outputs(Y[0].T, t)
 
     def h_input(self, t, u=None, *, intersample: str | None = None) -> np.ndarray:
         """The signals ``z`` ``(N, p)`` entering the output nonlinearities (the linear block's outputs)."""
@@ -865,7 +934,7 @@ class MIMOModel:
                                                                                      self.input_params],
                                 intersample=check_intersample(hold),
                                 delays=self.delays[None] if np.any(self.delays) else None)
-        return Z[0].T
+        return self._record_outputs(Z[0].T, t)
 
     def _pade_inputs(self, order: int):
         """``(Ap, Bp, Cp, Dp)``: the inputs' dead times as Pade approximants side by side (identity where none)."""
@@ -893,8 +962,11 @@ class MIMOModel:
 
         from . import config
 
+        from ._checks import as_count
+
         A, B, C, D = observable_realization(self.numerators, self.denominators)
-        Ap, Bp, Cp, Dp = self._pade_inputs(config.get("delay.pade_order") if pade_order is None else pade_order)
+        order = config.get("delay.pade_order") if pade_order is None else as_count(pade_order, "pade_order", minimum=1)
+        Ap, Bp, Cp, Dp = self._pade_inputs(order)
         k, model = Ap.shape[0], self
 
         def updfcn(t, x, u, params):

@@ -43,7 +43,7 @@ from .iodata import IOData
 from .mimo import MIMOStructure, simulate_mimo_batch
 from .objective import NONFINITE_RESIDUAL
 
-__all__ = ["MIMOCost", "mimo_starts", "stabilized", "delay_shifts", "shifted_inputs", "with_delays"]
+__all__ = ["MIMOCost", "mimo_starts", "stabilized", "completed", "delay_shifts", "shifted_inputs", "with_delays"]
 
 
 class MIMOCost:
@@ -320,13 +320,29 @@ def _split_columns(rows: _Rows, coefficients: list, signals: list, structure: MI
     return num, weights, offsets
 
 
+#: Smallest size of a reference element (the one the gain convention makes monic) relative to the largest
+#: element it is compared with, in the linear start: below it the convention cannot hold on this plant.
+MIN_REFERENCE_SHARE = 0.02
+
+
+def _reference_lead(block: np.ndarray, what: str) -> float:
+    """The leading coefficient of the reference element ``block[0]`` (numerators, descending powers), checked
+    against the others of ``block``."""
+    lead = float(block[0, 0])
+    largest = float(np.abs(block[:, 0]).max())
+    if not np.isfinite(lead) or abs(lead) < MIN_REFERENCE_SHARE * largest:
+        share = 0.0 if not largest else abs(lead) / largest
+        raise ParameterError(f"{what} ({100 * share:.1f} % of the largest in the linear start): the gain convention "
+                             "makes that element monic, so it must be there; reorder the channels (or fit the "
+                             "outputs one at a time)")
+    return lead
+
+
 def _normalized_inputs(structure, num, weights, shapes):
     """Input nonlinearities' parameters with ``B_0j`` monic (its leading coefficient moved into ``g_j``)."""
     params = []
     for j in range(structure.n_inputs):
-        lead = num[0, j, 0]
-        if not np.isfinite(lead) or abs(lead) < 1e-12 * max(1.0, np.abs(num[:, j]).max()):
-            lead = 1.0
+        lead = _reference_lead(num[:, j], f"input {j} hardly acts on output 0")
         num[:, j] /= lead
         nl = structure.input_nonlinearities[j]
         if shapes[j] is None:
@@ -364,10 +380,7 @@ def _output_blocks(structure, data, num, dens, g_params):
     p = structure.n_outputs
     h_params, offsets = [], np.zeros(p)
     for i in range(p):
-        lead = num[i, 0, 0]
-        if not np.isfinite(lead) or abs(lead) < 1e-12 * max(1.0, np.abs(num[i]).max()):
-            lead = 1.0
-        num[i] /= lead
+        num[i] /= _reference_lead(num[i], f"output {i} hardly responds to input 0")
     Z = simulate_mimo_batch(num[None], np.asarray(dens)[None], data.inputs, data.dt,
                             input_nonlinearities=structure.input_nonlinearities,
                             input_params=None if g_params is None else [q[None] for q in g_params],
@@ -505,6 +518,20 @@ def _assemble(s: MIMOStructure, num, dens, g_params, h_params, offsets) -> np.nd
     model = MIMOModel(num, np.asarray(dens), input_nonlinearities=s.input_nonlinearities, input_params=g_params,
                       output_nonlinearities=s.output_nonlinearities, output_params=h_params, offset=offsets)
     return s.normalize(s.beta(model))
+
+
+def completed(cost: "MIMOCost", x0) -> np.ndarray:
+    """A user's x0 as a whole beta: the block parameters alone get the offsets that fit them (the outputs' mean
+    errors), a whole beta is taken as it is."""
+    s = cost.structure
+    x = np.asarray(x0, dtype=float).reshape(-1)
+    if x.size == s.n_core and s.offset:
+        full = np.concatenate([x, np.zeros(s.n_outputs)])
+        with np.errstate(all="ignore"):
+            errors = cost.data.outputs - cost.simulate(full)
+        full[s.n_core:] = np.where(np.isfinite(errors).all(axis=0), errors.mean(axis=0), 0.0)
+        x = full
+    return s.check_beta(x)
 
 
 def stabilized(structure: MIMOStructure, beta) -> np.ndarray:

@@ -267,6 +267,9 @@ def _mimo_structure_from_dict(obj, where: str):
             raise ParameterError(f"{where}.delays must be a list with one dead time per input")
         delays = [_delay(d, f"{where}.delays[{k}]", estimate=True) for k, d in enumerate(delays)]
     lin = _keys(obj["linear"], f"{where}.linear", ("num_order", "den_order", "monic_numerator", "fixed"))
+    if lin["fixed"] != {} or lin["monic_numerator"] is not True:
+        raise ParameterError(f"{where}.linear: a MIMO structure has no fixed coefficients and keeps its gain "
+                             "convention (fixed {{}}, monic_numerator true)")
     linear = LinearStructure(_integer(lin["num_order"], f"{where}.linear.num_order"),
                              _integer(lin["den_order"], f"{where}.linear.den_order"))
     blocks = {key: None if obj[key] is None else [
@@ -633,15 +636,15 @@ def result_from_dict(obj, where: str = "result") -> IdentificationResult:
         data=_data_from_dict(obj["data"], f"{where}: data"), history={}, optimize_result=None, saved=saved,
         records=records, models=tuple(structure.model(beta, k, intersample=r["intersample"] or "foh", name=r["name"])
                                       for k, r in enumerate(records)),
-        output_fits=_output_fits(obj.get("output_fits"), where), **extra,
+        output_fits=_output_fits(obj.get("output_fits"), where, getattr(model, "output_names", None)), **extra,
     )
 
 
-def _output_fits(obj, where: str) -> dict:
+def _output_fits(obj, where: str, names) -> dict:
     if obj is None:
         return {}
-    if not isinstance(obj, dict):
-        raise ParameterError(f"{where}: output_fits must map output names to fit percentages")
+    if not isinstance(obj, dict) or names is None or list(obj) != list(names):
+        raise ParameterError(f"{where}: output_fits must map the model's outputs {names} to fit percentages")
     return {str(k): _number(v, f"{where}: output_fits.{k}", finite=False) for k, v in obj.items()}
 
 

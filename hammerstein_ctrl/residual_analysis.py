@@ -442,8 +442,9 @@ def residual_analysis(residuals, u, *, dt: float, simulated=None, output=None, l
     name : str
         Shown in the summary and the figure.
     """
-    lags = config.get("residual_analysis.lags") if lags is None else lags
     e = np.asarray(residuals, dtype=float)
+    if lags is None:                        # the default, shortened for a record too short for it
+        lags = max(1, min(config.get("residual_analysis.lags"), (e.size - 1) // 2))
     u = np.asarray(u, dtype=float)
     if e.ndim != 1 or u.shape != e.shape:
         raise ParameterError(f"residuals and u must be 1-D signals of one length, got {e.shape} and {u.shape}")

@@ -243,7 +243,12 @@ class IdentificationResult(UncertainParameters):
         from .display import as_iodata
 
         if self.is_mimo:
+            if initial_state not in (None, "zero"):
+                raise ParameterError("a MIMO model is simulated from rest (initial_state='zero')")
             record = (self._record() if data is None else as_iodata(data)).channel()
+            if not (isinstance(output, (str, int, np.integer)) and isinstance(input, (str, int, np.integer))):
+                raise ParameterError(f"output and input must each be one channel (a name or an index), got "
+                                     f"{output!r} and {input!r}")
             o = record._channel_index(output, record.output_names, "output")[0]
             i = record._channel_index(input, record.input_names, "input")[0]
             with np.errstate(all="ignore"):

@@ -504,3 +504,68 @@ def test_estimated_dead_times_of_a_plant_without_any_come_out_at_zero():
     assert res.fun <= plain.fun * 1.0001
     se = np.sqrt(np.diag(plain.covariance))
     assert np.all(np.abs(res.x[:-2] - truth) < 4 * se)
+
+
+# -- hostile inputs ----------------------------------------------------------------------------------------------
+@pytest.mark.parametrize("make, words", [
+    (lambda: MIMOModel(np.zeros((0, 2, 1)), np.zeros((0, 2))), "p, m >= 1"),
+    (lambda: MIMOModel([[[1.0]], [[1.0]]], [[1.0, 1.0], [1.0, 2.0]], offset=[1, 2, 3]), "offset must be 2"),
+    (lambda: MIMOModel([[[1.0]], [[1.0]]], [[1.0, 1.0], [1.0, 2.0]], offset=[np.nan, 0]), "offset must be 2"),
+    (lambda: MIMOModel([[[1.0], [1.0]]], [[1.0, 1.0]], input_names=["a", "a"]), "2 distinct names"),
+    (lambda: MIMOModel([[[1.0], [1.0]]], [[1.0, 1.0]], input_names="ab"), "list of 2 non-empty strings"),
+    (lambda: MIMOModel([[[1.0], [1.0]]], [[1.0, 1.0]], input_names=[1, 2]), "list of 2 non-empty strings"),
+    (lambda: MIMOModel([[[1.0], [1.0]]], np.zeros((1, 0))), "nf >= 1"),
+    (lambda: MIMOModel([[[1.0], [1.0]]], [[1.0, 1.0]], input_nonlinearities=[hc.Tanh()] * 2, input_params=5),
+     "one parameter vector per input"),
+    (lambda: MIMOHammersteinStructure(hc.LinearStructure(0, 1), 5, n_outputs=2), "must be a list"),
+    (lambda: MIMOHammersteinStructure(hc.LinearStructure(0, 1), [hc.Tanh()] * 2, n_outputs=10**9), "exceeds 64"),
+    (lambda: MIMOHammersteinStructure(hc.LinearStructure(0, 1), [hc.Tanh()] * 2, n_outputs=2, delay=1 + 2j),
+     "delay must be"),
+    (lambda: MIMOHammersteinStructure(hc.LinearStructure(0, 1), [hc.Tanh()] * 2, n_outputs=2, offset="no"),
+     "offset must be True or False"),
+    (lambda: hc.mimo_structure(hc.LinearStructure(0, 1), [hc.Tanh()] * 2, [hc.Tanh()] * 2, n_outputs=3),
+     "n_outputs = 3"),
+    (lambda: hc.IOData(np.ones((50, 0)), np.ones(50), dt=0.1), "u is empty"),
+    (lambda: hc.IOData([[1, 2], [3]], [1, 2], dt=0.1), "rows of different lengths"),
+    (lambda: hc.IOData(np.ones((5, 2)), np.ones(5), dt=0.1, input_name=5), "string or a list of strings"),
+    (lambda: hc.IOData(np.ones((5, 2)), np.ones(5), dt=0.1).channel(1.0), "neither a name"),
+    (lambda: hc.IOData(np.ones((2, 50)), np.ones((2, 50)), dt=0.1), "pass u.T and y.T"),
+])
+def test_malformed_mimo_arguments_are_refused_in_one_line(make, words):
+    with pytest.raises(hc.HammersteinError, match=None) as err:
+        make()
+    assert words in str(err.value) and "\n" not in str(err.value)
+
+
+def test_a_record_is_matched_to_the_model_by_channel_name():
+    data, s, truth = record("hammerstein", 0)
+    model = s.model(truth, input_names=["a", "b"], output_names=["p", "q"])
+    named = hc.IOData(data.inputs, data.outputs, dt=DT, input_name=["a", "b"], output_name=["p", "q"])
+    swapped = hc.IOData(data.inputs[:, ::-1], data.outputs[:, ::-1], dt=DT, input_name=["b", "a"],
+                        output_name=["q", "p"])
+    assert np.array_equal(model.simulate(swapped), model.simulate(named)[:, ::-1])
+    other = hc.IOData(data.inputs, data.outputs, dt=DT, input_name=["x", "z"], output_name=["p", "q"])
+    with pytest.raises(DataError, match=r"names its inputs \['x', 'z'\], the model \['a', 'b'\]"):
+        model.simulate(other)
+    with pytest.raises(DataError, match="has 1 output"):
+        model.simulate(named.channel(outputs="p"))
+    assert np.array_equal(model.simulate(data), model.simulate(named))          # default names: by position
+
+
+def test_a_plant_without_the_reference_element_is_refused_saying_which_channels_to_reorder():
+    rng = np.random.default_rng(0)
+    t = np.arange(2000) * 0.02
+    u = np.repeat(rng.uniform(-2, 2, (200, 2)), 10, axis=0)
+    diagonal = MIMOModel([[[1.0], [0.0]], [[0.0], [1.0]]], [[1.0, 2.0], [1.0, 3.0]],
+                         input_nonlinearities=[hc.Tanh()] * 2, input_params=[[1, 1], [1, 1]])
+    y = diagonal.simulate(t, u) + 0.01 * rng.standard_normal((2000, 2))
+    s = MIMOHammersteinStructure(hc.LinearStructure(0, 1), [hc.Tanh()] * 2, n_outputs=2)
+    with pytest.raises(ParameterError, match="input 1 hardly acts on output 0.*reorder the channels"):
+        hc.identify(hc.IOData(u, y, dt=0.02), s)
+
+
+def test_auto_takes_the_block_parameters_alone_as_x0_with_offsets():
+    data, s, truth = record("hammerstein", 0)
+    shifted = hc.IOData(data.inputs, data.outputs + [0.5, -0.2], dt=DT)
+    res = _identify(shifted, s.with_options(offset=True), x0=truth)
+    assert res.success and np.allclose(res.x[-2:], [0.5, -0.2], atol=0.01)
