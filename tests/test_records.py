@@ -389,8 +389,8 @@ def test_masked_samples_are_refused_not_ignored():
 
 def test_a_list_of_columns_reads_a_record_with_several_channels(tmp_path):
     path = tmp_path / "twin.csv"
-    path.write_text("time,v_pitch,v_yaw,pitch,yaw\n" + "".join(f"{k / 10},{4 * k + 1},{4 * k + 2},{4 * k + 3},{4 * k + 4}\n"
-                                                               for k in range(5)))
+    rows = "".join(f"{k / 10},{4 * k + 1},{4 * k + 2},{4 * k + 3},{4 * k + 4}\n" for k in range(5))
+    path.write_text("time,v_pitch,v_yaw,pitch,yaw\n" + rows)
     d = read_record(path, input=["v_pitch", "v_yaw"], output=["pitch", "yaw"])
     assert (d.n_inputs, d.n_outputs) == (2, 2) and d.input_names == ("v_pitch", "v_yaw")
     assert d.outputs[:, 1].tolist() == [4.0, 8.0, 12.0, 16.0, 20.0] and d.dt == 0.1
