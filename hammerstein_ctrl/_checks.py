@@ -10,7 +10,7 @@ from .exceptions import DataError, ParameterError
 
 __all__ = ["GRID_TOLERANCE", "INTERSAMPLE", "MAX_ORDER", "MAX_MAGNITUDE", "check_intersample", "as_signal",
            "as_real_array", "as_count", "check_transfer_function", "uniform_grid", "check_delay", "ESTIMATE",
-           "as_channels"]
+           "as_channels", "require_siso_model"]
 
 #: Largest allowed deviation of a sample time from the uniform grid ``t0 + k*dt``,
 #: as a fraction of ``dt``.  Grids within this tolerance are regularised to exactly
@@ -108,6 +108,21 @@ def as_count(value, name: str, *, minimum: int = 0) -> int:
         shown = repr(value)
         raise ParameterError(f"{name} must be {kind}, got {shown if len(shown) <= 40 else shown[:40] + '...'}")
     return int(value)
+
+
+def require_siso_model(model, what: str):
+    """``model`` if it (or the model of a result) has one input and one output; a MIMO one is refused in one line.
+
+    Examples
+    --------
+    >>> require_siso_model(object(), "tune_pid") is not None
+    True
+    """
+    inner = model.model if getattr(model, "is_identification_result", False) else model
+    if getattr(inner, "n_inputs", 1) * getattr(inner, "n_outputs", 1) > 1 and hasattr(inner, "element"):
+        raise ParameterError(f"{what} takes a SISO model; this one has {inner.n_inputs} inputs and "
+                             f"{inner.n_outputs} outputs: pick one channel pair with model.element(output, input)")
+    return model
 
 
 #: Most channels a signal may have: a wider array is taken as transposed (samples along the rows).

@@ -60,7 +60,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ._checks import MAX_MAGNITUDE, as_signal, check_dt
+from ._checks import MAX_MAGNITUDE, as_signal, check_dt, require_siso_model as _siso_model
 from . import config
 from .exceptions import DataError, ParameterError, UnknownNameError
 from .model import pade_order_of
@@ -765,14 +765,6 @@ def tune_pid(model, rule: str = "robust", *, kind: str = "pid", max_sensitivity:
     _check_gains(gains)
     return _verified(model, key, gains, op, record, dt=dt, limits=limits, u_limit=u_limit, step=step,
                      t_final=t_final, ms=ms, **extra)
-
-
-def _siso_model(model, what: str):
-    """``model`` if it has one input and one output; a MIMO model is refused naming ``model.element``."""
-    if getattr(model, "n_inputs", 1) * getattr(model, "n_outputs", 1) > 1 and hasattr(model, "element"):
-        raise ParameterError(f"{what} takes a SISO model; this one has {model.n_inputs} inputs and "
-                             f"{model.n_outputs} outputs: tune one loop on model.element(output, input)")
-    return model
 
 
 def _check_scalars(**values) -> None:

@@ -48,6 +48,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ._checks import require_siso_model
 from ._checks import check_dt, check_intersample
 from .exceptions import DataError, ParameterError
 from .simulate import companion_realization, discretize
@@ -67,6 +68,7 @@ def model_settings(model) -> dict:
     >>> s["offset"], s["initial_state"].tolist(), s["intersample"]
     (0.0, [0.0, 0.0], 'foh')
     """
+    model = require_siso_model(model, "model_settings")
     return {"offset": model.offset, "initial_state": model.state0(), "intersample": model.intersample}
 
 
@@ -93,6 +95,7 @@ def linear_ss(model, *, inputs: str = "v", outputs: str = "y", name: str | None 
     array([[-3., -0.],
            [ 1.,  0.]])
     """
+    model = require_siso_model(model, "linear_ss")
     import control
 
     A, B, C, D = companion_realization(*_num_den(model))
@@ -125,6 +128,7 @@ def sampled_matrices(model, dt: float, intersample: str | None = None):
     >>> [float(M.ravel()[0]) for M in sampled_matrices(m, 0.5, "zoh")[:3]]
     [1.0, 0.5, 0.0]
     """
+    model = require_siso_model(model, "sampled_matrices")
     dt = _check_dt(dt)
     mode = model_settings(model)["intersample"] if intersample is None else intersample
     try:
@@ -167,6 +171,7 @@ def sampled_iosys(model, dt: float, *, intersample: str | None = None, name: str
         ``g(u)`` (``d`` whole samples of delay), named ``v[k-1]``, ...,
         before ``started``; the delay is exact, fraction of a sample included.
     """
+    model = require_siso_model(model, "sampled_iosys")
     import control
 
     if getattr(model, "delay", 0):

@@ -60,7 +60,7 @@ from .result import IdentificationResult
 from .optimize import BUDGET_EXHAUSTED, DIVERGED, SCIPY_METHODS, canonical_method, minimize
 from .residual_analysis import residual_analysis
 from .structure import BlockStructure
-from .uncertainty import (estimate_uncertainty, _check_noise)
+from .uncertainty import (channel_uncertainty, estimate_uncertainty, _check_noise)
 
 __all__ = ["identify", "IdentificationResult", "AUTO"]   # the result type lives in hammerstein_ctrl.result
 
@@ -464,11 +464,11 @@ def _mimo_trust(cost, x, model, checks: _Checks):
     verdicts = _mimo_stability(model, data, checks.allow_unstable)
     if not checks.uncertainty:
         return verdicts, None, None
-    unc, _ = estimate_uncertainty(cost, x, noise=checks.noise, residuals=r)
+    unc = channel_uncertainty(cost, x, r, s.n_outputs, noise=checks.noise)
     verdicts = identifiability_verdicts(s, x, unc) + verdicts
     analysis = None
     for i, (name, e) in enumerate(zip(data.output_names, cost.split(r))):
-        verdict = offset_verdict(s, e, unc)
+        verdict = offset_verdict(s, e, unc._replace(noise=unc.channel_noise[i]))
         if verdict is not None:
             verdicts.append(Verdict(verdict.code, verdict.severity, f"output {name!r}: {verdict.message}"))
         for j, u in enumerate(data.inputs.T):

@@ -39,6 +39,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ._checks import require_siso_model
 from .exceptions import ParameterError
 
 __all__ = ["OperatingPoint", "operating_point", "small_signal", "static_output", "rest_model", "gain_factors",
@@ -102,6 +103,7 @@ def _finite(value, label):
 
 def static_output(model, u) -> np.ndarray:
     """The output at rest for constant inputs ``u`` (self-regulating ``H``): ``h(H(0) g(u)) + offset``."""
+    model = require_siso_model(model, "static_output")
     num, den = _poly(model)
     if den[-1] == 0:
         raise ParameterError("an integrating plant has no static output (it rests only where g(u) = 0)")
@@ -215,6 +217,7 @@ def operating_point(model, u0=None, y0=None, *, u_limit=None) -> OperatingPoint:
         If the output ``y0`` is not reachable, an integrating plant has no
         input where ``g(u) = 0``, or ``u0`` and ``y0`` disagree.
     """
+    model = require_siso_model(model, "operating_point")
     u0, y0 = _finite(u0, "u0"), _finite(y0, "y0")
     lo, hi = _input_range(u_limit)
     num, den = _poly(model)
@@ -276,6 +279,7 @@ def small_signal(model, op: OperatingPoint):
     >>> small_signal(m, operating_point(m)).num[0][0].round(12).tolist()
     [2.4]
     """
+    model = require_siso_model(model, "small_signal")
     return op.gain * model.linear
 
 
@@ -293,6 +297,7 @@ def rest_model(model, op: OperatingPoint):
     >>> bool(np.allclose(y, op.y0))
     True
     """
+    model = require_siso_model(model, "rest_model")
     from .model import BlockModel
 
     return BlockModel.build(model.linear, input_nonlinearity=model.input_nonlinearity, input_params=model.input_params,
@@ -317,6 +322,7 @@ def gain_factors(model, op: OperatingPoint, inputs, outputs=()) -> tuple[float, 
     >>> [round(k, 3) for k in gain_factors(m, operating_point(m), [0.0, 1.0])]
     [1.0, 1.483, 2.2]
     """
+    model = require_siso_model(model, "gain_factors")
     u = np.linspace(min(inputs), max(inputs), 9) if len(inputs) else np.array([op.u0])
     z = np.linspace(min(outputs), max(outputs), 9) if len(outputs) else np.array([op.z0])
     slopes = np.array([_slope_at(model, ui, zi) for ui in u for zi in z])

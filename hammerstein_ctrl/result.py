@@ -120,7 +120,7 @@ class IdentificationResult(UncertainParameters):
         """Degrees of freedom of the residuals, ``N - p`` (``N`` over all records of a joint fit)."""
         if "dof" in self.saved:
             return self.saved["dof"]
-        n = sum(len(r) for r in self.records) if self.records else len(self.data)
+        n = sum(len(r) for r in self.records) if self.records else len(self.data) * self.data.n_outputs
         return n - len(self.x)
 
     @property

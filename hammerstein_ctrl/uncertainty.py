@@ -55,7 +55,7 @@ from . import config
 from .exceptions import ParameterError
 
 __all__ = ["NoiseModel", "ParameterUncertainty", "Propagated", "UncertainParameters", "CharacteristicsTable",
-           "fit_noise_model", "parameter_covariance", "white_covariance", "residual_jacobian",
+           "channel_uncertainty", "fit_noise_model", "parameter_covariance", "white_covariance", "residual_jacobian",
            "estimate_uncertainty", "propagate", "t_factor", "root_gradients", "linear_roots", "scaled_eigen",
            "linear_characteristics",
            "NOISE_MODELS", "MAX_NOISE_ORDER", "RANK_TOLERANCE", "JACOBIAN_MAX_BYTES"]
@@ -111,12 +111,16 @@ class ParameterUncertainty(NamedTuple):
     noise : NoiseModel
     dof : int
         ``N - p``.
+    channel_noise : tuple of NoiseModel
+        With several output channels, each channel's own noise model.
     """
 
     covariance: np.ndarray
     gram: np.ndarray
     noise: NoiseModel
     dof: int
+    #: With several output channels, each channel's own noise model (``noise`` is then the noisiest one).
+    channel_noise: tuple = ()
 
     @property
     def stderr(self) -> np.ndarray:
@@ -465,6 +469,47 @@ def estimate_uncertainty(cost, x, *, noise: str = "colored", residuals=None) -> 
         return _assembled(gram, None, model, r.size), r
     gram, meat = _whitened_gram(cost, x, r, model, gram)
     return _assembled(gram, meat, model, r.size), r
+
+
+def channel_uncertainty(cost, x, residuals, channels: int, *, noise: str = "colored") -> ParameterUncertainty:
+    """The covariance of a fit to several output channels, each with its own noise.
+
+    The residual vector lists the channels one after the other (as
+    :class:`~hammerstein_ctrl.mimo_fit.MIMOCost` does).  Each channel gets
+    its own noise model (variance and, for ``noise="colored"``, AR filter:
+    outputs measured by different sensors differ in both), and the
+    covariance is the sandwich ``G^-1 (sum_i s_i^2 (H_i^T J_i)^T (H_i^T J_i)) G^-1``
+    with ``G = J^T J``; no filter runs across the join of two channels.
+    With equal white noise on every channel it is the plain formula.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> class Line:            # two channels y_i = x t + noise, the second ten times noisier
+    ...     t = np.linspace(0, 1, 200)
+    ...     def residuals(self, x): return np.r_[self.t, self.t] * (1.0 - x[0]) + np.r_[e1, e2]
+    ...     def residuals_batch(self, X): return np.array([self.residuals(x) for x in X])
+    >>> rng = np.random.default_rng(0); e1, e2 = 0.01 * rng.standard_normal(200), 0.1 * rng.standard_normal(200)
+    >>> unc = channel_uncertainty(Line(), np.array([1.0]), Line().residuals([1.0]), 2, noise="white")
+    >>> [m.describe() for m in unc.channel_noise], round(float(unc.stderr[0]), 4)
+    (['white', 'white'], 0.0088)
+    """
+    noise = _check_noise(noise)
+    x = np.asarray(x, dtype=float)
+    r = np.asarray(residuals, dtype=float)
+    _, J = residual_jacobian(cost, x)
+    gram = _gram(J)
+    meat = np.zeros_like(gram)
+    models = []
+    rows = r.size // channels
+    for k in range(channels):
+        part = slice(k * rows, (k + 1) * rows)
+        model = fit_noise_model(r[part], max(1, round(x.size / channels)), white=noise == "white")
+        W = J[part] if model.white else _whitening_transpose(J[part], model)
+        meat += model.variance * _gram(W)
+        models.append(model)
+    unc = _assembled(gram, meat, NoiseModel(0, np.ones(1), 1.0), r.size)
+    return unc._replace(noise=max(models, key=lambda m: m.variance), channel_noise=tuple(models))
 
 
 # -- propagation -----------------------------------------------------------------
