@@ -388,7 +388,7 @@ def auto_mimo(cost, x0=None, *, maxfev: int | None = None, seed=None, allow_unst
                                   started=started)
     budget, merged, rng = Budget(_total(maxfev)), _Merged(), as_rng(seed)
     try:
-        starts = mimo_starts(cost.data, s)
+        starts = [stabilized(s, x) for x in mimo_starts(cost.data, s)]
     except ParameterError:
         if x0 is None:
             raise

@@ -53,8 +53,8 @@ from . import streamed_lstsq
 from .streamed_lstsq import (constant_column, factor_of_blocks, factor_of_columns, factor_sse, residual,
                              residual_of_columns, solve_minimum_norm, solve_scaled, triangular_factor)
 
-__all__ = ["initial_points", "stabilize", "nuisance_estimate", "estimate_initial_state", "static_affine_sse",
-           "static_affine_sse_columns",
+__all__ = ["initial_points", "stabilize", "continuous_poles", "nuisance_estimate", "estimate_initial_state",
+           "static_affine_sse", "static_affine_sse_columns",
            "Budget", "POLE_PATTERNS"]
 
 #: Frequencies scanned per pole pattern (at least; see :data:`SCAN_PER_DECADE`).
@@ -133,13 +133,27 @@ def _arx_poles(data, drives, m: int) -> np.ndarray | None:
     if not np.all(np.isfinite(R)):
         return None
     coef = solve_minimum_norm(R, N - m)
-    z = np.roots(np.concatenate([[1.0], -coef[:m]])).astype(complex)
-    # a negative real discrete pole (an oscillation at the Nyquist rate, typical of a noisy fit) has no
-    # continuous-time image: its log has the imaginary part pi/dt and no conjugate, which made the
-    # candidate's real polynomial unstable.  Its decay rate stands in for it.
+    return continuous_poles(np.roots(np.concatenate([[1.0], -coef[:m]])), data.dt)
+
+
+def continuous_poles(z, dt: float) -> np.ndarray | None:
+    """Stable continuous-time poles ``s = log(z) / dt`` of discrete ones ``z`` (``None`` if one is at 0).
+
+    A negative real discrete pole (an oscillation at the Nyquist rate, typical
+    of a noisy fit) has no continuous-time image: its log has the imaginary
+    part ``pi/dt`` and no conjugate, which would make a real polynomial of the
+    poles unstable; its decay rate stands in for it.  Right-half-plane images
+    are reflected.
+
+    Examples
+    --------
+    >>> np.round(continuous_poles([-0.5, -0.6], 0.05).real, 2).tolist()
+    [-13.86, -10.22]
+    """
+    z = np.asarray(z, dtype=complex)
     nyquist = (np.abs(z.imag) <= 1e-12 * np.abs(z)) & (z.real < 0)
     with np.errstate(all="ignore"):
-        s = np.where(nyquist, np.log(np.abs(z)) + 0j, np.log(z)) / data.dt
+        s = np.where(nyquist, np.log(np.abs(z)) + 0j, np.log(z)) / dt
     if not np.all(np.isfinite(s)):
         return None
     return np.where(s.real > 0, -s.real + 1j * s.imag, s)

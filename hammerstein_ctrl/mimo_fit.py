@@ -172,12 +172,13 @@ class MIMOCost:
 
 
 # -- starts ------------------------------------------------------------------------------------
-def _continuous_poles(a: np.ndarray, dt: float, n: int) -> np.ndarray:
-    """A monic stable continuous denominator of degree ``n`` from the discrete one ``[1, a1, ..., an]``."""
+def _continuous_denominator(a: np.ndarray, dt: float, n: int) -> np.ndarray:
+    """A monic stable continuous denominator of degree ``n`` from the discrete one ``[1, a1, ..., an]``
+    (:func:`~hammerstein_ctrl.initialize.continuous_poles`; poles on the axis moved just left of it)."""
+    from .initialize import continuous_poles
+
     z = np.roots(np.concatenate([[1.0], a]))
-    z = np.where(np.abs(z) < 1e-8, 1e-8, z).astype(complex)
-    s = np.log(z) / dt
-    s = np.where(s.real > 0, -s.real + 1j * s.imag, s)
+    s = continuous_poles(np.where(np.abs(z) < 1e-8, 1e-8, z), dt)
     s = np.where(np.abs(s.real) < 1e-6 / dt, -1e-3 / dt + 1j * s.imag, s)
     den = np.real(np.poly(s)) if s.size else np.ones(1)
     return den if den.size == n + 1 else np.concatenate([den, np.zeros(n + 1 - den.size)])
@@ -195,7 +196,7 @@ def _arx_denominator(y: np.ndarray, inputs: np.ndarray, n: int, dt: float, offse
     scale = np.linalg.norm(X, axis=0)
     scale[scale == 0] = 1.0
     w = np.linalg.lstsq(X / scale, y[rows], rcond=None)[0] / scale
-    return _continuous_poles(w[:n], dt, n)
+    return _continuous_denominator(w[:n], dt, n)
 
 
 def _responses(den, signals, nb, data) -> np.ndarray:
@@ -333,8 +334,8 @@ def _reference_lead(block: np.ndarray, what: str) -> float:
     if not np.isfinite(lead) or abs(lead) < MIN_REFERENCE_SHARE * largest:
         share = 0.0 if not largest else abs(lead) / largest
         raise ParameterError(f"{what} ({100 * share:.1f} % of the largest in the linear start): the gain convention "
-                             "makes that element monic, so it must be there; reorder the channels (or fit the "
-                             "outputs one at a time)")
+                             "makes that element's leading coefficient 1, so it must be there; reorder the channels, "
+                             "lower num_order if that numerator has a lower degree, or fit the outputs one at a time")
     return lead
 
 
