@@ -25,7 +25,7 @@ __all__ = ["main", "build_parser", "EXIT_ERROR", "PROG"]
 #: Description of ``identify``.
 IDENTIFY_DESCRIPTION = ("Fit a Hammerstein (--nonlinearity), Wiener (--output-nonlinearity) or "
                         "Hammerstein-Wiener model (both) to a record. Accepted files: CSV with a header row naming "
-                    "the columns (time t/time, input u/input/vir, output y/output/qm by default; # lines "
+                    "the columns (time t/time, input u/input, output y/output by default; # lines "
                     "are comments), CSV without a header (t,u,y or u,y with --dt), MAT or NPZ files with "
                     "one vector per variable.")
 #: One-line help of ``tune`` (its options come from :mod:`hammerstein_ctrl.cli_tune`).

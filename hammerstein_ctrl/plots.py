@@ -786,11 +786,11 @@ def compare(records, models, *, title=None, paired: bool = False):
     from .metrics import fit_percent
 
     records = _records(records)
+    if paired and (not isinstance(models, (list, tuple)) or len(models) != len(records)):
+        raise ParameterError(f"paired=True needs one model per record ({len(records)}), got {models!r}")
     if any(not getattr(d, "is_siso", True) for d in records):
         return _compare_channels(records, models, title=title, paired=paired)
     if paired:
-        if not isinstance(models, (list, tuple)) or len(models) != len(records):
-            raise ParameterError(f"paired=True needs one model per record ({len(records)}), got {models!r}")
         rows = [(data, as_models(m)) for data, m in zip(records, models)]
     else:
         rows = [(data, as_models(models)) for data in records]
@@ -815,10 +815,10 @@ def _compare_channels(records, models, *, title=None, paired=False):
 
     rows = [(data, as_models(m, siso=False)) for data, m in zip(records, models)] if paired else [
         (data, as_models(models, siso=False)) for data in records]
-    panels = [(data, ms, i) for data, ms in rows for i in range(data.n_outputs)]
+    simulated = [_outputs_mimo(data, ms) for data, ms in rows]          # once per record and model
+    panels = [(data, ms, sim, i) for (data, ms), sim in zip(rows, simulated) for i in range(data.n_outputs)]
     fig, axes = _new_figure(len(panels), 1, figsize=(_WIDTH, 1.2 + 2.4 * len(panels)))
-    for a, (data, row_models, i) in zip(axes[:, 0], panels):
-        ys, bad = _outputs_mimo(data, row_models)
+    for a, (data, row_models, (ys, bad), i) in zip(axes[:, 0], panels):
         y = data.outputs[:, i]
         a.plot(data.t, y, label="measured", **_MEASURED)
         for label in row_models:

@@ -302,8 +302,10 @@ class IdentificationResult(UncertainParameters):
             raise ParameterError("this result carries no covariance (identify(..., uncertainty=False), or no model)")
         hold = self.data["intersample"] if isinstance(self.data, dict) else self.data.intersample
         structure = self.structure
-        return propagate(lambda b: fun(structure.model(b, intersample=hold)), self.x, self.covariance, level=level,
-                         dof=self.dof, method=method, samples=samples, seed=seed)
+        names = {} if not self.is_mimo or self.model is None else {
+            "input_names": self.model.input_names, "output_names": self.model.output_names}
+        return propagate(lambda b: fun(structure.model(b, intersample=hold, **names)), self.x, self.covariance,
+                         level=level, dof=self.dof, method=method, samples=samples, seed=seed)
 
     def characteristics(self, level: float | None = None):
         """Poles, zeros, time constants, natural frequencies, damping and the DC gain of ``H``, with their uncertainty.
@@ -319,7 +321,8 @@ class IdentificationResult(UncertainParameters):
         if self.covariance is None:
             raise ParameterError("this result carries no covariance (identify(..., uncertainty=False), or no model)")
         if self.is_mimo:
-            return row_characteristics(self.structure, self.x, self.covariance, level=level, dof=self.dof)
+            return row_characteristics(self.structure, self.x, self.covariance, level=level, dof=self.dof,
+                                       names=(self.model.input_names, self.model.output_names))
         return linear_characteristics(self.structure, self.x, self.covariance, level=level, dof=self.dof)
 
     def summary(self) -> str:

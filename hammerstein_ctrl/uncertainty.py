@@ -491,8 +491,8 @@ def channel_uncertainty(cost, x, residuals, channels: int, *, noise: str = "colo
     ...     def residuals_batch(self, X): return np.array([self.residuals(x) for x in X])
     >>> rng = np.random.default_rng(0); e1, e2 = 0.01 * rng.standard_normal(200), 0.1 * rng.standard_normal(200)
     >>> unc = channel_uncertainty(Line(), np.array([1.0]), Line().residuals([1.0]), 2, noise="white")
-    >>> [m.describe() for m in unc.channel_noise], round(float(unc.stderr[0]), 4)
-    (['white', 'white'], 0.0088)
+    >>> [m.describe() for m in unc.channel_noise], round(float(unc.stderr[0]), 4)   # sqrt((s1^2 + s2^2) / (4 sum t^2))
+    (['white', 'white'], 0.0063)
     """
     noise = _check_noise(noise)
     x = np.asarray(x, dtype=float)
@@ -734,15 +734,27 @@ def linear_characteristics(structure, x, covariance, *, level: float | None = No
     return rows
 
 
-def row_characteristics(structure, x, covariance, *, level: float | None = None, dof: int = 10**9
-                        ) -> CharacteristicsTable:
+def row_characteristics(structure, x, covariance, *, level: float | None = None, dof: int = 10**9,
+                        names=None) -> CharacteristicsTable:
     """:func:`linear_characteristics` of a MIMO structure: each output row's poles, then each element's DC gain.
 
     The poles come from the exact root sensitivities of the row's
     denominator; a DC gain ``B_ij(0)/F_i(0)`` from a forward-difference
-    gradient (it is smooth in beta).  Quantities are named after their row
-    (``pole 1 [y0]``) or element (``DC gain [y1, u0]``).
+    gradient (it is smooth in beta).  Quantities are named after their output
+    (``pole 1 [pitch]``) or element (``DC gain [yaw <- v_main]``), with the
+    channel names ``names = (inputs, outputs)`` (default ``u[j]``, ``y[i]``).
+
+    Examples
+    --------
+    >>> from hammerstein_ctrl import LinearStructure, Tanh, MIMOHammersteinStructure
+    >>> s = MIMOHammersteinStructure(LinearStructure(0, 1), [Tanh(), Tanh()], n_outputs=2)
+    >>> x = np.array([2.0, 0.5, 0.7, 3.0, 1.0, 1.0, 2.0, 0.5])
+    >>> t = row_characteristics(s, x, np.diag(np.full(8, 1e-4)))
+    >>> [(q, round(v, 4), round(e, 4)) for q, v, e, _, _ in t][:3]
+    [('pole 1 [y[0]]', -2.0, 0.01), ('time constant 1 [y[0]]', 0.5, 0.0025), ('pole 1 [y[1]]', -3.0, 0.01)]
     """
+    inputs, outputs = names if names is not None else (
+        [f"u[{j}]" for j in range(structure.n_inputs)], [f"y[{i}]" for i in range(structure.n_outputs)])
     x = np.asarray(x, dtype=float)
     cov = np.asarray(covariance, dtype=float)
     k = t_factor(level, dof)
@@ -755,7 +767,7 @@ def row_characteristics(structure, x, covariance, *, level: float | None = None,
         full[:, idx] = grads
         part = CharacteristicsTable()
         _root_rows(part, "pole", roots, list(full), cov, k)
-        rows += [(f"{q} [y{i}]", *rest) for q, *rest in part]
+        rows += [(f"{q} [{outputs[i]}]", *rest) for q, *rest in part]
 
     def gains(b):
         n, d = structure.coefficients(b)
@@ -768,7 +780,7 @@ def row_characteristics(structure, x, covariance, *, level: float | None = None,
     G = np.column_stack([(gains(x + h[j] * np.eye(x.size)[j]) - g0) / h[j] for j in range(x.size)])
     for e, (value, grad) in enumerate(zip(g0, G)):
         i, j = divmod(e, structure.n_inputs)
-        rows.append(_row(f"DC gain [y{i}, u{j}]", value, grad, cov, k))
+        rows.append(_row(f"DC gain [{outputs[i]} <- {inputs[j]}]", value, grad, cov, k))
     return rows
 
 

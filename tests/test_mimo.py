@@ -317,9 +317,9 @@ def test_characteristics_give_each_rows_poles_and_each_elements_gain_with_uncert
     _, truth, res = fitted
     table = {q: (v, se) for q, v, se, _, _ in res.characteristics()}
     true_poles = np.roots(DEN[1])                                  # row 1: real poles -0.75 +- ...
-    assert np.allclose(sorted(v for q, (v, _) in table.items() if q.startswith("pole") and "[y1]" in q),
-                       sorted(true_poles.real), atol=4 * max(se for q, (_, se) in table.items() if "[y1]" in q))
-    gain = table["DC gain [y1, u0]"]
+    assert np.allclose(sorted(v for q, (v, _) in table.items() if q.startswith("pole") and "[y[1]]" in q),
+                       sorted(true_poles.real), atol=4 * max(se for q, (_, se) in table.items() if "[y[1]]" in q))
+    gain = table["DC gain [y[1] <- u[0]]"]
     assert abs(gain[0] - 1.0 / 1.5) < 4 * gain[1]                 # B_10(0)/F_1(0) = 1.0 / 1.5
     prop = res.propagate(lambda m: [m.linear.dcgain()[1, 0]])
     assert prop.stderr[0] == pytest.approx(gain[1], rel=0.02)
