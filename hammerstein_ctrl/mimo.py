@@ -117,6 +117,21 @@ def _channel_order(model_names, record_names, what: str, record: str) -> np.ndar
                     f"rename them (IOData(..., {what}_name=[...])) so they match")
 
 
+def _polynomial_text(c) -> str:
+    """``[1, 3, 2]`` as ``p^2 + 3 p + 2`` (descending powers; zero terms left out)."""
+    c = np.trim_zeros(np.asarray(c, dtype=float), "f")
+    n = c.size - 1
+    terms = []
+    for k, v in enumerate(c):
+        power = n - k
+        if v == 0:
+            continue
+        p = "" if power == 0 else ("p" if power == 1 else f"p^{power}")
+        coef = "" if (v == 1 and p) else f"{v:.6g}"
+        terms.append(f"{coef} {p}".strip())
+    return " + ".join(terms).replace("+ -", "- ") or "0"
+
+
 def _check_linear(linear) -> LinearStructure:
     if not isinstance(linear, LinearStructure):
         raise ParameterError(f"linear must be a LinearStructure (the orders of every element), got "
@@ -382,15 +397,25 @@ class MIMOStructure:
                          delays=self.input_delays(b) if self.has_delay else None, **kwargs)
 
     def beta(self, model: "MIMOModel") -> np.ndarray:
-        """The beta of a model with this structure (the inverse of :meth:`model`)."""
-        num, den = model.numerators, model.denominators
+        """The beta of a model with this structure (the inverse of :meth:`model`).
+
+        Raises
+        ------
+        ParameterError
+            When the model does not have this structure: other shapes or
+            nonlinearity families, a reference numerator whose leading
+            coefficient is not 1 (the gain convention), other fixed dead times,
+            or an offset the structure does not estimate.
+        """
+        num, den = np.asarray(model.numerators, dtype=float), np.asarray(model.denominators, dtype=float)
         if num.shape != self._num0.shape or den.shape != self._den0.shape:
             raise ParameterError(f"the model's blocks have shape {num.shape}/{den.shape}, the structure's "
                                  f"{self._num0.shape}/{self._den0.shape}")
+        num, den = num / den[:, :1, None], den / den[:, :1]                  # monic rows: the same model
+        self._check_model_blocks(model, num)
         flat_num, flat_den = num.reshape(-1), den.reshape(-1)
         lin = np.empty(self.n_linear)
-        is_b = np.array([n.startswith("b") for n in self.param_names[:self.n_linear]])
-        lin[is_b], lin[~is_b] = flat_num[self._num_pos], flat_den[self._den_pos]
+        lin[self._b_index], lin[self._a_index] = flat_num[self._num_pos], flat_den[self._den_pos]
         parts = [lin]
         for j in range(len(self.input_nonlinearities or ())):
             q = np.asarray(model.input_params[j], dtype=float)
@@ -400,6 +425,32 @@ class MIMOStructure:
         if self.offset:
             parts.append(np.asarray(model.offset, dtype=float))
         return np.concatenate(parts)
+
+    def _check_model_blocks(self, model, num) -> None:
+        """Refuse a model whose blocks this structure cannot hold (see :meth:`beta`)."""
+        for label, mine, theirs in (("input", self.input_nonlinearities, model.input_nonlinearities),
+                                    ("output", self.output_nonlinearities, model.output_nonlinearities)):
+            if (mine is None) != (theirs is None) or any(
+                    type(a) is not type(b) or a.param_names != b.param_names for a, b in zip(mine or (), theirs or ())):
+                raise ParameterError(f"the model's {label} nonlinearities {theirs} do not match the structure's {mine}")
+        for i in range(self.n_outputs):
+            for j in range(self.n_inputs):
+                if self._monic(i, j) and not np.isclose(num[i, j, 0], 1.0, rtol=1e-9, atol=1e-12):
+                    raise ParameterError(f"the model's numerator ({i}, {j}) has leading coefficient "
+                                         f"{num[i, j, 0]:.6g}; the structure fixes it to 1 (move the gain into the "
+                                         "nonlinearity)")
+        for j, d in enumerate(self.delays):
+            if d != ESTIMATE and not np.isclose(model.delays[j], d, rtol=1e-12, atol=1e-15):
+                raise ParameterError(f"the model's dead time on input {j} is {model.delays[j]:g} s; the structure "
+                                     f"fixes it to {d:g} s")
+        if self._fixed_gain is not None:
+            for j, q in enumerate(model.input_params):
+                if not np.isclose(q[self._fixed_gain[j]], 1.0):
+                    raise ParameterError(f"the model's input nonlinearity {j} has gain {q[self._fixed_gain[j]]:.6g}; "
+                                         "the structure fixes it to 1 (move the gain into the output block)")
+        if not self.offset and np.any(model.offset != 0):
+            raise ParameterError("the model has output offsets, which this structure does not estimate: "
+                                 "use structure.with_options(offset=True)")
 
     def with_options(self, *, offset: bool | None = None, initial_state: str | None = None):
         """The same blocks with another offset option."""
@@ -662,8 +713,11 @@ def observable_realization(num, den):
     """``(A, B, C, D)`` of a MIMO block ``[B_ij/F_i]`` with one observable canonical form per row.
 
     Row ``i`` gets ``deg F_i`` states (its modes are shared by every input),
-    so the realisation has ``p * deg F`` states and is minimal when no
-    element's zeros cancel the row's poles.
+    so the realisation has ``p * deg F`` states.  Each row's block is
+    observable; the whole need not be minimal: rows with the same modes (two
+    outputs of one second-order plant) repeat them, and a zero common to a
+    row's elements leaves a mode uncontrollable.  ``control.minreal`` of
+    :meth:`MIMOModel.to_ss` removes them before a controller design.
 
     Examples
     --------
@@ -936,6 +990,12 @@ class MIMOModel:
                                 delays=self.delays[None] if np.any(self.delays) else None)
         return self._record_outputs(Z[0].T, t)
 
+    def save(self, path) -> None:
+        """Write the model to ``path`` as versioned JSON (:func:`hammerstein_ctrl.load_model` reads it)."""
+        from ._writer import save_model
+
+        save_model(self, path)
+
     def _pade_inputs(self, order: int):
         """``(Ap, Bp, Cp, Dp)``: the inputs' dead times as Pade approximants side by side (identity where none)."""
         import control
@@ -950,7 +1010,7 @@ class MIMOModel:
                 blocks.append((np.zeros((0, 0)), np.zeros((0, 1)), np.zeros((1, 0)), np.ones((1, 1))))
         return tuple(block_diag(*[b[k] for b in blocks]) for k in range(4))
 
-    def to_iosys(self, name: str | None = None, *, pade_order: int | None = None):
+    def to_iosys(self, dt=None, name: str | None = None, *, pade_order: int | None = None):
         """A continuous-time :class:`control.NonlinearIOSystem` with the model's named inputs and outputs.
 
         States: each input's dead time as a Pade approximant of order
@@ -964,6 +1024,11 @@ class MIMOModel:
 
         from ._checks import as_count
 
+        if isinstance(dt, str) and name is None:               # to_iosys("name"), as before the dt argument
+            dt, name = None, dt
+        if dt is not None:
+            raise ParameterError("the exact sampled export takes one channel pair: model.element(output, "
+                                 "input).to_iosys(dt); to_iosys() gives the continuous-time MIMO system")
         A, B, C, D = observable_realization(self.numerators, self.denominators)
         order = config.get("delay.pade_order") if pade_order is None else as_count(pade_order, "pade_order", minimum=1)
         Ap, Bp, Cp, Dp = self._pade_inputs(order)
@@ -982,13 +1047,20 @@ class MIMOModel:
                              states=k + A.shape[0], name=name or self.name)
 
     def describe(self) -> str:
-        """The blocks, one line each."""
+        """The blocks, one line each.
+
+        Examples
+        --------
+        >>> print(MIMOModel([[[1.0, 2.0], [0.5, 0.0]]], [[1.0, 3.0, 2.0]]).describe())
+        mimo: 1 outputs, 2 inputs
+          y[0] = (p + 2) / (p^2 + 3 p + 2) u[0] + (0.5 p) / (p^2 + 3 p + 2) u[1]
+        """
         lines = [f"{self.kind}: {self.n_outputs} outputs, {self.n_inputs} inputs"]
         for i in range(self.n_outputs):
-            f = np.poly1d(self.denominators[i])
-            terms = ", ".join(f"{self.input_names[j]}: {np.poly1d(self.numerators[i, j])}".replace("\n", " ")
-                              for j in range(self.n_inputs))
-            lines.append(f"  {self.output_names[i]}: F = {str(f).strip()}; B = {terms}")
+            f = _polynomial_text(self.denominators[i])
+            terms = " + ".join(f"({_polynomial_text(self.numerators[i, j])}) / ({f}) {self.input_names[j]}"
+                               for j in range(self.n_inputs))
+            lines.append(f"  {self.output_names[i]} = {terms}")
         for label, nls, ps, names in (("g", self.input_nonlinearities, self.input_params, self.input_names),
                                       ("h", self.output_nonlinearities, self.output_params, self.output_names)):
             for nl, q, n in zip(nls or (), ps or (), names):

@@ -569,3 +569,25 @@ def test_auto_takes_the_block_parameters_alone_as_x0_with_offsets():
     shifted = hc.IOData(data.inputs, data.outputs + [0.5, -0.2], dt=DT)
     res = _identify(shifted, s.with_options(offset=True), x0=truth)
     assert res.success and np.allclose(res.x[-2:], [0.5, -0.2], atol=0.01)
+
+
+def test_a_model_without_the_structures_conventions_has_no_beta():
+    _, s, truth = record("hammerstein", 0)
+    model = s.model(truth)
+    scaled = MIMOModel(model.numerators * 2, model.denominators * 2, input_nonlinearities=model.input_nonlinearities,
+                       input_params=model.input_params)
+    assert np.allclose(s.beta(scaled), truth)                        # a common factor of a row is the same model
+    gained = MIMOModel(model.numerators * 2, model.denominators, input_nonlinearities=model.input_nonlinearities,
+                       input_params=model.input_params)
+    with pytest.raises(ParameterError, match=r"numerator \(0, 0\) has leading coefficient 2"):
+        s.beta(gained)
+    other = MIMOModel(model.numerators, model.denominators, input_nonlinearities=[hc.Saturation()] * 2,
+                      input_params=[[1.0, 1.0], [1.0, 1.0]])
+    with pytest.raises(ParameterError, match="input nonlinearities"):
+        s.beta(other)
+    offset = MIMOModel(model.numerators, model.denominators, input_nonlinearities=model.input_nonlinearities,
+                       input_params=model.input_params, offset=[0.1, 0.0])
+    with pytest.raises(ParameterError, match="offset=True"):
+        s.beta(offset)
+    with pytest.raises(ParameterError, match="fixes it to 0.2 s"):
+        s.with_delay(0.2).beta(model)
