@@ -93,7 +93,7 @@ def _acceptable(cost, x, fun, allow_unstable: bool) -> bool:
     if not (np.isfinite(fun) and fun < trivial):
         return False
     if hasattr(cost.structure, "unstable"):            # a MIMO structure: every row's denominator
-        return allow_unstable or not cost.structure.unstable(x)[0]
+        return allow_unstable or not cost.structure.unstable(x)[0] or _marginal_rows(cost, x)
     num, den = cost.structure.linear.coefficients(x[:cost.structure.linear.n_params])
     return allow_unstable or not unstable(den)[0] or _marginal(cost, x)
 
@@ -113,6 +113,18 @@ def _marginal(cost, x) -> bool:
         return False
     unc = white_covariance(ne.gram, ne.fun, cost.n_samples)
     return linear_verdicts(cost.structure, np.asarray(x, dtype=float), unc, cost.data.dt)[1]
+
+
+def _marginal_rows(cost, x) -> bool:
+    """:func:`_marginal` for a MIMO cost: every right-half-plane pole of every row within its uncertainty of the
+    axis (the white covariance of each output's noise; outside the budget)."""
+    from .diagnostics import row_pole_verdicts
+    from .uncertainty import channel_uncertainty
+
+    x = np.asarray(x, dtype=float)
+    with np.errstate(all="ignore"):
+        unc = channel_uncertainty(cost, x, cost.residuals(x), cost.structure.n_outputs, noise="white")
+    return not any(v.code == "unstable" for v in row_pole_verdicts(cost.structure, x, unc, cost.data.output_names))
 
 
 def _refine(cost, start, budget: Budget, share: int, merged: _Merged):

@@ -42,8 +42,8 @@ import numpy as np
 
 from .uncertainty import ParameterUncertainty, linear_roots, scaled_eigen, t_factor
 
-__all__ = ["Verdict", "identifiability_verdicts", "linear_verdicts", "offset_verdict", "budget_advice",
-           "late_improvement", "STILL_IMPROVING", "LATE_SHARE",
+__all__ = ["Verdict", "identifiability_verdicts", "linear_verdicts", "row_pole_verdicts", "offset_verdict",
+           "budget_advice", "late_improvement", "STILL_IMPROVING", "LATE_SHARE",
            "variance_inflation", "FAILURE", "WARNING", "UNDETERMINED_VIF", "FAST_POLE_FACTOR",
            "OFFSET_T", "OFFSET_SHARE", "VERDICT_LEVEL", "TRADE_OFF_CORRELATION"]
 
@@ -339,6 +339,46 @@ def linear_verdicts(structure, x, unc: ParameterUncertainty | None, dt: float, *
     if cov is not None:
         verdicts.extend(_cancellations(poles, zeros, cov, k))
     return verdicts, stable
+
+
+def row_pole_verdicts(structure, x, unc, names, *, allow_unstable: bool = False) -> list[Verdict]:
+    """Stability verdicts of a MIMO structure's output rows, with the SISO rule for a marginal pole.
+
+    A right-half-plane pole of row ``i`` within its uncertainty of the
+    imaginary axis (at :data:`VERDICT_LEVEL`) is marginal (an integrating
+    output, a warning); farther out it fails the fit unless ``allow_unstable``.
+
+    Examples
+    --------
+    >>> from hammerstein_ctrl import LinearStructure, Tanh, MIMOHammersteinStructure
+    >>> s = MIMOHammersteinStructure(LinearStructure(0, 1), [Tanh(), Tanh()], n_outputs=2)
+    >>> [v.code for v in row_pole_verdicts(s, np.array([2.0, 0.5, 0.7, -1.0, 1, 1, 2, 0.5]), None, ["a", "b"])]
+    ['unstable']
+    """
+    from .uncertainty import root_gradients
+
+    cov = None if unc is None else unc.covariance
+    k = t_factor(VERDICT_LEVEL, unc.dof if unc is not None else 10**9)
+    _, den = structure.coefficients(x)
+    out = []
+    for i, name in enumerate(names):
+        pos, idx = structure.row_denominator(i)
+        roots, grads = root_gradients(den[0, i], pos)
+        for v, g in zip(roots, grads):
+            if v.real <= 1e-12 * max(1.0, abs(v)):
+                continue
+            full = np.zeros(np.size(x), dtype=complex)
+            full[idx] = g
+            se_re = _component_se(full, cov)[0] if cov is not None else 0.0
+            if v.real <= k * se_re:
+                out.append(Verdict("marginal-pole", WARNING, f"output {name!r}: the pole at {_complex(v)} is within "
+                                   f"its uncertainty (± {se_re:.2g}) of the imaginary axis: taken as an integrating "
+                                   "output, not as unstable", ()))
+            elif not allow_unstable:
+                out.append(Verdict("unstable", FAILURE, f"output {name!r}: the pole at {_complex(v)} (± {se_re:.2g}) "
+                                   "lies in the right half-plane and the model diverges from rest; try other orders, "
+                                   "offset=True, or allow_unstable=True for a plant that is really unstable", ()))
+    return out
 
 
 def _cancellations(poles, zeros, cov, k) -> list[Verdict]:

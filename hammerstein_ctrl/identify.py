@@ -49,7 +49,7 @@ from .iodata import IOData
 from .delay_fit import DelayedCost
 from .experiments import RecordsCost
 from .diagnostics import (FAILURE, STILL_IMPROVING, Verdict, budget_advice, identifiability_verdicts,
-                          late_improvement, linear_verdicts, offset_verdict)
+                          late_improvement, linear_verdicts, offset_verdict, row_pole_verdicts)
 from .exceptions import IdentificationWarning, ParameterError
 from .initialize import static_affine_sse, static_affine_sse_columns
 from .metrics import fit_report
@@ -445,27 +445,16 @@ def _mimo_basic_verdicts(cost, res, key, x0, fits: dict) -> list[Verdict]:
     return out
 
 
-def _mimo_stability(model, data, allow_unstable: bool) -> list[Verdict]:
-    out = []
-    for name, poles in zip(data.output_names, model.poles()):
-        bad = poles[poles.real >= 0]
-        if bad.size and not allow_unstable:
-            listed = ", ".join(f"{p:.4g}" for p in bad)
-            out.append(Verdict("unstable", FAILURE, f"output {name!r}: the row's denominator has right-half-plane "
-                               f"pole(s) {listed}; the model diverges from rest: try other orders, offset=True, or "
-                               "allow_unstable=True for a plant that is really unstable"))
-    return out
-
-
 def _mimo_trust(cost, x, model, checks: _Checks):
     """``(verdicts, uncertainty, first analysis)`` of a finite MIMO fit."""
     s, data = cost.structure, cost.data
     r = cost.residuals(x)
-    verdicts = _mimo_stability(model, data, checks.allow_unstable)
     if not checks.uncertainty:
-        return verdicts, None, None
+        return row_pole_verdicts(s, x, None, data.output_names, allow_unstable=checks.allow_unstable), None, None
     unc = channel_uncertainty(cost, x, r, s.n_outputs, noise=checks.noise)
-    verdicts = identifiability_verdicts(s, x, unc) + verdicts
+    stability = row_pole_verdicts(s, x, unc, data.output_names, allow_unstable=checks.allow_unstable)
+    explained = {n for v in stability for n in v.params}
+    verdicts = identifiability_verdicts(s, x, unc, exempt=explained) + stability
     analysis = None
     for i, (name, e) in enumerate(zip(data.output_names, cost.split(r))):
         verdict = offset_verdict(s, e, unc._replace(noise=unc.channel_noise[i]))
