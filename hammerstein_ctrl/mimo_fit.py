@@ -448,23 +448,46 @@ def mimo_starts(data: IOData, structure: MIMOStructure) -> list[np.ndarray]:
     return [_assemble(s, num, rows.dens, g_params, h_params, offsets)]
 
 
-def _arx_sse(Y, inputs, n: int, shifts, first: int) -> float:
-    """Sum over the outputs of the squared errors of MISO ARX fits with the inputs delayed by ``shifts`` samples."""
+def _shift_scores(Y, inputs, n: int, shifts, j: int, top: int, first: int) -> np.ndarray:
+    """For each shift ``k = 0..top`` of input ``j`` (the others at ``shifts``), the squared errors of MISO ARX fits
+    of all outputs summed.
+
+    The columns that do not move (output lags, the other inputs, a constant)
+    are factored once per output; each shift then costs the projection of
+    input ``j``'s ``n + 1`` lag columns on their complement and a small solve.
+    """
     N = Y.shape[0]
     rows = np.arange(first, N)
-    drives = [inputs[rows - d - k, j] for j, d in enumerate(shifts) for k in range(n + 1)]
-    total = 0.0
+    fixed = [inputs[rows - d - k, i] for i, d in enumerate(shifts) if i != j for k in range(n + 1)]
+    scores = np.zeros(top + 1)
     for y in Y.T:
-        X = np.column_stack([-y[rows - k] for k in range(1, n + 1)] + drives + [np.ones(rows.size)])
-        w, *_ = np.linalg.lstsq(X, y[rows], rcond=None)
-        r = y[rows] - X @ w
-        total += float(r @ r)
-    return total
+        A = np.column_stack([-y[rows - k] for k in range(1, n + 1)] + fixed + [np.ones(rows.size)])
+        Q, _ = np.linalg.qr(A / np.maximum(np.linalg.norm(A, axis=0), 1e-300))
+        target = y[rows] - Q @ (Q.T @ y[rows])
+        for shift in range(top + 1):
+            U = np.column_stack([inputs[rows - shift - k, j] for k in range(n + 1)])
+            U -= Q @ (Q.T @ U)
+            w, *_ = np.linalg.lstsq(U, target, rcond=None)
+            r = target - U @ w
+            scores[shift] += float(r @ r)
+    return scores
 
 
 def delay_shifts(data: IOData, structure: MIMOStructure) -> list[int]:
     """Whole-sample dead time of each input: fixed ones rounded, estimated ones scanned one input at a time
-    (``0 .. config.defaults["delay.max_samples"]``, at most a quarter of the record) by MISO ARX fits."""
+    (``0 .. config.defaults["delay.max_samples"]``, at most a quarter of the record) by MISO ARX fits.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from hammerstein_ctrl import IOData, LinearStructure, Polynomial
+    >>> from hammerstein_ctrl.mimo import MIMOHammersteinStructure
+    >>> rng = np.random.default_rng(1); u = np.repeat(rng.uniform(-1, 1, (100, 2)), 10, axis=0)
+    >>> s = MIMOHammersteinStructure(LinearStructure(0, 1), [Polynomial(1)] * 2, n_outputs=1, delay=[0.3, 0.0])
+    >>> y = s.model([2.0, 1.5, 0.5]).simulate(np.arange(1000) * 0.1, u)
+    >>> delay_shifts(IOData(u, y, dt=0.1), s.with_delay("estimate"))
+    [3, 0]
+    """
     from . import config
     from .delay import ESTIMATE
 
@@ -477,9 +500,7 @@ def delay_shifts(data: IOData, structure: MIMOStructure) -> list[int]:
     for j, d in enumerate(structure.delays):
         if d != ESTIMATE:
             continue
-        scores = [_arx_sse(data.outputs, data.inputs, n, shifts[:j] + [k] + shifts[j + 1:], first)
-                  for k in range(top + 1)]
-        best = int(np.argmin(scores))
+        best = int(np.argmin(_shift_scores(data.outputs, data.inputs, n, shifts, j, top, first)))
         shifts[j] = max(best - (1 if data.intersample == "zoh" else 0), 0)
     return shifts
 
