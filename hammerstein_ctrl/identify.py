@@ -52,7 +52,7 @@ from .diagnostics import (FAILURE, STILL_IMPROVING, Verdict, budget_advice, iden
                           late_improvement, linear_verdicts, offset_verdict, row_pole_verdicts)
 from .exceptions import IdentificationWarning, ParameterError
 from .initialize import static_affine_sse, static_affine_sse_columns
-from .metrics import fit_report
+from .metrics import channel_report, fit_report
 from .mimo import MIMOStructure
 from .mimo_fit import MIMOCost
 from .objective import HammersteinCost
@@ -411,14 +411,11 @@ def _records_of(cost, x, model) -> dict:
 
 # -- MIMO ------------------------------------------------------------------------------------------
 def _mimo_report(data, Y) -> tuple[dict, dict]:
-    """``(overall figures, fit % per output)``: the overall fit is the outputs' mean, the RMSE over every sample."""
+    """``(overall figures, fit % per output)`` (:func:`~hammerstein_ctrl.metrics.channel_report`)."""
     if not np.all(np.isfinite(Y)):
         return {"fit_percent": -np.inf, "rmse": np.inf, "nrmse": np.inf}, {n: -np.inf for n in data.output_names}
-    reports = [fit_report(data.outputs[:, i], Y[:, i]) for i in range(data.n_outputs)]
-    E = data.outputs - Y
-    overall = {"fit_percent": float(np.mean([r["fit_percent"] for r in reports])),
-               "rmse": float(np.sqrt(np.mean(E * E))), "nrmse": float(np.mean([r["nrmse"] for r in reports]))}
-    return overall, {n: r["fit_percent"] for n, r in zip(data.output_names, reports)}
+    report = channel_report(data.outputs, Y, data.output_names)
+    return report, {n: r["fit_percent"] for n, r in report["outputs"].items()}
 
 
 def _mimo_basic_verdicts(cost, res, key, x0, fits: dict) -> list[Verdict]:

@@ -21,7 +21,7 @@ import numpy as np
 from ._checks import as_signal
 from .exceptions import DataError
 
-__all__ = ["sse", "rmse", "nrmse", "fit_percent", "fit_report"]
+__all__ = ["sse", "rmse", "nrmse", "fit_percent", "fit_report", "channel_report"]
 
 
 def _pair(y, yhat):
@@ -75,3 +75,23 @@ def fit_report(y, yhat) -> dict:
         "nrmse": nrmse(y, yhat),
         "fit_percent": fit_percent(y, yhat),
     }
+
+
+def channel_report(Y, Yhat, names) -> dict:
+    """:func:`fit_report` of several output channels (columns): ``sse`` and ``rmse`` over every sample,
+    ``nrmse`` and ``fit_percent`` the channels' means, and ``outputs``, each channel's own report by name.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> Y = np.column_stack([np.sin(np.arange(50.0)), np.arange(50.0)])
+    >>> r = channel_report(Y, Y + [0.0, 1.0], ["a", "b"])
+    >>> round(r["outputs"]["a"]["fit_percent"], 6), round(r["sse"], 6)
+    (100.0, 50.0)
+    """
+    Y, Yhat = np.asarray(Y, dtype=float), np.asarray(Yhat, dtype=float)
+    reports = {name: fit_report(Y[:, i], Yhat[:, i]) for i, name in enumerate(names)}
+    E = Y - Yhat
+    return {"sse": float(np.sum(E * E)), "rmse": float(np.sqrt(np.mean(E * E))),
+            "nrmse": float(np.mean([r["nrmse"] for r in reports.values()])),
+            "fit_percent": float(np.mean([r["fit_percent"] for r in reports.values()])), "outputs": reports}

@@ -13,7 +13,7 @@ import numpy as np
 
 from .exceptions import ParameterError
 from .iodata import IOData
-from .metrics import fit_report
+from .metrics import channel_report, fit_report
 from .model import BlockModel
 from .residual_analysis import ResidualAnalysis, residual_analysis
 from .structure import BlockStructure
@@ -197,11 +197,7 @@ class IdentificationResult(UncertainParameters):
             Y = model.simulate(data)
         if not np.all(np.isfinite(Y)):
             return {"sse": np.inf, "rmse": np.inf, "nrmse": np.inf, "fit_percent": -np.inf, "outputs": {}}
-        reports = {name: fit_report(data.outputs[:, i], Y[:, i]) for i, name in enumerate(data.output_names)}
-        E = data.outputs - Y
-        return {"sse": float(np.sum(E * E)), "rmse": float(np.sqrt(np.mean(E * E))),
-                "nrmse": float(np.mean([r["nrmse"] for r in reports.values()])),
-                "fit_percent": float(np.mean([r["fit_percent"] for r in reports.values()])), "outputs": reports}
+        return channel_report(data.outputs, Y, data.output_names)
 
     def _model_for(self, data):
         """The model of ``data`` if it is one of a joint fit's records (for a result read from a file: the record
