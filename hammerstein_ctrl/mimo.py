@@ -898,7 +898,14 @@ class MIMOModel:
         return all(np.all(r.real < 0) for r in self.poles())
 
     def to_ss(self):
-        """The linear block as a :class:`control.StateSpace` (one observable canonical form per row)."""
+        """The linear block as a :class:`control.StateSpace` (one observable canonical form per row).
+
+        Examples
+        --------
+        >>> S = MIMOModel([[[1.0], [2.0]], [[0.5], [1.0]]], [[1.0, 1.0], [1.0, 3.0]]).to_ss()
+        >>> S.nstates, S.input_labels, S.output_labels
+        (2, ['u[0]', 'u[1]'], ['y[0]', 'y[1]'])
+        """
         import control
 
         A, B, C, D = observable_realization(self.numerators, self.denominators)
@@ -966,6 +973,13 @@ class MIMOModel:
         A record's channels are matched to the model's by name (its outputs
         come back in the record's order); a record with other names is refused,
         unless one side has python-control's default names ``u[j]``/``y[i]``.
+
+        Examples
+        --------
+        >>> m = MIMOModel([[[1.0], [2.0]]], [[1.0, 1.0]])          # y = (u0 + 2 u1) / (p + 1)
+        >>> t = np.arange(0, 30, 0.1)
+        >>> round(float(m.simulate(t, np.ones((t.size, 2)))[-1, 0]), 6)    # the DC gain 1 + 2
+        3.0
         """
         inputs, dt, hold = self._inputs(t, u, intersample)
         Y = simulate_mimo_batch(self.numerators[None], self.denominators[None], inputs, dt,
@@ -1017,6 +1031,12 @@ class MIMOModel:
         ``pade_order`` (default ``config.defaults["delay.pade_order"]``; none
         without dead times), then the observable canonical form of each row
         (:meth:`to_ss`): ``w = Pade(g(u))``, ``dx/dt = A x + B w``, ``y = h(C x + D w) + y0``.
+
+        Examples
+        --------
+        >>> sys = MIMOModel([[[1.0], [2.0]]], [[1.0, 1.0]], delays=[0.0, 0.5]).to_iosys(pade_order=3)
+        >>> sys.nstates, sys.input_labels
+        (4, ['u[0]', 'u[1]'])
         """
         import control
 

@@ -557,7 +557,16 @@ def completed(cost: "MIMOCost", x0) -> np.ndarray:
 
 
 def stabilized(structure: MIMOStructure, beta) -> np.ndarray:
-    """``beta`` with every row's right-half-plane poles reflected into the left half-plane."""
+    """``beta`` with every row's right-half-plane poles reflected into the left half-plane.
+
+    Examples
+    --------
+    >>> from hammerstein_ctrl import LinearStructure, Tanh
+    >>> from hammerstein_ctrl.mimo import MIMOHammersteinStructure
+    >>> s = MIMOHammersteinStructure(LinearStructure(0, 1), [Tanh(), Tanh()], n_outputs=2)
+    >>> np.round(stabilized(s, [-2.0, 0.5, 0.7, 3.0, 1.0, 1.0, 2.0, 0.5]), 4).tolist()[:4]   # p - 2 -> p + 2
+    [2.0, 0.5, 0.7, 3.0]
+    """
     x = np.array(structure.check_beta(beta), dtype=float)
     _, den = structure.coefficients(x)
     for i in range(den.shape[1]):

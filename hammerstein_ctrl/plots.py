@@ -851,7 +851,20 @@ def _outputs_mimo(data, models) -> tuple[dict, list]:
 
 def mimo_figure(result, *, zoom=None):
     """Overview of a MIMO identification: per output, measured vs simulated and the residual; then each
-    channel's static nonlinearity over the range the record shows."""
+    channel's static nonlinearity over the range the record shows (what ``result.plot()`` draws for a MIMO fit).
+
+    Parameters
+    ----------
+    result : IdentificationResult
+        A fit of a MIMO structure, with its record.
+    zoom : (start, stop), optional
+        A time window (s) of the time panels.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        Two panels per output, then one per nonlinearity.
+    """
     from .metrics import fit_percent
 
     data, model, label = result.data, result.model, method_label(result.method)
