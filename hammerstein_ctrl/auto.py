@@ -428,7 +428,29 @@ def auto_mimo(cost, x0=None, *, maxfev: int | None = None, seed=None, allow_unst
             break
     if best is None:
         return _unrefined(cost, starts, len(starts), budget, merged, started)
-    return _result(cost, best, budget, runs, len(starts), merged, allow_unstable, started)
+    return _weighted_result(cost, best, budget, runs, len(starts), merged, allow_unstable, started)
+
+
+def _weighted_result(cost, best, budget, runs, n_starts, merged, allow_unstable, started):
+    """:func:`_result` of a MIMO fit, refined once more with each output weighted by the inverse of its noise
+    level when the levels differ (:func:`~hammerstein_ctrl.mimo_fit.noise_weights`); ``output_weights`` says which
+    weights the estimate minimises (``None``: equal)."""
+    from .mimo_fit import noise_weights
+
+    weights = noise_weights(cost, best.x) if np.all(np.isfinite(best.x)) and cost.weights is None else None
+    if weights is not None and budget.remaining >= MIN_REFINE_BUDGET:
+        weighted = cost.weighted(weights)
+        again = _refine(weighted, best.x, budget, int(budget.remaining), merged)
+        runs += 1
+        if np.isfinite(again.fun):
+            out = _result(weighted, again, budget, runs, n_starts, merged, allow_unstable, started)
+            out.fun = float(cost(out.x))                       # the figures stay the unweighted sums of squares
+            out.output_weights = weights
+            out.message += "; outputs weighted by the inverse of their noise levels"
+            return out
+    out = _result(cost, best, budget, runs, n_starts, merged, allow_unstable, started)
+    out.output_weights = cost.weights
+    return out
 
 
 def _auto_mimo_delayed(cost, *, maxfev, seed, allow_unstable, callback, started):
@@ -447,8 +469,11 @@ def _auto_mimo_delayed(cost, *, maxfev, seed, allow_unstable, callback, started)
     merged.add(part.history, 0)
     if not np.all(np.isfinite(part.x)) or budget.remaining < MIN_REFINE_BUDGET:
         return part
-    best = _refine(cost, with_delays(s, part.x, shifts, data.dt), budget, int(budget.remaining), merged)
-    result = _result(cost, best, budget, int(part.nit) + 1, int(part.starts), merged, allow_unstable, started)
+    weights = getattr(part, "output_weights", None)
+    joint = cost if weights is None else cost.weighted(weights)
+    best = _refine(joint, with_delays(s, part.x, shifts, data.dt), budget, int(budget.remaining), merged)
+    result = _result(joint, best, budget, int(part.nit) + 1, int(part.starts), merged, allow_unstable, started)
+    result.fun, result.output_weights = float(cost(result.x)), weights
     result.message += (f"; dead times started from {list(shifts)} sample(s), found by ARX fits input by input, then "
                        "refined continuously")
     return result

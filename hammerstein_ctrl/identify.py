@@ -443,7 +443,7 @@ def _mimo_basic_verdicts(cost, res, key, x0, fits: dict) -> list[Verdict]:
 
 
 def _mimo_trust(cost, x, model, checks: _Checks):
-    """``(verdicts, uncertainty, first analysis)`` of a finite MIMO fit."""
+    """``(verdicts, uncertainty, first analysis)`` of a finite MIMO fit (``cost`` weighted as the fit was)."""
     s, data = cost.structure, cost.data
     r = cost.residuals(x)
     if not checks.uncertainty:
@@ -480,8 +480,9 @@ def _mimo_result(cost, res, key, x0, started, checks: _Checks) -> Identification
     verdicts = _mimo_basic_verdicts(cost, res, key, x0, fits)
     unc = analysis = None
     if model is not None and np.all(np.isfinite(Y)):
+        weights = getattr(res, "output_weights", None)
         with np.errstate(all="ignore"):
-            trust, unc, analysis = _mimo_trust(cost, x, model, checks)
+            trust, unc, analysis = _mimo_trust(cost if weights is None else cost.weighted(weights), x, model, checks)
         still = _out_of_budget(res, key) and late_improvement(res.history) > STILL_IMPROVING
         if not still and not any(v.code == "no-better" for v in verdicts):
             verdicts += trust

@@ -43,7 +43,8 @@ from .iodata import IOData
 from .mimo import MIMOStructure, simulate_mimo_batch
 from .objective import NONFINITE_RESIDUAL
 
-__all__ = ["MIMOCost", "mimo_starts", "stabilized", "completed", "delay_shifts", "shifted_inputs", "with_delays"]
+__all__ = ["MIMOCost", "mimo_starts", "stabilized", "completed", "noise_weights", "WEIGHTING_RATIO", "delay_shifts",
+           "shifted_inputs", "with_delays"]
 
 
 class MIMOCost:
@@ -56,6 +57,10 @@ class MIMOCost:
     structure : MIMOStructure
     reject_unstable : bool, default False
         Score candidates with a right-half-plane pole ``inf``.
+    weights : array_like, shape (p,), optional
+        Each output's weight on its residuals (``J = sum_i w_i^2 |e_i|^2``);
+        default 1.  ``auto`` weighs outputs of different noise levels by the
+        inverse of each one's residual standard deviation (:meth:`weighted`).
 
     Examples
     --------
@@ -72,7 +77,7 @@ class MIMOCost:
     (0.0, (600,))
     """
 
-    def __init__(self, data: IOData, structure: MIMOStructure, *, reject_unstable: bool = False):
+    def __init__(self, data: IOData, structure: MIMOStructure, *, reject_unstable: bool = False, weights=None):
         if not isinstance(structure, MIMOStructure):
             raise ParameterError(f"structure must be a MIMO structure, got {type(structure).__name__}")
         if not isinstance(data, IOData):
@@ -85,6 +90,17 @@ class MIMOCost:
         self._inputs = np.ascontiguousarray(data.inputs.T).T        # (N, m) with each channel contiguous
         self._workspace: dict = {}                                   # buffers reused by every evaluation
         self._y = np.ascontiguousarray(data.outputs.T).reshape(-1)
+        self.weights = None
+        if weights is not None:
+            w = np.asarray(weights, dtype=float).reshape(-1)
+            if w.size != structure.n_outputs or not np.all(np.isfinite(w) & (w > 0)):
+                raise ParameterError(f"weights must be {structure.n_outputs} positive numbers, got {weights!r}")
+            self.weights = w
+            self._w = np.repeat(w, len(data))
+
+    def weighted(self, weights) -> "MIMOCost":
+        """The same cost with each output's residuals weighted (``None``: unweighted)."""
+        return MIMOCost(self.data, self.structure, reject_unstable=self.reject_unstable, weights=weights)
 
     @property
     def n_params(self) -> int:
@@ -129,6 +145,8 @@ class MIMOCost:
         """Residual vectors ``(B, p N)``: each candidate's output errors, output by output."""
         Y = self._simulated(betas)
         R = self._y - Y.reshape(Y.shape[0], -1)
+        if self.weights is not None:
+            R *= self._w
         with np.errstate(all="ignore"):
             for r in R:
                 if not np.isfinite(r.sum()):
@@ -138,7 +156,7 @@ class MIMOCost:
         return R
 
     def residuals(self, beta) -> np.ndarray:
-        """``y - yhat`` of every output, end to end (``J = sum(residuals**2)``)."""
+        """``y - yhat`` of every output (weighted), end to end (``J = sum(residuals**2)``)."""
         b = self.structure.check_beta(beta)
         if b.ndim != 1:
             raise ParameterError("residuals(beta) takes one vector; use residuals_batch for a batch")
@@ -151,6 +169,8 @@ class MIMOCost:
         E = Y.reshape(Y.shape[0], -1)
         with np.errstate(all="ignore"):
             E -= self._y
+            if self.weights is not None:
+                E *= self._w
             J = np.array([e @ e for e in E])
         J[~np.isfinite(J)] = np.inf
         if self.reject_unstable:
@@ -162,6 +182,11 @@ class MIMOCost:
         if b.ndim != 1:
             raise ParameterError("cost(beta) takes one vector; use cost.batch for a batch")
         return float(self.batch(b)[0])
+
+    def unweighted_residuals(self, beta) -> np.ndarray:
+        """``y - yhat`` of every output without the weights (what the fit figures measure)."""
+        r = self.residuals(beta)
+        return r if self.weights is None else r / self._w
 
     def split(self, signal) -> list:
         """A signal over all outputs (such as :meth:`residuals`) cut into one piece per output."""
@@ -540,6 +565,21 @@ def _assemble(s: MIMOStructure, num, dens, g_params, h_params, offsets) -> np.nd
     model = MIMOModel(num, np.asarray(dens), input_nonlinearities=s.input_nonlinearities, input_params=g_params,
                       output_nonlinearities=s.output_nonlinearities, output_params=h_params, offset=offsets)
     return s.normalize(s.beta(model))
+
+
+#: Ratio of the outputs' residual standard deviations past which ``auto`` weighs them.
+WEIGHTING_RATIO = 1.5
+
+
+def noise_weights(cost: MIMOCost, x) -> np.ndarray | None:
+    """Each output's weight ``1/sigma_i`` (scaled to a geometric mean of 1) from its residuals at ``x``, or
+    ``None`` when the outputs' noise levels are within :data:`WEIGHTING_RATIO` of each other."""
+    with np.errstate(all="ignore"):
+        sigma = np.array([np.sqrt(np.mean(e * e)) for e in cost.split(cost.unweighted_residuals(x))])
+    if not (np.all(np.isfinite(sigma)) and np.all(sigma > 0)) or sigma.max() <= WEIGHTING_RATIO * sigma.min():
+        return None
+    w = 1.0 / sigma
+    return w / np.exp(np.mean(np.log(w)))
 
 
 def completed(cost: "MIMOCost", x0) -> np.ndarray:

@@ -609,3 +609,21 @@ def test_an_integrating_output_is_marginal_not_unstable():
         res = _identify(hc.IOData(u, y, dt=DT), s)
         assert res.success, (seed, res.message)
         assert not any(v.code == "unstable" for v in res.verdicts)
+
+
+def test_outputs_with_different_noise_levels_are_weighted_and_their_standard_errors_hold():
+    """Output noise 0.002 and 0.1: auto weighs the outputs by the inverse of their noise levels, and the
+    standard errors (each output's own noise model) match the estimates' spread over 12 seeds."""
+    xs, ses = [], []
+    for seed in range(12):
+        data, s, truth = record("hammerstein", 300 + seed, sigma=0.0)
+        y = data.outputs + np.random.default_rng(seed).standard_normal(data.outputs.shape) * [0.002, 0.1]
+        res = _identify(hc.IOData(data.inputs, y, dt=DT), s)
+        assert res.success and "weighted by the inverse of their noise levels" in res.message, res.message
+        w = res.optimize_result.output_weights
+        assert 35 < w[0] / w[1] < 65                  # 0.1 / 0.002, from the first fit's residuals
+        xs.append(res.x)
+        ses.append(np.sqrt(np.diag(res.covariance)))
+    ratio = np.std(xs, axis=0, ddof=1) / np.mean(ses, axis=0)
+    assert np.all((ratio > 0.5) & (ratio < 1.7)), ratio
+    assert 0.75 < np.median(ratio) < 1.3
