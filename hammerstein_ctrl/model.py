@@ -96,6 +96,13 @@ def _check_block(nonlinearity, params, label: str):
 
 
 def _check_linear(linear):
+    """``(transfer function or None, num, den)``: a python-control block checked, or ``(num, den)`` coefficients
+    (descending powers) whose transfer function is made when first asked for (python-control's import is
+    the slowest part of a first identification)."""
+    if isinstance(linear, tuple) and len(linear) == 2:
+        num, den = check_transfer_function(np.ravel(linear[0]), np.ravel(linear[1]), "the linear block",
+                                           advice="reduce the model (e.g. control.balred)")
+        return None, num, den
     import control
 
     if isinstance(linear, control.StateSpace):
@@ -108,7 +115,7 @@ def _check_linear(linear):
         raise ParameterError("the linear block must be continuous-time (dt=0)")
     num, den = check_transfer_function(linear.num[0][0], linear.den[0][0], "the linear block",
                                        advice="reduce the model (e.g. control.balred)")
-    return linear, den.size - 1
+    return linear, num, den
 
 
 class BlockModel:
@@ -147,7 +154,8 @@ class BlockModel:
     def __init__(self, linear, *, input_nonlinearity=None, input_params=None, output_nonlinearity=None,
                  output_params=None, offset: float = 0.0, initial_state=None, intersample: str = "foh",
                  name: str | None = None, delay: float = 0.0):
-        self.linear, order = _check_linear(linear)
+        self._linear, self._num, self._den = _check_linear(linear)
+        order = self._den.size - 1
         self.delay = check_delay(delay, estimate=False)
         self.input_nonlinearity, self.input_params = _check_block(input_nonlinearity, input_params, "input")
         self.output_nonlinearity, self.output_params = _check_block(output_nonlinearity, output_params, "output")
@@ -170,9 +178,19 @@ class BlockModel:
         return BlockModel(linear, **kwargs)
 
     @property
+    def linear(self):
+        """The linear block ``H`` as a :class:`control.TransferFunction` (made on first use from the coefficients
+        a structure gives)."""
+        if self._linear is None:
+            import control
+
+            self._linear = control.tf(self._num, self._den)
+        return self._linear
+
+    @property
     def order(self) -> int:
         """Number of states of the linear block."""
-        return np.trim_zeros(np.asarray(self.linear.den[0][0], dtype=float), "f").size - 1
+        return self._den.size - 1
 
     def state0(self) -> np.ndarray:
         """The initial state ``x(0)`` (zeros when the model starts at rest)."""
@@ -237,7 +255,7 @@ class BlockModel:
     def _warn_diverged(self, t: np.ndarray, y: np.ndarray) -> None:
         """Issue a :class:`SimulationWarning` naming where the output stopped being finite, and why."""
         k = int(np.flatnonzero(~np.isfinite(y))[0])
-        poles = np.roots(np.trim_zeros(np.asarray(self.linear.den[0][0], dtype=float), "f"))
+        poles = np.roots(self._den)
         growing = poles[poles.real > 0]
         why = (f"the model is unstable (pole(s) {', '.join(f'{p:.4g}' for p in growing)} in the right half-plane)"
                if growing.size else "its state overflowed")

@@ -468,8 +468,9 @@ class BlockStructure:
         if b.ndim != 1:
             raise ParameterError("model() takes a single beta vector, not a batch")
         offset, state = self.nuisance(b)
+        num, den = self.linear.coefficients(self.linear_params(b))
         return BlockModel.build(
-            self.linear.transfer_function(self.linear_params(b)),
+            (num[0], den[0]),                       # the transfer function is made when first asked for
             input_nonlinearity=self.input_nonlinearity, input_params=self.input_params(b),
             output_nonlinearity=self.output_nonlinearity, output_params=self.output_params(b),
             offset=0.0 if offset is None else float(offset), initial_state=state,
