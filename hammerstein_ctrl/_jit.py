@@ -28,10 +28,79 @@ import warnings
 from pathlib import Path
 
 import numba
+import numba.core.caching
 
 from .exceptions import CacheWarning
 
-__all__ = ["cached_njit", "tolerate_damaged_cache"]
+__all__ = ["cached_njit", "tolerate_damaged_cache", "machine_cache_dir", "ENV_CACHE"]
+
+#: Environment variable overriding the per-machine cache root (also of the generated kernels).
+ENV_CACHE = "HAMMERSTEIN_CTRL_CACHE"
+_PACKAGE = Path(__file__).resolve().parent
+
+
+@functools.lru_cache(maxsize=1)
+def machine_cache_dir() -> Path | None:
+    """The per-machine root of the package's compiled code: ``$HAMMERSTEIN_CTRL_CACHE``, else
+    ``$XDG_CACHE_HOME/hammerstein_ctrl`` (``~/.cache/hammerstein_ctrl``); ``None`` if not writable."""
+    root = os.environ.get(ENV_CACHE) or os.path.join(
+        os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache"), "hammerstein_ctrl")
+    try:
+        Path(root).mkdir(parents=True, exist_ok=True)
+    except OSError:
+        return None
+    return Path(root) if os.access(root, os.W_OK) else None
+
+
+@functools.lru_cache(maxsize=None)
+def _file_digest(path: str) -> str:
+    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
+
+
+class _MachineCacheLocator(numba.core.caching._CacheLocator):
+    """numba's cache of the package's own functions, kept once per machine and keyed on file content.
+
+    numba's default puts it in ``__pycache__`` beside the sources and checks
+    a file's modification time: every fresh clone, virtual environment or
+    install compiled everything again.  Here the cache lives under
+    :func:`machine_cache_dir`, in a folder per numba version and source file
+    content, so every process, clone and test run of the same sources reuses
+    it, and an edited file is never served stale code.
+    """
+
+    def __init__(self, py_func, py_file):
+        self._py_file = py_file
+        self._lineno = py_func.__code__.co_firstlineno
+        digest = _file_digest(py_file)[:16]
+        self._cache_path = str(machine_cache_dir() / f"numba-{numba.__version__}" / f"{Path(py_file).stem}-{digest}")
+
+    def get_cache_path(self):
+        return self._cache_path
+
+    def get_source_stamp(self):
+        return _file_digest(self._py_file)
+
+    def get_disambiguator(self):
+        return str(self._lineno)
+
+    @classmethod
+    def from_function(cls, py_func, py_file):
+        try:
+            inside = Path(py_file).resolve().is_relative_to(_PACKAGE)
+        except (OSError, ValueError):
+            return None
+        if not inside or machine_cache_dir() is None:
+            return None
+        locator = cls(py_func, py_file)
+        try:
+            locator.ensure_cache_path()
+        except OSError:
+            return None
+        return locator
+
+
+if _MachineCacheLocator not in numba.core.caching.CacheImpl._locator_classes:
+    numba.core.caching.CacheImpl._locator_classes.insert(0, _MachineCacheLocator)
 
 
 def cached_njit(*, cache: bool = True, depends: tuple[str, ...] = (), **options):

@@ -66,7 +66,7 @@ import numba.core.errors
 import numba.extending
 import numpy as np
 
-from ._jit import cached_njit
+from ._jit import ENV_CACHE as _jit_ENV_CACHE, cached_njit, machine_cache_dir
 from ._kernel_source import (_CHECK_MASK, _OVERFLOW, _terms, HOLDS, INTERLEAVE, LANE_MIN, LANE_WIDTHS,
                              MAX_LANE_BASIS, MAX_NORMAL_LANES, MAX_PASS_STATES, MAX_UNROLLED_STATES,
                              MAX_VECTOR_STATES, MODES, OUTPUT_TERMS, kernel_source, lane_source, normal_source,
@@ -78,8 +78,8 @@ __all__ = ["get_kernel", "get_coefficient_kernel", "get_normal_kernel", "get_lan
            "MAX_UNROLLED_STATES", "MAX_PASS_STATES", "MAX_VECTOR_STATES", "MAX_NORMAL_LANES", "LANE_WIDTHS", "LANE_MIN",
            "MAX_LANE_BASIS", "INTERLEAVE", "MODES", "HOLDS", "ENV_CACHE"]
 
-#: Environment variable overriding the kernel cache directory.
-ENV_CACHE = "HAMMERSTEIN_CTRL_CACHE"
+#: Environment variable overriding the kernel cache directory (:func:`~hammerstein_ctrl._jit.machine_cache_dir`).
+ENV_CACHE = _jit_ENV_CACHE
 
 
 @functools.lru_cache(maxsize=None)
@@ -298,10 +298,10 @@ def cache_dir() -> Path | None:
     here = Path(__file__).parent
     sources = b"".join((here / name).read_bytes() for name in ("kernels.py", "_kernel_source.py") + _CALLED_MODULES)
     digest = hashlib.sha256(sources + numba.__version__.encode()).hexdigest()[:16]
-    root = os.environ.get(ENV_CACHE) or os.path.join(
-        os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache"),
-        "hammerstein_ctrl")
-    path = Path(root) / f"kernels-{digest}"
+    root = machine_cache_dir()
+    if root is None:
+        return None
+    path = root / f"kernels-{digest}"
     try:
         path.mkdir(parents=True, exist_ok=True)
         probe = tempfile.NamedTemporaryFile(dir=path, delete=True)

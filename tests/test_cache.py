@@ -49,7 +49,7 @@ def _cut_short(path: Path):
 def test_damaged_cache_files_are_compiled_again_with_a_warning(tmp_path):
     first = _run(tmp_path)
     assert first["warnings"] == []
-    files = sorted((tmp_path / "numba").rglob("*.nb[ic]"))
+    files = sorted(tmp_path.rglob("*.nb[ic]"))           # the package's own in the machine cache, kernels' in numba's
     kernel_data = [f for f in files if f.name.startswith("hc_") and f.suffix == ".nbc"]
     package_index = [f for f in files if "_linalg" in f.name and f.suffix == ".nbi"]
     assert kernel_data and package_index, [f.name for f in files]
@@ -123,8 +123,8 @@ def test_a_damaged_cache_compiled_again_on_a_full_disk_does_not_raise(tmp_path):
     memory; failing to save it must not fail the call (a CacheWarning, as for a failed load)."""
     healthy = _full_disk_child(tmp_path)
     assert healthy["error"] is None and healthy["warnings"] == []
-    data = sorted((tmp_path / "numba").rglob("normal_equations._forward_steps-*.nbc"))
-    assert data, sorted(p.name for p in (tmp_path / "numba").rglob("*"))
+    data = sorted(tmp_path.rglob("normal_equations._forward_steps-*.nbc"))
+    assert data, sorted(p.name for p in tmp_path.rglob("*"))
     for f in data:
         f.write_bytes(b"")
     full = _full_disk_child(tmp_path, limit=64)
@@ -243,3 +243,38 @@ def test_the_compiled_loop_is_not_loaded_from_numbas_cache_after_the_kernel_modu
     assert check in text
     kernels.write_text(text.replace(check, "    if True or address != numba.types.int64 or"))
     assert run() == ("TypingError", 0)
+
+
+_MACHINE_CHILD = """
+import json, sys
+from hammerstein_ctrl.normal_equations import forward_steps
+import numpy as np
+forward_steps(np.array([1.0, 2.0]))
+from numba.core.caching import CacheImpl
+print(json.dumps({"file": __import__("hammerstein_ctrl").__file__}))
+"""
+
+
+def test_the_compiled_code_is_kept_once_per_machine_and_shared_by_copies_of_the_package(tmp_path):
+    """numba's cache of the package's functions lives under $HAMMERSTEIN_CTRL_CACHE keyed on file content:
+    a second copy of the package (another clone, another virtual environment) reuses it; an edited file
+    gets its own."""
+    copy = tmp_path / "copy"
+    shutil.copytree(REPO / "hammerstein_ctrl", copy / "hammerstein_ctrl",
+                    ignore=shutil.ignore_patterns("__pycache__"))
+    env = {**os.environ, "HAMMERSTEIN_CTRL_CACHE": str(tmp_path / "cache"), "PYTHONDONTWRITEBYTECODE": "1"}
+    env.pop("NUMBA_CACHE_DIR", None)
+    for root in (REPO, copy):
+        proc = subprocess.run([sys.executable, "-c", _MACHINE_CHILD], capture_output=True, text=True,
+                              env={**env, "PYTHONPATH": str(root)}, timeout=600, cwd=tmp_path)
+        assert proc.returncode == 0, proc.stderr[-3000:]
+        assert json.loads(proc.stdout.splitlines()[-1])["file"].startswith(str(root))
+    index = sorted((tmp_path / "cache").rglob("normal_equations._forward_steps-*.nbi"))
+    assert len(index) == 1 and "numba-" in str(index[0])                  # one copy for both
+    assert not list((copy / "hammerstein_ctrl").rglob("*.nbi"))            # nothing beside the sources
+    (copy / "hammerstein_ctrl" / "normal_equations.py").write_text(
+        (copy / "hammerstein_ctrl" / "normal_equations.py").read_text() + "\n# edited\n")
+    proc = subprocess.run([sys.executable, "-c", _MACHINE_CHILD], capture_output=True, text=True,
+                          env={**env, "PYTHONPATH": str(copy)}, timeout=600, cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    assert len(sorted((tmp_path / "cache").rglob("normal_equations._forward_steps-*.nbi"))) == 2
