@@ -187,6 +187,13 @@ class BlockModel:
             self._linear = control.tf(self._num, self._den)
         return self._linear
 
+    @linear.setter
+    def linear(self, value):
+        """Replace the linear block (a transfer function; checked where the model is used, as before)."""
+        self._linear = value
+        self._num = np.trim_zeros(np.atleast_1d(np.asarray(value.num[0][0], dtype=float)), "f")
+        self._den = np.trim_zeros(np.atleast_1d(np.asarray(value.den[0][0], dtype=float)), "f")
+
     @property
     def order(self) -> int:
         """Number of states of the linear block."""
