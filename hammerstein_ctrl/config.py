@@ -17,6 +17,10 @@ key                           default  meaning
 ``residual_analysis.lags``        25   lags of the residual correlations
 ``control.max_sensitivity``      1.6   robustness target ``max(Ms, Mt)`` of the PID rules
 ``control.simc_ti_factor``       4.0   SIMC's ``tau_I = min(tau1, factor (tau_c + theta))``
+``lm.compiled_loop``            auto   Levenberg-Marquardt's compiled loop: ``"auto"`` once it is compiled on
+                                       the machine (compiled in a background process on first use; the
+                                       Python loop meanwhile), ``"always"``, or ``"never"``; the initial
+                                       value is ``$HAMMERSTEIN_CTRL_COMPILED_LOOP`` when set
 ============================  =======  ==============================================================
 
 Examples
@@ -37,12 +41,14 @@ hammerstein_ctrl.exceptions.ParameterError: auto.maxfev must be a whole number >
 from __future__ import annotations
 
 import math
+import os
 
 from .exceptions import ParameterError
 
 __all__ = ["defaults", "set_defaults", "reset_defaults"]
 
-#: ``key: (initial value, kind, low, high)``: kind "int" (whole, >= low) or "float" (low < value < high).
+#: ``key: (initial value, kind, low, high)``: kind "int" (whole, >= low), "float" (low < value < high) or
+#: "choice" (one of the strings ``low``).
 _SPEC = {
     "auto.maxfev": (2000, "int", 1, None),
     "auto.records_joint_share": (0.25, "float", 0.0, 1.0),
@@ -54,6 +60,8 @@ _SPEC = {
     "residual_analysis.lags": (25, "int", 1, None),
     "control.max_sensitivity": (1.6, "float", 1.0, math.inf),
     "control.simc_ti_factor": (4.0, "float", 0.0, math.inf),
+    "lm.compiled_loop": (os.environ.get("HAMMERSTEIN_CTRL_COMPILED_LOOP", "auto"), "choice",
+                         ("auto", "always", "never"), None),
 }
 
 #: The current defaults, ``{"module.name": value}``.
@@ -62,6 +70,10 @@ defaults: dict = {key: spec[0] for key, spec in _SPEC.items()}
 
 def _checked(key: str, value):
     _, kind, low, high = _SPEC[key]
+    if kind == "choice":
+        if value not in low:
+            raise ParameterError(f"{key} must be one of {list(low)}, got {value!r}")
+        return value
     if kind == "int":
         ok = isinstance(value, int) and not isinstance(value, bool) and value >= low and (high is None or value <= high)
         if not ok:

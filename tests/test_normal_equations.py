@@ -5,6 +5,7 @@ Jacobian (``residuals_batch``), scipy's own 2-point Jacobian, and
 ``scipy.optimize.least_squares(method="lm")`` (MINPACK) for the optimum.
 """
 
+import os
 import tracemalloc
 import warnings
 
@@ -958,3 +959,45 @@ def test_lm_refuses_a_start_of_the_wrong_length_in_the_compiled_and_the_python_l
         _python_loop(monkeypatch)
     with pytest.raises(ParameterError, match="beta must have 5 entries"):
         levenberg_marquardt(cost, x0, gtol=1.0)
+
+
+def test_the_compiled_loop_runs_once_compiled_on_the_machine_and_is_compiled_in_the_background_first(
+        tmp_path, monkeypatch):
+    """lm.compiled_loop = "auto": without the machine's marker the Python loop runs and one background process
+    is started to compile the loop; with the marker the loop runs. "never"/"always" decide alone."""
+    from hammerstein_ctrl import config
+    from hammerstein_ctrl.optimize import normal_lm
+
+    started = []
+    monkeypatch.setattr(normal_lm.subprocess, "Popen", lambda *a, **k: started.append(a[0]) or object())
+    monkeypatch.setattr(normal_lm, "_WARMING", [])
+    marker = tmp_path / "lm-loop.ready"
+    monkeypatch.setattr(normal_lm, "loop_marker", lambda: marker)
+    try:
+        config.set_defaults("lm", compiled_loop="auto")
+        assert not normal_lm.compiled_loop_wanted() and not normal_lm.compiled_loop_wanted()
+        assert started == [[normal_lm.sys.executable, "-m", "hammerstein_ctrl._warm"]]      # once per process
+        marker.write_text("compiled\n")
+        assert normal_lm.compiled_loop_wanted()
+        config.set_defaults("lm", compiled_loop="never")
+        assert not normal_lm.compiled_loop_wanted()
+        marker.unlink()
+        config.set_defaults("lm", compiled_loop="always")
+        assert normal_lm.compiled_loop_wanted()
+    finally:
+        config.set_defaults("lm", compiled_loop="always")
+    with pytest.raises(hc.ParameterError, match=r"lm.compiled_loop must be one of \['auto', 'always', 'never'\]"):
+        config.set_defaults("lm", compiled_loop="sometimes")
+
+
+@pytest.mark.slow
+def test_the_background_compilation_writes_the_marker_only_after_the_loop_ran(tmp_path):
+    """``python -m hammerstein_ctrl._warm`` with an empty cache compiles the loop and then writes the marker."""
+    import subprocess
+    import sys
+
+    env = {**os.environ, "HAMMERSTEIN_CTRL_CACHE": str(tmp_path)}
+    proc = subprocess.run([sys.executable, "-m", "hammerstein_ctrl._warm"], env=env, capture_output=True, text=True,
+                          timeout=900)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    assert len(list(tmp_path.glob("lm-loop-*.ready"))) == 1

@@ -28,10 +28,14 @@ and a Jacobian column).
 from __future__ import annotations
 
 import math
+import os
+import subprocess
+import sys
 
 import numpy as np
 
-from .._jit import cached_njit
+from .. import config
+from .._jit import _digest, cached_njit, machine_cache_dir
 from .._linalg import fill_coefficients, solve_in_place, symmetric_eigenvalues, tf_discrete
 from ..kernels import call_normal_kernel, normal_kernel_address
 from ..normal_equations import (NormalEquations, compiled_neighbourhood, compiled_sums, forward_steps,
@@ -97,6 +101,8 @@ class _Passes:
         self._value = getattr(fun, "__call__", None) if self._normal is not None else None  # noqa: B004
         direct_pass = getattr(fun, "direct_pass", None)
         self.direct = None if direct_pass is None else direct_pass()    # the compiled loop's pass, or None
+        if self.direct is not None and not compiled_loop_wanted():
+            self.direct = None
 
     def value(self, x) -> float:
         """Sum of squares at ``x`` alone (one evaluation)."""
@@ -343,6 +349,45 @@ def _accepted_code(actual, predicted, f_old, ftol, small):  # pragma: no cover -
 #: Package files holding compiled code that :func:`_compiled_loop` calls or inlines (the pass kernel's signature
 #: among them): numba's cache of it is keyed on them too (a stale copy would call the kernel unchecked).
 LOOP_DEPENDS = ("kernels.py", "_kernel_source.py", "normal_equations.py", "structure.py", "_linalg.py", "_simd.py")
+_WARMING: list = []              # the background process compiling the loop, once per process
+
+
+def loop_marker():
+    """The file that says the compiled loop of these sources is in the machine's cache (``None``: no cache)."""
+    import numba
+
+    root = machine_cache_dir()
+    if root is None:
+        return None
+    digest = _digest(LOOP_DEPENDS + ("optimize/normal_lm.py",))[:16]
+    return root / f"lm-loop-{digest}-numba-{numba.__version__}.ready"
+
+
+def compiled_loop_wanted() -> bool:
+    """Whether :func:`normal_equations_lm` runs its compiled loop (``config.defaults["lm.compiled_loop"]``).
+
+    ``"auto"``: once the loop is compiled on this machine (:func:`loop_marker`);
+    until then the Python loop runs (the same steps, a few microseconds more
+    per iteration) while a background process compiles the loop, so a first
+    use does not wait about 5 s of CPU for it.
+    """
+    mode = config.get("lm.compiled_loop")
+    if mode != "auto":
+        return mode == "always"
+    marker = loop_marker()
+    if marker is None:
+        return False                     # nowhere to keep it: every process would compile it again
+    if marker.is_file():
+        return True
+    if not _WARMING:
+        try:
+            _WARMING.append(subprocess.Popen([sys.executable, "-m", "hammerstein_ctrl._warm"],
+                                             stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
+                                             stderr=subprocess.DEVNULL, start_new_session=True,
+                                             env={**os.environ, "HAMMERSTEIN_CTRL_COMPILED_LOOP": "always"}))
+        except OSError:
+            _WARMING.append(None)
+    return False
 
 
 @cached_njit(depends=LOOP_DEPENDS)
