@@ -46,7 +46,14 @@ def main() -> int:
 
     os.environ["HAMMERSTEIN_CTRL_COMPILED_LOOP"] = "always"
     marker = loop_marker()
-    if marker is None or not _fits():
+    if marker is None:
+        return 1
+    try:
+        ran = _fits()
+    except Exception:                   # noqa: BLE001 - any failure: say so once, never retry in every process
+        ran = False
+    if not ran:
+        marker.with_suffix(".failed").write_text("the compiled loop could not be compiled or did not run\n")
         return 1
     tmp = marker.with_suffix(f".{os.getpid()}.tmp")
     tmp.write_text("compiled\n")

@@ -379,7 +379,7 @@ def compiled_loop_wanted() -> bool:
         return False                     # nowhere to keep it: every process would compile it again
     if marker.is_file():
         return True
-    if not _WARMING:
+    if not _WARMING and not marker.with_suffix(".failed").is_file():     # a failed attempt is not repeated
         try:
             _WARMING.append(subprocess.Popen([sys.executable, "-m", "hammerstein_ctrl._warm"],
                                              stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
