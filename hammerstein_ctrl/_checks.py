@@ -110,8 +110,9 @@ def as_count(value, name: str, *, minimum: int = 0) -> int:
     return int(value)
 
 
-def require_siso_model(model, what: str):
-    """``model`` if it (or the model of a result) has one input and one output; a MIMO one is refused in one line.
+def require_siso_model(model, what: str, hint: str = ""):
+    """``model`` if it (or the model of a result) has one input and one output; a MIMO one is refused in one line
+    (``hint``: what else to use, appended to the message).
 
     Examples
     --------
@@ -121,7 +122,8 @@ def require_siso_model(model, what: str):
     inner = model.model if getattr(model, "is_identification_result", False) else model
     if getattr(inner, "n_inputs", 1) * getattr(inner, "n_outputs", 1) > 1 and hasattr(inner, "element"):
         raise ParameterError(f"{what} takes a SISO model; this one has {inner.n_inputs} inputs and "
-                             f"{inner.n_outputs} outputs: pick one channel pair with model.element(output, input)")
+                             f"{inner.n_outputs} outputs: pick one channel pair with model.element(output, "
+                             f"input){hint}")
     return model
 
 

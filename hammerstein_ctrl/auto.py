@@ -134,14 +134,43 @@ def _refine(cost, start, budget: Budget, share: int, merged: _Merged):
     return res
 
 
+def _perturbed(anchor, rng) -> np.ndarray:
+    """A seeded random relative perturbation of ``anchor`` (a restart point before stabilisation)."""
+    x = np.array(anchor, dtype=float)
+    x += RESTART_SPREAD * np.maximum(np.abs(x), RESTART_FLOOR) * rng.standard_normal(x.size)
+    return x
+
+
 def _restart_points(anchor, rng, linear):
     """Seeded random relative perturbations of ``anchor``, with the linear block stabilised."""
     k = linear.n_params
     for _ in range(MAX_RESTARTS):
-        x = np.array(anchor, dtype=float)
-        x += RESTART_SPREAD * np.maximum(np.abs(x), RESTART_FLOOR) * rng.standard_normal(x.size)
+        x = _perturbed(anchor, rng)
         x[:k] = stabilize(linear, x[:k])
         yield x
+
+
+def _search(cost, starts, next_restart, budget: Budget, merged: _Merged, allow_unstable: bool, callback):
+    """``(best refinement or None, refinements run)``: each start refined in turn, the budget shared out over
+    those still to run, then restarts (``next_restart(best x)``, ``None`` when there are no more) while the best
+    is not acceptable."""
+    best, best_key, runs = None, None, 0
+    queue = list(starts)
+    while budget.remaining >= MIN_REFINE_BUDGET:
+        if not queue:
+            nxt = None if best is None or best_key[0] else next_restart(best.x)
+            if nxt is None:
+                break
+            queue.append(nxt)
+        share = int(budget.remaining // len(queue))
+        res = _refine(cost, queue.pop(0), budget, max(share, MIN_REFINE_BUDGET), merged)
+        runs += 1
+        key = (_acceptable(cost, res.x, res.fun, allow_unstable), -res.fun)
+        if best is None or key > best_key:
+            best, best_key = res, key
+        if callback is not None and callback(res):
+            break
+    return best, runs
 
 
 def auto_minimize(cost, x0=None, *, maxfev: int | None = None, seed=None, allow_unstable: bool = False,
@@ -182,30 +211,14 @@ def auto_minimize(cost, x0=None, *, maxfev: int | None = None, seed=None, allow_
     found = len(starts)                   # data-driven starts; the user's x0 comes after them
     if x0 is not None:
         starts.append(_user_start(cost, x0, budget))
-    merged = _Merged()
-    best, best_key, runs = None, None, 0
-    queue, restarts = list(starts), None
-    while budget.remaining >= MIN_REFINE_BUDGET:
-        if not queue:
-            if best is not None and best_key[0]:
-                break
-            if restarts is None:
-                anchor = best.x if best is not None else None
-                if anchor is None:
-                    break
-                restarts = _restart_points(anchor, rng, cost.structure.linear)
-            nxt = next(restarts, None)
-            if nxt is None:
-                break
-            queue.append(nxt)
-        share = int(budget.remaining // len(queue))
-        res = _refine(cost, queue.pop(0), budget, max(share, MIN_REFINE_BUDGET), merged)
-        runs += 1
-        key = (_acceptable(cost, res.x, res.fun, allow_unstable), -res.fun)
-        if best is None or key > best_key:
-            best, best_key = res, key
-        if callback is not None and callback(res):
-            break
+    merged, restarts = _Merged(), []
+
+    def next_restart(anchor):           # perturbations of the best start at the first restart
+        if not restarts:
+            restarts.append(_restart_points(anchor, rng, cost.structure.linear))
+        return next(restarts[0], None)
+
+    best, runs = _search(cost, starts, next_restart, budget, merged, allow_unstable, callback)
     if best is None:
         return _unrefined(cost, starts, found, budget, merged, started)
     return _result(cost, best, budget, runs, len(starts), merged, allow_unstable, started)
@@ -408,24 +421,15 @@ def auto_mimo(cost, x0=None, *, maxfev: int | None = None, seed=None, allow_unst
     budget.charge(min(len(s.param_names), int(budget.remaining)))    # the starts' regressions, as one batch
     if x0 is not None:
         starts.append(stabilized(s, completed(cost, as_x0(x0))))
-    best, best_key, runs, restarts = None, None, 0, 0
-    queue = list(starts)
-    while budget.remaining >= MIN_REFINE_BUDGET:
-        if not queue:
-            if best is None or best_key[0] or restarts >= MAX_RESTARTS:
-                break
-            x = np.array(best.x, dtype=float)
-            x += RESTART_SPREAD * np.maximum(np.abs(x), RESTART_FLOOR) * rng.standard_normal(x.size)
-            queue.append(stabilized(s, x))
-            restarts += 1
-        res = _refine(cost, queue.pop(0), budget, max(int(budget.remaining // max(len(queue) + 1, 1)),
-                                                      MIN_REFINE_BUDGET), merged)
-        runs += 1
-        key = (_acceptable(cost, res.x, res.fun, allow_unstable), -res.fun)
-        if best is None or key > best_key:
-            best, best_key = res, key
-        if callback is not None and callback(res):
-            break
+    restarts = []
+
+    def next_restart(anchor):           # perturbations of the current best, at most MAX_RESTARTS
+        if len(restarts) >= MAX_RESTARTS:
+            return None
+        restarts.append(stabilized(s, _perturbed(anchor, rng)))
+        return restarts[-1]
+
+    best, runs = _search(cost, starts, next_restart, budget, merged, allow_unstable, callback)
     if best is None:
         return _unrefined(cost, starts, len(starts), budget, merged, started)
     return _weighted_result(cost, best, budget, runs, len(starts), merged, allow_unstable, started)

@@ -33,6 +33,7 @@ from collections.abc import Mapping
 
 import numpy as np
 
+from ._checks import require_siso_model
 from .exceptions import DataError, ParameterError
 
 __all__ = [
@@ -93,10 +94,9 @@ def _check_item(label, obj, *, arrays: bool, systems: bool, need: tuple, siso: b
     """One model (IdentificationResult unwrapped), array or LTI system, checked for what is needed."""
     if is_identification_result(obj):
         obj = obj.model
-    if siso and getattr(obj, "n_inputs", 1) * getattr(obj, "n_outputs", 1) > 1 and hasattr(obj, "element"):
-        raise ParameterError(f"model {label!r} has {obj.n_inputs} inputs and {obj.n_outputs} outputs; this takes "
-                             "SISO models: pick one with model.element(output, input), or use result.compare() "
-                             "and result.plot(), which draw every channel")
+    if siso:
+        require_siso_model(obj, f"this (model {label!r})", ", or use result.compare() and result.plot(), which draw "
+                           "every channel")
     if isinstance(obj, (np.ndarray, list, tuple)) and arrays:
         return np.asarray(obj, dtype=float)
     if systems and _is_system(obj):

@@ -276,24 +276,36 @@ class _Checks:
     seed: object = None
 
 
-def _basic_verdicts(cost, res, key: str, x0, report: dict) -> list[Verdict]:
-    """Failures that need no uncertainty: no finite model, no better than a constant, a stalled search."""
-    x = np.asarray(res.x, dtype=float)
-    if not np.all(np.isfinite(x)):
+def _no_model(res) -> list[Verdict]:
+    """The failure of a fit that gave no finite parameters or no finite output (else nothing)."""
+    if not np.all(np.isfinite(np.asarray(res.x, dtype=float))):
         return [Verdict("no-model", FAILURE, "no model: the optimiser returned no finite parameters")]
     if not np.isfinite(res.fun):
         return [Verdict("no-model", FAILURE, "the final model cannot be simulated (non-finite output)")]
+    return []
+
+
+def _stalled(cost, res, key: str, x0) -> list[Verdict]:
+    """The failure of a search from ``x0`` (not a converging method) that did not improve on it (else nothing)."""
+    if key not in _CONVERGING and key != AUTO and x0 is not None and res.status != DIVERGED:
+        f0 = cost(x0)
+        if np.isfinite(f0) and res.fun >= f0:
+            return [Verdict("stalled", FAILURE, f"stalled: no improvement on the initial point (J = {f0:.6g})")]
+    return []
+
+
+def _basic_verdicts(cost, res, key: str, x0, report: dict) -> list[Verdict]:
+    """Failures that need no uncertainty: no finite model, no better than a constant, a stalled search."""
+    missing = _no_model(res)
+    if missing:
+        return missing
     out = []
     if report["fit_percent"] <= 0:
         out.append(Verdict("no-better", FAILURE, f"fit {report['fit_percent']:.1f} % is no better than a constant"))
     elif res.fun >= static_affine_sse(cost.data):
         out.append(Verdict("no-better", FAILURE,
                            f"J = {res.fun:.6g} is no better than the best static affine gain y = k u + c"))
-    if key not in _CONVERGING and key != AUTO and x0 is not None and res.status != DIVERGED:
-        f0 = cost(x0)
-        if np.isfinite(f0) and res.fun >= f0:
-            out.append(Verdict("stalled", FAILURE, f"stalled: no improvement on the initial point (J = {f0:.6g})"))
-    return out
+    return out + _stalled(cost, res, key, x0)
 
 
 def _trust_verdicts(cost, x, r, model, checks: _Checks):
@@ -418,28 +430,23 @@ def _mimo_report(data, Y) -> tuple[dict, dict]:
     return report, {n: r["fit_percent"] for n, r in report["outputs"].items()}
 
 
-def _mimo_basic_verdicts(cost, res, key, x0, fits: dict) -> list[Verdict]:
-    x = np.asarray(res.x, dtype=float)
-    if not np.all(np.isfinite(x)):
-        return [Verdict("no-model", FAILURE, "no model: the optimiser returned no finite parameters")]
-    if not np.isfinite(res.fun):
-        return [Verdict("no-model", FAILURE, "the final model cannot be simulated (non-finite output)")]
-    residuals = cost.split(cost.residuals(x))
+def _mimo_basic_verdicts(cost, res, key, x0, fits: dict, Y) -> list[Verdict]:
+    """:func:`_basic_verdicts` of a MIMO fit, output by output (``Y``: the simulated outputs at ``res.x``)."""
+    missing = _no_model(res)
+    if missing:
+        return missing
     out = []
     for i, (name, fit) in enumerate(fits.items()):
         y = cost.data.outputs[:, i]
+        e = y - Y[:, i]
         if fit <= 0:
             out.append(Verdict("no-better", FAILURE, f"output {name!r}: fit {fit:.1f} % is no better than a "
                                "constant; check that this output responds to the inputs, or raise the orders"))
-        elif residuals[i] @ residuals[i] >= static_affine_sse_columns(cost.data.inputs, y):
+        elif e @ e >= static_affine_sse_columns(cost.data.inputs, y):
             out.append(Verdict("no-better", FAILURE, f"output {name!r}: fit {fit:.1f} % is no better than the best "
                                "static affine map of the inputs y = K u + c; check that this output responds to the "
                                "inputs, or raise the orders"))
-    if key not in _CONVERGING and key != AUTO and x0 is not None and res.status != DIVERGED:
-        f0 = cost(x0)
-        if np.isfinite(f0) and res.fun >= f0:
-            out.append(Verdict("stalled", FAILURE, f"stalled: no improvement on the initial point (J = {f0:.6g})"))
-    return out
+    return out + _stalled(cost, res, key, x0)
 
 
 def _mimo_trust(cost, x, model, checks: _Checks):
@@ -477,7 +484,7 @@ def _mimo_result(cost, res, key, x0, started, checks: _Checks) -> Identification
     report, fits = _mimo_report(data, Y)
     model = s.model(x, intersample=data.intersample, input_names=data.input_names,
                     output_names=data.output_names) if finite else None
-    verdicts = _mimo_basic_verdicts(cost, res, key, x0, fits)
+    verdicts = _mimo_basic_verdicts(cost, res, key, x0, fits, Y)
     unc = analysis = None
     if model is not None and np.all(np.isfinite(Y)):
         weights = getattr(res, "output_weights", None)

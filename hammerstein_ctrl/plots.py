@@ -102,6 +102,10 @@ def _outputs(data, models) -> tuple[dict, list]:
                 raise ParameterError(f"output for {label!r} has shape {m.shape}, the record {data.y.shape}")
             y = m
         else:
+            if (getattr(m, "n_inputs", 1), getattr(m, "n_outputs", 1)) != (data.n_inputs, data.n_outputs):
+                raise ParameterError(f"model {label!r} has {getattr(m, 'n_inputs', 1)} input(s) and "
+                                     f"{getattr(m, 'n_outputs', 1)} output(s); record {data.name!r} has "
+                                     f"{data.n_inputs} and {data.n_outputs}")
             with np.errstate(all="ignore"):
                 y = np.asarray(m.simulate(data), dtype=float)
         if np.all(np.isfinite(y)):
@@ -815,7 +819,7 @@ def _compare_channels(records, models, *, title=None, paired=False):
 
     rows = [(data, as_models(m, siso=False)) for data, m in zip(records, models)] if paired else [
         (data, as_models(models, siso=False)) for data in records]
-    simulated = [_outputs_mimo(data, ms) for data, ms in rows]          # once per record and model
+    simulated = [_outputs(data, ms) for data, ms in rows]               # once per record and model
     panels = [(data, ms, sim, i) for (data, ms), sim in zip(rows, simulated) for i in range(data.n_outputs)]
     fig, axes = _new_figure(len(panels), 1, figsize=(_WIDTH, 1.2 + 2.4 * len(panels)))
     for a, (data, row_models, (ys, bad), i) in zip(axes[:, 0], panels):
@@ -830,23 +834,6 @@ def _compare_channels(records, models, *, title=None, paired=False):
     if title:
         fig.suptitle(title)
     return fig
-
-
-def _outputs_mimo(data, models) -> tuple[dict, list]:
-    """Simulated outputs ``(N, p)`` of MIMO models on a record with as many outputs."""
-    ys, bad = {}, []
-    for label, m in models.items():
-        if getattr(m, "n_outputs", 1) != data.n_outputs or getattr(m, "n_inputs", 1) != data.n_inputs:
-            raise ParameterError(f"model {label!r} has {getattr(m, 'n_inputs', 1)} input(s) and "
-                                 f"{getattr(m, 'n_outputs', 1)} output(s); record {data.name!r} has "
-                                 f"{data.n_inputs} and {data.n_outputs}")
-        with np.errstate(all="ignore"):
-            y = np.asarray(m.simulate(data), dtype=float)
-        if np.all(np.isfinite(y)):
-            ys[label] = y
-        else:
-            bad.append(label)
-    return ys, bad
 
 
 def mimo_figure(result, *, zoom=None):
