@@ -37,6 +37,7 @@ __all__ = [
     "DeadZone",
     "PiecewiseLinear",
     "Sigmoid",
+    "Friction",
     "CustomNonlinearity",
     "nonlinearity_from_name",
     "NONLINEARITIES",
@@ -674,6 +675,34 @@ class Sigmoid(Nonlinearity):
         return np.column_stack([np.ones(d1.size), d1.ravel(), d2.ravel()])
 
 
+class Friction(Nonlinearity):
+    r"""Coulomb friction and a constant force: the feedback map of a Lur'e model of a sliding mass.
+
+    .. math:: g(v) = |f_c| \operatorname{sign}(v) + c
+
+    The Coulomb level enters as ``|fc|`` (friction opposes motion), so ``fc``
+    and ``-fc`` are one model; fits report it non-negative.  It has no viscous
+    term: in a Lur'e model on velocity the linear block's damping is that term.
+    ``sign(0) = 0``; a Lur'e simulation resolves ``v = 0`` itself (sticking
+    while ``|force - c| <= |fc|``, :mod:`~hammerstein_ctrl.lure`).
+
+    Examples
+    --------
+    >>> Friction()([-0.1, 0.0, 0.2], [0.5, 0.1])
+    array([-0.4,  0.1,  0.6])
+    """
+
+    name = "friction"
+    param_names = ("fc", "c")
+
+    @staticmethod
+    def formula(z, p, extra):
+        return np.abs(p[0]) * np.sign(z) + p[1]
+
+    def _derivative(self, u, p):
+        return np.zeros(np.shape(u), dtype=float)
+
+
 class CustomNonlinearity(Nonlinearity):
     """A user-supplied static function with a declared number of parameters.
 
@@ -747,6 +776,7 @@ NONLINEARITIES: dict[str, type[Nonlinearity]] = {
     "deadzone": DeadZone,
     "piecewise_linear": PiecewiseLinear,
     "sigmoid": Sigmoid,
+    "friction": Friction,
 }
 
 

@@ -6,7 +6,7 @@ from hammerstein_ctrl import (
     Coulomb, CustomNonlinearity, DeadZone, ParameterError, PiecewiseLinear, Polynomial,
     Saturation, Tanh, UnknownNameError, nonlinearity_from_name,
 )
-from hammerstein_ctrl.nonlinearities import NONLINEARITIES, Sigmoid
+from hammerstein_ctrl.nonlinearities import NONLINEARITIES, Friction, Sigmoid
 
 U = np.linspace(-2.0, 2.0, 41)
 
@@ -19,6 +19,7 @@ CASES = [
     (PiecewiseLinear([-1.0, 0.0, 1.0]), [-2.0, 0.0, 1.0],
      lambda u: np.where(u < 0, 2.0 * u, u)),
     (Sigmoid(), [2.0, 3.0, 0.3], lambda u: 2.0 / (1.0 + np.exp(-3.0 * (u - 0.3)))),
+    (Friction(), [-0.4, 0.05], lambda u: 0.4 * np.sign(u) + 0.05),
 ]
 
 
@@ -130,7 +131,7 @@ def test_lookup_by_name():
 @pytest.mark.parametrize("g, p, ref", CASES, ids=lambda c: getattr(c, "name", None))
 def test_basis_reproduces_evaluation_when_linear_in_parameters(g, p, ref, rng):
     phi = g.basis(U)
-    if g.name in ("tanh", "saturation", "deadzone", "sigmoid"):
+    if g.name in ("tanh", "saturation", "deadzone", "sigmoid", "friction"):
         assert phi is None
         return
     assert phi.shape == (g.n_params, U.size)

@@ -1,0 +1,363 @@
+"""Exact sampled simulation of a Lur'e loop with friction: a linear block, sign friction fed back on one signal.
+
+The loop (:mod:`~hammerstein_ctrl.lure`) is
+
+.. code-block:: text
+
+    x' = A x + B w,   y = C x,   z = Cz x            (z: the output, or its derivative)
+    w  = u - k z - fc sign(z) - c                      (friction on z; fc >= 0)
+
+with the input ``u`` held between samples (``"zoh"``) or linear between them
+(``"foh"``).  Between the instants where ``z`` changes sign the loop is linear
+with a constant friction force, so it is solved exactly: the sampled recursion
+of the block with ``k`` folded into ``A`` (one matrix exponential per
+candidate) and ``+-fc`` added to the input.  A sample in which ``z`` changes
+sign is split at the crossing (found by a bracketed root search on the exact
+solution, evaluated by its Taylor series); at ``z = 0`` the motion continues
+in the direction the forces push, or **sticks**: ``z`` stays 0 while the
+friction force that keeps it there, ``f_eq``, lies within ``[-fc, fc]``
+(Filippov's sliding solution, ``x' = A_s x``), and slips again where
+``|f_eq|`` reaches ``fc``.
+
+Limits: a sign change of ``z`` that starts and ends inside one sample (two
+crossings between samples) is not seen; a sample may hold at most
+:data:`MAX_EVENTS` switches (the rest of it keeps the last mode).  ``z`` must
+be driven directly by ``w`` (``Cz B != 0``: relative degree 1 from ``w`` to ``z``).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ._jit import cached_njit
+from ._linalg import expm_into, tf_augmented
+
+__all__ = ["lure_setup", "lure_run", "MAX_EVENTS", "FEEDBACK_CODES"]
+
+#: Most mode switches resolved within one sample.
+MAX_EVENTS = 16
+#: Code of each feedback signal in the compiled setup.
+FEEDBACK_CODES = {"output": 0, "velocity": 1}
+#: Largest 1-norm of ``A dt`` over one Taylor segment (longer intervals are split).
+_TAYLOR_NORM = 0.5
+#: Iterations of the root search (bracketing; each at least halves the bracket every third step).
+_ROOT_ITERATIONS = 200
+
+
+@cached_njit(depends=("_linalg.py",))
+def lure_setup(num, den, dt, slope, feedback):  # pragma: no cover - compiled
+    """Per-candidate matrices of the loop: ``(Adt, Asdt, Bdt, C, Cz, h, Phi, G0, G1, Ps, ok)``.
+
+    ``Adt = (A - k B Cz) dt`` (the slipping loop), ``Asdt = A_s dt`` (sticking:
+    ``A_s = Ae - B Cz Ae / h``), ``Bdt = B dt``, ``h = Cz B``; ``Phi, G0, G1``
+    the exact FOH step of the slipping loop, ``Ps = expm(A_s dt)``.  ``ok`` is
+    False for a candidate with non-finite coefficients or ``h == 0``.
+    """
+    batch, n = den.shape[0], den.shape[1] - 1
+    M, C, D = tf_augmented(num, den, 1.0)
+    Adt = np.zeros((batch, n, n))
+    Asdt = np.zeros((batch, n, n))
+    Bdt = np.zeros((batch, n))
+    Cz = np.zeros((batch, n))
+    h = np.zeros(batch)
+    Phi = np.zeros((batch, n, n))
+    G0 = np.zeros((batch, n))
+    G1 = np.zeros((batch, n))
+    Ps = np.zeros((batch, n, n))
+    ok = np.ones(batch, dtype=np.bool_)
+    aug = np.zeros((n + 2, n + 2))
+    E = np.zeros((n + 2, n + 2))
+    Es = np.zeros((n, n))
+    for b in range(batch):
+        A = M[b, :n, :n]
+        B = M[b, :n, n]
+        good = np.isfinite(slope[b]) and D[b] == 0.0
+        for i in range(n):
+            good = good and np.isfinite(C[b, i]) and np.isfinite(B[i])
+            for j in range(n):
+                good = good and np.isfinite(A[i, j])
+        if feedback == 0:
+            Cz[b, :] = C[b, :]
+        else:
+            for j in range(n):
+                s = 0.0
+                for i in range(n):
+                    s += C[b, i] * A[i, j]
+                Cz[b, j] = s
+        hb = 0.0
+        for i in range(n):
+            hb += Cz[b, i] * B[i]
+        h[b] = hb
+        if not good or hb == 0.0 or not np.isfinite(hb):
+            ok[b] = False
+            continue
+        Ae = A.copy()
+        for i in range(n):
+            for j in range(n):
+                Ae[i, j] -= slope[b] * B[i] * Cz[b, j]
+        q = np.zeros(n)                        # Cz Ae / h
+        for j in range(n):
+            s = 0.0
+            for i in range(n):
+                s += Cz[b, i] * Ae[i, j]
+            q[j] = s / hb
+        for i in range(n):
+            Bdt[b, i] = B[i] * dt
+            for j in range(n):
+                Adt[b, i, j] = Ae[i, j] * dt
+                Asdt[b, i, j] = (Ae[i, j] - B[i] * q[j]) * dt
+        aug[:, :] = 0.0
+        aug[:n, :n] = Adt[b]
+        aug[:n, n] = Bdt[b]
+        aug[n, n + 1] = 1.0
+        expm_into(aug, E)
+        expm_into(Asdt[b].copy(), Es)
+        Phi[b] = E[:n, :n]
+        G0[b] = E[:n, n]
+        G1[b] = E[:n, n + 1]
+        Ps[b] = Es
+        for i in range(n):
+            for j in range(n):
+                if not (np.isfinite(Phi[b, i, j]) and np.isfinite(Ps[b, i, j])):
+                    ok[b] = False
+    return Adt, Asdt, Bdt, C, Cz, h, Phi, G0, G1, Ps, ok
+
+
+@cached_njit()
+def _propagate(Adt, Bdt, x, w0, s, delta, out, t1, t2):  # pragma: no cover - compiled
+    """``out = x(delta)`` of ``x' = Adt x + Bdt (w0 + s tau)`` (normalised time) from ``x(0) = x``: Taylor series.
+
+    The interval is split into pieces with ``||Adt|| piece <= 0.5``; each piece's
+    series is summed until its terms no longer change the sum.
+    """
+    n = x.shape[0]
+    norm = 0.0
+    for j in range(n):
+        col = 0.0
+        for i in range(n):
+            col += abs(Adt[i, j])
+        norm = max(norm, col)
+    pieces = max(1, int(np.ceil(norm * delta / _TAYLOR_NORM)))
+    step = delta / pieces
+    out[:] = x
+    w = w0
+    for _ in range(pieces):
+        # t1: the current derivative term d_k step^k / k!; t2: scratch
+        for i in range(n):
+            acc = Bdt[i] * w
+            for j in range(n):
+                acc += Adt[i, j] * out[j]
+            t1[i] = acc * step
+        x0 = out.copy()
+        for i in range(n):
+            out[i] = x0[i] + t1[i]
+        k = 2
+        while k < 60:
+            small = True
+            for i in range(n):
+                acc = Bdt[i] * s * step if k == 2 else 0.0
+                for j in range(n):
+                    acc += Adt[i, j] * t1[j]
+                t2[i] = acc * step / k
+            for i in range(n):
+                t1[i] = t2[i]
+                new = out[i] + t1[i]
+                if new != out[i]:
+                    small = False
+                out[i] = new
+            if small and k > 2:
+                break
+            k += 1
+        w += s * step
+
+
+@cached_njit()
+def _dot(a, x):  # pragma: no cover - compiled
+    s = 0.0
+    for i in range(x.shape[0]):
+        s += a[i] * x[i]
+    return s
+
+
+@cached_njit()
+def _decide(Cz, q, x, force, fc, h):  # pragma: no cover - compiled
+    """Mode at ``z = 0``: +1 or -1 where the forces move ``z`` that way, 0 (stick) where friction holds it.
+
+    ``force = u - c`` at that instant; ``q = Cz Ae / h``, so that the friction
+    force that keeps ``z' = 0`` is ``f_eq = force + q x``.
+    """
+    feq = force + _dot(q, x)
+    up = h * (feq - fc) > 0.0               # z' with friction +fc
+    down = h * (feq + fc) < 0.0             # z' with friction -fc
+    if up and down:
+        return 1 if h * feq >= 0.0 else -1
+    if up:
+        return 1
+    if down:
+        return -1
+    return 0
+
+
+@cached_njit()
+def _slip_value(Adt, Bdt, Cz, x, w0, s, delta, xs, t1, t2):  # pragma: no cover - compiled
+    _propagate(Adt, Bdt, x, w0, s, delta, xs, t1, t2)
+    return _dot(Cz, xs)
+
+
+@cached_njit()
+def _stick_value(Asdt, Bdt, q, x, f0, s, delta, sign, fc, xs, t1, t2):  # pragma: no cover - compiled
+    _propagate(Asdt, Bdt, x, 0.0, 0.0, delta, xs, t1, t2)
+    return f0 + s * delta + _dot(q, xs) - sign * fc
+
+
+@cached_njit()
+def _root(Adt, Bdt, Cz, q, x, w0, s, lo_val, hi, hi_val, stick, sign, fc, xs, t1, t2):  # pragma: no cover - compiled
+    """The instant in ``(0, hi]`` where the event function changes sign (Illinois' regula falsi), state in ``xs``."""
+    a, fa = 0.0, lo_val
+    b, fb = hi, hi_val
+    side = 0
+    for _ in range(_ROOT_ITERATIONS):
+        m = b - fb * (b - a) / (fb - fa) if fb != fa else 0.5 * (a + b)
+        if not (a < m < b):
+            m = 0.5 * (a + b)
+        if stick:
+            fm = _stick_value(Adt, Bdt, q, x, w0, s, m, sign, fc, xs, t1, t2)
+        else:
+            fm = _slip_value(Adt, Bdt, Cz, x, w0, s, m, xs, t1, t2)
+        if fm == 0.0 or b - a <= 4e-16 * max(1.0, b):
+            b = m
+            break
+        if (fm > 0) == (fb > 0):
+            b, fb = m, fm
+            if side == 1:
+                fa *= 0.5
+            side = 1
+        else:
+            a, fa = m, fm
+            if side == -1:
+                fb *= 0.5
+            side = -1
+    if stick:
+        _propagate(Adt, Bdt, x, 0.0, 0.0, b, xs, t1, t2)
+    else:
+        _propagate(Adt, Bdt, x, w0, s, b, xs, t1, t2)
+    return b
+
+
+@cached_njit()
+def _sample(Adt, Asdt, Bdt, Cz, q, h, Phi, G0, G1, Ps, x, mode, uk, s, c, fc, xn, xs, t1, t2):  # pragma: no cover
+    """Advance ``x`` (in place) over one sample from mode ``mode``; returns the mode at its end."""
+    n = x.shape[0]
+    tau = 0.0
+    for _ in range(MAX_EVENTS + 1):
+        rest = 1.0 - tau
+        if mode != 0:
+            w0 = uk + s * tau - c - mode * fc
+            if tau == 0.0:
+                for i in range(n):
+                    acc = G0[i] * w0 + G1[i] * s
+                    for j in range(n):
+                        acc += Phi[i, j] * x[j]
+                    xn[i] = acc
+            else:
+                _propagate(Adt, Bdt, x, w0, s, rest, xn, t1, t2)
+            z1 = _dot(Cz, xn)
+            if z1 * mode >= 0.0:
+                x[:] = xn
+                return mode
+            d = _root(Adt, Bdt, Cz, q, x, w0, s, _dot(Cz, x), rest, z1, False, 0.0, fc, xs, t1, t2)
+            x[:] = xs
+            tau += d
+            mode = _decide(Cz, q, x, uk + s * tau - c, fc, h)
+        else:
+            f0 = uk + s * tau - c
+            now = f0 + _dot(q, x)
+            if abs(now) > fc:                   # the input stepped past the friction: slips at once
+                mode = 1 if now * h > 0 else -1
+                continue
+            if tau == 0.0:
+                for i in range(n):
+                    acc = 0.0
+                    for j in range(n):
+                        acc += Ps[i, j] * x[j]
+                    xn[i] = acc
+            else:
+                _propagate(Asdt, Bdt, x, 0.0, 0.0, rest, xn, t1, t2)
+            f1 = f0 + s * rest + _dot(q, xn)
+            if abs(f1) <= fc:
+                x[:] = xn
+                return 0
+            sign = 1.0 if f1 > 0 else -1.0
+            lo_val = f0 + _dot(q, x) - sign * fc
+            d = _root(Asdt, Bdt, Cz, q, x, f0, s, lo_val, rest, f1 - sign * fc, True, sign, fc, xs, t1, t2)
+            x[:] = xs
+            tau += d
+            mode = 1 if sign * h > 0 else -1
+        if tau >= 1.0:
+            return mode
+    # too many switches: finish the sample in the last mode without further checks
+    if mode != 0:
+        _propagate(Adt, Bdt, x.copy(), uk + s * tau - c - mode * fc, s, max(0.0, 1.0 - tau), x, t1, t2)
+    else:
+        _propagate(Asdt, Bdt, x.copy(), 0.0, 0.0, max(0.0, 1.0 - tau), x, t1, t2)
+    return mode
+
+
+@cached_njit()
+def lure_run(Adt, Asdt, Bdt, C, Cz, h, Phi, G0, G1, Ps, ok, fc, c, X0, Y0, u, dt, foh, y, out,
+             want_outputs):  # pragma: no cover - compiled
+    """Simulate every candidate over ``u``: outputs into ``out[b]`` (``want_outputs``) or the SSE
+    against ``y`` into ``out[b, 0]``; ``inf`` for a candidate that is not ``ok`` or overflows."""
+    batch, n = Cz.shape
+    N = u.shape[0]
+    x = np.zeros(n)
+    xn = np.zeros(n)
+    xs = np.zeros(n)
+    t1 = np.zeros(n)
+    t2 = np.zeros(n)
+    q = np.zeros(n)
+    for b in range(batch):
+        if not ok[b]:
+            out[b, :] = np.inf
+            continue
+        Ab, Asb, Bb, Cb, Czb, Phib, G0b, G1b, Psb = Adt[b], Asdt[b], Bdt[b], C[b], Cz[b], Phi[b], G0[b], G1[b], Ps[b]
+        hb, cb, fcb, y0 = h[b], c[b], abs(fc[b]), Y0[b]
+        for j in range(n):
+            acc = 0.0
+            for i in range(n):
+                acc += Czb[i] * Ab[i, j]
+            q[j] = acc / (hb * dt)
+        x[:] = X0[b]
+        z = _dot(Czb, x)
+        mode = 1 if z > 0 else (-1 if z < 0 else _decide(Czb, q, x, u[0] - cb, fcb, hb))
+        sse = 0.0
+        for k in range(N):
+            yk = y0
+            for i in range(n):
+                yk += Cb[i] * x[i]
+            if want_outputs:
+                out[b, k] = yk
+            else:
+                e = yk - y[k]
+                sse += e * e
+            if k + 1 == N:
+                break
+            s = (u[k + 1] - u[k]) if foh else 0.0
+            if mode != 0:                       # the common case: a whole sample slipping one way
+                w0 = u[k] - cb - mode * fcb
+                z1 = 0.0
+                for i in range(n):
+                    acc = G0b[i] * w0 + G1b[i] * s
+                    for j in range(n):
+                        acc += Phib[i, j] * x[j]
+                    xn[i] = acc
+                    z1 += Czb[i] * acc
+                if z1 * mode >= 0.0:
+                    for i in range(n):
+                        x[i] = xn[i]
+                    continue
+            mode = _sample(Ab, Asb, Bb, Czb, q, hb, Phib, G0b, G1b, Psb, x, mode, u[k], s, cb, fcb, xn, xs, t1, t2)
+        if not want_outputs:
+            out[b, 0] = sse if np.isfinite(sse) and sse < 1.7e308 else np.inf
+    return out
+

@@ -1,0 +1,377 @@
+"""Lur'e models: a linear block with friction fed back on one of its signals (friction where it acts).
+
+A Hammerstein model puts a nonlinearity on the input; a sliding mass feels
+its friction as a function of its **velocity**, inside the loop:
+
+.. code-block:: text
+
+    w = u - g(z)            the input force less the friction force
+    y = B(p)/A(p) w         the linear block (force to position)
+    z = y' ("velocity")  or  z = y ("output")
+
+with ``g`` the :class:`~hammerstein_ctrl.nonlinearities.Friction` map
+``|fc| sign(z) + c`` (Coulomb friction and a constant force) or
+:class:`~hammerstein_ctrl.nonlinearities.Coulomb` (``d0 z + |d1| sign(z) + d2``,
+a viscous term as well; on velocity it duplicates the block's damping).  For
+a mass ``m`` with viscous friction ``fv`` driven by ``u`` through a gain
+``k``: ``B/A = (k/m) / (p^2 + (fv/m) p)`` and ``g`` in input units.
+
+The linear block carries the gain (``LinearStructure(..., monic_numerator=False)``):
+the friction enters the same channel as ``u``, so nothing is ambiguous.  ``z``
+must be driven directly by ``w`` (relative degree 2 of ``B/A`` on velocity,
+1 on the output), so that the loop is well posed at ``z = 0``.
+
+The simulation is exact at the sample instants (:mod:`~hammerstein_ctrl._lure_sim`):
+between sign changes of ``z`` the loop is linear, a crossing inside a sample
+is located, and the mass **sticks** (``z = 0``) while the force on it is
+within the Coulomb level, slipping again where it exceeds it.
+
+Examples
+--------
+>>> import numpy as np, hammerstein_ctrl as hc
+>>> s = LureStructure(hc.LinearStructure(0, 2, monic_numerator=False, fixed={"a0": 0.0}), hc.Friction())
+>>> s.param_names
+('b0', 'a1', 'fc', 'c')
+>>> m = s.model([0.385, 2.13, 0.61, -0.09])
+>>> t = np.arange(2000) * 0.01
+>>> y = m.simulate(t, np.sin(0.5 * t))
+>>> bool(np.all(y[:20] == 0.0))         # the force stays below the friction at first: stuck
+True
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ._checks import as_real_array
+from ._lure_sim import FEEDBACK_CODES, lure_run, lure_setup
+from .exceptions import ParameterError
+from .nonlinearities import Coulomb, Friction, Nonlinearity
+from .simulate import _check_pair
+from .structure import INITIAL_STATES, STATE_PREFIX, LinearStructure
+
+__all__ = ["LureStructure", "LureModel", "lure_structure", "FEEDBACKS", "FEEDBACK_FAMILIES"]
+
+#: Signals the friction may act on, and the relative degree of ``B/A`` each needs.
+FEEDBACKS = {"velocity": 2, "output": 1}
+#: Feedback families: each maps to ``(slope, Coulomb level, constant)`` of ``g`` from its parameters.
+FEEDBACK_FAMILIES = (Friction, Coulomb)
+#: Hold behaviours the simulation honours.
+_HOLDS = ("foh", "zoh")
+
+
+def _affine_parts(nonlinearity: Nonlinearity, P: np.ndarray):
+    """``(slope, fc, c)`` columns of ``g(z) = slope z + fc sign(z) + c`` for rows of parameters ``P``."""
+    if isinstance(nonlinearity, Friction):
+        return np.zeros(P.shape[0]), np.abs(P[:, 0]), P[:, 1]
+    return P[:, 0], np.abs(P[:, 1]), P[:, 2]
+
+
+def _check_feedback(linear: LinearStructure, nonlinearity, feedback: str):
+    if feedback not in FEEDBACKS:
+        raise ParameterError(f"feedback must be one of {tuple(FEEDBACKS)}, got {feedback!r}")
+    if not isinstance(nonlinearity, FEEDBACK_FAMILIES):
+        raise ParameterError(
+            f"a Lur'e loop takes a {' or '.join(f.__name__ for f in FEEDBACK_FAMILIES)} map in its feedback "
+            f"(simulated exactly through sticking), got {type(nonlinearity).__name__}")
+    degree = linear.den_order - linear.num_order
+    if degree != FEEDBACKS[feedback]:
+        raise ParameterError(
+            f"friction on the {feedback} needs a linear block of relative degree {FEEDBACKS[feedback]} "
+            f"(den_order - num_order), got {degree}: e.g. LinearStructure({linear.den_order - FEEDBACKS[feedback]}, "
+            f"{linear.den_order}, monic_numerator=False)")
+    if linear.monic_numerator:
+        raise ParameterError("a Lur'e loop carries its gain in the linear block: use "
+                             "LinearStructure(..., monic_numerator=False)")
+    if linear.delay:
+        raise ParameterError("a Lur'e loop with a dead time is not supported yet")
+
+
+class LureStructure:
+    """A Lur'e loop to identify: a linear block with a friction map fed back on its velocity or output.
+
+    Parameters
+    ----------
+    linear : LinearStructure
+        ``B(p)/A(p)`` from the net force ``w`` to the output, with its gain
+        (``monic_numerator=False``); relative degree 2 for ``feedback="velocity"``, 1 for ``"output"``.
+    nonlinearity : Friction or Coulomb, default Friction()
+        The feedback map ``g(z)``.
+    feedback : {"velocity", "output"}, default "velocity"
+        The signal ``z`` the map reads.
+    offset : bool, default False
+        Estimate a constant output offset ``y0``.
+    initial_state : {"zero", "estimate"}, default "zero"
+        Start at rest, or estimate ``x(0)`` of the block's companion
+        realisation (parameters ``xi0``, ``xi1``, ...).
+
+    Examples
+    --------
+    >>> import hammerstein_ctrl as hc
+    >>> lin = hc.LinearStructure(0, 2, monic_numerator=False, fixed={"a0": 0.0})
+    >>> LureStructure(lin, hc.Friction(), offset=True).param_names
+    ('b0', 'a1', 'fc', 'c', 'y0')
+    """
+
+    kind = "Lur'e"
+    #: Blocks of a block-oriented structure that a Lur'e loop does not have (for the shared verdicts).
+    input_nonlinearity = None
+    output_nonlinearity = None
+    _fixed_gain = None
+
+    def __init__(self, linear: LinearStructure, nonlinearity: Nonlinearity | None = None, *,
+                 feedback: str = "velocity", offset: bool = False, initial_state: str = "zero"):
+        if not isinstance(linear, LinearStructure):
+            raise ParameterError(f"linear must be a LinearStructure, got {type(linear).__name__}")
+        nonlinearity = Friction() if nonlinearity is None else nonlinearity
+        _check_feedback(linear, nonlinearity, feedback)
+        if initial_state not in INITIAL_STATES:
+            raise ParameterError(f"initial_state must be one of {INITIAL_STATES}, got {initial_state!r}")
+        self.linear, self.nonlinearity, self.feedback = linear, nonlinearity, feedback
+        self.offset, self.initial_state = bool(offset), initial_state
+        self.param_names: tuple[str, ...] = (
+            linear.param_names + tuple(nonlinearity.param_names) + (("y0",) if self.offset else ())
+            + (tuple(f"{STATE_PREFIX}{i}" for i in range(linear.den_order)) if initial_state == "estimate" else ()))
+
+    @property
+    def n_params(self) -> int:
+        return len(self.param_names)
+
+    @property
+    def n_core(self) -> int:
+        """Parameters of the loop itself (the linear block and the map), before the offset and initial state."""
+        return self.linear.n_params + self.nonlinearity.n_params
+
+    def with_options(self, *, offset: bool | None = None, initial_state: str | None = None) -> "LureStructure":
+        """The same loop with other real-data options (``None`` keeps the current one)."""
+        return LureStructure(self.linear, self.nonlinearity, feedback=self.feedback,
+                             offset=self.offset if offset is None else offset,
+                             initial_state=self.initial_state if initial_state is None else initial_state)
+
+    def check_beta(self, beta) -> np.ndarray:
+        """``beta`` as a float array ``(n_params,)`` or ``(B, n_params)``; a wrong length is refused."""
+        b = as_real_array(beta, "beta")
+        if b.ndim not in (1, 2) or b.shape[-1] != self.n_params:
+            raise ParameterError(f"beta must have {self.n_params} entries [{', '.join(self.param_names)}], "
+                                 f"got shape {b.shape}")
+        return b
+
+    def linear_params(self, beta) -> np.ndarray:
+        return self.check_beta(beta)[..., :self.linear.n_params]
+
+    def map_params(self, beta) -> np.ndarray:
+        """The feedback map's parameters."""
+        k = self.linear.n_params
+        return self.check_beta(beta)[..., k:k + self.nonlinearity.n_params]
+
+    def parts(self, betas):
+        """Everything the compiled simulation needs for rows ``betas``:
+        ``(num, den, slope, fc, c, y0, x0)``."""
+        B = np.atleast_2d(self.check_beta(betas))
+        num, den = self.linear.coefficients(B[:, :self.linear.n_params])
+        slope, fc, c = _affine_parts(self.nonlinearity, B[:, self.linear.n_params:self.n_core])
+        at = self.n_core
+        y0 = B[:, at] if self.offset else np.zeros(B.shape[0])
+        at += self.offset
+        n = self.linear.den_order
+        x0 = B[:, at:at + n] if self.initial_state == "estimate" else np.zeros((B.shape[0], n))
+        return tagged((num, den, slope, fc, c, y0, np.ascontiguousarray(x0)), self.feedback)
+
+    def normalize(self, beta) -> np.ndarray:
+        """``beta`` with the Coulomb level non-negative (``fc`` and ``-fc`` are one model)."""
+        b = np.array(self.check_beta(beta), dtype=float)
+        b[..., self.linear.n_params + (0 if isinstance(self.nonlinearity, Friction) else 1)] = np.abs(
+            b[..., self.linear.n_params + (0 if isinstance(self.nonlinearity, Friction) else 1)])
+        return b
+
+    def model(self, beta, *, intersample: str = "foh", name: str | None = None) -> "LureModel":
+        """The :class:`LureModel` at ``beta``."""
+        b = self.normalize(self.check_beta(beta))
+        if b.ndim != 1:
+            raise ParameterError("model() takes one beta vector")
+        num, den, _, _, _, y0, x0 = self.parts(b)
+        return LureModel((num[0], den[0]), self.nonlinearity, self.map_params(b), feedback=self.feedback,
+                         offset=float(y0[0]), initial_state=x0[0] if self.initial_state == "estimate" else None,
+                         intersample=intersample, name=name)
+
+    def describe(self) -> str:
+        return (f"Lur'e loop: w = u - {self.nonlinearity.name}({self.feedback}), linear block "
+                f"{self.linear.describe()}; parameters [{', '.join(self.param_names)}]")
+
+    def __repr__(self):
+        return (f"LureStructure({self.linear!r}, {self.nonlinearity!r}, feedback={self.feedback!r}, "
+                f"offset={self.offset}, initial_state={self.initial_state!r})")
+
+
+def lure_structure(num_order: int = 0, den_order: int = 2, nonlinearity: Nonlinearity | None = None, *,
+                   feedback: str = "velocity", integrating: bool = True, **options) -> LureStructure:
+    """A :class:`LureStructure` from orders: ``b0 / (p^2 + a1 p)`` with friction on velocity by default.
+
+    ``integrating=True`` fixes ``a0 = 0`` (position of a mass: no spring).
+
+    Examples
+    --------
+    >>> lure_structure().param_names
+    ('b0', 'a1', 'fc', 'c')
+    """
+    fixed = {"a0": 0.0} if integrating else None
+    return LureStructure(LinearStructure(num_order, den_order, monic_numerator=False, fixed=fixed),
+                         nonlinearity, feedback=feedback, **options)
+
+
+def simulate_parts(parts, u, dt: float, hold: str, y=None) -> np.ndarray:
+    """Outputs ``(B, N)`` of the loops ``parts`` (:meth:`LureStructure.parts`), or with ``y`` their SSEs ``(B,)``."""
+    num, den, slope, fc, c, y0, x0 = parts
+    feedback_code = parts_feedback(parts)
+    S = lure_setup(np.ascontiguousarray(num, dtype=float), np.ascontiguousarray(den, dtype=float), float(dt),
+                   np.ascontiguousarray(slope, dtype=float), feedback_code)
+    u = np.ascontiguousarray(u, dtype=float)
+    want = y is None
+    out = np.empty((den.shape[0], u.size if want else 1))
+    with np.errstate(all="ignore"):
+        lure_run(*S, np.ascontiguousarray(fc, dtype=float), np.ascontiguousarray(c, dtype=float), x0,
+                 np.ascontiguousarray(y0, dtype=float), u, float(dt), hold == "foh", u if want else y, out, want)
+    return out if want else out[:, 0]
+
+
+class _Parts(tuple):
+    """:meth:`LureStructure.parts` with the feedback signal attached."""
+
+    feedback = "velocity"
+
+
+def parts_feedback(parts) -> int:
+    return FEEDBACK_CODES[getattr(parts, "feedback", "velocity")]
+
+
+def tagged(parts, feedback: str) -> _Parts:
+    p = _Parts(parts)
+    p.feedback = feedback
+    return p
+
+
+class LureModel:
+    """An identified (or given) Lur'e loop: ``y = B/A (u - g(z)) + offset``, ``z`` the velocity or the output.
+
+    Parameters
+    ----------
+    linear : (num, den) or control.TransferFunction
+        The linear block from the net force to the output.
+    nonlinearity : Friction or Coulomb
+    params : array_like
+        The map's parameters.
+    feedback : {"velocity", "output"}
+    offset : float
+    initial_state : array_like, optional
+        ``x(0)`` of the companion realisation of ``num/den``.
+    intersample : {"foh", "zoh"}
+    name : str, optional
+    """
+
+    def __init__(self, linear, nonlinearity, params, *, feedback: str = "velocity", offset: float = 0.0,
+                 initial_state=None, intersample: str = "foh", name: str | None = None):
+        if hasattr(linear, "num") and hasattr(linear, "den"):
+            num, den = np.asarray(linear.num[0][0], float), np.asarray(linear.den[0][0], float)
+        else:
+            num, den = (np.atleast_1d(np.asarray(v, dtype=float)) for v in linear)
+        self._num, self._den = np.trim_zeros(num, "f") if np.any(num) else num[-1:], den
+        lin = LinearStructure(max(self._num.size - 1, 0), self._den.size - 1, monic_numerator=False)
+        _check_feedback(lin, nonlinearity, feedback)
+        self.nonlinearity = nonlinearity
+        self.params = nonlinearity.check_params(params).astype(float)
+        if self.params.ndim != 1:
+            raise ParameterError("params must be one parameter vector")
+        self.feedback, self.offset, self.name = feedback, float(offset), name
+        if intersample not in _HOLDS:
+            raise ParameterError(f"intersample must be one of {_HOLDS}, got {intersample!r}")
+        self.intersample = intersample
+        n = self.order
+        self.initial_state = None if initial_state is None else np.asarray(initial_state, dtype=float).reshape(n)
+
+    @property
+    def order(self) -> int:
+        return self._den.size - 1
+
+    @property
+    def linear(self):
+        """The linear block as a ``control.TransferFunction``."""
+        import control
+
+        return control.tf(self._num, self._den)
+
+    def g(self, z) -> np.ndarray:
+        """The feedback map ``g(z)``."""
+        return self.nonlinearity(z, self.params)
+
+    def _parts(self):
+        slope, fc, c = _affine_parts(self.nonlinearity, self.params[None, :])
+        x0 = np.zeros((1, self.order)) if self.initial_state is None else self.initial_state[None, :]
+        return tagged((self._num[None, :] / self._den[0], self._den[None, :] / self._den[0], slope, fc, c,
+                       np.array([self.offset]), np.ascontiguousarray(x0)), self.feedback)
+
+    def simulate(self, t, u=None, *, initial_state=None, intersample: str | None = None) -> np.ndarray:
+        """The output at the sample instants, exact through sticking (see the module's notes).
+
+        Parameters
+        ----------
+        t : array_like or IOData
+            Uniform time grid, or a record (its ``t``, ``u``, ``intersample``).
+        u : array_like, optional
+        initial_state : array_like, optional
+            Overrides the model's ``x(0)``.
+        intersample : {"foh", "zoh"}, optional
+        """
+        from .iodata import IOData
+
+        hold = self.intersample
+        if isinstance(t, IOData):
+            if u is not None:
+                raise ParameterError("pass either a record or (t, u), not both")
+            t, u, hold = t.t, t.u, t.intersample
+        elif u is None:
+            raise ParameterError("simulate needs the input u (or an IOData record)")
+        hold = hold if intersample is None else intersample
+        if hold not in _HOLDS:
+            raise ParameterError(f"intersample must be one of {_HOLDS}, got {hold!r}")
+        dt, u = _check_pair(t, u, "u")
+        parts = list(self._parts())
+        if initial_state is not None:
+            parts[6] = np.asarray(initial_state, dtype=float).reshape(1, self.order).copy()
+        return simulate_parts(tagged(parts, self.feedback), u, dt, hold)[0]
+
+    def to_iosys(self, name: str | None = None):
+        """The loop as a python-control ``interconnect`` of the linear block and the feedback map.
+
+        Its input is ``u``, its output ``y``.  An ODE solver cannot stay on
+        ``z = 0`` with a ``sign``: it chatters through sticking, so use
+        :meth:`simulate` for the sampled response.
+        """
+        import control as ct
+
+        n = self.order
+        A = np.zeros((n, n))
+        A[0, :] = -self._den[1:] / self._den[0]
+        A[1:, :-1] = np.eye(n - 1)
+        B = np.zeros((n, 1))
+        B[0, 0] = 1.0
+        C = np.zeros(n)
+        C[n - self._num.size:] = self._num / self._den[0]
+        Cz = C @ A if self.feedback == "velocity" else C
+        plant = ct.ss(A, B, np.vstack([C, Cz]), np.zeros((2, 1)), inputs="w", outputs=["ylin", "z"],
+                      name="linear")
+        fmap = ct.nlsys(None, lambda t, x, u, p: np.atleast_1d(self.g(u[0])), inputs="z", outputs="f",
+                        name="friction")
+        offset = ct.nlsys(None, lambda t, x, u, p: np.atleast_1d(u[0] + self.offset), inputs="ylin",
+                          outputs="y", name="offset")
+        junction = ct.summing_junction(inputs=["u", "-f"], output="w")
+        return ct.interconnect([plant, fmap, offset, junction], inputs="u", outputs="y",
+                               name=name or self.name or "lure")
+
+    def describe(self) -> str:
+        vals = ", ".join(f"{k} = {v:.6g}" for k, v in zip(self.nonlinearity.param_names, self.params))
+        return (f"Lur'e loop: y = ({np.array2string(self._num, precision=6)}) / "
+                f"({np.array2string(self._den, precision=6)}) (u - g({self.feedback})) + {self.offset:.6g}, "
+                f"g = {self.nonlinearity.name} ({vals})")
+
+    def __repr__(self):
+        return f"<LureModel {self.describe()}>"
