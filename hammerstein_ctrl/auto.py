@@ -34,10 +34,12 @@ from . import config
 from ._checks import as_count
 from .exceptions import ParameterError
 from .initialize import Budget, initial_points, nuisance_estimate, stabilize
+from .lure_fit import hammerstein_start, hammerstein_structure_of
+from .objective import HammersteinCost
 from .optimize import BUDGET_EXHAUSTED, COMPLETED, SOLVER_FAILED, History, as_rng, as_x0, levenberg_marquardt
 from .simulate import unstable
 
-__all__ = ["auto_minimize", "auto_records", "auto_delayed", "auto_mimo", "RESTART_SPREAD", "MAX_RESTARTS"]
+__all__ = ["auto_minimize", "auto_records", "auto_delayed", "auto_mimo", "auto_lure", "RESTART_SPREAD", "MAX_RESTARTS"]
 
 #: Relative size of the random perturbations of a restart.
 RESTART_SPREAD = 0.3
@@ -481,3 +483,52 @@ def _auto_mimo_delayed(cost, *, maxfev, seed, allow_unstable, callback, started)
     result.message += (f"; dead times started from {list(shifts)} sample(s), found by ARX fits input by input, then "
                        "refined continuously")
     return result
+
+
+#: Scalings of the Coulomb level tried from the Hammerstein start of a Lur'e fit (its minima are close in J).
+LURE_FRICTION_SCALES = (1.0, 0.5, 1.5)
+#: Share of the budget of a Lur'e fit spent on the Hammerstein fit that starts it.
+LURE_START_SHARE = 0.3
+
+
+def auto_lure(cost, x0=None, *, maxfev: int | None = None, seed=None, allow_unstable: bool = False,
+              callback=None):
+    """:func:`auto_minimize` for a Lur'e loop (a :class:`~hammerstein_ctrl.lure_fit.LureCost`).
+
+    Starts come from ``auto`` on the Hammerstein structure with the same poles
+    and Coulomb friction on the input (:func:`~hammerstein_ctrl.lure_fit.hammerstein_start`),
+    with its Coulomb level scaled by :data:`LURE_FRICTION_SCALES`, plus the
+    user's ``x0``; Levenberg-Marquardt refines each, restarts perturb the best.
+    Parameters and return value as :func:`auto_minimize`.
+    """
+    started = time.perf_counter()
+    budget = Budget(_total(maxfev))
+    rng = as_rng(seed)
+    hs = hammerstein_structure_of(cost.structure)
+    first = auto_minimize(HammersteinCost(cost.data, hs), maxfev=max(MIN_REFINE_BUDGET,
+                                                                     int(LURE_START_SHARE * budget.maxfev)),
+                          seed=rng, allow_unstable=True)
+    budget.charge(min(int(first.nfev), budget.remaining))
+    starts = []
+    if np.all(np.isfinite(first.x)):
+        base = hammerstein_start(cost.structure, hs, first.x)
+        at = cost.structure.linear.n_params + (0 if cost.structure.nonlinearity.n_params == 2 else 1)
+        for scale in LURE_FRICTION_SCALES:
+            x = base.copy()
+            x[at] *= scale
+            starts.append(x)
+    if x0 is not None:
+        starts.append(cost.structure.check_beta(as_x0(x0)).copy())
+    if not starts:
+        return first
+    merged, restarts = _Merged(), []
+
+    def next_restart(anchor):
+        if not restarts:
+            restarts.append(_restart_points(anchor, rng, cost.structure.linear))
+        return next(restarts[0], None)
+
+    best, runs = _search(cost, starts, next_restart, budget, merged, allow_unstable, callback)
+    if best is None:
+        return _unrefined(cost, starts, len(starts), budget, merged, started)
+    return _result(cost, best, budget, runs, len(starts), merged, allow_unstable, started)

@@ -52,6 +52,8 @@ from .diagnostics import (FAILURE, STILL_IMPROVING, Verdict, budget_advice, iden
                           late_improvement, linear_verdicts, offset_verdict, row_pole_verdicts)
 from .exceptions import IdentificationWarning, ParameterError
 from .initialize import static_affine_sse, static_affine_sse_columns
+from .lure import LureStructure
+from .lure_fit import LureCost
 from .metrics import channel_report, fit_report
 from .mimo import MIMOStructure
 from .mimo_fit import MIMOCost
@@ -190,6 +192,11 @@ def _cost(records, structure, reject_unstable):
         return MIMOCost(records[0], structure, reject_unstable=reject_unstable)
     for rec in records:
         rec.require_siso(f"a {structure.kind} structure")
+    if isinstance(structure, LureStructure):
+        if len(records) > 1:
+            raise ParameterError("several records in one Lur'e fit are not supported yet: fit one record")
+        records[0].check_identifiable(structure.n_params)
+        return LureCost(records[0], structure, reject_unstable=reject_unstable)
     if len(records) == 1:
         records[0].check_identifiable(structure.n_params)
         if structure.linear.delay:
@@ -218,7 +225,7 @@ def _resolve_structure(data, structure, method, x0):
         raise ParameterError(f"structure must be a HammersteinStructure, WienerStructure or "
                              f"HammersteinWienerStructure, got the name {structure!r}; the paper's cases are "
                              f"hc.presets.trs() and hc.presets.emps() (their .structure and .x0)")
-    if not isinstance(structure, (BlockStructure, MIMOStructure)):
+    if not isinstance(structure, (BlockStructure, MIMOStructure, LureStructure)):
         raise ParameterError("structure must be a HammersteinStructure, WienerStructure or "
                              f"HammersteinWienerStructure (or a MIMO structure), got {type(structure).__name__}")
     return structure, x0
@@ -246,7 +253,7 @@ def _starting_point(structure, x0, bounds):
 
 
 def _run_auto(cost, x0, maxfev, seed, options, bounds, maxiter, callback, allow_unstable):
-    from .auto import auto_delayed, auto_mimo, auto_minimize, auto_records
+    from .auto import auto_delayed, auto_lure, auto_mimo, auto_minimize, auto_records
 
     unused = [name for name, value in (("options", options), ("bounds", bounds), ("maxiter", maxiter))
               if value is not None]
@@ -256,6 +263,8 @@ def _run_auto(cost, x0, maxfev, seed, options, bounds, maxiter, callback, allow_
         return auto_delayed(cost, x0, maxfev=maxfev, seed=seed, allow_unstable=allow_unstable, callback=callback)
     if isinstance(cost, MIMOCost):
         return auto_mimo(cost, x0, maxfev=maxfev, seed=seed, allow_unstable=allow_unstable, callback=callback)
+    if isinstance(cost, LureCost):
+        return auto_lure(cost, x0, maxfev=maxfev, seed=seed, allow_unstable=allow_unstable, callback=callback)
     if isinstance(cost, RecordsCost):
         return auto_records(cost, x0, maxfev=maxfev, seed=seed, allow_unstable=allow_unstable, callback=callback)
     if x0 is not None:
