@@ -33,7 +33,7 @@ __version__ = "0.1.0"
 #: Sub-modules exposed as attributes of the package.
 _SUBMODULES = ("iodata", "metrics", "nonlinearities", "optimize", "plots", "records",
                "simulate", "control_design", "exact_export", "persistence", "display", "uncertainty",
-               "diagnostics", "residual_analysis", "selection", "config", "paper", "mimo")
+               "diagnostics", "residual_analysis", "selection", "config", "paper", "mimo", "lure")
 
 #: Public name -> the sub-module that defines it.
 _LAZY_NAMES = {
@@ -45,6 +45,7 @@ _LAZY_NAMES = {
     "Coulomb": "nonlinearities", "CustomNonlinearity": "nonlinearities", "DeadZone": "nonlinearities",
     "Nonlinearity": "nonlinearities", "PiecewiseLinear": "nonlinearities", "Polynomial": "nonlinearities",
     "Saturation": "nonlinearities", "Tanh": "nonlinearities", "Sigmoid": "nonlinearities",
+    "Friction": "nonlinearities",
     "nonlinearity_from_name": "nonlinearities",
     "HammersteinCost": "objective",
     "PerturbationGain": "optimize", "StepGain": "optimize", "minimize": "optimize",
@@ -52,6 +53,7 @@ _LAZY_NAMES = {
     "HammersteinWienerStructure": "structure", "LinearStructure": "structure",
     "MIMOHammersteinStructure": "mimo", "MIMOWienerStructure": "mimo", "MIMOHammersteinWienerStructure": "mimo",
     "MIMOModel": "mimo", "mimo_structure": "mimo",
+    "LureStructure": "lure", "LureModel": "lure", "lure_structure": "lure",
     "load_model": "persistence", "save_model": "persistence", "load_result": "persistence",
     "save_result": "persistence",
     "StudyResult": "paper.study", "run_study": "paper.study",
@@ -65,8 +67,10 @@ __all__ = [
     "IOData", "read_record",
     "LinearStructure", "HammersteinStructure", "WienerStructure", "HammersteinWienerStructure", "BlockStructure",
     "MIMOHammersteinStructure", "MIMOWienerStructure", "MIMOHammersteinWienerStructure", "mimo_structure",
-    "BlockModel", "HammersteinModel", "WienerModel", "HammersteinWienerModel", "MIMOModel",
+    "LureStructure", "lure_structure",
+    "BlockModel", "HammersteinModel", "WienerModel", "HammersteinWienerModel", "MIMOModel", "LureModel",
     "Nonlinearity", "Tanh", "Coulomb", "Polynomial", "Saturation", "DeadZone", "PiecewiseLinear", "Sigmoid",
+    "Friction",
     "CustomNonlinearity", "nonlinearity_from_name",
     "identify", "IdentificationResult", "select_structure", "candidate_structures", "SelectionResult",
     "minimize", "HammersteinCost", "fit_percent", "fit_report", "nrmse", "rmse", "sse",

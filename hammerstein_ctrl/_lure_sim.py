@@ -269,6 +269,10 @@ def _sample(Adt, Asdt, Bdt, Cz, q, h, Phi, G0, G1, Ps, x, mode, uk, s, c, fc, xn
             x[:] = xs
             tau += d
             mode = _decide(Cz, q, x, uk + s * tau - c, fc, h)
+            if mode == 0:                       # on z = 0 exactly (the root search leaves ~1e-19)
+                z = _dot(Cz, x) / h
+                for i in range(n):
+                    x[i] -= Bdt[i] / Bdt[0] * z if Bdt[0] != 0.0 else 0.0
         else:
             f0 = uk + s * tau - c
             now = f0 + _dot(q, x)

@@ -487,6 +487,8 @@ def _auto_mimo_delayed(cost, *, maxfev, seed, allow_unstable, callback, started)
 
 #: Scalings of the Coulomb level tried from the Hammerstein start of a Lur'e fit (its minima are close in J).
 LURE_FRICTION_SCALES = (1.0, 0.5, 1.5)
+#: Refinements of a Lur'e fit from perturbations of its current best, after its starts.
+LURE_RESTARTS = 12
 #: Share of the budget of a Lur'e fit spent on the Hammerstein fit that starts it.
 LURE_START_SHARE = 0.3
 
@@ -531,4 +533,25 @@ def auto_lure(cost, x0=None, *, maxfev: int | None = None, seed=None, allow_unst
     best, runs = _search(cost, starts, next_restart, budget, merged, allow_unstable, callback)
     if best is None:
         return _unrefined(cost, starts, len(starts), budget, merged, started)
-    return _result(cost, best, budget, runs, len(starts), merged, allow_unstable, started)
+    best, more = _explore(cost, best, rng, budget, merged, allow_unstable)
+    return _result(cost, best, budget, runs + more, len(starts), merged, allow_unstable, started)
+
+
+def _explore(cost, best, rng, budget: Budget, merged: _Merged, allow_unstable: bool):
+    """``(best, refinements run)`` after :data:`LURE_RESTARTS` refinements from perturbations of the current
+    best: stick-slip makes J piecewise smooth, with local minima close in J that the starts alone miss."""
+    key = (_acceptable(cost, best.x, best.fun, allow_unstable), -best.fun)
+    runs = 0
+    for _ in range(LURE_RESTARTS):
+        share = int(budget.remaining // max(1, LURE_RESTARTS - runs))
+        if share < MIN_REFINE_BUDGET:
+            break
+        x = _perturbed(best.x, rng)
+        k = cost.structure.linear.n_params
+        x[:k] = stabilize(cost.structure.linear, x[:k])
+        res = _refine(cost, x, budget, share, merged)
+        runs += 1
+        new = (_acceptable(cost, res.x, res.fun, allow_unstable), -res.fun)
+        if new > key:
+            best, key = res, new
+    return best, runs

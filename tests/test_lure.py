@@ -1,0 +1,216 @@
+"""Lur'e loops: friction fed back on velocity or output, simulated exactly through stick-slip, and identified."""
+
+import warnings
+
+import numpy as np
+import pytest
+from scipy.integrate import solve_ivp
+
+import hammerstein_ctrl as hc
+from hammerstein_ctrl import Coulomb, Friction, LinearStructure, ParameterError, Tanh
+from hammerstein_ctrl.lure import LureModel, LureStructure, lure_structure
+from hammerstein_ctrl.lure_fit import LureCost
+
+#: A sliding mass: force to position b / (p^2 + a p), Coulomb level fc and constant force c (input units).
+MASS = (0.4, 2.0, 0.5, 0.05)
+
+
+def _stick_slip_reference(A, B, C, Cz, fc, c, u, dt, hold, x0):
+    """Sampled output of the Filippov solution, by solve_ivp with events (written apart from the package).
+
+    Slipping: ``x' = A x + B (u - c -+ fc)`` until ``Cz x`` crosses 0; at ``z = 0`` the mass moves where the
+    force beats friction, else sticks: ``x' = A_s x`` while the holding force stays within ``[-fc, fc]``.
+    """
+    A, B, C, Cz = (np.asarray(v, dtype=float) for v in (A, B, C, Cz))
+    h = Cz @ B
+    q = Cz @ A / h
+    A_s = A - np.outer(B, q)
+
+    def force(t, k):
+        return u[k] + (u[k + 1] - u[k]) * t / dt if hold == "foh" else u[k]
+
+    def direction(x, f):
+        feq = f + q @ x
+        up, down = h * (feq - fc) > 0, h * (feq + fc) < 0
+        return 1 if up else (-1 if down else 0)
+
+    x = np.asarray(x0, dtype=float)
+    z = Cz @ x
+    mode = 1 if z > 0 else (-1 if z < 0 else direction(x, u[0] - c))
+    y = [C @ x]
+    for k in range(len(u) - 1):
+        t = 0.0
+        if mode == 0 and abs(u[k] - c + q @ x) > fc:
+            mode = 1 if (u[k] - c + q @ x) * h > 0 else -1
+        while t < dt * (1 - 1e-13):
+            m = mode
+            if m:
+                def rhs(s, xx, k=k, m=m):
+                    return A @ xx + B * (force(s, k) - c - m * fc)
+
+                def event(s, xx):
+                    return Cz @ xx
+                event.direction = -m
+            else:
+                def rhs(s, xx):
+                    return A_s @ xx
+
+                def event(s, xx, k=k):
+                    return abs(force(s, k) - c + q @ xx) - fc
+                event.direction = 1
+            event.terminal = True
+            sol = solve_ivp(rhs, (t, dt), x, events=event, rtol=1e-12, atol=1e-14, method="DOP853")
+            x = sol.y[:, -1]
+            if sol.status == 1 and t < sol.t[-1] < dt * (1 - 1e-13):
+                t = sol.t[-1]
+                f = force(t, k) - c
+                mode = direction(x, f) if m else (1 if (f + q @ x) * h > 0 else -1)
+            else:
+                t = dt
+        y.append(C @ x)
+    return np.array(y)
+
+
+def _mass_record(n=4000, dt=0.01, noise=0.0, seed=0, truth=MASS, hold="foh"):
+    t = np.arange(n) * dt
+    u = 1.5 * np.sin(0.7 * t) + np.sin(2.3 * t) + 0.5 * np.sign(np.sin(0.23 * t))
+    y = lure_structure().model(truth, intersample=hold).simulate(t, u)
+    y = y + noise * np.random.default_rng(seed).standard_normal(n)
+    return hc.IOData(u, y, dt=dt, intersample=hold)
+
+
+@pytest.mark.parametrize("hold", ["foh", "zoh"])
+def test_stick_slip_simulation_equals_an_event_driven_reference(hold):
+    b, a, fc, c = 0.385, 2.13, 0.61, -0.091
+    t = np.arange(600) * 0.01
+    u = np.sin(2 * np.pi * 0.3 * t) + 0.3 * np.sin(2 * np.pi * 1.1 * t)
+    y = lure_structure().model([b, a, fc, c], intersample=hold).simulate(t, u)
+    ref = _stick_slip_reference([[0, 1], [0, -a]], [0, b], [1, 0], [0, 1], fc, c, u, 0.01, hold, [0, 0])
+    assert np.sum(np.diff(y) == 0) > 100                       # the record really sticks
+    np.testing.assert_allclose(y, ref, rtol=0, atol=1e-9 * np.ptp(ref))
+
+
+def test_output_feedback_simulation_equals_an_event_driven_reference():
+    # force to velocity b / (p + a), friction on the output (the velocity itself)
+    b, a, fc, c = 1.2, 0.8, 0.4, 0.1
+    t = np.arange(500) * 0.02
+    u = 0.9 * np.sin(1.3 * t) + 0.2
+    m = LureModel(([b], [1.0, a]), Friction(), [fc, c], feedback="output")
+    ref = _stick_slip_reference([[-a]], [1.0], [b], [b], fc, c, u, 0.02, "foh", [0.0])
+    y = m.simulate(t, u)
+    assert np.sum(np.abs(y) < 1e-15) > 20
+    np.testing.assert_allclose(y, ref, rtol=0, atol=1e-9 * np.ptp(ref))
+
+
+def test_interconnect_export_agrees_with_the_sampled_simulation():
+    import control as ct
+
+    m = lure_structure().model([0.385, 2.13, 0.61, -0.091])
+    t = np.arange(301) * 0.01
+    u = 3 * np.cos(np.pi * t)                  # velocity reverses without sticking: the ODE solver can follow
+    sys = m.to_iosys()
+    assert isinstance(sys, ct.InterconnectedSystem)
+    ref = ct.input_output_response(sys, t, u, X0=[1.0, 0.0],
+                                   solve_ivp_kwargs=dict(rtol=1e-11, atol=1e-13, max_step=0.01)).outputs
+    y = m.simulate(t, u, initial_state=[1.0, 0.0])
+    assert np.sum(np.diff(np.sign(np.diff(y))) != 0) >= 2
+    np.testing.assert_allclose(y, ref, rtol=0, atol=1e-6 * np.ptp(y))
+
+
+def test_known_truth_stick_slip_plant_is_identified_within_its_standard_errors():
+    sigma, z, ratio = 0.002, [], []
+    for seed in range(8):
+        data = _mass_record(noise=sigma, seed=seed)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            r = hc.identify(data, lure_structure(), seed=0)
+        assert r.success, r.message
+        se = r.uncertainty.stderr
+        z.append((r.x - MASS) / se)
+        ratio.append(r.fun / len(data) / sigma**2)
+    z = np.array(z)
+    assert np.all(np.abs(z) < 4), z
+    np.testing.assert_allclose(ratio, 1.0, rtol=0.15)
+    spread = z.std(axis=0)                 # the estimates' spread in units of their standard errors
+    assert np.all((spread > 0.4) & (spread < 1.7)), spread
+
+
+def test_identification_under_zero_order_hold_with_offset():
+    truth = np.r_[MASS, 0.03]
+    t = np.arange(3000) * 0.01
+    u = 1.5 * np.sin(0.7 * t) + np.sin(2.3 * t)
+    s = lure_structure(offset=True)
+    y = s.model(truth, intersample="zoh").simulate(t, u) + 0.001 * np.random.default_rng(3).standard_normal(t.size)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        r = hc.identify(hc.IOData(u, y, dt=0.01, intersample="zoh"), s, seed=1)
+    assert r.success
+    assert np.all(np.abs(r.x - truth) < 4 * r.uncertainty.stderr)
+
+
+def test_cost_scores_hostile_candidates_inf_and_counts_exactly():
+    data = _mass_record(n=500)
+    cost = LureCost(data, lure_structure())
+    assert cost(MASS) == 0.0
+    J = cost.batch([MASS, [np.nan, 2.0, 0.5, 0.0], [0.0, 2.0, 0.5, 0.0], [1e300, -1e300, 1.0, 0.0]])
+    assert J[0] == 0.0 and np.all(np.isinf(J[1:]))
+    R = cost.residuals_batch([[np.nan, 2.0, 0.5, 0.0]])
+    assert np.all(np.isfinite(R))
+    with pytest.raises(ParameterError, match="4 entries"):
+        cost([1.0, 2.0])
+
+
+def test_friction_level_is_reported_non_negative():
+    s = lure_structure()
+    assert s.normalize([0.4, 2.0, -0.5, 0.05])[2] == 0.5
+    y1 = s.model([0.4, 2.0, -0.5, 0.05]).simulate(np.arange(200) * 0.01, np.sin(np.arange(200) * 0.05))
+    y2 = s.model([0.4, 2.0, 0.5, 0.05]).simulate(np.arange(200) * 0.01, np.sin(np.arange(200) * 0.05))
+    np.testing.assert_array_equal(y1, y2)
+
+
+@pytest.mark.parametrize("make, match", [
+    (lambda: LureStructure(LinearStructure(0, 2, monic_numerator=False), Tanh()), "Friction or Coulomb"),
+    (lambda: LureStructure(LinearStructure(1, 2, monic_numerator=False), Friction()), "relative degree 2"),
+    (lambda: LureStructure(LinearStructure(0, 2, monic_numerator=False), Friction(), feedback="output"),
+     "relative degree 1"),
+    (lambda: LureStructure(LinearStructure(0, 2), Friction()), "monic_numerator=False"),
+    (lambda: LureStructure(LinearStructure(0, 2, monic_numerator=False, delay=0.1), Friction()), "dead time"),
+    (lambda: LureStructure(LinearStructure(0, 2, monic_numerator=False), Friction(), feedback="position"),
+     "feedback must be one of"),
+    (lambda: lure_structure(initial_state="guess"), "initial_state"),
+])
+def test_ill_posed_loops_are_refused_in_one_line(make, match):
+    with pytest.raises(ParameterError, match=match) as err:
+        make()
+    assert "\n" not in str(err.value)
+
+
+def test_coulomb_map_with_a_viscous_term_matches_the_same_loop_with_that_damping():
+    t = np.arange(800) * 0.01
+    u = np.sin(0.9 * t) + 0.4
+    viscous = LureModel(([0.4], [1.0, 1.5, 0.0]), Coulomb(), [1.25, 0.5, 0.05]).simulate(t, u)
+    damped = LureModel(([0.4], [1.0, 2.0, 0.0]), Friction(), [0.5, 0.05]).simulate(t, u)
+    np.testing.assert_allclose(viscous, damped, rtol=0, atol=1e-12)
+
+
+def test_emps_lure_model_from_rest_validates_beyond_the_published_models(emps_dir):
+    from hammerstein_ctrl.paper.datasets import load_emps
+
+    est, full = load_emps("estimation", duration=12.0), load_emps("estimation")
+    val = load_emps("validation")
+
+    def validation(data):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            r = hc.identify(data, lure_structure(), seed=0)
+        y = r.model.simulate(val)
+        return r, hc.metrics.fit_report(val.y.ravel(), y)
+
+    r, rep = validation(est)
+    assert r.success
+    assert rep["fit_percent"] >= 89.5 and rep["rmse"] <= 8.7e-3
+    gtau = 35.15065188                                # N per unit of vir, stored in the records
+    mass, viscous, coulomb = gtau / r.x[0], r.x[1] * gtau / r.x[0], r.x[2] * gtau
+    np.testing.assert_allclose([mass, viscous, coulomb], [91.2, 194.0, 21.5], rtol=0.05)
+    r, rep = validation(full)
+    assert r.success and rep["fit_percent"] >= 92.0
