@@ -313,7 +313,6 @@ def lure_run(Adt, Asdt, Bdt, C, Cz, h, Phi, G0, G1, Ps, ok, fc, c, X0, Y0, u, dt
     """Simulate every candidate over ``u``: outputs into ``out[b]`` (``want_outputs``) or the SSE
     against ``y`` into ``out[b, 0]``; ``inf`` for a candidate that is not ``ok`` or overflows."""
     batch, n = Cz.shape
-    N = u.shape[0]
     x = np.zeros(n)
     xn = np.zeros(n)
     xs = np.zeros(n)
@@ -334,34 +333,128 @@ def lure_run(Adt, Asdt, Bdt, C, Cz, h, Phi, G0, G1, Ps, ok, fc, c, X0, Y0, u, dt
         x[:] = X0[b]
         z = _dot(Czb, x)
         mode = 1 if z > 0 else (-1 if z < 0 else _decide(Czb, q, x, u[0] - cb, fcb, hb))
-        sse = 0.0
-        for k in range(N):
-            yk = y0
-            for i in range(n):
-                yk += Cb[i] * x[i]
-            if want_outputs:
-                out[b, k] = yk
-            else:
-                e = yk - y[k]
-                sse += e * e
-            if k + 1 == N:
-                break
-            s = (u[k + 1] - u[k]) if foh else 0.0
-            if mode != 0:                       # the common case: a whole sample slipping one way
-                w0 = u[k] - cb - mode * fcb
-                z1 = 0.0
-                for i in range(n):
-                    acc = G0b[i] * w0 + G1b[i] * s
-                    for j in range(n):
-                        acc += Phib[i, j] * x[j]
-                    xn[i] = acc
-                    z1 += Czb[i] * acc
-                if z1 * mode >= 0.0:
-                    for i in range(n):
-                        x[i] = xn[i]
-                    continue
-            mode = _sample(Ab, Asb, Bb, Czb, q, hb, Phib, G0b, G1b, Psb, x, mode, u[k], s, cb, fcb, xn, xs, t1, t2)
+        if n == 2:
+            sse = _samples_two(Ab, Asb, Bb, Cb, Czb, q, hb, Phib, G0b, G1b, Psb, x, mode, cb, fcb, y0, u, y, out[b],
+                               want_outputs, foh, xn, xs, t1, t2)
+        else:
+            sse = _samples(Ab, Asb, Bb, Cb, Czb, q, hb, Phib, G0b, G1b, Psb, x, mode, cb, fcb, y0, u, y, out[b],
+                           want_outputs, foh, xn, xs, t1, t2)
         if not want_outputs:
             out[b, 0] = sse if np.isfinite(sse) and sse < 1.7e308 else np.inf
     return out
 
+
+
+@cached_njit()
+def _samples(Ab, Asb, Bb, Cb, Czb, q, hb, Phib, G0b, G1b, Psb, x, mode, cb, fcb, y0, u, y, outb, want_outputs, foh,
+             xn, xs, t1, t2):  # pragma: no cover - compiled
+    """One candidate over the record (any order): its outputs into ``outb``, or its SSE returned."""
+    n, N = x.shape[0], u.shape[0]
+    sse = 0.0
+    for k in range(N):
+        yk = y0
+        for i in range(n):
+            yk += Cb[i] * x[i]
+        if want_outputs:
+            outb[k] = yk
+        else:
+            e = yk - y[k]
+            sse += e * e
+        if k + 1 == N:
+            break
+        s = (u[k + 1] - u[k]) if foh else 0.0
+        if mode != 0:                       # the common case: a whole sample slipping one way
+            w0 = u[k] - cb - mode * fcb
+            z1 = 0.0
+            for i in range(n):
+                acc = G0b[i] * w0 + G1b[i] * s
+                for j in range(n):
+                    acc += Phib[i, j] * x[j]
+                xn[i] = acc
+                z1 += Czb[i] * acc
+            if z1 * mode >= 0.0:
+                for i in range(n):
+                    x[i] = xn[i]
+                continue
+        mode = _sample(Ab, Asb, Bb, Czb, q, hb, Phib, G0b, G1b, Psb, x, mode, u[k], s, cb, fcb, xn, xs, t1, t2)
+    return sse
+
+
+@cached_njit()
+def _samples_two(Ab, Asb, Bb, Cb, Czb, q, hb, Phib, G0b, G1b, Psb, x, mode, cb, fcb, y0, u, y, outb, want_outputs,
+                 foh, xn, xs, t1, t2):  # pragma: no cover - compiled
+    """:func:`_samples` for two states (a mass: the common case), the state in registers between switches."""
+    N = u.shape[0]
+    p00, p01, p10, p11 = Phib[0, 0], Phib[0, 1], Phib[1, 0], Phib[1, 1]
+    g0, g1, r0, r1 = G0b[0], G0b[1], G1b[0], G1b[1]
+    c0, c1, z0, z1 = Cb[0], Cb[1], Czb[0], Czb[1]
+    x0, x1 = x[0], x[1]
+    sse = 0.0
+    for k in range(N):
+        yk = y0 + c0 * x0 + c1 * x1
+        if want_outputs:
+            outb[k] = yk
+        else:
+            e = yk - y[k]
+            sse += e * e
+        if k + 1 == N:
+            break
+        s = (u[k + 1] - u[k]) if foh else 0.0
+        if mode != 0:
+            w0 = u[k] - cb - mode * fcb
+            n0 = p00 * x0 + p01 * x1 + g0 * w0 + r0 * s
+            n1 = p10 * x0 + p11 * x1 + g1 * w0 + r1 * s
+            if (z0 * n0 + z1 * n1) * mode >= 0.0:
+                x0, x1 = n0, n1
+                continue
+        x[0], x[1] = x0, x1
+        mode = _sample(Ab, Asb, Bb, Czb, q, hb, Phib, G0b, G1b, Psb, x, mode, u[k], s, cb, fcb, xn, xs, t1, t2)
+        x0, x1 = x[0], x[1]
+    return sse
+
+
+@cached_njit()
+def lure_loop_run(Adt, Asdt, Bdt, C, Cz, h, Phi, G0, G1, Ps, ok, fc, c, X0, Y0, dt, Ac, Bc, Cc, Dc, xc0, r, d,
+                  Y, U):  # pragma: no cover - compiled
+    """Every candidate inside a known sampled controller: outputs ``Y[b]`` and control signals ``U[b]``.
+
+    At sample ``k``: ``y_k = C x_k + y0``; ``u_k = Cc xc_k + Dc [r_k, y_k] + d_k``;
+    ``xc_{k+1} = Ac xc_k + Bc [r_k, y_k]``; the plant holds ``u_k`` over the sample (a DAC: zero-order hold).
+    A candidate that is not ``ok`` gets ``inf`` everywhere.
+    """
+    batch, n = Cz.shape
+    N, nc = r.shape[0], Ac.shape[0]
+    x, xn, xs, t1, t2, q = np.zeros(n), np.zeros(n), np.zeros(n), np.zeros(n), np.zeros(n), np.zeros(n)
+    xc, xcn = np.zeros(nc), np.zeros(nc)
+    for b in range(batch):
+        if not ok[b]:
+            Y[b, :] = np.inf
+            U[b, :] = np.inf
+            continue
+        hb, cb, fcb = h[b], c[b], abs(fc[b])
+        for j in range(n):
+            acc = 0.0
+            for i in range(n):
+                acc += Cz[b, i] * Adt[b, i, j]
+            q[j] = acc / (hb * dt)
+        x[:] = X0[b]
+        xc[:] = xc0
+        mode = 2                                # decided at the first sample, once u_0 is known
+        for k in range(N):
+            yk = Y0[b] + _dot(C[b], x)
+            uk = Dc[0] * r[k] + Dc[1] * yk + d[k] + _dot(Cc, xc)
+            Y[b, k] = yk
+            U[b, k] = uk
+            for i in range(nc):
+                acc = Bc[i, 0] * r[k] + Bc[i, 1] * yk
+                for j in range(nc):
+                    acc += Ac[i, j] * xc[j]
+                xcn[i] = acc
+            xc[:] = xcn
+            if mode == 2:
+                z = _dot(Cz[b], x)
+                mode = 1 if z > 0 else (-1 if z < 0 else _decide(Cz[b], q, x, uk - cb, fcb, hb))
+            if k + 1 < N:
+                mode = _sample(Adt[b], Asdt[b], Bdt[b], Cz[b], q, hb, Phi[b], G0[b], G1[b], Ps[b], x, mode, uk, 0.0,
+                               cb, fcb, xn, xs, t1, t2)
+    return Y, U

@@ -90,8 +90,11 @@ def _user_start(cost, x0, budget: Budget):
 def _acceptable(cost, x, fun, allow_unstable: bool) -> bool:
     """Finite, better than a constant, and stable (a pole within its uncertainty of the imaginary axis counts
     as marginal, not unstable: :func:`~hammerstein_ctrl.diagnostics.linear_verdicts`)."""
-    y = np.asarray(cost.data.y, dtype=float)
-    trivial = float(np.sum((y - y.mean(axis=0)) ** 2))
+    if hasattr(cost, "trivial_sse"):                # a cost of its own scale (weighted, several signals)
+        trivial = cost.trivial_sse()
+    else:
+        y = np.asarray(cost.data.y, dtype=float)
+        trivial = float(np.sum((y - y.mean(axis=0)) ** 2))
     if not (np.isfinite(fun) and fun < trivial):
         return False
     if hasattr(cost.structure, "unstable"):            # a MIMO structure: every row's denominator

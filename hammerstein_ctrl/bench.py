@@ -687,6 +687,7 @@ def full_report(cases, methods=("nspsa",), *, memory_samples=MEMORY_SAMPLES, ech
         emit(format_routes(identification_routes(case)))
         emit(format_uncertainty(uncertainty_cost(case)))
         emit(format_mimo_speed(mimo_speed(len(case.data))))
+        emit(format_lure_speed(lure_speed(case)))
     return "\n\n".join(sections)
 
 
@@ -723,6 +724,35 @@ def mimo_speed(n_samples: int, *, batch: int = 15, pairs: int = 7, number: int =
         out[label] = {"siso_s": float(np.median(t1)), "mimo_s": float(np.median(t2)),
                       "ratio": float(np.median(np.array(t2) / np.array(t1)))}
     return out
+
+
+def lure_speed(case, *, pairs: int = 7, number: int = 50) -> dict:
+    """A Lur'e evaluation (friction on velocity, stick-slip resolved) against the Hammerstein one of the
+    same order on the case's record, each at its own optimum; interleaved pairs, median ratio."""
+    from .auto import auto_lure, auto_minimize
+    from .lure import lure_structure
+    from .lure_fit import LureCost
+
+    hammerstein = case.cost
+    lure = LureCost(case.data, lure_structure())
+    xh, xl = auto_minimize(hammerstein, seed=0).x, auto_lure(lure, seed=0).x
+    f1, f2 = (lambda: hammerstein(xh)), (lambda: lure(xl))
+    f1(), f2()
+    t1, t2 = [], []
+    for _ in range(pairs):
+        t1.append(time_call(f1, repeat=1, number=number))
+        t2.append(time_call(f2, repeat=1, number=number))
+    return {"n_samples": len(case.data), "hammerstein_s": float(np.median(t1)), "lure_s": float(np.median(t2)),
+            "ratio": float(np.median(np.array(t2) / np.array(t1))),
+            "sticking": int(np.sum(np.diff(lure.simulate(xl)) == 0))}
+
+
+def format_lure_speed(r) -> str:
+    name = "Lur'e"
+    return (f"{name} cost (friction fed back on velocity, stick-slip resolved exactly) against the Hammerstein "
+            f"cost of the same order, {r['n_samples']} samples, each at its optimum (target: <= 3x)\n\n"
+            f"{'Hammerstein':<14}{r['hammerstein_s'] * 1e6:>9.1f} us\n"
+            f"{name:<14}{r['lure_s'] * 1e6:>9.1f} us   ratio {r['ratio']:.2f}x ({r['sticking']} samples stuck)")
 
 
 def format_mimo_speed(r) -> str:

@@ -1,0 +1,292 @@
+"""Identification inside a known control loop: fit the plant by simulating the closed loop the record came from.
+
+A record taken in closed loop (the EMPS: the motor force is a position
+controller's output) carries little information about the plant in its
+open-loop output error: the controller keeps the position near the
+reference, so drift dominates.  With the controller known (its sampled
+implementation as a python-control system) and the reference recorded,
+:func:`identify_in_loop` simulates the loop from the reference for each
+candidate plant and matches the measured output, the measured control
+signal, or both, each weighted.
+
+.. code-block:: text
+
+    y_k = plant output at t_k
+    u_k = K(r, y)_k + d_k          the controller (sampled, discrete-time) plus a known added signal d
+    the plant holds u_k over the sample (a DAC)
+
+The plant is a :class:`~hammerstein_ctrl.lure.LureStructure` (friction in
+feedback, simulated exactly through stick-slip).
+
+Examples
+--------
+>>> import numpy as np, control as ct, hammerstein_ctrl as hc
+>>> from hammerstein_ctrl.lure import lure_structure
+>>> dt = 0.01; t = np.arange(3000) * dt; r = np.sign(np.sin(0.3 * t))
+>>> loop = KnownLoop(ct.ss([[1.0]], [[dt]], [[2.0]], [[8.0]], dt), r)     # a PI on the error r - y
+>>> truth = [0.4, 2.0, 0.3, 0.02]
+>>> y, u = loop.simulate(lure_structure().model(truth))
+>>> y.shape, bool(abs(y[-300:].mean() - r[-300:].mean()) < 0.05)
+((3000,), True)
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from ._checks import as_real_array
+from ._lure_sim import lure_loop_run, lure_setup
+from .exceptions import DataError, ParameterError
+from .lure import LureModel, LureStructure, parts_feedback
+from .normal_equations import NONFINITE_RESIDUAL
+
+__all__ = ["KnownLoop", "LoopCost", "identify_in_loop", "MATCHES"]
+
+#: The signals a loop fit can match.
+MATCHES = ("output", "input", "both")
+
+
+def _controller_matrices(controller, dt: float):
+    """``(Ac, Bc, Cc, Dc)`` with ``Bc, Dc`` acting on ``[r, y]``, from a discrete python-control system."""
+    import control as ct
+
+    if not isinstance(controller, (ct.StateSpace, ct.TransferFunction)):
+        raise ParameterError(f"controller must be a discrete-time control.StateSpace or TransferFunction, got "
+                             f"{type(controller).__name__}")
+    if not controller.isdtime(strict=True):
+        raise ParameterError("controller must be discrete-time (its sampled implementation), with the record's dt")
+    if not np.isclose(float(controller.dt), dt, rtol=1e-9, atol=0.0):
+        raise ParameterError(f"controller.dt = {controller.dt} differs from the record's dt = {dt}")
+    if controller.noutputs != 1 or controller.ninputs not in (1, 2):
+        raise ParameterError(f"controller must have one output (the control signal) and one input (the error "
+                             f"r - y) or two (r, y); got {controller.ninputs} input(s), {controller.noutputs} "
+                             f"output(s)")
+    sys = ct.ss(controller)
+    A, B, C, D = (np.asarray(m, dtype=float) for m in (sys.A, sys.B, sys.C, sys.D))
+    if controller.ninputs == 1:                          # acts on e = r - y
+        B, D = np.hstack([B, -B]), np.hstack([D, -D])
+    if A.size == 0:
+        A, B, C = np.zeros((1, 1)), np.zeros((1, 2)), np.zeros((1, 1))
+    return (np.ascontiguousarray(A), np.ascontiguousarray(B), np.ascontiguousarray(C.reshape(-1)),
+            np.ascontiguousarray(D.reshape(-1)))
+
+
+class KnownLoop:
+    """The loop a record was measured in: the sampled controller, the reference, and a known added signal.
+
+    Parameters
+    ----------
+    controller : control.StateSpace or control.TransferFunction, discrete-time
+        With one input it acts on the error ``r - y``; with two on ``[r, y]``.
+        Its ``dt`` is the record's sampling interval.
+    reference : array_like, shape (N,)
+    added : array_like, shape (N,), optional
+        A signal added to the controller's output before the plant (test
+        pulses, a feed-forward); default zeros.
+    initial_state : array_like, optional
+        The controller's state at the first sample (default zeros).
+    """
+
+    def __init__(self, controller, reference, added=None, *, initial_state=None):
+        self.reference = np.ascontiguousarray(as_real_array(reference, "reference").reshape(-1))
+        if not np.all(np.isfinite(self.reference)):
+            raise DataError("reference has non-finite samples")
+        n = self.reference.size
+        self.added = np.zeros(n) if added is None else np.ascontiguousarray(as_real_array(added, "added").reshape(-1))
+        if self.added.size != n:
+            raise DataError(f"added has {self.added.size} samples, reference {n}")
+        if not np.all(np.isfinite(self.added)):
+            raise DataError("added has non-finite samples")
+        self.controller = controller
+        self.dt = float(controller.dt) if getattr(controller, "dt", None) not in (None, True, 0) else np.nan
+        self._matrices = _controller_matrices(controller, self.dt)
+        nc = self._matrices[0].shape[0]
+        self.initial_state = (np.zeros(nc) if initial_state is None
+                              else np.asarray(initial_state, dtype=float).reshape(nc))
+
+    def __len__(self) -> int:
+        return self.reference.size
+
+    def simulate_parts(self, parts):
+        """``(Y, U)``, each ``(B, N)``: outputs and control signals of the loops around the plants ``parts``."""
+        num, den, slope, fc, c, y0, x0 = parts
+        S = lure_setup(np.ascontiguousarray(num, dtype=float), np.ascontiguousarray(den, dtype=float), self.dt,
+                       np.ascontiguousarray(slope, dtype=float), parts_feedback(parts))
+        Y = np.empty((den.shape[0], len(self)))
+        U = np.empty_like(Y)
+        with np.errstate(all="ignore"):
+            lure_loop_run(*S, np.ascontiguousarray(fc, dtype=float), np.ascontiguousarray(c, dtype=float), x0,
+                          np.ascontiguousarray(y0, dtype=float), self.dt, *self._matrices, self.initial_state,
+                          self.reference, self.added, Y, U)
+        return Y, U
+
+    def simulate(self, model: LureModel):
+        """``(y, u)`` of the loop around ``model`` (from its initial state)."""
+        if not isinstance(model, LureModel):
+            raise ParameterError(f"model must be a LureModel, got {type(model).__name__}")
+        Y, U = self.simulate_parts(model._parts())
+        return Y[0], U[0]
+
+
+class LoopCost:
+    """Weighted least squares of the loop's simulated output and/or control signal against the record.
+
+    ``residuals`` stacks ``w_y (y - y_hat)`` and ``w_u (u - u_hat)`` (the
+    matched ones, in that order); ``J`` is their sum of squares.
+    """
+
+    def __init__(self, data, structure: LureStructure, loop: KnownLoop, *, match: str = "both", weights=None):
+        if not isinstance(structure, LureStructure):
+            raise ParameterError(f"structure must be a LureStructure, got {type(structure).__name__}")
+        if match not in MATCHES:
+            raise ParameterError(f"match must be one of {MATCHES}, got {match!r}")
+        data.require_siso("a loop fit")
+        if len(loop) != len(data):
+            raise DataError(f"the loop's reference has {len(loop)} samples, the record {len(data)}")
+        if not np.isclose(loop.dt, data.dt, rtol=1e-9, atol=0.0):
+            raise DataError(f"the controller's dt = {loop.dt} differs from the record's dt = {data.dt}")
+        self.data, self.structure, self.loop, self.match = data, structure, loop, match
+        self._y = np.asarray(data.y, dtype=float).reshape(-1)
+        self._u = np.asarray(data.u, dtype=float).reshape(-1)
+        self.signals = {"output": ("y",), "input": ("u",), "both": ("y", "u")}[match]
+        self.weights = self._weights(weights)
+        self.reject_unstable = False
+
+    def _weights(self, weights) -> np.ndarray:
+        """One weight per matched signal: given, or the inverse of each measured signal's spread."""
+        if weights is None:
+            return np.array([1.0 / max(np.std(self._y if s == "y" else self._u), 1e-300) for s in self.signals])
+        w = as_real_array(weights, "weights").reshape(-1)
+        if w.size != len(self.signals) or not np.all(np.isfinite(w) & (w > 0)):
+            raise ParameterError(f"weights must be {len(self.signals)} positive number(s), one per matched signal "
+                                 f"{self.signals}, got {weights!r}")
+        return w
+
+    @property
+    def n_params(self) -> int:
+        return self.structure.n_params
+
+    @property
+    def param_names(self) -> tuple[str, ...]:
+        return self.structure.param_names
+
+    def simulate_batch(self, betas):
+        """``(Y, U)`` of the loop around each candidate plant."""
+        return self.loop.simulate_parts(self.structure.parts(np.atleast_2d(self.structure.check_beta(betas))))
+
+    def residuals_batch(self, betas) -> np.ndarray:
+        Y, U = self.simulate_batch(betas)
+        parts = [w * ((self._y - Y) if s == "y" else (self._u - U)) for s, w in zip(self.signals, self.weights)]
+        R = np.concatenate(parts, axis=1)
+        R[~np.isfinite(R)] = NONFINITE_RESIDUAL
+        return R
+
+    def residuals(self, beta) -> np.ndarray:
+        return self.residuals_batch(beta)[0]
+
+    def batch(self, betas) -> np.ndarray:
+        R = self.residuals_batch(betas)
+        J = np.einsum("ij,ij->i", R, R)
+        J[np.any(R == NONFINITE_RESIDUAL, axis=1)] = np.inf
+        return J
+
+    def __call__(self, beta) -> float:
+        return float(self.batch(beta)[0])
+
+    def trivial_sse(self) -> float:
+        """``J`` of constant signals at the measured means (the level a useful fit must beat)."""
+        return float(sum(w**2 * np.sum((v - v.mean()) ** 2)
+                         for w, v in zip(self.weights, (self._y if s == "y" else self._u for s in self.signals))))
+
+
+def _fits(cost: LoopCost, x) -> dict:
+    """Fit per cent of the loop's output and control signal against the record."""
+    from .metrics import fit_report
+
+    Y, U = cost.simulate_batch(x)
+    return {"y": fit_report(cost._y, Y[0])["fit_percent"], "u": fit_report(cost._u, U[0])["fit_percent"]}
+
+
+def identify_in_loop(data, structure: LureStructure, loop: KnownLoop, *, match: str = "both", weights=None,
+                     seed=None, maxfev: int | None = None, noise: str = "colored"):
+    """Identify a Lur'e plant by simulating the known loop the record was measured in.
+
+    Parameters
+    ----------
+    data : IOData
+        The record: ``u`` the measured control signal (the plant's input), ``y`` the measured output.
+    structure : LureStructure
+    loop : KnownLoop
+        The controller, the reference and any added signal of the record.
+    match : {"output", "input", "both"}, default "both"
+        Which measured signals the simulated loop must reproduce.
+    weights : sequence of float, optional
+        One per matched signal (output first); default the inverse of each
+        signal's standard deviation (both count alike whatever their units).
+    seed, maxfev
+        As for :func:`~hammerstein_ctrl.identify`.
+    noise : {"colored", "white"}
+        Noise description of the covariance; with ``"both"`` each signal has its own.
+
+    Returns
+    -------
+    IdentificationResult
+        ``output_fits`` gives the loop's fit of ``y`` and of ``u``; the
+        uncertainty is the sandwich covariance of the stacked residuals.
+
+    Notes
+    -----
+    The starts come from the open-loop Lur'e fit of ``(u, y)`` (``identify``
+    with the same structure), then Levenberg-Marquardt refines on the loop's
+    residuals, with restarts from perturbations of the best.
+    """
+    from .auto import auto_lure
+    from .lure_fit import LureCost
+
+    started = time.perf_counter()
+    cost = LoopCost(data, structure, loop, match=match, weights=weights)
+    open_loop = auto_lure(LureCost(data, structure), maxfev=None if maxfev is None else max(1, maxfev // 3),
+                          seed=seed)
+    x0 = open_loop.x if np.all(np.isfinite(open_loop.x)) else None
+    res = auto_lure(cost, x0, maxfev=None if maxfev is None else max(1, maxfev - int(open_loop.nfev)), seed=seed)
+    return _result(cost, res, noise, started)
+
+
+def _result(cost: LoopCost, res, noise: str, started: float):
+    """The :class:`~hammerstein_ctrl.result.IdentificationResult` of a loop fit: fits per signal, uncertainty,
+    verdicts (no better than a constant; parameters the loop record does not determine)."""
+    from .diagnostics import FAILURE, Verdict, identifiability_verdicts
+    from .metrics import fit_report
+    from .result import IdentificationResult
+    from .uncertainty import channel_uncertainty
+
+    x = np.asarray(res.x, dtype=float)
+    finite = bool(np.all(np.isfinite(x)) and np.isfinite(res.fun))
+    fits = _fits(cost, x) if finite else {"y": -np.inf, "u": -np.inf}
+    verdicts, unc = [], None
+    if not finite:
+        verdicts.append(Verdict("no-model", FAILURE, "no model: the loop fit found no finite parameters"))
+    for sig in cost.signals:
+        if finite and not fits[sig] > 0:
+            verdicts.append(Verdict("no-better", FAILURE, f"the loop's {dict(y='output', u='control signal')[sig]} "
+                                                          f"fits {fits[sig]:.1f} %: no better than a constant"))
+    if finite:
+        r = cost.residuals(x)
+        with np.errstate(all="ignore"):
+            unc = channel_uncertainty(cost, x, r, len(cost.signals), noise=noise)
+        verdicts += identifiability_verdicts(cost.structure, x, unc)
+    y_hat = cost.simulate_batch(x)[0][0] if finite else np.full(len(cost.data), np.nan)
+    report = fit_report(cost._y, y_hat) if finite else {"fit_percent": -np.inf, "rmse": np.inf, "nrmse": np.inf}
+    success = bool(res.success) and not any(v.severity == FAILURE for v in verdicts)
+    failures = [v.message for v in verdicts if v.severity == FAILURE]
+    message = "; ".join(failures) + f" [{res.message}]" if failures else str(res.message)
+    return IdentificationResult(
+        model=cost.structure.model(x, intersample="zoh") if finite else None, x=x, fun=float(res.fun),
+        nfev=int(res.nfev), fit_percent=report["fit_percent"], rmse=report["rmse"], nrmse=report["nrmse"],
+        method="auto (in loop)", success=success, message=message, history=res.history,
+        elapsed=time.perf_counter() - started, structure=cost.structure, optimize_result=res,
+        covariance=None if unc is None else unc.covariance, warnings=[v.message for v in verdicts],
+        verdicts=verdicts, uncertainty=unc, analysis=None, data=cost.data,
+        output_fits={"y (in loop)": fits["y"], "u (in loop)": fits["u"]})
