@@ -1,0 +1,132 @@
+"""Identification inside a known control loop: the loop's simulation, the fit, refusals, the EMPS loop."""
+
+import warnings
+
+import control as ct
+import numpy as np
+import pytest
+
+import hammerstein_ctrl as hc
+from hammerstein_ctrl import DataError, ParameterError
+from hammerstein_ctrl.in_loop import KnownLoop, LoopCost, identify_in_loop
+from hammerstein_ctrl.lure import lure_structure
+
+DT = 0.01
+#: A PI controller on the error, sampled: u = 10 e + 6 dt sum(e).
+PI = ct.ss([[1.0]], [[DT]], [[6.0]], [[10.0]], DT)
+TRUTH = np.array([0.4, 2.0, 0.3, 0.02])
+
+
+def _reference(n=4000):
+    t = np.arange(n) * DT
+    return 0.5 * np.sign(np.sin(0.3 * t)) + 0.2 * np.sin(1.1 * t)
+
+
+def test_loop_without_friction_equals_python_controls_sampled_feedback_loop():
+    r = _reference(1500)
+    loop = KnownLoop(PI, r)
+    y, u = loop.simulate(lure_structure().model([0.4, 2.0, 0.0, 0.0]))
+    plant = ct.sample_system(ct.tf([0.4], [1.0, 2.0, 0.0]), DT, method="zoh")
+    T = np.arange(r.size) * DT
+    ref_y = ct.forced_response(ct.feedback(PI * plant, 1), T, r).outputs
+    ref_u = ct.forced_response(ct.feedback(PI, plant), T, r).outputs
+    np.testing.assert_allclose(y, ref_y, rtol=0, atol=1e-9 * np.ptp(ref_y))
+    np.testing.assert_allclose(u, ref_u, rtol=0, atol=1e-9 * np.ptp(ref_u))
+
+
+def test_two_input_controller_equals_the_same_controller_on_the_error():
+    r = _reference(800)
+    model = lure_structure().model(TRUTH)
+    on_error = KnownLoop(PI, r).simulate(model)
+    A, B, C, D = PI.A, PI.B, PI.C, PI.D
+    on_both = KnownLoop(ct.ss(A, np.hstack([B, -B]), C, np.hstack([D, -D]), DT), r).simulate(model)
+    np.testing.assert_array_equal(on_error[0], on_both[0])
+    np.testing.assert_array_equal(on_error[1], on_both[1])
+
+
+def test_known_truth_plant_in_a_pi_loop_is_identified_within_its_standard_errors():
+    r = _reference()
+    loop = KnownLoop(PI, r)
+    y, u = loop.simulate(lure_structure().model(TRUTH))
+    z = []
+    for seed in range(5):
+        rng = np.random.default_rng(seed)
+        data = hc.IOData(u + 0.01 * rng.standard_normal(u.size), y + 0.002 * rng.standard_normal(y.size), dt=DT,
+                         intersample="zoh")
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            res = identify_in_loop(data, lure_structure(), loop, seed=0)
+        assert res.success, res.message
+        assert res.output_fits["u (in loop)"] > 99 and res.output_fits["y (in loop)"] > 99
+        z.append((res.x - TRUTH) / res.uncertainty.stderr)
+    z = np.array(z)
+    assert np.all(np.abs(z) < 4), z
+    assert np.all(z.std(axis=0) < 1.7), z.std(axis=0)
+
+
+@pytest.mark.parametrize("match, n_signals", [("output", 1), ("input", 1), ("both", 2)])
+def test_residuals_stack_the_matched_signals_weighted(match, n_signals):
+    r = _reference(300)
+    loop = KnownLoop(PI, r)
+    y, u = loop.simulate(lure_structure().model(TRUTH))
+    data = hc.IOData(u + 1.0, y + 2.0, dt=DT, intersample="zoh")
+    cost = LoopCost(data, lure_structure(), loop, match=match, weights=[3.0] * n_signals)
+    R = cost.residuals(TRUTH)
+    assert R.shape == (n_signals * 300,)
+    expected = {"output": [6.0], "input": [3.0], "both": [6.0, 3.0]}[match]
+    np.testing.assert_allclose(R.reshape(n_signals, 300), np.array(expected)[:, None] * np.ones((1, 300)),
+                               atol=1e-12)
+    assert cost(TRUTH) == pytest.approx(300 * sum(e**2 for e in expected))
+
+
+@pytest.mark.parametrize("make, error, match", [
+    (lambda r: KnownLoop(ct.tf([1.0], [1.0, 1.0]), r), ParameterError, "discrete-time"),
+    (lambda r: KnownLoop(ct.ss([[1.0]], [[1.0]], [[1.0]], [[0.0]], 0.02), r), DataError, "dt"),
+    (lambda r: KnownLoop(ct.ss([[1.0]], [[1.0, 1.0, 1.0]], [[1.0]], [[0.0, 0.0, 0.0]], DT), r), ParameterError,
+     "one input"),
+    (lambda r: KnownLoop("pid", r), ParameterError, "StateSpace or TransferFunction"),
+    (lambda r: KnownLoop(PI, np.r_[r[:-1], np.nan]), DataError, "non-finite"),
+    (lambda r: KnownLoop(PI, r, added=np.ones(3)), DataError, "added has 3 samples"),
+])
+def test_bad_loops_are_refused_in_one_line(make, error, match):
+    r = _reference(100)
+    data = hc.IOData(np.zeros(100), np.zeros(100), dt=DT)
+    with pytest.raises(error, match=match) as err:
+        LoopCost(data, lure_structure(), make(r))
+    assert "\n" not in str(err.value)
+
+
+def test_bad_match_and_weights_are_refused():
+    r = _reference(100)
+    data = hc.IOData(np.zeros(100), np.zeros(100), dt=DT)
+    with pytest.raises(ParameterError, match="match must be one of"):
+        LoopCost(data, lure_structure(), KnownLoop(PI, r), match="force")
+    with pytest.raises(ParameterError, match="2 positive number"):
+        LoopCost(data, lure_structure(), KnownLoop(PI, r), weights=[1.0])
+    with pytest.raises(DataError, match="reference has 100 samples, the record 50"):
+        LoopCost(data[:50], lure_structure(), KnownLoop(PI, r))
+
+
+def test_emps_controller_reproduces_the_recorded_force(emps_dir):
+    from hammerstein_ctrl.paper.emps_loop import load_emps_loop
+
+    record, loop, gains = load_emps_loop("estimation")
+    qm, qg = record.y.ravel(), loop.reference
+    vir = gains["kv"] * (gains["kp"] * (qg - qm) - np.r_[0.0, np.diff(qm)] / record.dt)
+    assert hc.fit_percent(record.u.ravel(), vir) > 96.0
+    K = ct.ss(loop.controller)
+    out = ct.forced_response(K, np.arange(len(qm)) * record.dt, np.vstack([qg, qm]), X0=[qm[0]]).outputs
+    np.testing.assert_allclose(np.ravel(out)[1:], vir[1:], rtol=1e-9, atol=1e-9)
+
+
+def test_emps_force_is_reproduced_inside_the_loop(emps_dir):
+    from hammerstein_ctrl.paper.emps_loop import load_emps_loop
+
+    record, loop, _ = load_emps_loop("estimation")
+    val, val_loop, _ = load_emps_loop("validation")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        res = identify_in_loop(record, lure_structure(), loop, seed=0)
+    assert res.success, res.message
+    _, u = val_loop.simulate(res.model)
+    assert hc.fit_percent(val.u.ravel(), u) >= 92.0
