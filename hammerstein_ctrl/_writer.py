@@ -113,6 +113,20 @@ def _mimo_model_to_dict(model) -> dict:
     return out
 
 
+def _lure_model_to_dict(model) -> dict:
+    """The ``"model"`` object of a Lur'e loop: the linear block, the feedback signal and map."""
+    x0 = model.initial_state
+    out = {"name": str(model.name), "kind": "lure",
+           "linear": {"num": model._num.tolist(), "den": model._den.tolist()}, "feedback": model.feedback,
+           "feedback_nonlinearity": _block_to_dict(model.nonlinearity, model.params), "offset": model.offset,
+           "initial_state": None if x0 is None or not np.any(x0) else x0.tolist(), "intersample": model.intersample}
+    numbers = (out["linear"]["num"] + out["linear"]["den"] + list(out["feedback_nonlinearity"]["params"].values())
+               + [out["offset"]] + (out["initial_state"] or []))
+    if not all(math.isfinite(v) for v in numbers):
+        raise ParameterError("cannot save a model with non-finite coefficients or parameters")
+    return out
+
+
 def model_to_dict(model) -> dict:
     """The ``"model"`` object of the schema for a Hammerstein, Wiener or Hammerstein-Wiener model (SISO or MIMO).
 
@@ -123,6 +137,8 @@ def model_to_dict(model) -> dict:
     """
     if str(getattr(model, "kind", "")).startswith("mimo"):
         return _mimo_model_to_dict(model)
+    if getattr(model, "kind", "") == "lure":
+        return _lure_model_to_dict(model)
     settings = model_settings(model)
     num = np.trim_zeros(np.asarray(model.linear.num[0][0], dtype=float), "f")
     den = np.trim_zeros(np.asarray(model.linear.den[0][0], dtype=float), "f")

@@ -271,6 +271,10 @@ def _structure_from_args(args):
         if extra:
             raise HammersteinError(f"{', '.join(extra)} cannot be combined with --structure {args.structure} "
                                    "(use --orders/--nonlinearity to build your own structure)")
+        if args.structure == "emps-lure":
+            from .paper.emps_loop import emps_lure_structure
+
+            return emps_lure_structure(), None
         return presets.STRUCTURES[args.structure](), presets.X0[args.structure]
     if not (args.orders and (args.nonlinearity or args.output_nonlinearity)):
         raise HammersteinError("give --structure trs|emps, or --orders L M and --nonlinearity NAME "
@@ -284,6 +288,8 @@ def _structure_from_args(args):
             fixed[name.strip()] = float(value)
         except ValueError:
             raise HammersteinError(f"--fix {item!r}: {value!r} is not a number") from None
+    if args.feedback:
+        return _lure_structure_from_args(args, fixed), None
     linear = LinearStructure(args.orders[0], args.orders[1], monic_numerator=not args.free_gain, fixed=fixed,
                              delay=args.delay)
     g = h = None
@@ -295,6 +301,20 @@ def _structure_from_args(args):
     if g is not None and h is not None:
         return HammersteinWienerStructure(linear, g, h), None
     return (HammersteinStructure(linear, g) if h is None else WienerStructure(linear, h)), None
+
+
+def _lure_structure_from_args(args, fixed):
+    """``--feedback velocity|output`` with ``--orders`` and ``--nonlinearity friction|coulomb``: a Lur'e loop."""
+    from .lure import LureStructure
+    from .nonlinearities import nonlinearity_from_name
+    from .structure import LinearStructure
+
+    extra = [flag for flag, given in (("--output-nonlinearity", args.output_nonlinearity),
+                                      ("--delay", args.delay is not None)) if given]
+    if extra:
+        raise HammersteinError(f"{', '.join(extra)} cannot be combined with --feedback (a Lur'e loop)")
+    linear = LinearStructure(args.orders[0], args.orders[1], monic_numerator=False, fixed=fixed)
+    return LureStructure(linear, nonlinearity_from_name(args.nonlinearity), feedback=args.feedback)
 
 
 def _family_options(degree, breakpoints) -> dict:
@@ -319,7 +339,7 @@ def _cmd_identify(args) -> int:
     options = _gain_options(args)
     plot = _check_plot_path(args.plot) if args.plot else None
     out = _writable_file("--out", args.out) if args.out else None
-    if args.structure == "emps" and not (args.input or args.inputs or args.output or args.outputs):
+    if str(args.structure).startswith("emps") and not (args.input or args.inputs or args.output or args.outputs):
         from .paper.datasets import EMPS_COLUMNS       # the case study's file: its own column names
 
         args.input, args.output = EMPS_COLUMNS["input"], EMPS_COLUMNS["output"]
@@ -409,10 +429,16 @@ def _add_identify_arguments(ide):
     from .records import add_record_arguments
 
     add_record_arguments(ide)
-    ide.add_argument("--structure", choices=["trs", "emps"], help="a case study's structure (and x0)")
+    ide.add_argument("--structure", choices=["trs", "emps", "emps-lure"],
+                     help="a case study's structure (and x0); emps-lure: the EMPS as a mass with friction fed back "
+                          "on its velocity")
     ide.add_argument("--orders", type=_count(0), nargs=2, metavar=("L", "M"),
                      help="numerator and denominator degrees of H(p)")
-    ide.add_argument("--nonlinearity", help="tanh, coulomb, polynomial, saturation, deadzone, piecewise_linear")
+    ide.add_argument("--nonlinearity", help="tanh, coulomb, polynomial, saturation, deadzone, piecewise_linear, "
+                                            "sigmoid, friction")
+    ide.add_argument("--feedback", choices=["velocity", "output"],
+                     help="a Lur'e loop: the nonlinearity (friction or coulomb) fed back on the output's derivative "
+                          "or on the output; --orders L M with M - L = 2 or 1, the gain in H(p)")
     ide.add_argument("--degree", type=_count(0), help="polynomial degree")
     ide.add_argument("--breakpoints", type=_number(), nargs="+", help="piecewise-linear breakpoints")
     ide.add_argument("--output-nonlinearity", metavar="NAME",

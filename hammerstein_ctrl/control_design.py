@@ -60,7 +60,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ._checks import MAX_MAGNITUDE, as_signal, check_dt, require_siso_model as _siso_model
+from ._checks import MAX_MAGNITUDE, as_signal, check_dt, require_siso_model
 from . import config
 from .exceptions import DataError, ParameterError, UnknownNameError
 from .model import pade_order_of
@@ -780,6 +780,18 @@ def _check_scalars(**values) -> None:
         if not ok:
             raise ParameterError(f"{name} must be a finite, {'non-zero' if name == 'step' else 'positive'} number, "
                                  f"got {value!r}")
+
+
+def _siso_model(model, what: str):
+    """A SISO block-oriented model (or result): MIMO models and Lur'e loops are refused in one line, with what
+    to use instead."""
+    model = require_siso_model(model, what)
+    inner = model.model if getattr(model, "is_identification_result", False) else model
+    if getattr(inner, "kind", "") == "lure":
+        raise ParameterError(f"{what} takes a block-oriented model; for a Lur'e loop use model.motion_model() (the "
+                             f"loop in motion, friction as a constant disturbance) and check the controller "
+                             f"through sticking with hammerstein_ctrl.in_loop.KnownLoop(controller, r).simulate(model)")
+    return model
 
 
 #: A model whose gain stays beyond this (or below its inverse) at every frequency cannot be given sensible gains.

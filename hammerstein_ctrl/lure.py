@@ -113,7 +113,7 @@ class LureStructure:
     ('b0', 'a1', 'fc', 'c', 'y0')
     """
 
-    kind = "Lur'e"
+    kind = "lure"
     #: Blocks of a block-oriented structure that a Lur'e loop does not have (for the shared verdicts).
     input_nonlinearity = None
     output_nonlinearity = None
@@ -183,6 +183,18 @@ class LureStructure:
         b[..., self.linear.n_params + (0 if isinstance(self.nonlinearity, Friction) else 1)] = np.abs(
             b[..., self.linear.n_params + (0 if isinstance(self.nonlinearity, Friction) else 1)])
         return b
+
+    def beta(self, model: "LureModel") -> np.ndarray:
+        """The beta vector of a model that has this structure (checked: a mismatch is refused)."""
+        if not isinstance(model, LureModel) or type(model.nonlinearity) is not type(self.nonlinearity) \
+                or model.feedback != self.feedback:
+            raise ParameterError(f"the model {model!r} does not have this structure {self!r}")
+        parts = [self.linear.parameters(model.linear), model.params]
+        if self.offset:
+            parts.append([model.offset])
+        if self.initial_state == "estimate":
+            parts.append(np.zeros(self.linear.den_order) if model.initial_state is None else model.initial_state)
+        return np.concatenate(parts)
 
     def model(self, beta, *, intersample: str = "foh", name: str | None = None) -> "LureModel":
         """The :class:`LureModel` at ``beta``."""
@@ -267,6 +279,11 @@ class LureModel:
     intersample : {"foh", "zoh"}
     name : str, optional
     """
+
+    kind = "lure"
+    #: Static blocks of a block-oriented model that a Lur'e loop does not have (for the shared figures).
+    input_nonlinearity = None
+    output_nonlinearity = None
 
     def __init__(self, linear, nonlinearity, params, *, feedback: str = "velocity", offset: float = 0.0,
                  initial_state=None, intersample: str = "foh", name: str | None = None):
@@ -366,6 +383,49 @@ class LureModel:
         junction = ct.summing_junction(inputs=["u", "-f"], output="w")
         return ct.interconnect([plant, fmap, offset, junction], inputs="u", outputs="y",
                                name=name or self.name or "lure")
+
+    def linearize(self):
+        """The loop in motion as a ``control.TransferFunction`` from ``u`` to ``y``.
+
+        While ``z`` keeps its sign the friction is a constant force (an input
+        disturbance of ``-(fc sign(z) + c)``), and only a viscous slope ``k``
+        of the map (``Coulomb``'s ``d0``) acts on the dynamics:
+        ``B / (A + k p B)`` on velocity, ``B / (A + k B)`` on the output.  At
+        rest the loop sticks: no linear model describes it there.
+
+        Examples
+        --------
+        >>> m = LureModel(([0.4], [1.0, 1.5, 0.0]), Coulomb(), [1.25, 0.5, 0.05])
+        >>> m.linearize().den[0][0].tolist()              # p^2 + (1.5 + 0.4 * 1.25) p
+        [1.0, 2.0, 0.0]
+        """
+        import control
+
+        slope = float(_affine_parts(self.nonlinearity, self.params[None, :])[0][0])
+        term = np.polymul(self._num, [1.0, 0.0]) if self.feedback == "velocity" else self._num
+        return control.tf(self._num, np.polyadd(self._den, slope * term))
+
+    def motion_model(self):
+        """:meth:`linearize` as a :class:`~hammerstein_ctrl.model.HammersteinModel` (unit gain), for the
+        linear tools (``tune_pid``, ``analyze_loop``): a design for the loop in motion, in which friction is a
+        constant disturbance.  Check the result against sticking with
+        :class:`~hammerstein_ctrl.in_loop.KnownLoop` (``KnownLoop(controller, r).simulate(model)``).
+
+        Examples
+        --------
+        >>> LureModel(([0.4], [1.0, 2.0, 0.0]), Friction(), [0.5, 0.05]).motion_model().params.tolist()
+        [1.0]
+        """
+        from .model import HammersteinModel
+        from .nonlinearities import Polynomial
+
+        return HammersteinModel(self.linearize(), Polynomial(1), [1.0], name=self.name)
+
+    def save(self, path) -> None:
+        """Write the model to a JSON model file (:func:`~hammerstein_ctrl.persistence.load_model` reads it)."""
+        from .persistence import save_model
+
+        save_model(self, path)
 
     def describe(self) -> str:
         vals = ", ".join(f"{k} = {v:.6g}" for k, v in zip(self.nonlinearity.param_names, self.params))

@@ -227,10 +227,58 @@ def _mimo_structure_to_dict(structure) -> dict:
             **({"delays": list(structure.delays)} if structure.has_delay else {})}
 
 
+def _lure_structure_to_dict(structure) -> dict:
+    lin = structure.linear
+    return {"kind": "lure", "linear": {"num_order": lin.num_order, "den_order": lin.den_order,
+                                       "monic_numerator": lin.monic_numerator, "fixed": dict(lin.fixed)},
+            "feedback": structure.feedback, "feedback_nonlinearity": _nonlinearity_to_dict(structure.nonlinearity),
+            "offset": structure.offset, "initial_state": structure.initial_state}
+
+
+def _lure_structure_from_dict(obj, where: str):
+    from .lure import LureStructure
+    from .structure import LinearStructure
+
+    _keys(obj, where, ("kind", "linear", "feedback", "feedback_nonlinearity", "offset", "initial_state"))
+    lin = _keys(obj["linear"], f"{where}.linear", ("num_order", "den_order", "monic_numerator", "fixed"))
+    if not isinstance(lin["fixed"], dict):
+        raise ParameterError(f"{where}.linear.fixed must be a JSON object")
+    linear = LinearStructure(_integer(lin["num_order"], f"{where}.linear.num_order"),
+                             _integer(lin["den_order"], f"{where}.linear.den_order"),
+                             monic_numerator=_boolean(lin["monic_numerator"], f"{where}.linear.monic_numerator"),
+                             fixed={k: _number(v, f"{where}.linear.fixed.{k}") for k, v in lin["fixed"].items()})
+    key = f"{where}.feedback_nonlinearity"
+    nl = _nonlinearity_from_dict(_keys(obj["feedback_nonlinearity"], key, ("family", "options")), key)
+    return LureStructure(linear, nl, feedback=_string(obj["feedback"], f"{where}.feedback"),
+                         offset=_boolean(obj["offset"], f"{where}.offset"),
+                         initial_state=_string(obj["initial_state"], f"{where}.initial_state"))
+
+
+def _lure_model_from_dict(obj, where: str):
+    from .lure import LureModel
+
+    _keys(obj, where, ("name", "kind", "linear", "feedback", "feedback_nonlinearity", "offset", "initial_state",
+                       "intersample"))
+    lin = _keys(obj["linear"], f"{where}.linear", ("num", "den"))
+    num, den = _numbers(lin["num"], f"{where}.linear.num"), _numbers(lin["den"], f"{where}.linear.den")
+    num, den = check_transfer_function(num, den, f"{where}.linear", advice="this file is not a usable model")
+    nl, params = _block_from_dict(obj["feedback_nonlinearity"], f"{where}.feedback_nonlinearity")
+    if nl is None:
+        raise ParameterError(f"{where}.feedback_nonlinearity must be an object")
+    x0 = obj["initial_state"]
+    return LureModel((num, den), nl, params, feedback=_string(obj["feedback"], f"{where}.feedback"),
+                     offset=_number(obj["offset"], f"{where}.offset"),
+                     initial_state=None if x0 is None else _numbers(x0, f"{where}.initial_state"),
+                     intersample=_string(obj["intersample"], f"{where}.intersample"),
+                     name=_string(obj["name"], f"{where}.name"))
+
+
 def _structure_to_dict(structure) -> dict:
     """A block structure's object; a fit to several records adds ``n_records`` (its blocks shared by them)."""
     if str(structure.kind).startswith("mimo"):
         return _mimo_structure_to_dict(structure)
+    if structure.kind == "lure":
+        return _lure_structure_to_dict(structure)
     base = getattr(structure, "base", None)
     if base is not None and hasattr(structure, "n_records"):
         return {**_block_structure_to_dict(base), "n_records": int(structure.n_records)}
@@ -322,6 +370,8 @@ def _mimo_model_from_dict(obj, where: str):
 def _structure_from_dict(obj, where: str):
     if isinstance(obj, dict) and str(obj.get("kind", "")).startswith("mimo"):
         return _mimo_structure_from_dict(obj, where)
+    if isinstance(obj, dict) and obj.get("kind") == "lure":
+        return _lure_structure_from_dict(obj, where)
     from .structure import (INITIAL_STATES, HammersteinStructure, HammersteinWienerStructure, LinearStructure,
                             WienerStructure)
 
@@ -378,6 +428,8 @@ def model_from_dict(obj, where: str = "model"):
 
     if isinstance(obj, dict) and str(obj.get("kind", "")).startswith("mimo"):
         return _mimo_model_from_dict(obj, where)
+    if isinstance(obj, dict) and obj.get("kind") == "lure":
+        return _lure_model_from_dict(obj, where)
     _keys(obj, where, _MODEL_KEYS, ("delay",))
     _check_kind(obj, where)
     lin = _keys(obj["linear"], f"{where}.linear", ("num", "den"))

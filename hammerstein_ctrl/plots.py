@@ -885,6 +885,18 @@ def mimo_figure(result, *, zoom=None):
     return fig
 
 
+def _feedback_panel(ax, model, data, yhat) -> None:
+    """A Lur'e loop's feedback map ``g(z)`` over the range its simulated feedback signal covers."""
+    z = yhat if model.feedback == "output" else np.gradient(yhat, data.dt)
+    z = z[np.isfinite(z)]
+    span = float(np.max(np.abs(z))) if z.size else 1.0
+    grid = np.linspace(-span, span, 801)
+    ax.plot(grid, model.g(grid), lw=1.2, label=model.nonlinearity.describe(model.params))
+    _finish(ax, xlabel=f"{model.feedback} (simulated range)", ylabel=f"g({model.feedback}) (input units)",
+            title=f"feedback map: the force opposing the {model.feedback}")
+    ax.legend(loc="best", fontsize="small")
+
+
 def result_figure(result, *, zoom=None):
     """Overview of one IdentificationResult: measured vs simulated, the residual, and ``g(u)`` / ``h(z)``."""
     if not is_identification_result(result):
@@ -902,6 +914,8 @@ def result_figure(result, *, zoom=None):
             fit, J = fit_percent(data.y, yhat), float(np.sum((data.y - yhat) ** 2))
         where = f"{data.name} (record 1 of {len(result.records)})"
     blocks = [b for b in ("input", "output") if _has_block(model, b)]
+    if getattr(model, "feedback", None) is not None:        # a Lur'e loop: its feedback map instead
+        blocks = ["feedback"]
     fig, axes = _new_figure(2 + len(blocks), 1, figsize=(_WIDTH, 3.0 + 2.8 * (len(blocks) + 1)))
     (a, b), static = axes[:2, 0], axes[2:, 0]
     sel = np.ones(len(data), bool) if zoom is None else _window(data, zoom)
@@ -920,6 +934,9 @@ def result_figure(result, *, zoom=None):
     _finish(b, xlabel="time (s)", ylabel=_label(f"residual in {data.output_name}", data.output_unit),
             title="residual y - yhat")
     for c, block in zip(static, blocks):
+        if block == "feedback":
+            _feedback_panel(c, model, data, yhat)
+            continue
         nonlinearity(result, block=block, ax=c, unit_in=data.input_unit if block == "input" else "",
                      title=f"static {block} nonlinearity over the range seen on the record")
         c.get_lines()[-1].set_label(_describe_block(model, block))

@@ -214,3 +214,64 @@ def test_emps_lure_model_from_rest_validates_beyond_the_published_models(emps_di
     np.testing.assert_allclose([mass, viscous, coulomb], [91.2, 194.0, 21.5], rtol=0.05)
     r, rep = validation(full)
     assert r.success and rep["fit_percent"] >= 92.0
+
+
+def _fitted():
+    data = _mass_record(n=2000, noise=0.002, seed=4)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return hc.identify(data, lure_structure(offset=True), seed=0), data
+
+
+def test_model_and_result_files_round_trip(tmp_path):
+    r, data = _fitted()
+    hc.save_model(r.model, tmp_path / "m.json")
+    back = hc.load_model(tmp_path / "m.json")
+    np.testing.assert_array_equal(back.simulate(data), r.model.simulate(data))
+    hc.save_result(r, tmp_path / "r.json")
+    res = hc.load_result(tmp_path / "r.json")
+    np.testing.assert_array_equal(res.x, r.x)
+    assert res.structure.param_names == r.structure.param_names
+    np.testing.assert_array_equal(res.model.simulate(data), r.model.simulate(data))
+
+
+def test_result_figure_shows_the_feedback_map():
+    import matplotlib
+
+    matplotlib.use("Agg")
+    r, _ = _fitted()
+    fig = r.plot()
+    assert any("feedback map" in ax.get_title() for ax in fig.axes)
+
+
+def test_linear_tools_take_the_motion_model_and_refuse_the_loop():
+    from hammerstein_ctrl import control_design
+
+    model = LureModel(([0.4], [1.0, 1.5, 0.0]), Coulomb(), [1.25, 0.5, 0.05])
+    assert model.linearize().den[0][0].tolist() == [1.0, 2.0, 0.0]
+    with pytest.raises(ParameterError, match="motion_model") as err:
+        control_design.tune_pid(model)
+    assert "\n" not in str(err.value)
+    pid = control_design.tune_pid(model.motion_model())
+    assert pid.success and pid.stable
+
+
+def test_command_line_fits_a_loop(tmp_path):
+    import subprocess
+    import sys
+
+    data = _mass_record(n=1500, noise=0.001)
+    path = tmp_path / "rec.csv"
+    np.savetxt(path, np.column_stack([data.t, data.u.ravel(), data.y.ravel()]), delimiter=",", header="t,u,y",
+               comments="")
+    cmd = [sys.executable, "-m", "hammerstein_ctrl.cli", "identify", "--data", str(path), "--input", "u", "--output",
+           "y", "--orders", "0", "2", "--fix", "a0=0", "--nonlinearity", "friction", "--feedback", "velocity"]
+    out = subprocess.run(cmd, capture_output=True, text=True, timeout=300)
+    assert out.returncode == 0, out.stderr
+    import re
+
+    assert "Lur'e loop" in out.stdout
+    assert abs(float(re.search(r"fc = ([-+.\de]+)", out.stdout).group(1).rstrip(",")) - 0.5) < 0.01
+    bad = subprocess.run(cmd[:-6] + ["--orders", "1", "2", "--nonlinearity", "friction", "--feedback", "velocity"],
+                         capture_output=True, text=True, timeout=300)
+    assert bad.returncode == 2 and len(bad.stderr.strip().splitlines()) == 1
