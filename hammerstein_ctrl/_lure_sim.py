@@ -148,9 +148,8 @@ def _propagate(Adt, Bdt, x, w0, s, delta, out, t1, t2):  # pragma: no cover - co
             for j in range(n):
                 acc += Adt[i, j] * out[j]
             t1[i] = acc * step
-        x0 = out.copy()
         for i in range(n):
-            out[i] = x0[i] + t1[i]
+            out[i] += t1[i]
         k = 2
         while k < 60:
             small = True
@@ -199,49 +198,45 @@ def _decide(Cz, q, x, force, fc, h):  # pragma: no cover - compiled
 
 
 @cached_njit()
-def _slip_value(Adt, Bdt, Cz, x, w0, s, delta, xs, t1, t2):  # pragma: no cover - compiled
+def _event_value(Adt, Bdt, p, x, w0, s, delta, offset, xs, t1, t2):  # pragma: no cover - compiled
+    """``(g, g')`` at ``delta`` of the event function ``g = p . x(delta) + s delta + offset`` along
+    ``x' = Adt x + Bdt (w0 + s tau)``, the state at ``delta`` left in ``xs``."""
     _propagate(Adt, Bdt, x, w0, s, delta, xs, t1, t2)
-    return _dot(Cz, xs)
+    value, slope = offset, 0.0
+    w = w0 + s * delta
+    for i in range(xs.shape[0]):
+        value += p[i] * xs[i]
+        acc = Bdt[i] * w
+        for j in range(xs.shape[0]):
+            acc += Adt[i, j] * xs[j]
+        slope += p[i] * acc
+    return value, slope
 
 
 @cached_njit()
-def _stick_value(Asdt, Bdt, q, x, f0, s, delta, sign, fc, xs, t1, t2):  # pragma: no cover - compiled
-    _propagate(Asdt, Bdt, x, 0.0, 0.0, delta, xs, t1, t2)
-    return f0 + s * delta + _dot(q, xs) - sign * fc
-
-
-@cached_njit()
-def _root(Adt, Bdt, Cz, q, x, w0, s, lo_val, hi, hi_val, stick, sign, fc, xs, t1, t2):  # pragma: no cover - compiled
-    """The instant in ``(0, hi]`` where the event function changes sign (Illinois' regula falsi), state in ``xs``."""
-    a, fa = 0.0, lo_val
-    b, fb = hi, hi_val
-    side = 0
+def _root(Adt, Bdt, p, x, w0, s, ramp, offset, lo_val, hi, hi_val, xs, t1, t2):  # pragma: no cover - compiled
+    """The instant in ``(0, hi]`` where ``g = p . x(tau) + ramp tau + offset`` changes sign (``g(0) = lo_val``,
+    ``g(hi) = hi_val`` of opposite signs): Newton's method kept inside the bracket (bisection where a step
+    leaves it).  The state there is left in ``xs``."""
+    a, fa, b = 0.0, lo_val, hi
+    m = hi * lo_val / (lo_val - hi_val) if lo_val != hi_val else 0.5 * hi
     for _ in range(_ROOT_ITERATIONS):
-        m = b - fb * (b - a) / (fb - fa) if fb != fa else 0.5 * (a + b)
         if not (a < m < b):
             m = 0.5 * (a + b)
-        if stick:
-            fm = _stick_value(Adt, Bdt, q, x, w0, s, m, sign, fc, xs, t1, t2)
-        else:
-            fm = _slip_value(Adt, Bdt, Cz, x, w0, s, m, xs, t1, t2)
-        if fm == 0.0 or b - a <= 4e-16 * max(1.0, b):
-            b = m
-            break
-        if (fm > 0) == (fb > 0):
-            b, fb = m, fm
-            if side == 1:
-                fa *= 0.5
-            side = 1
-        else:
+        fm, dm = _event_value(Adt, Bdt, p, x, w0, s, m, offset, xs, t1, t2)
+        fm += ramp * m
+        dm += ramp
+        if fm == 0.0:
+            return m
+        if (fm > 0) == (fa > 0):
             a, fa = m, fm
-            if side == -1:
-                fb *= 0.5
-            side = -1
-    if stick:
-        _propagate(Adt, Bdt, x, 0.0, 0.0, b, xs, t1, t2)
-    else:
-        _propagate(Adt, Bdt, x, w0, s, b, xs, t1, t2)
-    return b
+        else:
+            b = m
+        step = fm / dm if dm != 0.0 else np.inf
+        if abs(step) <= 2e-16 * max(1.0, m) or b - a <= 4e-16 * max(1.0, b):
+            return m
+        m = m - step
+    return 0.5 * (a + b)
 
 
 @cached_njit()
@@ -265,7 +260,8 @@ def _sample(Adt, Asdt, Bdt, Cz, q, h, Phi, G0, G1, Ps, x, mode, uk, s, c, fc, xn
             if z1 * mode >= 0.0:
                 x[:] = xn
                 return mode
-            d = _root(Adt, Bdt, Cz, q, x, w0, s, _dot(Cz, x), rest, z1, False, 0.0, fc, xs, t1, t2)
+            d = _root(Adt, Bdt, Cz, x, w0, s, 0.0, 0.0, _dot(Cz, x), rest, z1, xs, t1, t2)
+            _propagate(Adt, Bdt, x, w0, s, d, xs, t1, t2)
             x[:] = xs
             tau += d
             mode = _decide(Cz, q, x, uk + s * tau - c, fc, h)
@@ -293,7 +289,8 @@ def _sample(Adt, Asdt, Bdt, Cz, q, h, Phi, G0, G1, Ps, x, mode, uk, s, c, fc, xn
                 return 0
             sign = 1.0 if f1 > 0 else -1.0
             lo_val = f0 + _dot(q, x) - sign * fc
-            d = _root(Asdt, Bdt, Cz, q, x, f0, s, lo_val, rest, f1 - sign * fc, True, sign, fc, xs, t1, t2)
+            d = _root(Asdt, Bdt, q, x, 0.0, 0.0, s, f0 - sign * fc, lo_val, rest, f1 - sign * fc, xs, t1, t2)
+            _propagate(Asdt, Bdt, x, 0.0, 0.0, d, xs, t1, t2)
             x[:] = xs
             tau += d
             mode = 1 if sign * h > 0 else -1
@@ -390,6 +387,8 @@ def _samples_two(Ab, Asb, Bb, Cb, Czb, q, hb, Phib, G0b, G1b, Psb, x, mode, cb, 
     c0, c1, z0, z1 = Cb[0], Cb[1], Czb[0], Czb[1]
     x0, x1 = x[0], x[1]
     sse = 0.0
+    side = float(mode)
+    shift = cb + side * fcb                  # the input's constant part while slipping: c + fc sign(z)
     for k in range(N):
         yk = y0 + c0 * x0 + c1 * x1
         if want_outputs:
@@ -401,15 +400,17 @@ def _samples_two(Ab, Asb, Bb, Cb, Czb, q, hb, Phib, G0b, G1b, Psb, x, mode, cb, 
             break
         s = (u[k + 1] - u[k]) if foh else 0.0
         if mode != 0:
-            w0 = u[k] - cb - mode * fcb
+            w0 = u[k] - shift
             n0 = p00 * x0 + p01 * x1 + g0 * w0 + r0 * s
             n1 = p10 * x0 + p11 * x1 + g1 * w0 + r1 * s
-            if (z0 * n0 + z1 * n1) * mode >= 0.0:
+            if (z0 * n0 + z1 * n1) * side >= 0.0:
                 x0, x1 = n0, n1
                 continue
         x[0], x[1] = x0, x1
         mode = _sample(Ab, Asb, Bb, Czb, q, hb, Phib, G0b, G1b, Psb, x, mode, u[k], s, cb, fcb, xn, xs, t1, t2)
         x0, x1 = x[0], x[1]
+        side = float(mode)
+        shift = cb + side * fcb
     return sse
 
 
