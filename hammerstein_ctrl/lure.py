@@ -423,7 +423,7 @@ class LureModel:
 
     def save(self, path) -> None:
         """Write the model to a JSON model file (:func:`~hammerstein_ctrl.persistence.load_model` reads it)."""
-        from .persistence import save_model
+        from ._writer import save_model
 
         save_model(self, path)
 
