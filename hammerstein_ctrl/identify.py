@@ -90,6 +90,8 @@ def identify(
     allow_unstable: bool = False,
     uncertainty: bool = True,
     noise: str = "colored",
+    loop=None,
+    match: str = "both",
 ) -> IdentificationResult:
     """Identify a Hammerstein model from an input/output record.
 
@@ -137,6 +139,12 @@ def identify(
         (:data:`~hammerstein_ctrl.uncertainty.NOISE_MODELS`): an
         autoregressive model of the residuals whose order BIC picks (the plain
         white formula when they are white), or the white formula regardless.
+    loop : KnownLoop, optional
+        The control loop the record was measured in (:mod:`~hammerstein_ctrl.in_loop`):
+        the plant (a :class:`~hammerstein_ctrl.lure.LureStructure`) is then fitted
+        by simulating that loop from its reference, matching ``match``.
+    match : {"output", "input", "both"}, default "both"
+        With ``loop``: the measured signals the simulated loop must reproduce.
 
     Returns
     -------
@@ -149,6 +157,10 @@ def identify(
     """
     started = time.perf_counter()
     noise = _check_noise(noise)
+    if loop is not None:
+        return _in_loop(data, structure, loop, match, method=method, x0=x0, seed=seed, maxfev=maxfev, noise=noise,
+                        unused=dict(options=options, bounds=bounds, maxiter=maxiter, callback=callback,
+                                    offset=offset, initial_state=initial_state))
     records = _as_records(data)
     structure, x0 = _resolve_structure(records[0], structure, method, x0)
     if offset is not None or initial_state is not None:
@@ -169,6 +181,21 @@ def identify(
             result = _result(cost, res, key, x0, started, checks)
     for v in result.verdicts:
         _warnings.warn(v.message, IdentificationWarning, stacklevel=2)
+    return result
+
+
+def _in_loop(data, structure, loop, match, *, method, x0, seed, maxfev, noise, unused) -> IdentificationResult:
+    """``identify(..., loop=)``: :func:`~hammerstein_ctrl.in_loop.identify_in_loop`, which takes ``auto`` only."""
+    from .in_loop import identify_in_loop
+
+    if str(method).strip().lower() != AUTO or x0 is not None:
+        raise ParameterError("a fit inside a known loop runs method='auto' with no x0")
+    given = [name for name, value in unused.items() if value is not None]
+    if given:
+        raise ParameterError(f"a fit inside a known loop does not take {', '.join(given)}")
+    result = identify_in_loop(_as_record(data), structure, loop, match=match, seed=seed, maxfev=maxfev, noise=noise)
+    for v in result.verdicts:
+        _warnings.warn(v.message, IdentificationWarning, stacklevel=3)
     return result
 
 

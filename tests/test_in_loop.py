@@ -130,3 +130,19 @@ def test_emps_force_is_reproduced_inside_the_loop(emps_dir):
     assert res.success, res.message
     _, u = val_loop.simulate(res.model)
     assert hc.fit_percent(val.u.ravel(), u) >= 92.0
+
+
+def test_identify_takes_the_loop_as_its_front_door():
+    r = _reference(1500)
+    loop = KnownLoop(PI, r)
+    y, u = loop.simulate(lure_structure().model(TRUTH))
+    data = hc.IOData(u + 0.01 * np.random.default_rng(0).standard_normal(u.size), y, dt=DT, intersample="zoh")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        direct = identify_in_loop(data, lure_structure(), loop, match="input", seed=0)
+        front = hc.identify(data, lure_structure(), loop=loop, match="input", seed=0)
+    np.testing.assert_array_equal(front.x, direct.x)
+    with pytest.raises(ParameterError, match="method='auto'"):
+        hc.identify(data, lure_structure(), method="lm", loop=loop)
+    with pytest.raises(ParameterError, match="does not take offset"):
+        hc.identify(data, lure_structure(), loop=loop, offset=True)
