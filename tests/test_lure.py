@@ -254,9 +254,11 @@ def test_emps_lure_model_from_rest_validates_beyond_the_published_models(emps_di
     r, rep = validation(est)
     assert r.success
     assert rep["fit_percent"] >= 89.5 and rep["rmse"] <= 8.7e-3
-    gtau = 35.15065188                                # N per unit of vir, stored in the records
-    mass, viscous, coulomb = gtau / r.x[0], r.x[1] * gtau / r.x[0], r.x[2] * gtau
-    np.testing.assert_allclose([mass, viscous, coulomb], [91.2, 194.0, 21.5], rtol=0.05)
+    from hammerstein_ctrl.paper.emps_loop import EMPS_PHYSICAL, load_emps_loop, physical_parameters
+
+    phys = physical_parameters(r.x, load_emps_loop("estimation")[2]["gtau"])
+    for key in ("mass", "viscous", "coulomb", "offset"):       # the published physical identification
+        assert phys[key] == pytest.approx(EMPS_PHYSICAL[key], rel=0.05), key
     r, rep = validation(full)
     assert r.success and rep["fit_percent"] >= 92.0
 
