@@ -322,3 +322,20 @@ def test_command_line_fits_a_loop(tmp_path):
     bad = subprocess.run(cmd[:-6] + ["--orders", "1", "2", "--nonlinearity", "friction", "--feedback", "velocity"],
                          capture_output=True, text=True, timeout=300)
     assert bad.returncode == 2 and len(bad.stderr.strip().splitlines()) == 1
+
+
+# -- speed (wall-clock: `make bench` runs these, never `make test`) ------------------------------------------
+def test_the_speed_report_compares_lure_and_hammerstein_on_one_record(emps_case):
+    from hammerstein_ctrl.bench import format_lure_speed, lure_speed
+
+    r = lure_speed(emps_case, pairs=1, number=2)
+    assert r["n_samples"] == len(emps_case.data) and r["lure_s"] > 0 and r["hammerstein_s"] > 0
+    assert "Lur'e" in format_lure_speed(r)
+
+
+@pytest.mark.timing
+def test_a_lure_evaluation_costs_at_most_three_hammerstein_ones(emps_case):
+    from hammerstein_ctrl.bench import lure_speed
+
+    r = lure_speed(emps_case)
+    assert r["ratio"] <= 3.0, r
