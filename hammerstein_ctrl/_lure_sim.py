@@ -30,10 +30,12 @@ from __future__ import annotations
 import numpy as np
 
 from ._jit import cached_njit
-from ._linalg import expm_into, tf_augmented
+from ._linalg import _one_norm, expm_into, tf_augmented
 
 __all__ = ["lure_setup", "lure_run", "MAX_EVENTS", "FEEDBACK_CODES"]
 
+#: Files whose compiled code these functions call (the matrix exponential, the 1-norm): an edit compiles them again.
+_DEPENDS = ("_linalg.py",)
 #: Most mode switches resolved within one sample.
 MAX_EVENTS = 16
 #: Code of each feedback signal in the compiled setup.
@@ -44,7 +46,7 @@ _TAYLOR_NORM = 0.5
 _ROOT_ITERATIONS = 200
 
 
-@cached_njit(depends=("_linalg.py",))
+@cached_njit(depends=_DEPENDS)
 def lure_setup(num, den, dt, slope, feedback):  # pragma: no cover - compiled
     """Per-candidate matrices of the loop: ``(Adt, Asdt, Bdt, C, Cz, h, Phi, G0, G1, Ps, ok)``.
 
@@ -123,7 +125,7 @@ def lure_setup(num, den, dt, slope, feedback):  # pragma: no cover - compiled
     return Adt, Asdt, Bdt, C, Cz, h, Phi, G0, G1, Ps, ok
 
 
-@cached_njit()
+@cached_njit(depends=_DEPENDS)
 def _propagate(Adt, Bdt, x, w0, s, delta, out, t1, t2):  # pragma: no cover - compiled
     """``out = x(delta)`` of ``x' = Adt x + Bdt (w0 + s tau)`` (normalised time) from ``x(0) = x``: Taylor series.
 
@@ -131,13 +133,7 @@ def _propagate(Adt, Bdt, x, w0, s, delta, out, t1, t2):  # pragma: no cover - co
     series is summed until its terms no longer change the sum.
     """
     n = x.shape[0]
-    norm = 0.0
-    for j in range(n):
-        col = 0.0
-        for i in range(n):
-            col += abs(Adt[i, j])
-        norm = max(norm, col)
-    pieces = max(1, int(np.ceil(norm * delta / _TAYLOR_NORM)))
+    pieces = max(1, int(np.ceil(_one_norm(Adt) * delta / _TAYLOR_NORM)))
     step = delta / pieces
     out[:] = x
     w = w0
@@ -170,7 +166,7 @@ def _propagate(Adt, Bdt, x, w0, s, delta, out, t1, t2):  # pragma: no cover - co
         w += s * step
 
 
-@cached_njit()
+@cached_njit(depends=_DEPENDS)
 def _dot(a, x):  # pragma: no cover - compiled
     s = 0.0
     for i in range(x.shape[0]):
@@ -178,7 +174,7 @@ def _dot(a, x):  # pragma: no cover - compiled
     return s
 
 
-@cached_njit()
+@cached_njit(depends=_DEPENDS)
 def _decide(Cz, q, x, force, fc, h):  # pragma: no cover - compiled
     """Mode at ``z = 0``: +1 or -1 where the forces move ``z`` that way, 0 (stick) where friction holds it.
 
@@ -197,7 +193,7 @@ def _decide(Cz, q, x, force, fc, h):  # pragma: no cover - compiled
     return 0
 
 
-@cached_njit()
+@cached_njit(depends=_DEPENDS)
 def _event_value(Adt, Bdt, p, x, w0, s, delta, offset, xs, t1, t2):  # pragma: no cover - compiled
     """``(g, g')`` at ``delta`` of the event function ``g = p . x(delta) + s delta + offset`` along
     ``x' = Adt x + Bdt (w0 + s tau)``, the state at ``delta`` left in ``xs``."""
@@ -213,7 +209,7 @@ def _event_value(Adt, Bdt, p, x, w0, s, delta, offset, xs, t1, t2):  # pragma: n
     return value, slope
 
 
-@cached_njit()
+@cached_njit(depends=_DEPENDS)
 def _root(Adt, Bdt, p, x, w0, s, ramp, offset, lo_val, hi, hi_val, xs, t1, t2):  # pragma: no cover - compiled
     """The instant in ``(0, hi]`` where ``g = p . x(tau) + ramp tau + offset`` changes sign (``g(0) = lo_val``,
     ``g(hi) = hi_val`` of opposite signs): Newton's method kept inside the bracket (bisection where a step
@@ -239,7 +235,7 @@ def _root(Adt, Bdt, p, x, w0, s, ramp, offset, lo_val, hi, hi_val, xs, t1, t2): 
     return 0.5 * (a + b)
 
 
-@cached_njit()
+@cached_njit(depends=_DEPENDS)
 def _sample(Adt, Asdt, Bdt, Cz, q, h, Phi, G0, G1, Ps, x, mode, uk, s, c, fc, xn, xs, t1, t2):  # pragma: no cover
     """Advance ``x`` (in place) over one sample from mode ``mode``; returns the mode at its end."""
     n = x.shape[0]
@@ -304,7 +300,7 @@ def _sample(Adt, Asdt, Bdt, Cz, q, h, Phi, G0, G1, Ps, x, mode, uk, s, c, fc, xn
     return mode
 
 
-@cached_njit()
+@cached_njit(depends=_DEPENDS)
 def lure_run(Adt, Asdt, Bdt, C, Cz, h, Phi, G0, G1, Ps, ok, fc, c, X0, Y0, u, dt, foh, y, out,
              want_outputs):  # pragma: no cover - compiled
     """Simulate every candidate over ``u``: outputs into ``out[b]`` (``want_outputs``) or the SSE
@@ -342,7 +338,7 @@ def lure_run(Adt, Asdt, Bdt, C, Cz, h, Phi, G0, G1, Ps, ok, fc, c, X0, Y0, u, dt
 
 
 
-@cached_njit()
+@cached_njit(depends=_DEPENDS)
 def _samples(Ab, Asb, Bb, Cb, Czb, q, hb, Phib, G0b, G1b, Psb, x, mode, cb, fcb, y0, u, y, outb, want_outputs, foh,
              xn, xs, t1, t2):  # pragma: no cover - compiled
     """One candidate over the record (any order): its outputs into ``outb``, or its SSE returned."""
@@ -377,7 +373,7 @@ def _samples(Ab, Asb, Bb, Cb, Czb, q, hb, Phib, G0b, G1b, Psb, x, mode, cb, fcb,
     return sse
 
 
-@cached_njit()
+@cached_njit(depends=_DEPENDS)
 def _samples_two(Ab, Asb, Bb, Cb, Czb, q, hb, Phib, G0b, G1b, Psb, x, mode, cb, fcb, y0, u, y, outb, want_outputs,
                  foh, xn, xs, t1, t2):  # pragma: no cover - compiled
     """:func:`_samples` for two states (a mass: the common case), the state in registers between switches."""
@@ -414,7 +410,7 @@ def _samples_two(Ab, Asb, Bb, Cb, Czb, q, hb, Phib, G0b, G1b, Psb, x, mode, cb, 
     return sse
 
 
-@cached_njit()
+@cached_njit(depends=_DEPENDS)
 def lure_loop_run(Adt, Asdt, Bdt, C, Cz, h, Phi, G0, G1, Ps, ok, fc, c, X0, Y0, dt, Ac, Bc, Cc, Dc, xc0, r, d,
                   Y, U):  # pragma: no cover - compiled
     """Every candidate inside a known sampled controller: outputs ``Y[b]`` and control signals ``U[b]``.

@@ -47,9 +47,9 @@ from ._checks import (
     resampling_grid,
     uniform_grid,
 )
-from .exceptions import DataError
+from .exceptions import DataError, ParameterError
 
-__all__ = ["IOData", "RESAMPLE_METHODS", "DETREND_KINDS"]
+__all__ = ["IOData", "RESAMPLE_METHODS", "DETREND_KINDS", "time_and_input"]
 
 #: Interpolation methods of :meth:`IOData.resample` (for the input; the output
 #: is always interpolated linearly).
@@ -509,3 +509,23 @@ class IOData:
             f"IOData({self.name!r}, N={len(self)}, dt={self.dt:g} s, "
             f"t=[{self.t[0]:g}, {self.t[-1]:g}] s{channels})"
         )
+
+
+def time_and_input(t, u, intersample: str) -> tuple:
+    """``(t, u, intersample)`` of a model's ``simulate(t, u)`` call: a record's own (``u`` must then be left out),
+    or the given ``(t, u)`` with the model's ``intersample``.
+
+    Examples
+    --------
+    >>> rec = IOData([0.0, 1.0, 0.5], [0.0, 0.1, 0.2], dt=0.1, intersample="zoh")
+    >>> time_and_input(rec, None, "foh")[2]
+    'zoh'
+    """
+    if isinstance(t, IOData):
+        if u is not None:
+            raise ParameterError("pass either a record or (t, u), not both")
+        return t.t, t.u, t.intersample
+    if u is None:
+        raise ParameterError("simulate needs the input u (or an IOData record)")
+    return t, u, intersample
+

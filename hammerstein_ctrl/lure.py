@@ -338,15 +338,9 @@ class LureModel:
             Overrides the model's ``x(0)``.
         intersample : {"foh", "zoh"}, optional
         """
-        from .iodata import IOData
+        from .iodata import time_and_input
 
-        hold = self.intersample
-        if isinstance(t, IOData):
-            if u is not None:
-                raise ParameterError("pass either a record or (t, u), not both")
-            t, u, hold = t.t, t.u, t.intersample
-        elif u is None:
-            raise ParameterError("simulate needs the input u (or an IOData record)")
+        t, u, hold = time_and_input(t, u, self.intersample)
         hold = hold if intersample is None else intersample
         if hold not in _HOLDS:
             raise ParameterError(f"intersample must be one of {_HOLDS}, got {hold!r}")

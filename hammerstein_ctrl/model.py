@@ -237,16 +237,10 @@ class BlockModel:
             The output; at rest, with first-order hold, no offset and no
             output nonlinearity it equals ``control.forced_response(H, t, g(u)).outputs``.
         """
-        from .iodata import IOData
+        from .iodata import time_and_input
         from .simulate import simulate_blocks
 
-        hold = self.intersample
-        if isinstance(t, IOData):
-            if u is not None:
-                raise ParameterError("pass either a record or (t, u), not both")
-            t, u, hold = t.t, t.u, t.intersample
-        elif u is None:
-            raise ParameterError("simulate needs the input u (or an IOData record)")
+        t, u, hold = time_and_input(t, u, self.intersample)
         x0 = self.initial_state if initial_state is None else _state_vector(initial_state, self.order)
         hold = hold if intersample is None else intersample
         if self.delay:
