@@ -42,6 +42,8 @@ MAX_EVENTS = 16
 FEEDBACK_CODES = {"output": 0, "velocity": 1}
 #: Largest 1-norm of ``A dt`` over one Taylor segment (longer intervals are split).
 _TAYLOR_NORM = 0.5
+#: Most Taylor segments of one propagation; beyond, the matrix exponential.
+_TAYLOR_MAX = 4
 #: Iterations of the root search (bracketing; each at least halves the bracket every third step).
 _ROOT_ITERATIONS = 200
 
@@ -127,13 +129,18 @@ def lure_setup(num, den, dt, slope, feedback):  # pragma: no cover - compiled
 
 @cached_njit(depends=_DEPENDS)
 def _propagate(Adt, Bdt, x, w0, s, delta, out, t1, t2):  # pragma: no cover - compiled
-    """``out = x(delta)`` of ``x' = Adt x + Bdt (w0 + s tau)`` (normalised time) from ``x(0) = x``: Taylor series.
+    """``out = x(delta)`` of ``x' = Adt x + Bdt (w0 + s tau)`` (normalised time) from ``x(0) = x``.
 
-    The interval is split into pieces with ``||Adt|| piece <= 0.5``; each piece's
-    series is summed until its terms no longer change the sum.
+    A Taylor series where ``||Adt|| delta`` is small (split into pieces with
+    ``||Adt|| piece <= 0.5``; each piece's series summed until its terms no
+    longer change the sum); past :data:`_TAYLOR_MAX` pieces (a stiff block or
+    a coarse sample) the matrix exponential of the augmented system.
     """
     n = x.shape[0]
     pieces = max(1, int(np.ceil(_one_norm(Adt) * delta / _TAYLOR_NORM)))
+    if pieces > _TAYLOR_MAX:
+        _propagate_expm(Adt, Bdt, x, w0, s, delta, out)
+        return
     step = delta / pieces
     out[:] = x
     w = w0
@@ -164,6 +171,25 @@ def _propagate(Adt, Bdt, x, w0, s, delta, out, t1, t2):  # pragma: no cover - co
                 break
             k += 1
         w += s * step
+
+
+@cached_njit(depends=_DEPENDS)
+def _propagate_expm(Adt, Bdt, x, w0, s, delta, out):  # pragma: no cover - compiled
+    """:func:`_propagate` by the exponential of ``[[Adt delta, Bdt delta, 0], [0, 0, 1], [0, 0, 0]]``."""
+    n = x.shape[0]
+    M = np.zeros((n + 2, n + 2))
+    E = np.empty((n + 2, n + 2))
+    for i in range(n):
+        for j in range(n):
+            M[i, j] = Adt[i, j] * delta
+        M[i, n] = Bdt[i] * delta
+    M[n, n + 1] = 1.0
+    expm_into(M, E)
+    for i in range(n):
+        acc = E[i, n] * w0 + E[i, n + 1] * s * delta
+        for j in range(n):
+            acc += E[i, j] * x[j]
+        out[i] = acc
 
 
 @cached_njit(depends=_DEPENDS)
@@ -236,7 +262,90 @@ def _root(Adt, Bdt, p, x, w0, s, ramp, offset, lo_val, hi, hi_val, xs, t1, t2): 
 
 
 @cached_njit(depends=_DEPENDS)
-def _sample(Adt, Asdt, Bdt, Cz, q, h, Phi, G0, G1, Ps, x, mode, uk, s, c, fc, xn, xs, t1, t2):  # pragma: no cover
+def _row_times(p, A, out):  # pragma: no cover - compiled
+    """``out = p A`` (a row vector times a matrix)."""
+    for j in range(A.shape[1]):
+        acc = 0.0
+        for i in range(A.shape[0]):
+            acc += p[i] * A[i, j]
+        out[j] = acc
+
+
+@cached_njit(depends=_DEPENDS)
+def _slip_dip(Adt, Bdt, Cz, x, xn, w0, s, rest, mode, pv, xs, t1, t2):  # pragma: no cover - compiled
+    """``(tau, z)`` where ``z`` has the opposite sign inside a slipping segment whose ends share a sign (it turns
+    back towards zero and away again), or ``(-1, 0)``: the turning point of ``z`` is located (``z' = 0``) and
+    ``z`` read there."""
+    if not _dot(Cz, x) * mode > 0.0:         # leaving the surface (from sticking): no turn back to look for
+        return -1.0, 0.0
+    _row_times(Cz, Adt, pv)                  # z' = pv . x + cb (w0 + s tau)
+    cb = _dot(Cz, Bdt)
+    d0 = _dot(pv, x) + cb * w0
+    d1 = _dot(pv, xn) + cb * (w0 + s * rest)
+    if not (d0 * mode < 0.0 < d1 * mode):
+        return -1.0, 0.0
+    turn = _root(Adt, Bdt, pv, x, w0, s, cb * s, cb * w0, d0, rest, d1, xs, t1, t2)
+    _propagate(Adt, Bdt, x, w0, s, turn, xs, t1, t2)
+    z = _dot(Cz, xs)
+    return (turn, z) if z * mode < 0.0 else (-1.0, 0.0)
+
+
+#: Margin of :func:`_may_turn` over the quadratic estimate of how far ``z`` turns back inside a sample.
+_TURN_MARGIN = 4.0
+
+
+@cached_njit(depends=_DEPENDS)
+def _may_turn(z0, d0, d1):  # pragma: no cover - compiled
+    """Whether ``z`` (slipping, signs taken so that its side is positive: ``z0 > 0``) may reach zero inside a
+    sample whose ends are on its side: it heads back (``d0 = z'(0) < 0``), turns (``d1 = z'(1) > 0``), and the
+    depth of the turn, ``d0^2 / (2 (d1 - d0))`` for a quadratic, comes within :data:`_TURN_MARGIN` of ``z0``.
+    Then :func:`_slip_dip` locates the turn exactly."""
+    return d0 < 0.0 < d1 and z0 * (d1 - d0) <= _TURN_MARGIN * 0.5 * d0 * d0
+
+
+@cached_njit(depends=_DEPENDS)
+def _crossing(Adt, Bdt, Cz, x, w0, s, hi, z_hi, mode, pv, xn, xs, t1, t2):  # pragma: no cover - compiled
+    """Where ``z`` reaches zero in ``(0, hi]`` while slipping in direction ``mode`` (``z(hi)`` is on the other side).
+
+    From ``z`` on the mode's side, the bracketed root.  From the surface itself
+    (``z(0) = 0``, just after an event, its rounding on either side), the root
+    after ``z`` turns back: the turn (``z' = 0``) is located first, so that the
+    search does not return the start.  ``xn`` is overwritten.
+    """
+    z0 = _dot(Cz, x)
+    if z0 * mode > 0.0:
+        return _root(Adt, Bdt, Cz, x, w0, s, 0.0, 0.0, z0, hi, z_hi, xs, t1, t2)
+    _row_times(Cz, Adt, pv)                  # z' = pv . x + cb (w0 + s tau)
+    cb = _dot(Cz, Bdt)
+    d0 = _dot(pv, x) + cb * w0
+    _propagate(Adt, Bdt, x, w0, s, hi, xs, t1, t2)
+    d1 = _dot(pv, xs) + cb * (w0 + s * hi)
+    if not (d0 * mode > 0.0 > d1 * mode):
+        return 0.0
+    turn = _root(Adt, Bdt, pv, x, w0, s, cb * s, cb * w0, d0, hi, d1, xs, t1, t2)
+    _propagate(Adt, Bdt, x, w0, s, turn, xn, t1, t2)
+    z_turn = _dot(Cz, xn)
+    if not z_turn * mode > 0.0:
+        return 0.0
+    return turn + _root(Adt, Bdt, Cz, xn, w0 + s * turn, s, 0.0, 0.0, z_turn, hi - turn, z_hi, xs, t1, t2)
+
+
+@cached_njit(depends=_DEPENDS)
+def _stick_peak(Asdt, Bdt, q, x, xn, f0, s, rest, fc, pv, xs, t1, t2):  # pragma: no cover - compiled
+    """``(tau, f)`` where the holding force ``f`` passes the Coulomb level inside a sticking segment whose ends are
+    within it (it peaks between them), or ``(-1, 0)``."""
+    _row_times(q, Asdt, pv)                  # f' = s + pv . x  (x' = Asdt x while stuck)
+    e0, e1 = s + _dot(pv, x), s + _dot(pv, xn)
+    if not e0 * e1 < 0.0:
+        return -1.0, 0.0
+    turn = _root(Asdt, Bdt, pv, x, 0.0, 0.0, 0.0, s, e0, rest, e1, xs, t1, t2)
+    _propagate(Asdt, Bdt, x, 0.0, 0.0, turn, xs, t1, t2)
+    f = f0 + s * turn + _dot(q, xs)
+    return (turn, f) if abs(f) > fc else (-1.0, 0.0)
+
+
+@cached_njit(depends=_DEPENDS)
+def _sample(Adt, Asdt, Bdt, Cz, q, h, Phi, G0, G1, Ps, x, mode, uk, s, c, fc, xn, xs, t1, t2, pv):  # pragma: no cover
     """Advance ``x`` (in place) over one sample from mode ``mode``; returns the mode at its end."""
     n = x.shape[0]
     tau = 0.0
@@ -252,11 +361,13 @@ def _sample(Adt, Asdt, Bdt, Cz, q, h, Phi, G0, G1, Ps, x, mode, uk, s, c, fc, xn
                     xn[i] = acc
             else:
                 _propagate(Adt, Bdt, x, w0, s, rest, xn, t1, t2)
-            z1 = _dot(Cz, xn)
+            hi, z1 = rest, _dot(Cz, xn)
             if z1 * mode >= 0.0:
-                x[:] = xn
-                return mode
-            d = _root(Adt, Bdt, Cz, x, w0, s, 0.0, 0.0, _dot(Cz, x), rest, z1, xs, t1, t2)
+                hi, z1 = _slip_dip(Adt, Bdt, Cz, x, xn, w0, s, rest, mode, pv, xs, t1, t2)
+                if hi < 0.0:
+                    x[:] = xn
+                    return mode
+            d = _crossing(Adt, Bdt, Cz, x, w0, s, hi, z1, mode, pv, xn, xs, t1, t2)
             _propagate(Adt, Bdt, x, w0, s, d, xs, t1, t2)
             x[:] = xs
             tau += d
@@ -279,13 +390,15 @@ def _sample(Adt, Asdt, Bdt, Cz, q, h, Phi, G0, G1, Ps, x, mode, uk, s, c, fc, xn
                     xn[i] = acc
             else:
                 _propagate(Asdt, Bdt, x, 0.0, 0.0, rest, xn, t1, t2)
-            f1 = f0 + s * rest + _dot(q, xn)
+            hi, f1 = rest, f0 + s * rest + _dot(q, xn)
             if abs(f1) <= fc:
-                x[:] = xn
-                return 0
+                hi, f1 = _stick_peak(Asdt, Bdt, q, x, xn, f0, s, rest, fc, pv, xs, t1, t2)
+                if hi < 0.0:
+                    x[:] = xn
+                    return 0
             sign = 1.0 if f1 > 0 else -1.0
             lo_val = f0 + _dot(q, x) - sign * fc
-            d = _root(Asdt, Bdt, q, x, 0.0, 0.0, s, f0 - sign * fc, lo_val, rest, f1 - sign * fc, xs, t1, t2)
+            d = _root(Asdt, Bdt, q, x, 0.0, 0.0, s, f0 - sign * fc, lo_val, hi, f1 - sign * fc, xs, t1, t2)
             _propagate(Asdt, Bdt, x, 0.0, 0.0, d, xs, t1, t2)
             x[:] = xs
             tau += d
@@ -311,6 +424,7 @@ def lure_run(Adt, Asdt, Bdt, C, Cz, h, Phi, G0, G1, Ps, ok, fc, c, X0, Y0, u, dt
     xs = np.zeros(n)
     t1 = np.zeros(n)
     t2 = np.zeros(n)
+    pv = np.zeros(n)
     q = np.zeros(n)
     for b in range(batch):
         if not ok[b]:
@@ -328,10 +442,10 @@ def lure_run(Adt, Asdt, Bdt, C, Cz, h, Phi, G0, G1, Ps, ok, fc, c, X0, Y0, u, dt
         mode = 1 if z > 0 else (-1 if z < 0 else _decide(Czb, q, x, u[0] - cb, fcb, hb))
         if n == 2:
             sse = _samples_two(Ab, Asb, Bb, Cb, Czb, q, hb, Phib, G0b, G1b, Psb, x, mode, cb, fcb, y0, u, y, out[b],
-                               want_outputs, foh, xn, xs, t1, t2)
+                               want_outputs, foh, xn, xs, t1, t2, pv)
         else:
             sse = _samples(Ab, Asb, Bb, Cb, Czb, q, hb, Phib, G0b, G1b, Psb, x, mode, cb, fcb, y0, u, y, out[b],
-                           want_outputs, foh, xn, xs, t1, t2)
+                           want_outputs, foh, xn, xs, t1, t2, pv)
         if not want_outputs:
             out[b, 0] = sse if np.isfinite(sse) and sse < 1.7e308 else np.inf
     return out
@@ -340,9 +454,12 @@ def lure_run(Adt, Asdt, Bdt, C, Cz, h, Phi, G0, G1, Ps, ok, fc, c, X0, Y0, u, dt
 
 @cached_njit(depends=_DEPENDS)
 def _samples(Ab, Asb, Bb, Cb, Czb, q, hb, Phib, G0b, G1b, Psb, x, mode, cb, fcb, y0, u, y, outb, want_outputs, foh,
-             xn, xs, t1, t2):  # pragma: no cover - compiled
+             xn, xs, t1, t2, pv):  # pragma: no cover - compiled
     """One candidate over the record (any order): its outputs into ``outb``, or its SSE returned."""
     n, N = x.shape[0], u.shape[0]
+    pz = np.zeros(n)                         # z' = pz . x + cz w (a turn of z inside a sample: the full check)
+    _row_times(Czb, Ab, pz)
+    cz = _dot(Czb, Bb)
     sse = 0.0
     for k in range(N):
         yk = y0
@@ -365,23 +482,27 @@ def _samples(Ab, Asb, Bb, Cb, Czb, q, hb, Phib, G0b, G1b, Psb, x, mode, cb, fcb,
                     acc += Phib[i, j] * x[j]
                 xn[i] = acc
                 z1 += Czb[i] * acc
-            if z1 * mode >= 0.0:
+            if z1 * mode >= 0.0 and not _may_turn(_dot(Czb, x) * mode, (_dot(pz, x) + cz * w0) * mode,
+                                                  (_dot(pz, xn) + cz * (w0 + s)) * mode):
                 for i in range(n):
                     x[i] = xn[i]
                 continue
-        mode = _sample(Ab, Asb, Bb, Czb, q, hb, Phib, G0b, G1b, Psb, x, mode, u[k], s, cb, fcb, xn, xs, t1, t2)
+        mode = _sample(Ab, Asb, Bb, Czb, q, hb, Phib, G0b, G1b, Psb, x, mode, u[k], s, cb, fcb, xn, xs, t1, t2, pv)
     return sse
 
 
 @cached_njit(depends=_DEPENDS)
 def _samples_two(Ab, Asb, Bb, Cb, Czb, q, hb, Phib, G0b, G1b, Psb, x, mode, cb, fcb, y0, u, y, outb, want_outputs,
-                 foh, xn, xs, t1, t2):  # pragma: no cover - compiled
+                 foh, xn, xs, t1, t2, pv):  # pragma: no cover - compiled
     """:func:`_samples` for two states (a mass: the common case), the state in registers between switches."""
     N = u.shape[0]
     p00, p01, p10, p11 = Phib[0, 0], Phib[0, 1], Phib[1, 0], Phib[1, 1]
     g0, g1, r0, r1 = G0b[0], G0b[1], G1b[0], G1b[1]
     c0, c1, z0, z1 = Cb[0], Cb[1], Czb[0], Czb[1]
     x0, x1 = x[0], x[1]
+    pz0 = z0 * Ab[0, 0] + z1 * Ab[1, 0]       # z' = pz . x + cz w (a turn of z inside a sample: the full check)
+    pz1 = z0 * Ab[0, 1] + z1 * Ab[1, 1]
+    cz = z0 * Bb[0] + z1 * Bb[1]
     sse = 0.0
     side = float(mode)
     shift = cb + side * fcb                  # the input's constant part while slipping: c + fc sign(z)
@@ -399,11 +520,13 @@ def _samples_two(Ab, Asb, Bb, Cb, Czb, q, hb, Phib, G0b, G1b, Psb, x, mode, cb, 
             w0 = u[k] - shift
             n0 = p00 * x0 + p01 * x1 + g0 * w0 + r0 * s
             n1 = p10 * x0 + p11 * x1 + g1 * w0 + r1 * s
-            if (z0 * n0 + z1 * n1) * side >= 0.0:
+            if (z0 * n0 + z1 * n1) * side >= 0.0 and not _may_turn(
+                    (z0 * x0 + z1 * x1) * side, (pz0 * x0 + pz1 * x1 + cz * w0) * side,
+                    (pz0 * n0 + pz1 * n1 + cz * (w0 + s)) * side):
                 x0, x1 = n0, n1
                 continue
         x[0], x[1] = x0, x1
-        mode = _sample(Ab, Asb, Bb, Czb, q, hb, Phib, G0b, G1b, Psb, x, mode, u[k], s, cb, fcb, xn, xs, t1, t2)
+        mode = _sample(Ab, Asb, Bb, Czb, q, hb, Phib, G0b, G1b, Psb, x, mode, u[k], s, cb, fcb, xn, xs, t1, t2, pv)
         x0, x1 = x[0], x[1]
         side = float(mode)
         shift = cb + side * fcb
@@ -422,6 +545,7 @@ def lure_loop_run(Adt, Asdt, Bdt, C, Cz, h, Phi, G0, G1, Ps, ok, fc, c, X0, Y0, 
     batch, n = Cz.shape
     N, nc = r.shape[0], Ac.shape[0]
     x, xn, xs, t1, t2, q = np.zeros(n), np.zeros(n), np.zeros(n), np.zeros(n), np.zeros(n), np.zeros(n)
+    pv = np.zeros(n)
     xc, xcn = np.zeros(nc), np.zeros(nc)
     for b in range(batch):
         if not ok[b]:
@@ -453,5 +577,5 @@ def lure_loop_run(Adt, Asdt, Bdt, C, Cz, h, Phi, G0, G1, Ps, ok, fc, c, X0, Y0, 
                 mode = 1 if z > 0 else (-1 if z < 0 else _decide(Cz[b], q, x, uk - cb, fcb, hb))
             if k + 1 < N:
                 mode = _sample(Adt[b], Asdt[b], Bdt[b], Cz[b], q, hb, Phi[b], G0[b], G1[b], Ps[b], x, mode, uk, 0.0,
-                               cb, fcb, xn, xs, t1, t2)
+                               cb, fcb, xn, xs, t1, t2, pv)
     return Y, U

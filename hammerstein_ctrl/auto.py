@@ -110,14 +110,21 @@ def _marginal(cost, x) -> bool:
     pass, outside the budget: it judges a refinement already made).
     """
     from .diagnostics import linear_verdicts
-    from .uncertainty import white_covariance
+    from .uncertainty import residual_jacobian, white_covariance
 
+    x = np.asarray(x, dtype=float)
     with np.errstate(all="ignore"):
-        ne = cost.normal_equations(np.asarray(x, dtype=float))
-    if not ne.finite:
+        if hasattr(cost, "normal_equations"):
+            ne = cost.normal_equations(x)
+            gram, fun, finite = ne.gram, ne.fun, ne.finite
+        else:                               # a cost with residuals only (a Lur'e loop): its Jacobian
+            r, J = residual_jacobian(cost, x)
+            gram, fun = J.T @ J, float(r @ r)
+            finite = bool(np.all(np.isfinite(gram)) and np.isfinite(fun))
+    if not finite:
         return False
-    unc = white_covariance(ne.gram, ne.fun, cost.n_samples)
-    return linear_verdicts(cost.structure, np.asarray(x, dtype=float), unc, cost.data.dt)[1]
+    unc = white_covariance(gram, fun, len(cost.data))
+    return linear_verdicts(cost.structure, x, unc, cost.data.dt)[1]
 
 
 def _marginal_rows(cost, x) -> bool:

@@ -8,7 +8,7 @@ from scipy.integrate import solve_ivp
 
 import hammerstein_ctrl as hc
 from hammerstein_ctrl import Coulomb, Friction, LinearStructure, ParameterError, Tanh
-from hammerstein_ctrl.lure import LureModel, LureStructure, lure_structure
+from hammerstein_ctrl.lure import FEEDBACKS as FEEDBACK_DEGREE, LureModel, LureStructure, lure_structure
 from hammerstein_ctrl.lure_fit import LureCost
 
 #: A sliding mass: force to position b / (p^2 + a p), Coulomb level fc and constant force c (input units).
@@ -339,3 +339,36 @@ def test_a_lure_evaluation_costs_at_most_three_hammerstein_ones(emps_case):
 
     r = lure_speed(emps_case)
     assert r["ratio"] <= 3.0, r
+
+
+def _finer(m, t, u, hold, k):
+    """The same model on a grid ``k`` times finer carrying the same input (held or interpolated), subsampled."""
+    fine = np.arange((t.size - 1) * k + 1) * (t[1] - t[0]) / k
+    uf = np.repeat(u, k)[:fine.size] if hold == "zoh" else np.interp(fine, t, u)
+    return m.simulate(fine, uf, intersample=hold)[::k]
+
+
+def test_higher_order_loops_resolve_every_switch_inside_a_sample(rng):
+    # switches inside one sample: a reversal and a return to zero, a stick and a breakaway between two samples
+    t = np.arange(300) * 0.1
+    u = 1.5 * np.sin(0.7 * t) + np.sin(2.3 * t + 1) + 0.6 * np.sign(np.sin(0.23 * t))
+    worst = 0.0
+    for _ in range(60):
+        n = int(rng.integers(3, 5))
+        feedback = str(rng.choice(["output", "velocity"]))
+        num = rng.uniform(0.5, 2.0, size=n - FEEDBACK_DEGREE[feedback] + 1)
+        hold = str(rng.choice(["zoh", "foh"]))
+        m = LureModel((num, np.real(np.poly(-rng.uniform(0.3, 4.0, size=n)))), Friction(),
+                      [rng.uniform(0.05, 0.5), rng.uniform(-0.1, 0.1)], feedback=feedback, intersample=hold)
+        y = m.simulate(t, u)
+        worst = max(worst, np.max(np.abs(y - _finer(m, t, u, hold, 100))) / np.ptp(y))
+    assert worst < 1e-9
+
+
+def test_stiff_blocks_simulate_exactly():
+    t = np.arange(200) * 0.01
+    u = np.sin(2 * t)
+    for k in (1e2, 1e6, 1e9):                  # poles at -10 k: |p| dt up to 1e8
+        m = LureModel(([2 * k], [1.0, 10 * k, 0.0]), Friction(), [0.5, 0.0])
+        y = m.simulate(t, u)                  # the matrix exponential where a Taylor series would need 1e8 pieces
+        np.testing.assert_allclose(y, _finer(m, t, u, "foh", 50), rtol=0, atol=1e-12 * np.ptp(y))
