@@ -266,7 +266,7 @@ def _structure_from_args(args):
                                           ("--output-nonlinearity", args.output_nonlinearity),
                                           ("--fix", args.fix), ("--degree", args.degree is not None),
                                           ("--breakpoints", args.breakpoints), ("--free-gain", args.free_gain),
-                                          ("--delay", args.delay is not None))
+                                          ("--delay", args.delay is not None), ("--feedback", args.feedback))
                  if given]
         if extra:
             raise HammersteinError(f"{', '.join(extra)} cannot be combined with --structure {args.structure} "
@@ -310,7 +310,9 @@ def _lure_structure_from_args(args, fixed):
     from .structure import LinearStructure
 
     extra = [flag for flag, given in (("--output-nonlinearity", args.output_nonlinearity),
-                                      ("--delay", args.delay is not None)) if given]
+                                      ("--delay", args.delay is not None), ("--degree", args.degree is not None),
+                                      ("--breakpoints", args.breakpoints), ("--free-gain", args.free_gain))
+             if given]
     if extra:
         raise HammersteinError(f"{', '.join(extra)} cannot be combined with --feedback (a Lur'e loop)")
     linear = LinearStructure(args.orders[0], args.orders[1], monic_numerator=False, fixed=fixed)
@@ -385,7 +387,7 @@ def _mimo_structure_from_args(args, data):
     from .structure import LinearStructure
 
     unsupported = [flag for flag, given in (("--structure", args.structure), ("--fix", args.fix),
-                                            ("--free-gain", args.free_gain),
+                                            ("--free-gain", args.free_gain), ("--feedback", args.feedback),
                                             ("--initial-state estimate", args.initial_state == "estimate"))
                    if given]
     if unsupported:

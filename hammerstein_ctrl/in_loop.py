@@ -54,22 +54,40 @@ def _controller_matrices(controller, dt: float):
     if not isinstance(controller, (ct.StateSpace, ct.TransferFunction)):
         raise ParameterError(f"controller must be a discrete-time control.StateSpace or TransferFunction, got "
                              f"{type(controller).__name__}")
-    if not controller.isdtime(strict=True):
-        raise ParameterError("controller must be discrete-time (its sampled implementation), with the record's dt")
+    if not controller.isdtime(strict=True) or controller.dt is True:
+        raise ParameterError("controller must be discrete-time (its sampled implementation) with dt set to the "
+                             "record's sampling interval")
     if not np.isclose(float(controller.dt), dt, rtol=1e-9, atol=0.0):
         raise ParameterError(f"controller.dt = {controller.dt} differs from the record's dt = {dt}")
     if controller.noutputs != 1 or controller.ninputs not in (1, 2):
         raise ParameterError(f"controller must have one output (the control signal) and one input (the error "
                              f"r - y) or two (r, y); got {controller.ninputs} input(s), {controller.noutputs} "
                              f"output(s)")
-    sys = ct.ss(controller)
+    try:
+        sys = ct.ss(controller)
+    except ValueError as exc:
+        raise ParameterError(f"controller cannot be realised as a state space ({exc}): is it improper?") from None
     A, B, C, D = (np.asarray(m, dtype=float) for m in (sys.A, sys.B, sys.C, sys.D))
+    if not all(np.all(np.isfinite(m)) for m in (A, B, C, D)):
+        raise ParameterError("controller has non-finite coefficients")
     if controller.ninputs == 1:                          # acts on e = r - y
         B, D = np.hstack([B, -B]), np.hstack([D, -D])
     if A.size == 0:
         A, B, C = np.zeros((1, 1)), np.zeros((1, 2)), np.zeros((1, 1))
     return (np.ascontiguousarray(A), np.ascontiguousarray(B), np.ascontiguousarray(C.reshape(-1)),
             np.ascontiguousarray(D.reshape(-1)))
+
+
+def _signal(value, name: str) -> np.ndarray:
+    """A finite 1-D signal of at least two samples (a column is taken as one)."""
+    x = as_real_array(value, name)
+    if x.ndim == 2 and 1 in x.shape:
+        x = x.reshape(-1)
+    if x.ndim != 1 or x.size < 2:
+        raise DataError(f"{name} must be one signal of at least 2 samples, got an array of shape {x.shape}")
+    if not np.all(np.isfinite(x)):
+        raise DataError(f"{name} has non-finite samples")
+    return np.ascontiguousarray(x, dtype=float)
 
 
 class KnownLoop:
@@ -89,21 +107,21 @@ class KnownLoop:
     """
 
     def __init__(self, controller, reference, added=None, *, initial_state=None):
-        self.reference = np.ascontiguousarray(as_real_array(reference, "reference").reshape(-1))
-        if not np.all(np.isfinite(self.reference)):
-            raise DataError("reference has non-finite samples")
+        self.reference = _signal(reference, "reference")
         n = self.reference.size
-        self.added = np.zeros(n) if added is None else np.ascontiguousarray(as_real_array(added, "added").reshape(-1))
+        self.added = np.zeros(n) if added is None else _signal(added, "added")
         if self.added.size != n:
             raise DataError(f"added has {self.added.size} samples, reference {n}")
-        if not np.all(np.isfinite(self.added)):
-            raise DataError("added has non-finite samples")
         self.controller = controller
         self.dt = float(controller.dt) if getattr(controller, "dt", None) not in (None, True, 0) else np.nan
         self._matrices = _controller_matrices(controller, self.dt)
         nc = self._matrices[0].shape[0]
-        self.initial_state = (np.zeros(nc) if initial_state is None
-                              else np.asarray(initial_state, dtype=float).reshape(nc))
+        states = 0 if not np.any(self._matrices[0]) and not np.any(self._matrices[2]) else nc
+        x0 = np.zeros(nc) if initial_state is None else as_real_array(initial_state, "initial_state").reshape(-1)
+        if x0.size not in (states, nc) or not np.all(np.isfinite(x0)):
+            raise ParameterError(f"initial_state must be the controller's {states} state(s), finite, got "
+                                 f"{np.shape(initial_state)}")
+        self.initial_state = np.zeros(nc) if x0.size == 0 else x0
 
     def __len__(self) -> int:
         return self.reference.size
@@ -156,11 +174,16 @@ class LoopCost:
     def _weights(self, weights) -> np.ndarray:
         """One weight per matched signal: given, or the inverse of each measured signal's spread."""
         if weights is None:
-            return np.array([1.0 / max(np.std(self._y if s == "y" else self._u), 1e-300) for s in self.signals])
+            spread = [np.std(self._y if s == "y" else self._u) for s in self.signals]
+            flat = [s for s, v in zip(self.signals, spread) if not v > 0]
+            if flat:
+                raise DataError(f"the measured {' and '.join(dict(y='output', u='control signal')[s] for s in flat)} "
+                                f"is constant: nothing to match (choose match= among the signals that vary)")
+            return 1.0 / np.array(spread)
         w = as_real_array(weights, "weights").reshape(-1)
-        if w.size != len(self.signals) or not np.all(np.isfinite(w) & (w > 0)):
-            raise ParameterError(f"weights must be {len(self.signals)} positive number(s), one per matched signal "
-                                 f"{self.signals}, got {weights!r}")
+        if w.size != len(self.signals) or not np.all(np.isfinite(w) & (w >= 1e-100) & (w <= 1e100)):
+            raise ParameterError(f"weights must be {len(self.signals)} number(s) between 1e-100 and 1e100, one per "
+                                 f"matched signal {self.signals}, got {weights!r}")
         return w
 
     @property

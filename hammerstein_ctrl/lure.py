@@ -48,6 +48,7 @@ from ._lure_sim import FEEDBACK_CODES, lure_run, lure_setup
 from .exceptions import ParameterError
 from .nonlinearities import Coulomb, Friction, Nonlinearity
 from .simulate import _check_pair
+from .model import _check_linear, _finite_scalar, _state_vector
 from .structure import INITIAL_STATES, STATE_PREFIX, LinearStructure
 
 __all__ = ["LureStructure", "LureModel", "lure_structure", "FEEDBACKS", "FEEDBACK_FAMILIES"]
@@ -68,18 +69,18 @@ def _affine_parts(nonlinearity: Nonlinearity, P: np.ndarray):
 
 
 def _check_feedback(linear: LinearStructure, nonlinearity, feedback: str):
-    if feedback not in FEEDBACKS:
+    if not isinstance(feedback, str) or feedback not in FEEDBACKS:
         raise ParameterError(f"feedback must be one of {tuple(FEEDBACKS)}, got {feedback!r}")
     if not isinstance(nonlinearity, FEEDBACK_FAMILIES):
         raise ParameterError(
             f"a Lur'e loop takes a {' or '.join(f.__name__ for f in FEEDBACK_FAMILIES)} map in its feedback "
             f"(simulated exactly through sticking), got {type(nonlinearity).__name__}")
-    degree = linear.den_order - linear.num_order
-    if degree != FEEDBACKS[feedback]:
+    degree, need = linear.den_order - linear.num_order, FEEDBACKS[feedback]
+    if degree != need:
+        den_order = max(linear.den_order, need)
         raise ParameterError(
-            f"friction on the {feedback} needs a linear block of relative degree {FEEDBACKS[feedback]} "
-            f"(den_order - num_order), got {degree}: e.g. LinearStructure({linear.den_order - FEEDBACKS[feedback]}, "
-            f"{linear.den_order}, monic_numerator=False)")
+            f"friction on the {feedback} needs a linear block of relative degree {need} (den_order - num_order), "
+            f"got {degree}: e.g. LinearStructure({den_order - need}, {den_order}, monic_numerator=False)")
     if linear.monic_numerator:
         raise ParameterError("a Lur'e loop carries its gain in the linear block: use "
                              "LinearStructure(..., monic_numerator=False)")
@@ -125,6 +126,12 @@ class LureStructure:
             raise ParameterError(f"linear must be a LinearStructure, got {type(linear).__name__}")
         nonlinearity = Friction() if nonlinearity is None else nonlinearity
         _check_feedback(linear, nonlinearity, feedback)
+        numerator = [f"b{i}" for i in range(linear.num_order + 1)]
+        if all(linear.fixed.get(b) == 0.0 for b in numerator):
+            raise ParameterError(f"the numerator's coefficients {numerator} are all fixed to 0: the input cannot "
+                                 f"move the loop")
+        if not isinstance(offset, (bool, np.bool_)):
+            raise ParameterError(f"offset must be True or False, got {offset!r}")
         if initial_state not in INITIAL_STATES:
             raise ParameterError(f"initial_state must be one of {INITIAL_STATES}, got {initial_state!r}")
         self.linear, self.nonlinearity, self.feedback = linear, nonlinearity, feedback
@@ -287,27 +294,26 @@ class LureModel:
 
     def __init__(self, linear, nonlinearity, params, *, feedback: str = "velocity", offset: float = 0.0,
                  initial_state=None, intersample: str = "foh", name: str | None = None):
-        if hasattr(linear, "num") and hasattr(linear, "den"):
-            num, den = np.asarray(linear.num[0][0], float), np.asarray(linear.den[0][0], float)
-        else:
-            num, den = (np.atleast_1d(np.asarray(v, dtype=float)) for v in linear)
-        self._num, self._den = np.trim_zeros(num, "f") if np.any(num) else num[-1:], den
-        lin = LinearStructure(max(self._num.size - 1, 0), self._den.size - 1, monic_numerator=False)
+        _, num, den = _check_linear(linear if not isinstance(linear, list) else tuple(linear))
+        if not np.any(num):
+            raise ParameterError("the linear block's gain is zero: the input cannot move the loop")
+        self._num, self._den = num / den[0], den / den[0]
+        lin = LinearStructure(self._num.size - 1, self.order, monic_numerator=False)
         _check_feedback(lin, nonlinearity, feedback)
         self.nonlinearity = nonlinearity
         self.params = nonlinearity.check_params(params).astype(float)
-        if self.params.ndim != 1:
-            raise ParameterError("params must be one parameter vector")
-        self.feedback, self.offset, self.name = feedback, float(offset), name
+        if self.params.ndim != 1 or not np.all(np.isfinite(self.params)):
+            raise ParameterError(f"params must be one vector of finite numbers, got {params!r}")
+        self.feedback, self.offset = feedback, _finite_scalar(offset, "offset")
+        self.name = "lure" if name is None else str(name)
         if intersample not in _HOLDS:
             raise ParameterError(f"intersample must be one of {_HOLDS}, got {intersample!r}")
         self.intersample = intersample
-        n = self.order
-        self.initial_state = None if initial_state is None else np.asarray(initial_state, dtype=float).reshape(n)
+        self.initial_state = _state_vector(initial_state, self.order)
 
     @property
     def order(self) -> int:
-        return self._den.size - 1
+        return len(self._den) - 1
 
     @property
     def linear(self):
@@ -347,7 +353,7 @@ class LureModel:
         dt, u = _check_pair(t, u, "u")
         parts = list(self._parts())
         if initial_state is not None:
-            parts[6] = np.asarray(initial_state, dtype=float).reshape(1, self.order).copy()
+            parts[6] = np.array(_state_vector(initial_state, self.order)).reshape(1, self.order)
         return simulate_parts(tagged(parts, self.feedback), u, dt, hold)[0]
 
     def to_iosys(self, name: str | None = None):

@@ -86,7 +86,13 @@ def test_residuals_stack_the_matched_signals_weighted(match, n_signals):
      "one input"),
     (lambda r: KnownLoop("pid", r), ParameterError, "StateSpace or TransferFunction"),
     (lambda r: KnownLoop(PI, np.r_[r[:-1], np.nan]), DataError, "non-finite"),
-    (lambda r: KnownLoop(PI, r, added=np.ones(3)), DataError, "added has 3 samples"),
+    (lambda r: KnownLoop(PI, r, added=np.ones(1)), DataError, "added must be one signal of at least 2"),
+    (lambda r: KnownLoop(PI, r, added=np.ones(50)), DataError, "added has 50 samples"),
+    (lambda r: KnownLoop(PI, np.column_stack([r, r])), DataError, "one signal"),
+    (lambda r: KnownLoop(PI, r, initial_state=[1.0, 2.0]), ParameterError, "controller's 1 state"),
+    (lambda r: KnownLoop(ct.tf([1.0, 2.0, 3.0], [1.0, 0.5], DT), r), ParameterError, "improper"),
+    (lambda r: KnownLoop(ct.ss([[np.nan]], [[1.0]], [[1.0]], [[0.0]], DT), r), ParameterError, "non-finite"),
+    (lambda r: KnownLoop(ct.ss([[1.0]], [[1.0]], [[1.0]], [[0.0]], True), r), ParameterError, "dt set"),
 ])
 def test_bad_loops_are_refused_in_one_line(make, error, match):
     r = _reference(100)
@@ -101,8 +107,12 @@ def test_bad_match_and_weights_are_refused():
     data = hc.IOData(np.zeros(100), np.zeros(100), dt=DT)
     with pytest.raises(ParameterError, match="match must be one of"):
         LoopCost(data, lure_structure(), KnownLoop(PI, r), match="force")
-    with pytest.raises(ParameterError, match="2 positive number"):
+    with pytest.raises(ParameterError, match="2 number.s. between 1e-100 and 1e100"):
         LoopCost(data, lure_structure(), KnownLoop(PI, r), weights=[1.0])
+    with pytest.raises(ParameterError, match="between 1e-100 and 1e100"):
+        LoopCost(data, lure_structure(), KnownLoop(PI, r), weights=[1e-300, 1e-300])     # J would underflow
+    with pytest.raises(DataError, match="measured output and control signal is constant"):
+        LoopCost(data, lure_structure(), KnownLoop(PI, r))
     with pytest.raises(DataError, match="reference has 100 samples, the record 50"):
         LoopCost(data[:50], lure_structure(), KnownLoop(PI, r))
 

@@ -372,3 +372,29 @@ def test_stiff_blocks_simulate_exactly():
         m = LureModel(([2 * k], [1.0, 10 * k, 0.0]), Friction(), [0.5, 0.0])
         y = m.simulate(t, u)                  # the matrix exponential where a Taylor series would need 1e8 pieces
         np.testing.assert_allclose(y, _finer(m, t, u, "foh", 50), rtol=0, atol=1e-12 * np.ptp(y))
+
+
+@pytest.mark.parametrize("make, match", [
+    (lambda: LureModel(([0.0], [1.0, 2.0, 0.0]), Friction(), [0.5, 0.0]), "gain is zero"),
+    (lambda: LureModel(([0.4], [1.0, 2.0, 0.0]), Friction(), [np.nan, 0.0]), "finite numbers"),
+    (lambda: LureModel(([0.4], [1.0, 2.0, 0.0]), Friction(), [0.5, 0.0], initial_state=[1.0]), "2 finite numbers"),
+    (lambda: LureModel(([0.4], [1.0, 2.0, 0.0]), Friction(), [0.5, 0.0], offset="a"), "offset must be a number"),
+    (lambda: LureModel(([0.4], [1.0, 2.0, 0.0]), Friction(), [0.5, 0.0], feedback=["velocity"]), "feedback"),
+    (lambda: LureModel("abc", Friction(), [0.5, 0.0]), "TransferFunction"),
+    (lambda: LureStructure(LinearStructure(0, 2, monic_numerator=False, fixed={"b0": 0.0}), Friction()),
+     "all fixed to 0"),
+    (lambda: lure_structure(offset="no"), "True or False"),
+])
+def test_unusable_models_are_refused_at_construction(make, match):
+    with pytest.raises(ParameterError, match=match) as err:
+        make()
+    assert "\n" not in str(err.value)
+
+
+def test_discrete_or_mimo_blocks_are_refused():
+    import control as ct
+
+    with pytest.raises(ParameterError, match="continuous-time"):
+        LureModel(ct.tf([0.4], [1.0, -1.9, 0.9], 0.01), Friction(), [0.5, 0.0])
+    with pytest.raises(ParameterError, match="SISO"):
+        LureModel(ct.tf([[[1.0]], [[1.0]]], [[[1.0, 2.0, 0.0]], [[1.0, 2.0, 0.0]]]), Friction(), [0.5, 0.0])

@@ -26,7 +26,7 @@ from __future__ import annotations
 import numpy as np
 
 from .datasets import _EMPS_FILES, _locate_emps
-from ..exceptions import DataError
+from ..exceptions import DataError, ParameterError
 from ..in_loop import KnownLoop
 from ..iodata import IOData
 from ..lure import LureStructure, lure_structure
@@ -63,6 +63,9 @@ def emps_controller(kp: float, kv: float, dt: float):
     """
     import control as ct
 
+    for name, value in (("kp", kp), ("kv", kv), ("dt", dt)):
+        if not (np.isfinite(value) and value > 0):
+            raise ParameterError(f"{name} must be a positive number, got {value!r}")
     return ct.ss([[0.0]], [[0.0, 1.0]], [[kv / dt]], [[kv * kp, -(kv * kp + kv / dt)]], dt,
                  inputs=["qg", "qm"], outputs=["vir"], name="emps_position_loop")
 
@@ -109,6 +112,8 @@ def physical_beta(gtau: float, physical: dict = EMPS_PHYSICAL) -> np.ndarray:
     >>> physical_beta(35.15).round(4).tolist()
     [0.3854, 2.1272, 0.6117, -0.091]
     """
+    if not (np.isfinite(gtau) and gtau > 0):
+        raise ParameterError(f"gtau must be a positive number, got {gtau!r}")
     mass = physical["mass"]
     return np.array([gtau / mass, physical["viscous"] / mass, physical["coulomb"] / gtau, physical["offset"] / gtau])
 
@@ -122,7 +127,11 @@ def physical_parameters(beta, gtau: float) -> dict:
     >>> {k: round(v, 1) for k, v in physical_parameters(physical_beta(35.15), 35.15).items()}
     {'mass': 91.2, 'viscous': 194.0, 'coulomb': 21.5, 'offset': -3.2}
     """
-    b, a1, fc, c = np.asarray(beta, dtype=float)[:4]
+    beta = np.asarray(beta, dtype=float).reshape(-1)
+    if beta.size < 4 or not (np.isfinite(gtau) and gtau > 0):
+        raise ParameterError(f"physical_parameters needs [b0, a1, fc, c] and a positive gtau, got {beta.tolist()} "
+                             f"and {gtau!r}")
+    b, a1, fc, c = beta[:4]
     mass = gtau / b
     return {"mass": float(mass), "viscous": float(a1 * mass), "coulomb": float(abs(fc) * gtau),
             "offset": float(c * gtau)}
