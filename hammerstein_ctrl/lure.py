@@ -359,7 +359,10 @@ class LureModel:
     def to_iosys(self, name: str | None = None):
         """The loop as a python-control ``interconnect`` of the linear block and the feedback map.
 
-        Its input is ``u``, its output ``y``.  An ODE solver cannot stay on
+        Its input is ``u``, its output ``y``; its states are the linear
+        block's (the companion realisation, as ``initial_state``), which
+        ``control.input_output_response`` takes as ``X0`` (the model's own
+        ``initial_state`` is not carried).  An ODE solver cannot stay on
         ``z = 0`` with a ``sign``: it chatters through sticking, so use
         :meth:`simulate` for the sampled response.
         """
