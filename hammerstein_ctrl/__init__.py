@@ -33,7 +33,7 @@ __version__ = "0.1.0"
 #: Sub-modules exposed as attributes of the package.
 _SUBMODULES = ("iodata", "metrics", "nonlinearities", "optimize", "plots", "records",
                "simulate", "control_design", "exact_export", "persistence", "display", "uncertainty",
-               "diagnostics", "residual_analysis", "selection", "config", "paper", "mimo", "lure")
+               "diagnostics", "residual_analysis", "selection", "config", "paper", "mimo", "lure", "in_loop")
 
 #: Public name -> the sub-module that defines it.
 _LAZY_NAMES = {
