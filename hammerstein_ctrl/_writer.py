@@ -140,8 +140,7 @@ def model_to_dict(model) -> dict:
     if getattr(model, "kind", "") == "lure":
         return _lure_model_to_dict(model)
     settings = model_settings(model)
-    num = np.trim_zeros(np.asarray(model.linear.num[0][0], dtype=float), "f")
-    den = np.trim_zeros(np.asarray(model.linear.den[0][0], dtype=float), "f")
+    num, den = (np.trim_zeros(c, "f") for c in model.coefficients())
     x0 = settings["initial_state"]
     blocks = {"input_nonlinearity": _block_to_dict(model.input_nonlinearity, model.input_params),
               "output_nonlinearity": _block_to_dict(model.output_nonlinearity, model.output_params)}

@@ -195,7 +195,7 @@ def simulate_delayed(model, t, u, *, x0=None, intersample: str = "foh") -> np.nd
     u = as_signal(u, "u")
     if u.size != t.size:
         raise ParameterError(f"u has {u.size} samples but t has {t.size}")
-    num, den = check_transfer_function(model.linear.num[0][0], model.linear.den[0][0], name="linear block")
+    num, den = check_transfer_function(*model.coefficients(), name="linear block")
     v = as_signal(model.g(u), "g(u)")
     z = delayed_response(num, den, v, dt, model.delay, x0=x0, intersample=intersample)
     with np.errstate(all="ignore"):

@@ -713,7 +713,7 @@ def estimate_initial_state(model, data) -> np.ndarray:
     [0.5, -1.0]
     """
     rest = model.simulate(data, initial_state=np.zeros(model.order))
-    num, den = model.linear.num[0][0], model.linear.den[0][0]
+    num, den = model.coefficients()
     free = free_response(num, den, data.dt, len(data)).T
     with np.errstate(all="ignore"):
         R = triangular_factor([free], np.asarray(data.y, dtype=float) - rest)

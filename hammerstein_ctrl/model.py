@@ -194,6 +194,17 @@ class BlockModel:
         self._num = np.trim_zeros(np.atleast_1d(np.asarray(value.num[0][0], dtype=float)), "f")
         self._den = np.trim_zeros(np.atleast_1d(np.asarray(value.den[0][0], dtype=float)), "f")
 
+    def coefficients(self) -> tuple[np.ndarray, np.ndarray]:
+        """``(num, den)`` of the linear block, descending powers (copies; python-control is not needed).
+
+        Examples
+        --------
+        >>> from hammerstein_ctrl import HammersteinModel, Tanh
+        >>> HammersteinModel(([1.0, 2.0], [1.0, 1.4, 4.0]), Tanh(), [1.5, 0.9]).coefficients()
+        (array([1., 2.]), array([1. , 1.4, 4. ]))
+        """
+        return self._num.copy(), self._den.copy()
+
     @property
     def order(self) -> int:
         """Number of states of the linear block."""
@@ -442,7 +453,7 @@ class BlockModel:
             return " + ".join(terms).replace("+ -", "- ") or "0"
 
         dead = f" e^(-{self.delay:.6g} p)" if self.delay else ""
-        return f"({poly(self.linear.num[0][0])})/({poly(self.linear.den[0][0])}){dead}"
+        return f"({poly(self._num)})/({poly(self._den)}){dead}"           # python-control need not be imported
 
     # -- persistence and exact exports ----------------------------------------
     def save(self, path) -> None:

@@ -212,7 +212,7 @@ def simulate_blocks(model, t, u, *, x0=None, intersample: str = "foh") -> np.nda
     ndarray, shape (N,)
     """
     dt, u = _check_pair(t, u, "u")
-    num, den = check_transfer_function(model.linear.num[0][0], model.linear.den[0][0], name="linear block")
+    num, den = check_transfer_function(*model.coefficients(), name="linear block")
     v = as_signal(model.g(u), "g(u)")
     h = None if model.output_nonlinearity is None else (model.output_nonlinearity, model.output_params)
     return simulate_batch(num[None, :], den[None, :], v, dt, x0=x0, offset=model.offset,

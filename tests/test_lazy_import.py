@@ -72,3 +72,17 @@ def test_star_import_gives_all_names():
     assert namespace["identify"] is hc.identify and callable(hc.run_study)
     assert "run_study" not in namespace and "presets" not in namespace      # the paper layer is not star-exported
     assert len(hc.__all__) < 60
+
+
+def test_an_identification_and_its_printed_summary_do_not_import_python_control():
+    # python-control's import (with matplotlib and scipy.signal) costs more than an EMPS fit: the command line's
+    # identify prints its result without it
+    code = ("import sys, json, warnings, numpy as np, hammerstein_ctrl as hc\n"
+            "t = np.arange(2000) * 0.01; u = np.sign(np.sin(0.5 * t)) + 0.3 * np.sin(2.1 * t)\n"
+            "s = hc.HammersteinStructure(hc.LinearStructure(0, 2), hc.Tanh())\n"
+            "y = s.model([1.2, 2.0, 1.5, 0.8]).simulate(t, u)\n"
+            "warnings.simplefilter('ignore')\n"
+            "res = hc.identify(hc.IOData(u, y, dt=0.01), s, seed=0)\n"
+            "text = res.summary() + repr(res.model)\n"
+            "print(json.dumps({'control': 'control' in sys.modules, 'shown': 'p^2' in text}))")
+    assert fresh(code) == {"control": False, "shown": True}
