@@ -50,10 +50,11 @@ _ROOT_ITERATIONS = 200
 
 @cached_njit(depends=_DEPENDS)
 def lure_setup(num, den, dt, slope, feedback):  # pragma: no cover - compiled
-    """Per-candidate matrices of the loop: ``(Adt, Asdt, Bdt, C, Cz, h, Phi, G0, G1, Ps, ok)``.
+    """Per-candidate matrices of the loop: ``(Adt, Asdt, Bdt, C, Cz, h, Q, Phi, G0, G1, Ps, ok)``.
 
     ``Adt = (A - k B Cz) dt`` (the slipping loop), ``Asdt = A_s dt`` (sticking:
-    ``A_s = Ae - B Cz Ae / h``), ``Bdt = B dt``, ``h = Cz B``; ``Phi, G0, G1``
+    ``A_s = Ae - B Q``), ``Bdt = B dt``, ``h = Cz B``, ``Q = Cz Ae / h`` (the holding force is
+    ``u - c + Q x``); ``Phi, G0, G1``
     the exact FOH step of the slipping loop, ``Ps = expm(A_s dt)``.  ``ok`` is
     False for a candidate with non-finite coefficients or ``h == 0``.
     """
@@ -64,6 +65,7 @@ def lure_setup(num, den, dt, slope, feedback):  # pragma: no cover - compiled
     Bdt = np.zeros((batch, n))
     Cz = np.zeros((batch, n))
     h = np.zeros(batch)
+    Q = np.zeros((batch, n))
     Phi = np.zeros((batch, n, n))
     G0 = np.zeros((batch, n))
     G1 = np.zeros((batch, n))
@@ -99,7 +101,7 @@ def lure_setup(num, den, dt, slope, feedback):  # pragma: no cover - compiled
         for i in range(n):
             for j in range(n):
                 Ae[i, j] -= slope[b] * B[i] * Cz[b, j]
-        q = np.zeros(n)                        # Cz Ae / h
+        q = Q[b]                               # Cz Ae / h
         for j in range(n):
             s = 0.0
             for i in range(n):
@@ -124,7 +126,7 @@ def lure_setup(num, den, dt, slope, feedback):  # pragma: no cover - compiled
             for j in range(n):
                 if not (np.isfinite(Phi[b, i, j]) and np.isfinite(Ps[b, i, j])):
                     ok[b] = False
-    return Adt, Asdt, Bdt, C, Cz, h, Phi, G0, G1, Ps, ok
+    return Adt, Asdt, Bdt, C, Cz, h, Q, Phi, G0, G1, Ps, ok
 
 
 @cached_njit(depends=_DEPENDS)
@@ -217,6 +219,13 @@ def _decide(Cz, q, x, force, fc, h):  # pragma: no cover - compiled
     if down:
         return -1
     return 0
+
+
+@cached_njit(depends=_DEPENDS)
+def _first_mode(Cz, q, x, force, fc, h):  # pragma: no cover - compiled
+    """The mode at the start: the side ``z`` is on, or :func:`_decide`'s choice on ``z = 0``."""
+    z = _dot(Cz, x)
+    return 1 if z > 0 else (-1 if z < 0 else _decide(Cz, q, x, force, fc, h))
 
 
 @cached_njit(depends=_DEPENDS)
@@ -414,7 +423,7 @@ def _sample(Adt, Asdt, Bdt, Cz, q, h, Phi, G0, G1, Ps, x, mode, uk, s, c, fc, xn
 
 
 @cached_njit(depends=_DEPENDS)
-def lure_run(Adt, Asdt, Bdt, C, Cz, h, Phi, G0, G1, Ps, ok, fc, c, X0, Y0, u, dt, foh, y, out,
+def lure_run(Adt, Asdt, Bdt, C, Cz, h, Q, Phi, G0, G1, Ps, ok, fc, c, X0, Y0, u, foh, y, out,
              want_outputs):  # pragma: no cover - compiled
     """Simulate every candidate over ``u``: outputs into ``out[b]`` (``want_outputs``) or the SSE
     against ``y`` into ``out[b, 0]``; ``inf`` for a candidate that is not ``ok`` or overflows."""
@@ -425,21 +434,14 @@ def lure_run(Adt, Asdt, Bdt, C, Cz, h, Phi, G0, G1, Ps, ok, fc, c, X0, Y0, u, dt
     t1 = np.zeros(n)
     t2 = np.zeros(n)
     pv = np.zeros(n)
-    q = np.zeros(n)
     for b in range(batch):
         if not ok[b]:
             out[b, :] = np.inf
             continue
         Ab, Asb, Bb, Cb, Czb, Phib, G0b, G1b, Psb = Adt[b], Asdt[b], Bdt[b], C[b], Cz[b], Phi[b], G0[b], G1[b], Ps[b]
-        hb, cb, fcb, y0 = h[b], c[b], abs(fc[b]), Y0[b]
-        for j in range(n):
-            acc = 0.0
-            for i in range(n):
-                acc += Czb[i] * Ab[i, j]
-            q[j] = acc / (hb * dt)
+        hb, cb, fcb, y0, q = h[b], c[b], abs(fc[b]), Y0[b], Q[b]
         x[:] = X0[b]
-        z = _dot(Czb, x)
-        mode = 1 if z > 0 else (-1 if z < 0 else _decide(Czb, q, x, u[0] - cb, fcb, hb))
+        mode = _first_mode(Czb, q, x, u[0] - cb, fcb, hb)
         if n == 2:
             sse = _samples_two(Ab, Asb, Bb, Cb, Czb, q, hb, Phib, G0b, G1b, Psb, x, mode, cb, fcb, y0, u, y, out[b],
                                want_outputs, foh, xn, xs, t1, t2, pv)
@@ -534,7 +536,7 @@ def _samples_two(Ab, Asb, Bb, Cb, Czb, q, hb, Phib, G0b, G1b, Psb, x, mode, cb, 
 
 
 @cached_njit(depends=_DEPENDS)
-def lure_loop_run(Adt, Asdt, Bdt, C, Cz, h, Phi, G0, G1, Ps, ok, fc, c, X0, Y0, dt, Ac, Bc, Cc, Dc, xc0, r, d,
+def lure_loop_run(Adt, Asdt, Bdt, C, Cz, h, Q, Phi, G0, G1, Ps, ok, fc, c, X0, Y0, Ac, Bc, Cc, Dc, xc0, r, d,
                   Y, U):  # pragma: no cover - compiled
     """Every candidate inside a known sampled controller: outputs ``Y[b]`` and control signals ``U[b]``.
 
@@ -544,20 +546,14 @@ def lure_loop_run(Adt, Asdt, Bdt, C, Cz, h, Phi, G0, G1, Ps, ok, fc, c, X0, Y0, 
     """
     batch, n = Cz.shape
     N, nc = r.shape[0], Ac.shape[0]
-    x, xn, xs, t1, t2, q = np.zeros(n), np.zeros(n), np.zeros(n), np.zeros(n), np.zeros(n), np.zeros(n)
-    pv = np.zeros(n)
+    x, xn, xs, t1, t2, pv = np.zeros(n), np.zeros(n), np.zeros(n), np.zeros(n), np.zeros(n), np.zeros(n)
     xc, xcn = np.zeros(nc), np.zeros(nc)
     for b in range(batch):
         if not ok[b]:
             Y[b, :] = np.inf
             U[b, :] = np.inf
             continue
-        hb, cb, fcb = h[b], c[b], abs(fc[b])
-        for j in range(n):
-            acc = 0.0
-            for i in range(n):
-                acc += Cz[b, i] * Adt[b, i, j]
-            q[j] = acc / (hb * dt)
+        hb, cb, fcb, q = h[b], c[b], abs(fc[b]), Q[b]
         x[:] = X0[b]
         xc[:] = xc0
         mode = 2                                # decided at the first sample, once u_0 is known
@@ -573,8 +569,7 @@ def lure_loop_run(Adt, Asdt, Bdt, C, Cz, h, Phi, G0, G1, Ps, ok, fc, c, X0, Y0, 
                 xcn[i] = acc
             xc[:] = xcn
             if mode == 2:
-                z = _dot(Cz[b], x)
-                mode = 1 if z > 0 else (-1 if z < 0 else _decide(Cz[b], q, x, uk - cb, fcb, hb))
+                mode = _first_mode(Cz[b], q, x, uk - cb, fcb, hb)
             if k + 1 < N:
                 mode = _sample(Adt[b], Asdt[b], Bdt[b], Cz[b], q, hb, Phi[b], G0[b], G1[b], Ps[b], x, mode, uk, 0.0,
                                cb, fcb, xn, xs, t1, t2, pv)

@@ -153,13 +153,17 @@ def _perturbed(anchor, rng) -> np.ndarray:
     return x
 
 
+def _restart_point(anchor, rng, linear) -> np.ndarray:
+    """A seeded random relative perturbation of ``anchor``, with the linear block stabilised."""
+    x = _perturbed(anchor, rng)
+    x[:linear.n_params] = stabilize(linear, x[:linear.n_params])
+    return x
+
+
 def _restart_points(anchor, rng, linear):
-    """Seeded random relative perturbations of ``anchor``, with the linear block stabilised."""
-    k = linear.n_params
+    """:data:`MAX_RESTARTS` of :func:`_restart_point` around ``anchor``."""
     for _ in range(MAX_RESTARTS):
-        x = _perturbed(anchor, rng)
-        x[:k] = stabilize(linear, x[:k])
-        yield x
+        yield _restart_point(anchor, rng, linear)
 
 
 def _search(cost, starts, next_restart, budget: Budget, merged: _Merged, allow_unstable: bool, callback):
@@ -524,10 +528,9 @@ def auto_lure(cost, x0=None, *, maxfev: int | None = None, seed=None, allow_unst
     starts = []
     if np.all(np.isfinite(first.x)):
         base = hammerstein_start(cost.structure, hs, first.x)
-        at = cost.structure.linear.n_params + (0 if cost.structure.nonlinearity.n_params == 2 else 1)
         for scale in LURE_FRICTION_SCALES:
             x = base.copy()
-            x[at] *= scale
+            x[cost.structure.level_index] *= scale
             starts.append(x)
     if x0 is not None:
         starts.append(cost.structure.check_beta(as_x0(x0)).copy())
@@ -556,10 +559,7 @@ def _explore(cost, best, rng, budget: Budget, merged: _Merged, allow_unstable: b
         share = int(budget.remaining // max(1, LURE_RESTARTS - runs))
         if share < MIN_REFINE_BUDGET:
             break
-        x = _perturbed(best.x, rng)
-        k = cost.structure.linear.n_params
-        x[:k] = stabilize(cost.structure.linear, x[:k])
-        res = _refine(cost, x, budget, share, merged)
+        res = _refine(cost, _restart_point(best.x, rng, cost.structure.linear), budget, share, merged)
         runs += 1
         new = (_acceptable(cost, res.x, res.fun, allow_unstable), -res.fun)
         if new > key:

@@ -36,9 +36,9 @@ import time
 import numpy as np
 
 from ._checks import as_real_array
-from ._lure_sim import lure_loop_run, lure_setup
+from ._lure_sim import lure_loop_run
 from .exceptions import DataError, ParameterError
-from .lure import LureModel, LureStructure, parts_feedback
+from .lure import LoopParts, LureModel, LureStructure
 from .normal_equations import NONFINITE_RESIDUAL
 
 __all__ = ["KnownLoop", "LoopCost", "identify_in_loop", "MATCHES"]
@@ -126,17 +126,13 @@ class KnownLoop:
     def __len__(self) -> int:
         return self.reference.size
 
-    def simulate_parts(self, parts):
+    def simulate_parts(self, parts: LoopParts):
         """``(Y, U)``, each ``(B, N)``: outputs and control signals of the loops around the plants ``parts``."""
-        num, den, slope, fc, c, y0, x0 = parts
-        S = lure_setup(np.ascontiguousarray(num, dtype=float), np.ascontiguousarray(den, dtype=float), self.dt,
-                       np.ascontiguousarray(slope, dtype=float), parts_feedback(parts))
-        Y = np.empty((den.shape[0], len(self)))
+        Y = np.empty((parts.den.shape[0], len(self)))
         U = np.empty_like(Y)
         with np.errstate(all="ignore"):
-            lure_loop_run(*S, np.ascontiguousarray(fc, dtype=float), np.ascontiguousarray(c, dtype=float), x0,
-                          np.ascontiguousarray(y0, dtype=float), self.dt, *self._matrices, self.initial_state,
-                          self.reference, self.added, Y, U)
+            lure_loop_run(*parts.setup(self.dt), parts.fc, parts.c, parts.x0, parts.y0, *self._matrices,
+                          self.initial_state, self.reference, self.added, Y, U)
         return Y, U
 
     def simulate(self, model: LureModel):

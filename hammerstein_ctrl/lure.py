@@ -41,9 +41,12 @@ True
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 
-from ._checks import as_real_array
+from ._checks import as_real_array, check_intersample
+from ._discretize import companion_realization
 from ._lure_sim import FEEDBACK_CODES, lure_run, lure_setup
 from .exceptions import ParameterError
 from .nonlinearities import Coulomb, Friction, Nonlinearity
@@ -51,14 +54,13 @@ from .simulate import _check_pair
 from .model import _check_linear, _finite_scalar, _state_vector
 from .structure import INITIAL_STATES, STATE_PREFIX, LinearStructure
 
-__all__ = ["LureStructure", "LureModel", "lure_structure", "FEEDBACKS", "FEEDBACK_FAMILIES"]
+__all__ = ["LureStructure", "LureModel", "LoopParts", "lure_structure", "simulate_parts", "FEEDBACKS",
+           "FEEDBACK_FAMILIES"]
 
 #: Signals the friction may act on, and the relative degree of ``B/A`` each needs.
 FEEDBACKS = {"velocity": 2, "output": 1}
 #: Feedback families: each maps to ``(slope, Coulomb level, constant)`` of ``g`` from its parameters.
 FEEDBACK_FAMILIES = (Friction, Coulomb)
-#: Hold behaviours the simulation honours.
-_HOLDS = ("foh", "zoh")
 
 
 def _affine_parts(nonlinearity: Nonlinearity, P: np.ndarray):
@@ -149,6 +151,11 @@ class LureStructure:
         """Parameters of the loop itself (the linear block and the map), before the offset and initial state."""
         return self.linear.n_params + self.nonlinearity.n_params
 
+    @property
+    def level_index(self) -> int:
+        """Position of the Coulomb level (``fc``, or ``Coulomb``'s ``d1``) in beta."""
+        return self.linear.n_params + (0 if isinstance(self.nonlinearity, Friction) else 1)
+
     def with_options(self, *, offset: bool | None = None, initial_state: str | None = None) -> "LureStructure":
         """The same loop with other real-data options (``None`` keeps the current one)."""
         return LureStructure(self.linear, self.nonlinearity, feedback=self.feedback,
@@ -182,13 +189,12 @@ class LureStructure:
         at += self.offset
         n = self.linear.den_order
         x0 = B[:, at:at + n] if self.initial_state == "estimate" else np.zeros((B.shape[0], n))
-        return tagged((num, den, slope, fc, c, y0, np.ascontiguousarray(x0)), self.feedback)
+        return LoopParts.of(num, den, slope, fc, c, y0, x0, self.feedback)
 
     def normalize(self, beta) -> np.ndarray:
         """``beta`` with the Coulomb level non-negative (``fc`` and ``-fc`` are one model)."""
         b = np.array(self.check_beta(beta), dtype=float)
-        b[..., self.linear.n_params + (0 if isinstance(self.nonlinearity, Friction) else 1)] = np.abs(
-            b[..., self.linear.n_params + (0 if isinstance(self.nonlinearity, Friction) else 1)])
+        b[..., self.level_index] = np.abs(b[..., self.level_index])
         return b
 
     def beta(self, model: "LureModel") -> np.ndarray:
@@ -208,9 +214,10 @@ class LureStructure:
         b = self.normalize(self.check_beta(beta))
         if b.ndim != 1:
             raise ParameterError("model() takes one beta vector")
-        num, den, _, _, _, y0, x0 = self.parts(b)
-        return LureModel((num[0], den[0]), self.nonlinearity, self.map_params(b), feedback=self.feedback,
-                         offset=float(y0[0]), initial_state=x0[0] if self.initial_state == "estimate" else None,
+        parts = self.parts(b)
+        return LureModel((parts.num[0], parts.den[0]), self.nonlinearity, self.map_params(b), feedback=self.feedback,
+                         offset=float(parts.y0[0]),
+                         initial_state=parts.x0[0] if self.initial_state == "estimate" else None,
                          intersample=intersample, name=name)
 
     def describe(self) -> str:
@@ -238,35 +245,37 @@ def lure_structure(num_order: int = 0, den_order: int = 2, nonlinearity: Nonline
                          nonlinearity, feedback=feedback, **options)
 
 
-def simulate_parts(parts, u, dt: float, hold: str, y=None) -> np.ndarray:
+class LoopParts(NamedTuple):
+    """What the compiled simulation of a batch of loops needs (rows: candidates), as contiguous float arrays."""
+
+    num: np.ndarray
+    den: np.ndarray
+    slope: np.ndarray
+    fc: np.ndarray
+    c: np.ndarray
+    y0: np.ndarray
+    x0: np.ndarray
+    feedback: str
+
+    @classmethod
+    def of(cls, num, den, slope, fc, c, y0, x0, feedback: str) -> "LoopParts":
+        arrays = (np.ascontiguousarray(v, dtype=float) for v in (num, den, slope, fc, c, y0, x0))
+        return cls(*arrays, feedback)
+
+    def setup(self, dt: float) -> tuple:
+        """The per-candidate matrices (:func:`~hammerstein_ctrl._lure_sim.lure_setup`) at the sampling interval."""
+        return lure_setup(self.num, self.den, float(dt), self.slope, FEEDBACK_CODES[self.feedback])
+
+
+def simulate_parts(parts: LoopParts, u, dt: float, hold: str, y=None) -> np.ndarray:
     """Outputs ``(B, N)`` of the loops ``parts`` (:meth:`LureStructure.parts`), or with ``y`` their SSEs ``(B,)``."""
-    num, den, slope, fc, c, y0, x0 = parts
-    feedback_code = parts_feedback(parts)
-    S = lure_setup(np.ascontiguousarray(num, dtype=float), np.ascontiguousarray(den, dtype=float), float(dt),
-                   np.ascontiguousarray(slope, dtype=float), feedback_code)
     u = np.ascontiguousarray(u, dtype=float)
     want = y is None
-    out = np.empty((den.shape[0], u.size if want else 1))
+    out = np.empty((parts.den.shape[0], u.size if want else 1))
     with np.errstate(all="ignore"):
-        lure_run(*S, np.ascontiguousarray(fc, dtype=float), np.ascontiguousarray(c, dtype=float), x0,
-                 np.ascontiguousarray(y0, dtype=float), u, float(dt), hold == "foh", u if want else y, out, want)
+        lure_run(*parts.setup(dt), parts.fc, parts.c, parts.x0, parts.y0, u, hold == "foh", u if want else y, out,
+                 want)
     return out if want else out[:, 0]
-
-
-class _Parts(tuple):
-    """:meth:`LureStructure.parts` with the feedback signal attached."""
-
-    feedback = "velocity"
-
-
-def parts_feedback(parts) -> int:
-    return FEEDBACK_CODES[getattr(parts, "feedback", "velocity")]
-
-
-def tagged(parts, feedback: str) -> _Parts:
-    p = _Parts(parts)
-    p.feedback = feedback
-    return p
 
 
 class LureModel:
@@ -306,9 +315,7 @@ class LureModel:
             raise ParameterError(f"params must be one vector of finite numbers, got {params!r}")
         self.feedback, self.offset = feedback, _finite_scalar(offset, "offset")
         self.name = "lure" if name is None else str(name)
-        if intersample not in _HOLDS:
-            raise ParameterError(f"intersample must be one of {_HOLDS}, got {intersample!r}")
-        self.intersample = intersample
+        self.intersample = check_intersample(intersample)
         self.initial_state = _state_vector(initial_state, self.order)
 
     @property
@@ -326,11 +333,12 @@ class LureModel:
         """The feedback map ``g(z)``."""
         return self.nonlinearity(z, self.params)
 
-    def _parts(self):
+    def _parts(self, initial_state=None) -> LoopParts:
+        """The model as a one-row :class:`LoopParts` (from ``initial_state`` if given, else its own)."""
         slope, fc, c = _affine_parts(self.nonlinearity, self.params[None, :])
-        x0 = np.zeros((1, self.order)) if self.initial_state is None else self.initial_state[None, :]
-        return tagged((self._num[None, :] / self._den[0], self._den[None, :] / self._den[0], slope, fc, c,
-                       np.array([self.offset]), np.ascontiguousarray(x0)), self.feedback)
+        x0 = self.initial_state if initial_state is None else _state_vector(initial_state, self.order)
+        x0 = np.zeros((1, self.order)) if x0 is None else np.reshape(x0, (1, self.order))
+        return LoopParts.of(self._num[None, :], self._den[None, :], slope, fc, c, [self.offset], x0, self.feedback)
 
     def simulate(self, t, u=None, *, initial_state=None, intersample: str | None = None) -> np.ndarray:
         """The output at the sample instants, exact through sticking (see the module's notes).
@@ -347,14 +355,9 @@ class LureModel:
         from .iodata import time_and_input
 
         t, u, hold = time_and_input(t, u, self.intersample)
-        hold = hold if intersample is None else intersample
-        if hold not in _HOLDS:
-            raise ParameterError(f"intersample must be one of {_HOLDS}, got {hold!r}")
+        hold = check_intersample(hold if intersample is None else intersample)
         dt, u = _check_pair(t, u, "u")
-        parts = list(self._parts())
-        if initial_state is not None:
-            parts[6] = np.array(_state_vector(initial_state, self.order)).reshape(1, self.order)
-        return simulate_parts(tagged(parts, self.feedback), u, dt, hold)[0]
+        return simulate_parts(self._parts(initial_state), u, dt, hold)[0]
 
     def to_iosys(self, name: str | None = None):
         """The loop as a python-control ``interconnect`` of the linear block and the feedback map.
@@ -368,16 +371,9 @@ class LureModel:
         """
         import control as ct
 
-        n = self.order
-        A = np.zeros((n, n))
-        A[0, :] = -self._den[1:] / self._den[0]
-        A[1:, :-1] = np.eye(n - 1)
-        B = np.zeros((n, 1))
-        B[0, 0] = 1.0
-        C = np.zeros(n)
-        C[n - self._num.size:] = self._num / self._den[0]
+        A, B, C, _ = (m[0] for m in companion_realization(self._num, self._den))
         Cz = C @ A if self.feedback == "velocity" else C
-        plant = ct.ss(A, B, np.vstack([C, Cz]), np.zeros((2, 1)), inputs="w", outputs=["ylin", "z"],
+        plant = ct.ss(A, B[:, None], np.vstack([C, Cz]), np.zeros((2, 1)), inputs="w", outputs=["ylin", "z"],
                       name="linear")
         fmap = ct.nlsys(None, lambda t, x, u, p: np.atleast_1d(self.g(u[0])), inputs="z", outputs="f",
                         name="friction")
