@@ -157,9 +157,14 @@ def symmetric_eigenvalues(S):  # pragma: no cover - compiled
         if not rotated:
             break
     w = np.empty(n)
-    for i in range(n):
-        w[i] = A[i, i]
-    return np.sort(w)
+    for i in range(n):                  # insertion sort of the diagonal (n is small; np.sort compiles for seconds)
+        v = A[i, i]
+        j = i
+        while j > 0 and w[j - 1] > v:
+            w[j] = w[j - 1]
+            j -= 1
+        w[j] = v
+    return w
 
 
 @cached_njit()
@@ -210,7 +215,9 @@ def _expm_one(M, out, b):  # pragma: no cover - compiled
     n = M.shape[0]
     norm = _one_norm(M)
     if not np.isfinite(norm):
-        out[:, :] = np.nan
+        for i in range(n):
+            for j in range(n):
+                out[i, j] = np.nan
         return
     s = 0
     if norm > PADE13_THETA:
@@ -358,7 +365,7 @@ def tf_discrete(num, den, dt, max_norm):  # pragma: no cover - compiled
     for b in range(batch):
         big[b] = _one_norm(M[b]) > max_norm
         if not big[b]:
-            expm_into(M[b], E[b])
+            _expm_one(M[b], E[b], _B13)  # not through expm_into: one level less to compile on a first fit
     return E, C, D, ok, big, ok.all() and not big.any()
 
 
@@ -494,8 +501,10 @@ def fill_coefficients(theta, num0, den0, num_pos, den_pos):  # pragma: no cover 
     num = np.empty((batch, num0.size))
     den = np.empty((batch, den0.size))
     for b in range(batch):
-        num[b] = num0
-        den[b] = den0
+        for j in range(num0.size):      # element loops: a slice assignment pulls in numpy's shape-error machinery,
+            num[b, j] = num0[j]         # seconds of compilation on a machine's first fit
+        for j in range(den0.size):
+            den[b, j] = den0[j]
         for j in range(k):
             num[b, num_pos[j]] = theta[b, j]
         for j in range(den_pos.size):

@@ -192,7 +192,8 @@ def neighbours(x, steps) -> np.ndarray:
 def _neighbours(x, steps):  # pragma: no cover - compiled
     X = np.empty((x.size + 1, x.size))
     for i in range(x.size + 1):
-        X[i] = x
+        for j in range(x.size):         # element loops: a row assignment compiles numpy's shape-error machinery
+            X[i, j] = x[j]
     for j in range(x.size):
         X[j + 1, j] += steps[j]
     return X
