@@ -1,6 +1,7 @@
 # hammerstein_ctrl: the two commands of the README, plus helpers.
 #   make demo   create .venv, install, reproduce the paper's TRS comparison, write figures
 #   make test   create .venv, install with test extras, run the test suite (all but the tests marked slow)
+#               on every core (pytest-xdist; one test file per worker, so a file's compiled kernels are built once)
 #   make test-slow  the tests marked slow (notebooks, studies, CLI examples); .ci/run runs both
 #   make bench      the speed benchmark, then the tests marked timing (wall-clock bounds: never in make test)
 #   make lint       ruff under the project's configuration (pyproject.toml); .ci/run runs it first
@@ -24,10 +25,10 @@ demo: $(STAMP)
 	$(BIN)/hammerstein-ctrl reproduce trs --out results/trs
 
 test: $(STAMP)
-	$(BIN)/python -m pytest -q
+	$(BIN)/python -m pytest -q -n auto --dist loadfile
 
 test-slow: $(STAMP)
-	$(BIN)/python -m pytest -q -m 'slow and not timing'
+	$(BIN)/python -m pytest -q -n auto --dist loadfile -m 'slow and not timing'
 
 lint: $(STAMP)
 	$(BIN)/ruff check hammerstein_ctrl tests benchmarks notebooks
