@@ -203,16 +203,34 @@ def _block_structure_to_dict(structure) -> dict:
 
     if not isinstance(structure, BlockStructure) or structure.kind not in _KINDS:
         raise ParameterError(f"cannot save a structure of type {type(structure).__name__}")
-    lin = structure.linear
-    linear = {"num_order": lin.num_order, "den_order": lin.den_order,
-              "monic_numerator": lin.monic_numerator, "fixed": dict(lin.fixed)}
-    if lin.delay:
-        linear["delay"] = lin.delay
-    return {"kind": structure.kind, "linear": linear,
+    return {"kind": structure.kind, "linear": _linear_structure_to_dict(structure.linear),
             **{key: None if nl is None else _nonlinearity_to_dict(nl)
                for key, nl in (("input_nonlinearity", structure.input_nonlinearity),
                                ("output_nonlinearity", structure.output_nonlinearity))},
             "offset": structure.offset, "initial_state": structure.initial_state}
+
+
+def _linear_structure_to_dict(lin) -> dict:
+    """A :class:`~hammerstein_ctrl.structure.LinearStructure` as JSON (its delay only when it has one)."""
+    linear = {"num_order": lin.num_order, "den_order": lin.den_order,
+              "monic_numerator": lin.monic_numerator, "fixed": dict(lin.fixed)}
+    if lin.delay:
+        linear["delay"] = lin.delay
+    return linear
+
+
+def _linear_structure_from_dict(obj, where: str, *, delay: bool = True):
+    """The :class:`~hammerstein_ctrl.structure.LinearStructure` of ``obj`` (a ``delay`` key only if ``delay``)."""
+    from .structure import LinearStructure
+
+    lin = _keys(obj, where, ("num_order", "den_order", "monic_numerator", "fixed"), ("delay",) if delay else ())
+    if not isinstance(lin["fixed"], dict):
+        raise ParameterError(f"{where}.fixed must be a JSON object")
+    return LinearStructure(_integer(lin["num_order"], f"{where}.num_order"),
+                           _integer(lin["den_order"], f"{where}.den_order"),
+                           monic_numerator=_boolean(lin["monic_numerator"], f"{where}.monic_numerator"),
+                           fixed={k: _number(v, f"{where}.fixed.{k}") for k, v in lin["fixed"].items()},
+                           delay=_delay(lin.get("delay"), f"{where}.delay", estimate=True))
 
 
 def _mimo_structure_to_dict(structure) -> dict:
@@ -228,25 +246,16 @@ def _mimo_structure_to_dict(structure) -> dict:
 
 
 def _lure_structure_to_dict(structure) -> dict:
-    lin = structure.linear
-    return {"kind": "lure", "linear": {"num_order": lin.num_order, "den_order": lin.den_order,
-                                       "monic_numerator": lin.monic_numerator, "fixed": dict(lin.fixed)},
+    return {"kind": "lure", "linear": _linear_structure_to_dict(structure.linear),
             "feedback": structure.feedback, "feedback_nonlinearity": _nonlinearity_to_dict(structure.nonlinearity),
             "offset": structure.offset, "initial_state": structure.initial_state}
 
 
 def _lure_structure_from_dict(obj, where: str):
     from .lure import LureStructure
-    from .structure import LinearStructure
 
     _keys(obj, where, ("kind", "linear", "feedback", "feedback_nonlinearity", "offset", "initial_state"))
-    lin = _keys(obj["linear"], f"{where}.linear", ("num_order", "den_order", "monic_numerator", "fixed"))
-    if not isinstance(lin["fixed"], dict):
-        raise ParameterError(f"{where}.linear.fixed must be a JSON object")
-    linear = LinearStructure(_integer(lin["num_order"], f"{where}.linear.num_order"),
-                             _integer(lin["den_order"], f"{where}.linear.den_order"),
-                             monic_numerator=_boolean(lin["monic_numerator"], f"{where}.linear.monic_numerator"),
-                             fixed={k: _number(v, f"{where}.linear.fixed.{k}") for k, v in lin["fixed"].items()})
+    linear = _linear_structure_from_dict(obj["linear"], f"{where}.linear", delay=False)
     key = f"{where}.feedback_nonlinearity"
     nl = _nonlinearity_from_dict(_keys(obj["feedback_nonlinearity"], key, ("family", "options")), key)
     return LureStructure(linear, nl, feedback=_string(obj["feedback"], f"{where}.feedback"),
@@ -317,7 +326,7 @@ def _mimo_structure_from_dict(obj, where: str):
     lin = _keys(obj["linear"], f"{where}.linear", ("num_order", "den_order", "monic_numerator", "fixed"))
     if lin["fixed"] != {} or lin["monic_numerator"] is not True:
         raise ParameterError(f"{where}.linear: a MIMO structure has no fixed coefficients and keeps its gain "
-                             "convention (fixed {{}}, monic_numerator true)")
+                             "convention (fixed {}, monic_numerator true)")
     linear = LinearStructure(_integer(lin["num_order"], f"{where}.linear.num_order"),
                              _integer(lin["den_order"], f"{where}.linear.den_order"))
     blocks = {key: None if obj[key] is None else [
@@ -372,21 +381,12 @@ def _structure_from_dict(obj, where: str):
         return _mimo_structure_from_dict(obj, where)
     if isinstance(obj, dict) and obj.get("kind") == "lure":
         return _lure_structure_from_dict(obj, where)
-    from .structure import (INITIAL_STATES, HammersteinStructure, HammersteinWienerStructure, LinearStructure,
-                            WienerStructure)
+    from .structure import INITIAL_STATES, HammersteinStructure, HammersteinWienerStructure, WienerStructure
 
     _keys(obj, where, ("kind", "linear", "input_nonlinearity", "output_nonlinearity", "offset", "initial_state"),
           ("n_records",))
     kind, _ = _check_kind(obj, where)
-    lin = _keys(obj["linear"], f"{where}.linear", ("num_order", "den_order", "monic_numerator", "fixed"), ("delay",))
-    fixed = lin["fixed"]
-    if not isinstance(fixed, dict):
-        raise ParameterError(f"{where}.linear.fixed must be a JSON object")
-    fixed = {k: _number(v, f"{where}.linear.fixed.{k}") for k, v in fixed.items()}
-    linear = LinearStructure(_integer(lin["num_order"], f"{where}.linear.num_order"),
-                             _integer(lin["den_order"], f"{where}.linear.den_order"),
-                             monic_numerator=_boolean(lin["monic_numerator"], f"{where}.linear.monic_numerator"),
-                             fixed=fixed, delay=_delay(lin.get("delay"), f"{where}.linear.delay", estimate=True))
+    linear = _linear_structure_from_dict(obj["linear"], f"{where}.linear")
     blocks = [_nonlinearity_from_dict(_keys(obj[key], f"{where}.{key}", ("family", "options")), f"{where}.{key}")
               for key in ("input_nonlinearity", "output_nonlinearity") if obj[key] is not None]
     initial_state = _string(obj["initial_state"], f"{where}.initial_state")
