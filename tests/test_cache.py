@@ -46,6 +46,7 @@ def _cut_short(path: Path):
     path.write_bytes(data[:len(data) // 2])
 
 
+@pytest.mark.slow
 def test_damaged_cache_files_are_compiled_again_with_a_warning(tmp_path):
     first = _run(tmp_path)
     assert first["warnings"] == []

@@ -105,6 +105,7 @@ def test_argparse_rejects_bad_numbers(capsys):
     assert "abc" in err and len(err.strip().splitlines()) == 1
 
 
+@pytest.mark.slow
 def test_reproduce_writes_tables_models_and_figures(capsys, tmp_path):
     out_dir = tmp_path / "trs"
     code, out, err = run(capsys, "reproduce", "trs", "--trials", "3", "--methods", "nspsa", "nlspsa", "spsa",

@@ -127,6 +127,7 @@ def test_fast_loop_matches_python_control_per_family(nl, params):
     _check_loop(model, np.array([[2.0 * sign, sign, 0.3 * sign, 0.05]]), r, 0.02, (-1.0, 1.2))
 
 
+@pytest.mark.slow
 def test_continuous_loop_agrees_with_sampled_loop_for_smooth_g():
     model = hc.HammersteinModel(ct.tf([1.0], [1.0, 2.0, 1.0]), hc.Tanh(), [2.0, 0.8])
     pid = cd.tune_pid(model, "simc", tau_c=1.0)

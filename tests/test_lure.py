@@ -98,6 +98,7 @@ def _excitation(t):
     return 1.5 * np.sin(0.7 * t) + np.sin(2.3 * t) + 0.5 * np.sign(np.sin(0.23 * t) + 1e-9)
 
 
+@pytest.mark.slow
 def test_stick_slip_simulation_agrees_with_python_control():
     import control as ct
 
@@ -141,6 +142,7 @@ def test_output_feedback_simulation_equals_an_event_driven_reference():
     np.testing.assert_allclose(y, ref, rtol=0, atol=1e-9 * np.ptp(ref))
 
 
+@pytest.mark.slow
 def test_interconnect_export_agrees_with_the_sampled_simulation():
     import control as ct
 
@@ -156,6 +158,7 @@ def test_interconnect_export_agrees_with_the_sampled_simulation():
     np.testing.assert_allclose(y, ref, rtol=0, atol=1e-6 * np.ptp(y))
 
 
+@pytest.mark.slow
 def test_known_truth_stick_slip_plant_is_identified_within_its_standard_errors():
     import control as ct
 

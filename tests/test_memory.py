@@ -126,6 +126,7 @@ def test_auto_in_bounded_memory(record):
     assert per_sample < 56          # 48 B measured: the optimisation's 25 B, then the uncertainty's (above)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("method", ["auto"])     # LM's passes alone: test_normal_equations' lane-group tests
 def test_a_wide_structure_in_bounded_memory(record, method):
     """16 parameters and an 11-signal basis (piecewise-linear g with 11 knots, a (1, 3) block, an offset).

@@ -12,6 +12,7 @@ def trs_model():
     return HammersteinModel(ct.tf([1, -1.816], [1, 4.7681, 0.118]), Tanh(), [-4.7132, 0.1229])
 
 
+@pytest.mark.slow
 def test_iosys_agrees_with_sampled_semantics_for_smooth_input(trs_model):
     """ODE view (g on the interpolated u) vs sampled view (interpolated g(u)): equal for smooth data."""
     sys = trs_model.to_iosys()

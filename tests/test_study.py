@@ -45,6 +45,7 @@ def test_any_subset_reruns_identically(trs_case, tmp_path):
     assert _summary_numbers(pool) == _summary_numbers(full)
 
 
+@pytest.mark.slow
 def test_interrupted_study_resumes_to_the_same_summary(trs_case, tmp_path):
     path = tmp_path / "results.jsonl"
     script = (

@@ -112,6 +112,7 @@ def test_a_held_lock_refuses_a_second_run_at_once(trs, tmp_path):
     assert run_study(trs, ["nspsa"], trials=1, executor="serial", results_path=path).resumed == 0
 
 
+@pytest.mark.slow
 @linux
 def test_two_concurrent_runs_one_proceeds_the_other_reports_the_lock(capsys, tmp_path):
     trials = 12
