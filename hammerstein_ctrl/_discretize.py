@@ -159,12 +159,17 @@ def _discretized(num, den, dt: float):
 
 
 def _coefficient_rows(num, den):
-    """``num``, ``den`` as C-contiguous float rows, as many of each (checked for properness)."""
-    if _float_matrix(num) and _float_matrix(den) and num.shape[0] == den.shape[0] and num.shape[1] <= den.shape[1]:
+    """``num``, ``den`` as C-contiguous, writeable float rows, as many of each (checked for properness).
+
+    Writeable: the compiled discretisation takes them as such (one compiled
+    version; a read-only record of coefficients is copied, a few numbers).
+    """
+    if (_float_matrix(num) and _float_matrix(den) and num.shape[0] == den.shape[0] and num.shape[1] <= den.shape[1]
+            and num.flags.writeable and den.flags.writeable):
         return num, den
     num, den = _broadcast_rows(np.atleast_2d(np.asarray(num, dtype=float)),
                                np.atleast_2d(np.asarray(den, dtype=float)))
-    return np.ascontiguousarray(num), np.ascontiguousarray(den)
+    return np.array(num, order="C"), np.array(den, order="C")
 
 
 def unstable(den) -> np.ndarray:

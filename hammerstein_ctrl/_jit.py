@@ -32,7 +32,7 @@ import numba.core.caching
 
 from .exceptions import CacheWarning
 
-__all__ = ["cached_njit", "tolerate_damaged_cache", "machine_cache_dir", "ENV_CACHE"]
+__all__ = ["cached_njit", "kernel_signature", "tolerate_damaged_cache", "machine_cache_dir", "ENV_CACHE"]
 
 #: Environment variable overriding the per-machine cache root (also of the generated kernels).
 ENV_CACHE = "HAMMERSTEIN_CTRL_CACHE"
@@ -103,7 +103,7 @@ if _MachineCacheLocator not in numba.core.caching.CacheImpl._locator_classes:
     numba.core.caching.CacheImpl._locator_classes.insert(0, _MachineCacheLocator)
 
 
-def cached_njit(*, cache: bool = True, depends: tuple[str, ...] = (), **options):
+def cached_njit(*, cache: bool = True, depends: tuple[str, ...] = (), signatures: tuple = (), **options):
     """``numba.njit(cache=cache, nogil=True, **options)``, its cache made tolerant (:func:`tolerate_damaged_cache`).
 
     Parameters
@@ -115,6 +115,12 @@ def cached_njit(*, cache: bool = True, depends: tuple[str, ...] = (), **options)
         compiled code the function calls: numba keys its cache on the
         function's own file alone, so a digest of these files joins the key
         and an edit of one of them compiles the function again.
+    signatures : tuple of tuple, optional
+        Argument types (:func:`kernel_signature`) to compile (or load) at
+        once; no other version is then compiled, and arguments convert to
+        these types where numba allows it (a writeable array to a read-only
+        one).  Default: a version per new combination of argument types, on
+        first call.
     **options
         Further options of ``numba.njit`` (``fastmath``, ``error_model``, ...).
 
@@ -124,8 +130,41 @@ def cached_njit(*, cache: bool = True, depends: tuple[str, ...] = (), **options)
         A decorator.
     """
     def decorate(fn):
-        return tolerate_damaged_cache(_keyed_on(numba.njit(cache=cache, nogil=True, **options)(fn), depends))
+        dispatcher = tolerate_damaged_cache(_keyed_on(numba.njit(cache=cache, nogil=True, **options)(fn), depends))
+        for signature in signatures:
+            dispatcher.compile(signature)
+        if signatures:
+            dispatcher.disable_compile()
+        return dispatcher
     return decorate
+
+
+_SIGNATURE_CODES = {"r": True, "w": False}
+
+
+def kernel_signature(spec: str) -> tuple:
+    """Argument types from a compact description: ``r2`` a read-only C-ordered float64 array of 2 dimensions,
+    ``w1`` a writeable one of 1, ``f`` a float64, ``i`` an int64.
+
+    Declaring the arrays a function only reads as read-only lets one compiled
+    version take writeable and read-only arrays alike (a record's arrays are
+    read-only, a caller's fresh ones are not): numba otherwise compiles a
+    version for each combination it meets.
+
+    Examples
+    --------
+    >>> [str(t) for t in kernel_signature("r1 w2 f")]
+    ['readonly array(float64, 1d, C)', 'array(float64, 2d, C)', 'float64']
+    """
+    types = []
+    for code in spec.split():
+        if code in ("f", "i"):
+            types.append(numba.types.float64 if code == "f" else numba.types.int64)
+        elif len(code) == 2 and code[0] in _SIGNATURE_CODES and code[1].isdigit():
+            types.append(numba.types.Array(numba.types.float64, int(code[1]), "C", readonly=_SIGNATURE_CODES[code[0]]))
+        else:
+            raise ValueError(f"unknown argument code {code!r} in {spec!r}")
+    return tuple(types)
 
 
 def _keyed_on(dispatcher, depends: tuple[str, ...]):

@@ -197,3 +197,40 @@ def test_reject_unstable_set_after_construction_and_threads_keep_their_own_buffe
     assert np.isfinite(emps.cost(unstable))
     emps.cost.reject_unstable = True
     assert emps.cost(unstable) == np.inf == emps.cost.batch([unstable])[0]
+
+
+def test_one_compiled_version_takes_read_only_and_writeable_arrays():
+    """A record's arrays are read-only, a caller's are not: the kernels take both with one compiled version."""
+    from hammerstein_ctrl.kernels import get_coefficient_kernel, get_kernel, get_lane_kernel
+    from hammerstein_ctrl.simulate import COMPILED_EXPM_MAX_NORM, simulate_batch
+
+    rng = np.random.default_rng(4)
+    u, y = rng.normal(size=300), rng.normal(size=300)
+    num, den = np.array([[0.5, 1.0]] * 4), np.array([[1.0, 1.2, 0.8]] * 4)
+    basis = np.vstack([u, u ** 3])
+    P = rng.normal(size=(4, 2))
+
+    def frozen(a):
+        a = a.copy()
+        a.flags.writeable = False
+        return a
+
+    results = []
+    for wrap in (np.copy, frozen):
+        J = sse_basis_batch(wrap(num), wrap(den), wrap(P), wrap(basis), 0.01, wrap(y), offset=wrap(np.ones(4)))
+        J1 = sse_basis_batch(wrap(num[:1]), wrap(den[:1]), wrap(P[:1]), wrap(basis), 0.01, wrap(y),
+                             offset=wrap(np.ones(1)), x0=wrap(np.ones((1, 2))))
+        Y = simulate_batch(wrap(num[:2]), wrap(den[:2]), wrap(P[:2] @ basis), 0.01, offset=wrap(np.ones(2)),
+                           x0=wrap(np.zeros((2, 2))))
+        results.append((J, J1, Y))
+    for a, b in zip(*results):
+        assert np.array_equal(a, b)
+    J2 = np.empty(1)
+    assert get_coefficient_kernel(2, "foh", 2)(num[:1], den[:1], 0.01, COMPILED_EXPM_MAX_NORM, np.zeros((1, 2)),
+                                               frozen(np.zeros(1)), P[:1], frozen(basis), frozen(y), J2)
+    assert J2[0] == sse_basis_batch(num[:1], den[:1], P[:1], basis, 0.01, y)[0]
+    for kernel in (get_kernel(2, "sse", "foh", None, 2), get_kernel(2, "outputs", "foh"),
+                   get_coefficient_kernel(2, "foh", 2), get_lane_kernel(2, "foh", 2, False, True)):
+        assert len(kernel.signatures) == 1
+    with pytest.raises(TypeError, match="No matching definition"):   # a wrong type is refused, never compiled
+        get_kernel(2, "outputs", "foh")(np.zeros((1, 4, 4), dtype=np.float32), *[np.zeros((1, 1))] * 6)
