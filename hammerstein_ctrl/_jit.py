@@ -32,7 +32,7 @@ import numba.core.caching
 
 from .exceptions import CacheWarning
 
-__all__ = ["cached_njit", "kernel_signature", "tolerate_damaged_cache", "machine_cache_dir", "ENV_CACHE"]
+__all__ = ["cached_njit", "kernel_signature", "only_for", "tolerate_damaged_cache", "machine_cache_dir", "ENV_CACHE"]
 
 #: Environment variable overriding the per-machine cache root (also of the generated kernels).
 ENV_CACHE = "HAMMERSTEIN_CTRL_CACHE"
@@ -131,12 +131,20 @@ def cached_njit(*, cache: bool = True, depends: tuple[str, ...] = (), signatures
     """
     def decorate(fn):
         dispatcher = tolerate_damaged_cache(_keyed_on(numba.njit(cache=cache, nogil=True, **options)(fn), depends))
-        for signature in signatures:
-            dispatcher.compile(signature)
-        if signatures:
-            dispatcher.disable_compile()
-        return dispatcher
+        return only_for(dispatcher, signatures) if signatures else dispatcher
     return decorate
+
+
+def only_for(dispatcher, signatures):
+    """Compile (or load) ``dispatcher`` for ``signatures`` now and no other version later; returns it.
+
+    For a function whose source sits beside others that are not always used
+    (a module of generated kernels): declared lazily, fixed when first asked for.
+    """
+    for signature in signatures:
+        dispatcher.compile(signature)
+    dispatcher.disable_compile()
+    return dispatcher
 
 
 _SIGNATURE_CODES = {"r": True, "w": False}

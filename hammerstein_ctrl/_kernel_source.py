@@ -14,6 +14,7 @@ from ._checks import MAX_ORDER
 from ._simd import WIDTH
 
 __all__ = ["kernel_source", "lane_source", "normal_source", "vector_normal_source", "OUTPUT_TERMS",
+           "COEFFICIENT_SIGNATURE",
            "MAX_UNROLLED_STATES", "MAX_PASS_STATES", "MAX_VECTOR_STATES", "MAX_NORMAL_LANES", "LANE_WIDTHS",
            "LANE_MIN", "MAX_LANE_BASIS", "INTERLEAVE", "MODES", "HOLDS"]
 
@@ -159,9 +160,13 @@ def _advance(n: int, g: int, hold: str, ind: str) -> list:
             + [f"{ind}{q(f'x{r}')} = {q(f'n{r}')}" for r in range(n)])
 
 
+#: Argument types of the generated ``from_coefficients`` (``kernel_signature`` codes): compiled for them
+#: when first asked for (:func:`~hammerstein_ctrl.kernels.get_coefficient_kernel`), not when its module loads.
+COEFFICIENT_SIGNATURE = "w2 w2 f f r2 r1 r2 r2 r1 w1"
+
 _FROM_COEFFICIENTS = ('''
 
-@cached_njit(signatures=(kernel_signature("w2 w2 f f r2 r1 r2 r2 r1 w1"),))
+@cached_njit()
 def from_coefficients(num, den, dt, max_norm, X0, Y0, P, Phi, y, out):
     """Discretise the transfer functions and run ``kernel``, in one call; False (nothing done) unless every row '''
                       '''is clean."""

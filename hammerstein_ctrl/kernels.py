@@ -66,8 +66,9 @@ import numba.core.errors
 import numba.extending
 import numpy as np
 
-from ._jit import ENV_CACHE as _jit_ENV_CACHE, cached_njit, machine_cache_dir
-from ._kernel_source import (_CHECK_MASK, _OVERFLOW, _terms, HOLDS, INTERLEAVE, LANE_MIN, LANE_WIDTHS,
+from ._jit import ENV_CACHE as _jit_ENV_CACHE, cached_njit, kernel_signature, machine_cache_dir, only_for
+from ._kernel_source import (_CHECK_MASK, _OVERFLOW, _terms, COEFFICIENT_SIGNATURE, HOLDS, INTERLEAVE, LANE_MIN,
+                             LANE_WIDTHS,
                              MAX_LANE_BASIS, MAX_NORMAL_LANES, MAX_PASS_STATES, MAX_UNROLLED_STATES,
                              MAX_VECTOR_STATES, MODES, OUTPUT_TERMS, kernel_source, lane_source, normal_source,
                              vector_normal_source)
@@ -366,8 +367,8 @@ def get_coefficient_kernel(n: int, hold: str, K: int):
     (True, array([3.5]))
     """
     get_kernel(n, "sse", hold, None, K)        # checks the arguments
-    return _load_source(kernel_source(n, "sse", hold, None, K), _module_name(n, "sse", hold, None, K),
-                        "from_coefficients")
+    return only_for(_load_source(kernel_source(n, "sse", hold, None, K), _module_name(n, "sse", hold, None, K),
+                                 "from_coefficients"), (kernel_signature(COEFFICIENT_SIGNATURE),))
 
 
 def _module_name(n: int, mode: str, hold: str, outmap: str | None, K: int | None) -> str:
