@@ -4,6 +4,7 @@
 #               on every core (pytest-xdist; one test file per worker, so a file's compiled kernels are built once)
 #   make test-slow  the tests marked slow (notebooks, studies, CLI examples); .ci/run runs both
 #   make bench      the speed benchmark, then the tests marked timing (wall-clock bounds: never in make test)
+#   make warmup     compile the kernels of the common structures now, on every core (once per machine)
 #   make lint       ruff under the project's configuration (pyproject.toml); .ci/run runs it first
 #   make notebooks  execute notebooks/*.ipynb in place, saving their outputs (figures)
 PYTHON ?= python3
@@ -11,7 +12,7 @@ VENV   ?= .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 
-.PHONY: demo test test-slow lint bench notebooks install clean
+.PHONY: demo test test-slow lint bench notebooks install clean warmup
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -29,6 +30,9 @@ test: $(STAMP)
 
 test-slow: $(STAMP)
 	$(BIN)/python -m pytest -q -n auto --dist loadfile -m 'slow and not timing'
+
+warmup: $(STAMP)
+	$(BIN)/hammerstein-ctrl warmup
 
 lint: $(STAMP)
 	$(BIN)/ruff check hammerstein_ctrl tests benchmarks notebooks

@@ -532,6 +532,12 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
         add_select_parser(sub, _count, _number, _writable_file)
     else:
         sub.add_parser("select", help=SELECT_HELP)
+    from .cli_warmup import WARMUP_HELP, add_warmup_parser
+
+    if command in (None, "warmup"):
+        add_warmup_parser(sub, _count)
+    else:
+        sub.add_parser("warmup", help=WARMUP_HELP)
     return parser
 
 
