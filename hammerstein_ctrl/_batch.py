@@ -92,8 +92,9 @@ def simulate_batch(num, den, V, dt: float, *, x0=None, offset=None, intersample:
     V = _signals(V, batch)
     if V.shape[1] == 0:
         raise DataError("the signals are empty")
-    if out is not None and (out.shape != V.shape or out.dtype != np.float64 or not out.flags.c_contiguous):
-        raise ParameterError(f"out must be a C-ordered float array of shape {V.shape}")
+    if out is not None and (out.shape != V.shape or out.dtype != np.float64 or not out.flags.c_contiguous
+                            or not out.flags.writeable):
+        raise ParameterError(f"out must be a writeable C-ordered float array of shape {V.shape}")
     Y = np.empty(V.shape) if out is None else out
     outmap, map_args, fallback = _output_map(output_map, batch, n)
     offsets = _offset_rows(offset, batch)
@@ -230,7 +231,7 @@ def _basis_arguments(num, den, P, basis, y):
         if 1 not in (P.shape[0], den.shape[0]):
             raise ParameterError(f"{P.shape[0]} rows of basis coefficients for {den.shape[0]} transfer functions")
         rows = max(P.shape[0], den.shape[0])
-        num, den = (np.ascontiguousarray(np.broadcast_to(a, (rows, a.shape[1]))) for a in (num, den))
+        num, den = (np.array(np.broadcast_to(a, (rows, a.shape[1])), order="C") for a in (num, den))  # writeable
         P = np.broadcast_to(P, (rows, P.shape[1]))
     return num, den, np.ascontiguousarray(P), np.ascontiguousarray(basis), _measured(y, basis.shape[1])
 

@@ -142,7 +142,8 @@ def only_for(dispatcher, signatures):
     (a module of generated kernels): declared lazily, fixed when first asked for.
     """
     for signature in signatures:
-        dispatcher.compile(signature)
+        if signature not in dispatcher.overloads:       # asked again (another cache key of the caller): done
+            dispatcher.compile(signature)
     dispatcher.disable_compile()
     return dispatcher
 

@@ -2,8 +2,9 @@
 
 ``hammerstein-ctrl warmup [--orders 1 2 3 4] [--nonlinearity polynomial tanh ...] [--holds foh zoh]
 [--jobs N]`` identifies a short synthetic record with each structure of the grid
-(:func:`~hammerstein_ctrl.warmup.warmup`), prints one line per structure as it
-finishes and the totals, and exits 1 if a structure could not be identified.
+(:func:`~hammerstein_ctrl.warmup.warmup`), prints one line per structure (in
+the plan's order, each once it is done) and the totals, and exits 1 if a
+structure could not be compiled.
 
 Wire it into a parser with :func:`add_warmup_parser`.
 """
@@ -37,17 +38,12 @@ def add_warmup_parser(subparsers, count):
 
 
 def _cmd_warmup(args) -> int:
-    from .warmup import warmup, warmup_plan
+    """Warm the grid of the arguments, printing as it goes; 0, or 1 if a structure was not compiled."""
+    from .warmup import row, warmup, warmup_plan
 
     plan = warmup_plan(args.orders, args.nonlinearity, args.holds)      # bad input: one line, exit 2
-    print(f"compiling for {len(plan)} structures ...", flush=True)
-
-    def show(job, result):
-        cpu, error = result
-        print(f"  {job.label():32s} {cpu:6.1f} s CPU  {error or 'ok'}", flush=True)
-
-    report = warmup(args.orders, args.nonlinearity, args.holds, jobs=args.jobs, progress=show)
-    failed = [job.label() for job, err in zip(report.jobs, report.errors) if err]
-    print(f"{len(report.jobs)} structures: {sum(report.cpu):.1f} s of CPU, {report.wall:.1f} s wall"
-          + (f"; not compiled: {', '.join(failed)}" if failed else ""))
-    return 1 if failed else 0
+    print(f"compiling for {len(plan)} structures (CPU seconds in each worker) ...", flush=True)
+    report = warmup(args.orders, args.nonlinearity, args.holds, jobs=args.jobs,
+                    progress=lambda job, result: print(row(job, result), flush=True))
+    print(report.totals())
+    return 0 if report.ok else 1

@@ -273,7 +273,7 @@ class HammersteinCost:
         b = self.structure.check_beta(beta)
         if b.ndim != 1:
             raise ParameterError("cost(beta) takes one vector; use cost.batch for a batch")
-        b = b[None, :]
+        b = np.ascontiguousarray(b)[None, :]             # a strided view (a column of an array) too
         form = None if self._direct is None or self.reject_unstable else self._basis_form(b, evaluate=True)
         if form is not None and form[0].shape[1] <= MAX_LANE_BASIS:
             n, X0, Y0 = self._direct

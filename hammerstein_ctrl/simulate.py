@@ -153,7 +153,8 @@ def _response(linear, dt: float, v: np.ndarray, *, x0=None, offset=None, intersa
     E, C, D = _lti_system(linear, dt)
     X0 = _state_rows(x0, 1, E.shape[1] - 2)
     Y = np.empty((1, v.size))
-    get_kernel(E.shape[1] - 2, "outputs", hold)(E, C, D, X0, _offset_rows(offset, 1), v[None, :], Y)
+    V = np.ascontiguousarray(v)[None, :]                # a strided view of the caller's too
+    get_kernel(E.shape[1] - 2, "outputs", hold)(E, C, D, X0, _offset_rows(offset, 1), V, Y)
     return Y[0]
 
 

@@ -12,6 +12,8 @@ up a reduction tree).  ``R`` holds everything a least-squares solve needs: ``X =
 ``Q^T y = z`` and the residual norm ``|R_pp|``, so the small solve on ``R``
 gives the same coefficients as a solve on ``X`` itself, with the accuracy of
 a QR factorisation (forming ``X^T X`` would square the condition number).
+A regression small enough (:data:`WHOLE_FACTOR_BYTES`) is copied whole and
+factored in one LAPACK call instead, which is faster than its blocks.
 
 Columns are given as a sequence of arrays of shape ``(N,)`` or ``(p_i, N)``
 (each row one column), in column order.
@@ -102,7 +104,8 @@ def _merge(upper: np.ndarray, lower: np.ndarray, below: np.ndarray) -> np.ndarra
 def triangular_factor(columns, y) -> np.ndarray:
     """Upper-triangular factor ``R`` (``(p + 1, p + 1)``) of the QR factorisation of ``[X y]``.
 
-    Each block of samples is factored on its own and the factors are merged
+    Up to :data:`WHOLE_FACTOR_BYTES`, ``[X y]`` is copied whole and factored
+    in one LAPACK call.  Past it, each block of samples is factored on its own and the factors are merged
     pairwise as in a binary counter (a reduction tree: every sample passes
     through about ``log2(N / BLOCK_SAMPLES)`` merges, so rounding errors grow
     far more slowly than when each block is stacked under one running factor).
@@ -121,13 +124,14 @@ def triangular_factor(columns, y) -> np.ndarray:
     """
     y = np.asarray(y, dtype=float)
     rows = _rows(columns)
+    for a in rows:
+        _check_length(a, y.shape[0])
     width = sum(a.shape[0] for a in rows)
     if 8 * (width + 1) * y.shape[0] > WHOLE_FACTOR_BYTES or y.shape[0] <= width:
         return factor_of_columns(column_blocks(rows, y.shape[0]), y, width)
     whole = np.empty((y.shape[0], width + 1), order="F")
     j = 0
     for a in rows:
-        _check_length(a, y.shape[0])
         whole[:, j:j + a.shape[0]] = a.T
         j += a.shape[0]
     whole[:, -1] = y
@@ -284,15 +288,15 @@ def solve_scaled(R: np.ndarray, n_samples: int) -> np.ndarray | None:
     if p == 0:
         return np.zeros(0)
     # LAPACK's gelsy as scipy.linalg.lstsq calls it (the same bits), without its checks and workspace query
-    w = _GELSY(R11 / scale, R[:-1, -1].copy(), np.zeros((p, 1), dtype=np.int32), cond, _gelsy_work(p, cond),
+    w = _GELSY(R11 / scale, R[:-1, -1].copy(), np.zeros((p, 1), dtype=np.int32), cond, _gelsy_work(p),
                True, True)[1]
     return w / scale
 
 
 @functools.lru_cache(maxsize=64)
-def _gelsy_work(p: int, cond: float) -> int:
-    """Workspace size of :data:`_GELSY` for a ``p x p`` system and one right-hand side."""
-    work, info = _GELSY_LWORK(p, p, 1, cond)
+def _gelsy_work(p: int) -> int:
+    """Workspace size of :data:`_GELSY` for a ``p x p`` system and one right-hand side (whatever the cut)."""
+    work, info = _GELSY_LWORK(p, p, 1, np.finfo(float).eps)
     if info != 0:  # pragma: no cover - only for invalid arguments
         raise RuntimeError(f"gelsy's workspace query failed (info = {info})")
     return int(work)

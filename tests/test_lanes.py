@@ -234,3 +234,26 @@ def test_one_compiled_version_takes_read_only_and_writeable_arrays():
         assert len(kernel.signatures) == 1
     with pytest.raises(TypeError, match="No matching definition"):   # a wrong type is refused, never compiled
         get_kernel(2, "outputs", "foh")(np.zeros((1, 4, 4), dtype=np.float32), *[np.zeros((1, 1))] * 6)
+
+
+def test_shared_rows_strided_views_and_repeated_lookups_reach_the_one_compiled_version():
+    """Arrays the kernels' signatures do not take as given (read-only broadcast rows, strided views) are
+    converted before the call, and asking for a kernel again does not compile (or refuse) anything."""
+    from hammerstein_ctrl import HammersteinStructure, IOData, LinearStructure, Polynomial
+    from hammerstein_ctrl.kernels import get_coefficient_kernel
+    from hammerstein_ctrl.objective import HammersteinCost
+    from hammerstein_ctrl.simulate import lsim
+
+    rng = np.random.default_rng(5)
+    u, y = rng.normal(size=400), rng.normal(size=400)
+    basis = np.vstack([u, u ** 3])
+    num, den = np.ones((2, 1)), np.tile([1.0, 3.0, 2.0], (2, 1))
+    shared = sse_basis_batch(num, den, np.array([1.0, 0.5]), basis, 0.01, y)     # one row of P for both
+    assert np.array_equal(shared, sse_basis_batch(num, den, np.array([[1.0, 0.5]] * 2), basis, 0.01, y))
+    cost = HammersteinCost(IOData(u, y, dt=0.01), HammersteinStructure(LinearStructure(0, 2), Polynomial(2)))
+    B = np.array([[2.0, 9.0], [3.0, 9.0], [1.0, 9.0], [0.5, 9.0]])
+    assert cost(B[:, 0]) == cost(np.ascontiguousarray(B[:, 0]))                     # a column of an array
+    v = np.repeat(u, 2)
+    t, H = np.arange(400) * 0.01, control.tf([2.0], [1.0, 3.0, 2.0])
+    assert np.array_equal(lsim(H, t, v[::2]), lsim(H, t, u))                          # a strided signal
+    assert get_coefficient_kernel(2, "foh", 2) is get_coefficient_kernel(n=2, hold="foh", K=2)

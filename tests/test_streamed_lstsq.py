@@ -16,6 +16,7 @@ import scipy.linalg
 from hammerstein_ctrl import (Coulomb, HammersteinStructure, IOData, LinearStructure, PiecewiseLinear, Polynomial,
                               Saturation, Tanh, identify, streamed_lstsq)
 from hammerstein_ctrl import initialize
+from hammerstein_ctrl.exceptions import DataError
 from hammerstein_ctrl.initialize import Budget, initial_points
 from hammerstein_ctrl.streamed_lstsq import (column_blocks, constant_column, factor_of_columns, factor_sse,
                                              rank_tolerance, residual, residual_of_columns, solve_minimum_norm,
@@ -404,3 +405,32 @@ def test_auto_finds_a_lightly_damped_plant_whose_poles_lie_near_its_zeros():
     s = HammersteinStructure(LinearStructure(2, 3), PiecewiseLinear(knots), offset=True)
     r = identify(data, s, seed=0)
     assert r.fun / n < 1.5e-4, r.message
+
+
+@pytest.mark.parametrize("n", [50, 20000, 300000])      # whole (one LAPACK call) up to 4 MiB, in blocks past it
+def test_the_whole_and_the_blocked_factor_give_the_dense_fit_and_check_lengths(n):
+    rng = np.random.default_rng(n)
+    X, y = rng.normal(size=(3, n)), rng.normal(size=n)
+    columns = [X, constant_column(n)]
+    R = triangular_factor(columns, y)
+    A = np.column_stack([X.T, np.ones(n)])
+    ref = np.linalg.lstsq(A, y, rcond=None)[0]
+    np.testing.assert_allclose(solve_scaled(R, n), ref, rtol=1e-10, atol=1e-12)
+    np.testing.assert_allclose(R.T @ R, np.column_stack([A, y]).T @ np.column_stack([A, y]), rtol=1e-9)
+    with pytest.raises(DataError, match=f"a column has {n + 1} samples where y has {n}"):
+        triangular_factor([rng.normal(size=n + 1)], y)
+
+
+def test_solve_scaled_calls_gelsy_as_scipy_does():
+    rng = np.random.default_rng(7)
+    for p in range(0, 7):
+        A = rng.normal(size=(40, p + 1))
+        if p > 2:
+            A[:, 1] = 3.0 * A[:, 0]                     # rank-deficient
+        R = np.linalg.qr(A, mode="r")
+        R11 = R[:-1, :-1]
+        scale = np.sqrt(np.sum(R11 * R11, axis=0))
+        scale[scale == 0] = 1.0
+        ref = scipy.linalg.lstsq(R11 / scale, R[:-1, -1], cond=rank_tolerance(40), lapack_driver="gelsy",
+                                 check_finite=False)[0] / scale
+        assert np.array_equal(solve_scaled(R, 40), ref)
