@@ -59,7 +59,7 @@ from .mimo import MIMOStructure
 from .mimo_fit import MIMOCost
 from .objective import HammersteinCost
 from .result import IdentificationResult
-from .optimize import BUDGET_EXHAUSTED, DIVERGED, SCIPY_METHODS, canonical_method, minimize
+from .optimize import BUDGET_EXHAUSTED, COMPLETED, DIVERGED, SCIPY_METHODS, canonical_method, minimize
 from .residual_analysis import residual_analysis
 from .structure import BlockStructure
 from .uncertainty import (channel_uncertainty, estimate_uncertainty, _check_noise)
@@ -174,7 +174,7 @@ def identify(
             x0 = _starting_point(cost.structure, x0, bounds)
             res = minimize(cost, x0, method=key, maxfev=maxfev, maxiter=maxiter, seed=seed,
                            options=options, callback=callback, bounds=bounds)
-        checks = _Checks(allow_unstable, uncertainty, noise, maxfev, seed)
+        checks = _Checks(allow_unstable, uncertainty, noise, maxfev, seed, bounds is not None)
         if isinstance(cost, MIMOCost):
             result = _mimo_result(cost, res, key, x0, started, checks)
         else:
@@ -310,6 +310,7 @@ class _Checks:
     noise: str
     maxfev: int | None
     seed: object = None
+    bounded: bool = False
 
 
 def _no_model(res) -> list[Verdict]:
@@ -328,6 +329,46 @@ def _stalled(cost, res, key: str, x0) -> list[Verdict]:
         if np.isfinite(f0) and res.fun >= f0:
             return [Verdict("stalled", FAILURE, f"stalled: no improvement on the initial point (J = {f0:.6g})")]
     return []
+
+
+#: Largest cosine between the residual and a parameter's output derivative at a point a converging search
+#: calls its optimum: 0 at a minimum (MINPACK's gtol test measures the same); true optima of the fits tried
+#: show 1e-7 to 1e-5, a search stalled in a badly scaled block 0.2.
+STATIONARY_COSINE = 1e-2
+#: Coefficient size past which a stalled search's verdict calls the block badly scaled.
+LARGE_COEFFICIENT = 1e6
+#: Normalised RMS error below which a fit is exact but for rounding: its residual is rounding and no gradient
+#: test applies (a noise-free record fitted to J = 1e-18).
+EXACT_NRMSE = 1e-6
+
+
+def _not_a_minimum(cost, res, key: str, checks: _Checks, report: dict) -> list[Verdict]:
+    """The failure of a converging search that stopped where J still falls (else nothing).
+
+    Asked of LM and ``auto`` fits of a single record that report convergence,
+    without bounds (at an active bound the gradient need not vanish), along the
+    linear block's coefficients (a static map's parameter may sit at a kink,
+    such as a dead zone of width 0, where it need not vanish either); one
+    normal-equation pass at the fit, outside the budget.
+    """
+    if (key not in ("lm", AUTO) or checks.bounded or int(res.status) != COMPLETED or type(cost) is not HammersteinCost
+            or report["nrmse"] < EXACT_NRMSE):
+        return []
+    x = np.asarray(res.x, dtype=float)
+    with np.errstate(all="ignore"):
+        ne = cost.normal_equations(x)
+        cosine = np.abs(ne.gradient) / np.sqrt(np.diag(ne.gram) * ne.fun)
+    cosine = np.where(np.isfinite(cosine), cosine, 0.0)[:cost.structure.linear.n_params]
+    if not ne.finite or not cosine.size or cosine.max() <= STATIONARY_COSINE:
+        return []
+    names, j = cost.structure.param_names, int(np.argmax(cosine))
+    large = [f"{n} = {v:.3g}" for n, v in zip(names, x) if abs(v) > LARGE_COEFFICIENT]
+    why = (f"the coefficients are very large ({', '.join(large)}): a badly scaled block, often more poles than the "
+           "record shows; try a lower order, or fix some coefficients" if large else
+           "start again from it (x0=res.x, method='lm') or raise maxfev")
+    return [Verdict("not-a-minimum", FAILURE,
+                    f"not a minimum: the search stopped where J still falls along {names[j]} (the residual and its "
+                    f"derivative make a cosine of {cosine[j]:.2g}, 0 at a minimum): {why}", (names[j],))]
 
 
 def _basic_verdicts(cost, res, key: str, x0, report: dict) -> list[Verdict]:
@@ -423,6 +464,8 @@ def _result(cost, res, key, x0, started, checks: _Checks) -> IdentificationResul
         report = {"fit_percent": -np.inf, "rmse": np.inf, "nrmse": np.inf}
     model = structure.model(x, intersample=data.intersample) if np.all(np.isfinite(x)) else None
     verdicts = _basic_verdicts(cost, res, key, x0, report)
+    if not verdicts and np.all(np.isfinite(yhat)):
+        verdicts = _not_a_minimum(cost, res, key, checks, report)
     unc = analysis = None
     if model is not None and np.all(np.isfinite(yhat)):
         residuals = np.subtract(data.y, yhat, out=yhat)            # the simulated output is not needed again

@@ -207,3 +207,16 @@ def test_variance_inflation_factors_match_the_regression_definition():
         coef, *_ = np.linalg.lstsq(others, J[:, j], rcond=None)
         resid = J[:, j] - others @ coef
         assert vif[j] == pytest.approx((J[:, j] @ J[:, j]) / (resid @ resid), rel=1e-8)
+
+
+# -- a search that stopped short -------------------------------------------------------------------
+def test_a_search_stopped_where_j_still_falls_is_not_called_converged():
+    data, structure = record("well_posed", 0)
+    good = fit("well_posed", method="lm", x0=hc.identify(data, structure).x * 1.3)
+    assert good.success and "not-a-minimum" not in codes(good)
+    # LM told to stop once a step changes x by less than 30 %: "converged" far from the optimum
+    short = fit("well_posed", method="lm", x0=good.x * 1.3, options={"xtol": 0.3, "ftol": 0.3})
+    assert short.optimize_result.status == 0 and short.fun > 1.01 * good.fun
+    assert not short.success and codes(short)[0] == "not-a-minimum"
+    assert short.message.startswith("not a minimum: the search stopped where J still falls along ")
+    assert "x0=res.x, method='lm'" in short.message          # modest coefficients: restart, not rescale
