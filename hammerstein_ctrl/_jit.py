@@ -139,7 +139,29 @@ def only_for(dispatcher, signatures):
     """Compile (or load) ``dispatcher`` for ``signatures`` now and no other version later; returns it.
 
     For a function whose source sits beside others that are not always used
-    (a module of generated kernels): declared lazily, fixed when first asked for.
+    (a module of generated kernels): declared lazily, fixed when first asked
+    for.  Asking again is harmless.
+
+    Parameters
+    ----------
+    dispatcher : numba dispatcher
+    signatures : sequence of tuple
+        Argument types (:func:`kernel_signature`).
+
+    Returns
+    -------
+    The dispatcher: arguments convert to these types where numba allows it; others raise ``TypeError``.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> @cached_njit(cache=False)
+    ... def total(a):
+    ...     return a.sum()
+    >>> total = only_for(total, (kernel_signature("r1"),))
+    >>> frozen = np.arange(3.0); frozen.flags.writeable = False
+    >>> float(total(np.arange(3.0))), float(total(frozen)), len(total.signatures)
+    (3.0, 3.0, 1)
     """
     for signature in signatures:
         if signature not in dispatcher.overloads:       # asked again (another cache key of the caller): done
