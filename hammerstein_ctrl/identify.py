@@ -356,12 +356,16 @@ def _not_a_minimum(cost, res, key: str, checks: _Checks, report: dict) -> list[V
     if (key not in ("lm", AUTO) or checks.bounded or int(res.status) != COMPLETED or type(cost) is not HammersteinCost
             or cost.structure.output_nonlinearity is not None or report["nrmse"] < EXACT_NRMSE):
         return []
+    from .optimize.normal_lm import _cosine      # MINPACK's gtol measure, as LM's own convergence test
+
     x = np.asarray(res.x, dtype=float)
     with np.errstate(all="ignore"):
         ne = cost.normal_equations(x)
-        cosine = np.abs(ne.gradient) / np.sqrt(np.diag(ne.gram) * ne.fun)
-    cosine = np.where(np.isfinite(cosine), cosine, 0.0)[:cost.structure.linear.n_params]
-    if not ne.finite or not cosine.size or cosine.max() <= STATIONARY_COSINE:
+    if not ne.finite:
+        return []
+    cosine = np.array([_cosine(ne.gram[j:j + 1, j:j + 1], ne.gradient[j:j + 1], ne.fun)    # one coefficient at a time
+                       for j in range(cost.structure.linear.n_params)])
+    if not cosine.size or cosine.max() <= STATIONARY_COSINE:
         return []
     names, j = cost.structure.param_names, int(np.argmax(cosine))
     large = [f"{n} = {v:.3g}" for n, v in zip(names, x) if abs(v) > LARGE_COEFFICIENT]
