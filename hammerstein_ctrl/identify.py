@@ -333,7 +333,7 @@ def _stalled(cost, res, key: str, x0) -> list[Verdict]:
 
 #: Largest cosine between the residual and a parameter's output derivative at a point a converging search
 #: calls its optimum: 0 at a minimum (MINPACK's gtol test measures the same); optima measured show about 1e-6
-#: (4.8e-7 and 1.8e-6 on the EMPS), a search stalled in a badly scaled block 0.2.
+#: (4.8e-7 and 1.8e-6 on the EMPS), a search stalled in a badly scaled block 0.068 (EMPS, order 6, dead zone).
 STATIONARY_COSINE = 0.05
 #: Coefficient size past which a stalled search's verdict calls the block badly scaled.
 LARGE_COEFFICIENT = 1e6
