@@ -67,11 +67,11 @@ import numba.extending
 import numpy as np
 
 from ._jit import ENV_CACHE as _jit_ENV_CACHE, cached_njit, kernel_signature, machine_cache_dir, only_for
-from ._kernel_source import (_CHECK_MASK, _OVERFLOW, _terms, COEFFICIENT_SIGNATURE, HOLDS, INTERLEAVE, LANE_MIN,
-                             LANE_WIDTHS,
+from ._kernel_source import (_CHECK_MASK, _OVERFLOW, _terms, HOLDS, INTERLEAVE, LANE_MIN, LANE_WIDTHS,
                              MAX_LANE_BASIS, MAX_NORMAL_LANES, MAX_PASS_STATES, MAX_UNROLLED_STATES,
-                             MAX_VECTOR_STATES, MODES, OUTPUT_TERMS, kernel_source, lane_source, normal_source,
-                             vector_normal_source)
+                             MAX_VECTOR_STATES, MODES, OUTPUT_TERMS, kernel_signature_codes, kernel_source, lane_source,
+                             normal_source, vector_chunks, vector_normal_source)
+from ._linalg import tf_discrete
 
 __all__ = ["get_kernel", "get_coefficient_kernel", "get_normal_kernel", "get_lane_kernel", "lane_source",
            "has_output_maps", "kernel_source", "normal_kernel_address", "call_normal_kernel", "normal_source",
@@ -149,7 +149,9 @@ def get_normal_kernel(n: int, hold: str, lanes: int, K: int, direct: bool = True
     keeps the point in scalars and the neighbours four at a time in vectors
     that stay in registers (:func:`vector_normal_source`); the point and a
     neighbour that equals it give the same bits, so a difference is exactly
-    the effect of its step.  Otherwise the lanes step side by side in the
+    the effect of its step; such a pass counts its lanes at run time (the
+    length of ``VP``), so one compiled pass serves 2 to 5 lanes, one 6 to 9,
+    and so on.  Otherwise the lanes step side by side in the
     columns of one small array (as in :func:`get_lane_kernel`), so LLVM
     vectorises their recursion.
 
@@ -208,12 +210,13 @@ def get_normal_kernel(n: int, hold: str, lanes: int, K: int, direct: bool = True
         raise ValueError(f"normal-equation passes are compiled for 2..{MAX_NORMAL_LANES} lanes, not {lanes}")
     if outmap is not None and not has_output_maps(n):
         raise ValueError(f"output maps are compiled for up to {MAX_UNROLLED_STATES} states, not {n}")
-    name = (f"hc_normal_n{n}_{hold}_l{lanes}_k{K}" + "".join(f"_{t}" for t in _terms(direct, offset))
-            + (f"_{outmap}" if outmap else "") + ("_outputs" if outputs else ""))
-    if outmap is None and not outputs and n <= MAX_VECTOR_STATES:
+    terms = "".join(f"_{t}" for t in _terms(direct, offset))
+    if outmap is None and not outputs and n <= MAX_VECTOR_STATES:   # one pass per number of neighbour vectors
         src = vector_normal_source(int(n), hold, int(lanes), int(K), bool(direct), bool(offset))
-    else:
-        src = normal_source(int(n), hold, int(lanes), int(K), bool(direct), bool(offset), outmap, bool(outputs))
+        return _load_source(src, f"hc_normal_n{n}_{hold}_c{vector_chunks(lanes)}_k{K}{terms}")
+    name = f"hc_normal_n{n}_{hold}_l{lanes}_k{K}{terms}" + (f"_{outmap}" if outmap else "") + (
+        "_outputs" if outputs else "")
+    src = normal_source(int(n), hold, int(lanes), int(K), bool(direct), bool(offset), outmap, bool(outputs))
     return _load_source(src, name)
 
 
@@ -249,11 +252,26 @@ def normal_kernel_address(n: int, hold: str, lanes: int, K: int, direct: bool, b
     >>> normal_kernel_address(1, "zoh", 2, 1, False, numba.typeof(Phi), numba.typeof(y)) > 0
     True
     """
-    kernel = get_normal_kernel(n, hold, lanes, K, direct, False)
-    signature = _normal_signature(basis_type, y_type)
-    kernel.compile(signature)
+    return _address(get_normal_kernel(n, hold, lanes, K, direct, False), _normal_signature(basis_type, y_type))
+
+
+def _address(kernel, signature) -> int:
+    """Address of ``kernel``'s machine code for the argument types ``signature`` (compiled or loaded if need be)."""
+    if signature not in kernel.overloads:
+        kernel.compile(signature)
     compiled = kernel.overloads[signature]
     return compiled.library.get_pointer_to_function(compiled.fndesc.llvm_func_name)
+
+
+def _call_through(context, builder, llargs, argtypes) -> None:
+    """Code calling the function at address ``llargs[0]`` (numba's calling convention, no result) with ``llargs[1:]``
+    as ``argtypes``; an exception it raises propagates."""
+    function = context.call_conv.get_function_type(numba.types.none, argtypes)
+    pointer = builder.inttoptr(llargs[0], function.as_pointer())
+    status, _ = context.call_conv.call_function(builder, pointer, numba.types.none, argtypes, llargs[1:])
+    with numba.core.cgutils.if_unlikely(builder, status.is_error):
+        context.call_conv.return_status_propagate(builder, status)
+    return context.get_dummy_value()
 
 
 @numba.extending.intrinsic
@@ -272,17 +290,56 @@ def call_normal_kernel(typingctx, address, E, C, D, X, Y0, VP, P, Phi, HP, HX, y
             f"call_normal_kernel takes an int64 address and {expected}, got {(address, *args)}")
 
     def codegen(context, builder, signature, llargs):
-        function = context.call_conv.get_function_type(numba.types.none, expected)
-        pointer = builder.inttoptr(llargs[0], function.as_pointer())
-        status, _ = context.call_conv.call_function(builder, pointer, numba.types.none, expected, llargs[1:])
-        with numba.core.cgutils.if_unlikely(builder, status.is_error):
-            context.call_conv.return_status_propagate(builder, status)
-        return context.get_dummy_value()
+        return _call_through(context, builder, llargs, expected)
     return numba.types.none(address, *args), codegen
 
 
+#: Argument types of every ``"sse"`` kernel with a basis signal (:func:`get_kernel` with ``K``).
+_BASIS_SSE_SIGNATURE = kernel_signature(kernel_signature_codes("sse", None, 1))
+
+
+def _converts(given, expected) -> bool:
+    """Whether an argument of numba type ``given`` passes unchanged as ``expected`` (a writeable array as a read-only
+    one: numba stores both alike)."""
+    if isinstance(given, numba.types.Array) and isinstance(expected, numba.types.Array):
+        return given.copy(readonly=not expected.mutable) == expected
+    return numba.types.unliteral(given) == expected
+
+
+@numba.extending.intrinsic
+def _call_basis_kernel(typingctx, address, E, C, D, X0, Y0, P, Phi, y, out):
+    """Call the ``"sse"`` basis kernel at ``address`` (:func:`_basis_kernel_address`) from compiled code."""
+    args = (E, C, D, X0, Y0, P, Phi, y, out)
+    if address != numba.types.int64 or not all(map(_converts, args, _BASIS_SSE_SIGNATURE)):
+        raise numba.core.errors.TypingError(
+            f"_call_basis_kernel takes an int64 address and {_BASIS_SSE_SIGNATURE}, got {(address, *args)}")
+
+    def codegen(context, builder, signature, llargs):
+        return _call_through(context, builder, llargs, _BASIS_SSE_SIGNATURE)
+    return numba.types.none(address, *args), codegen
+
+
+@cached_njit(depends=("_linalg.py",))
+def _from_coefficients(address, num, den, dt, max_norm, X0, Y0, P, Phi, y, out):  # pragma: no cover - compiled
+    """Discretise the transfer functions and run the basis kernel at ``address``, in one call; False (nothing done)
+    unless every row is clean.
+
+    One compiled function for every state dimension and basis: the kernel is
+    called through its address, so its code is not compiled again in here.
+    """
+    E, C, D, ok, big, clean = tf_discrete(num, den, dt, max_norm)
+    if clean:
+        _call_basis_kernel(address, E, C, D, X0, Y0, P, Phi, y, out)
+    return clean
+
+
+#: Argument types of :func:`_from_coefficients`: the kernel's address, the transfer functions' rows, the sample
+#: time and the largest 1-norm of the compiled exponential, then the basis kernel's arguments but ``E, C, D``.
+_COEFFICIENT_SIGNATURE = kernel_signature("i w2 w2 f f " + kernel_signature_codes("sse", None, 1).split(None, 3)[3])
+
+
 #: Package modules whose compiled functions the generated kernels call.
-_CALLED_MODULES = ("_linalg.py", "compiled_maps.py", "nonlinearities.py", "_simd.py")
+_CALLED_MODULES = ("compiled_maps.py", "nonlinearities.py", "_simd.py")
 
 
 @functools.lru_cache(maxsize=1)
@@ -366,9 +423,8 @@ def get_coefficient_kernel(n: int, hold: str, K: int):
     ...   np.ones((1, 1)), np.ones((1, 4)), np.zeros(4), J), J        # an integrator: y = (0, 0.5, 1, 1.5)
     (True, array([3.5]))
     """
-    get_kernel(n, "sse", hold, None, K)        # checks the arguments
-    return only_for(_load_source(kernel_source(n, "sse", hold, None, K), _module_name(n, "sse", hold, None, K),
-                                 "from_coefficients"), (kernel_signature(COEFFICIENT_SIGNATURE),))
+    address = _address(get_kernel(n, "sse", hold, None, K), _BASIS_SSE_SIGNATURE)    # checks the arguments
+    return functools.partial(only_for(_from_coefficients, (_COEFFICIENT_SIGNATURE,)), address)
 
 
 def _module_name(n: int, mode: str, hold: str, outmap: str | None, K: int | None) -> str:

@@ -230,10 +230,35 @@ def test_one_compiled_version_takes_read_only_and_writeable_arrays():
                                                frozen(np.zeros(1)), P[:1], frozen(basis), frozen(y), J2)
     assert J2[0] == sse_basis_batch(num[:1], den[:1], P[:1], basis, 0.01, y)[0]
     for kernel in (get_kernel(2, "sse", "foh", None, 2), get_kernel(2, "outputs", "foh"),
-                   get_coefficient_kernel(2, "foh", 2), get_lane_kernel(2, "foh", 2, False, True)):
+                   get_coefficient_kernel(2, "foh", 2).func, get_lane_kernel(2, "foh", 2, False, True)):
         assert len(kernel.signatures) == 1
     with pytest.raises(TypeError, match="No matching definition"):   # a wrong type is refused, never compiled
         get_kernel(2, "outputs", "foh")(np.zeros((1, 4, 4), dtype=np.float32), *[np.zeros((1, 1))] * 6)
+
+
+def test_one_compiled_discretisation_and_pass_serves_every_state_dimension_and_basis():
+    """Single evaluations discretise and run the pass in one compiled call, compiled once for every order and
+    basis (the pass is called through its address), with the bits of the batch path."""
+    from hammerstein_ctrl.kernels import get_coefficient_kernel
+    from hammerstein_ctrl.simulate import COMPILED_EXPM_MAX_NORM
+
+    rng = np.random.default_rng(8)
+    u, y = rng.normal(size=500), rng.normal(size=500)
+    functions = set()
+    for n, K in ((1, 1), (3, 2), (5, 3)):
+        num, den = rng.normal(size=(1, n)), np.poly(-rng.uniform(0.5, 3.0, size=n))[None, :]
+        P, basis = rng.normal(size=(1, K)), np.vstack([u ** (k + 1) for k in range(K)])
+        J = np.full(1, np.nan)
+        f = get_coefficient_kernel(n, "zoh", K)
+        assert f(num, den, 0.02, COMPILED_EXPM_MAX_NORM, np.zeros((1, n)), np.zeros(1), P, basis, y, J)
+        assert J[0] == sse_basis_batch(num, den, P, basis, 0.02, y, intersample="zoh")[0]
+        functions.add(f.func)
+    assert len(functions) == 1 and len(functions.pop().signatures) == 1
+    den = np.array([[0.0, 1.0, 2.0]])                   # not a transfer function: left for the general path
+    J = np.full(1, 7.0)
+    assert not get_coefficient_kernel(2, "zoh", 1)(np.ones((1, 1)), den, 0.02, COMPILED_EXPM_MAX_NORM,
+                                                   np.zeros((1, 2)), np.zeros(1), np.ones((1, 1)), u[None, :], y, J)
+    assert J[0] == 7.0
 
 
 def test_shared_rows_strided_views_and_repeated_lookups_reach_the_one_compiled_version():
@@ -256,4 +281,5 @@ def test_shared_rows_strided_views_and_repeated_lookups_reach_the_one_compiled_v
     v = np.repeat(u, 2)
     t, H = np.arange(400) * 0.01, control.tf([2.0], [1.0, 3.0, 2.0])
     assert np.array_equal(lsim(H, t, v[::2]), lsim(H, t, u))                          # a strided signal
-    assert get_coefficient_kernel(2, "foh", 2) is get_coefficient_kernel(n=2, hold="foh", K=2)
+    again, first = get_coefficient_kernel(n=2, hold="foh", K=2), get_coefficient_kernel(2, "foh", 2)
+    assert (again.func, again.args) == (first.func, first.args)       # by keyword: the same compiled call

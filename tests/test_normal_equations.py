@@ -475,6 +475,7 @@ def _lane_outputs_by_hand(E, C, D, X, Y0, P, Phi, hold):
 
 @pytest.mark.parametrize("n, hold, lanes, direct, offset", [
     (1, "zoh", 2, True, True), (2, "foh", 5, False, False), (3, "zoh", 9, True, False),
+    (2, "foh", 3, False, False), (3, "zoh", 6, True, False),     # fewer lanes in the same vectors (same kernels)
     pytest.param(4, "foh", 16, False, True, marks=pytest.mark.slow),     # the widest vector pass: 10 s to compile
     (5, "foh", 6, True, True),      # past MAX_VECTOR_STATES: the lanes in an array
 ])
@@ -511,6 +512,20 @@ def test_pass_sums_match_the_recursion_written_out(n, hold, lanes, direct, offse
     assert np.all(H[-1] == 0) and acc[p] == 0        # the neighbour equal to the point: exact zeros
     np.testing.assert_allclose(Xk, last, rtol=1e-10, atol=1e-12)        # carried to a next block
     np.testing.assert_allclose(VP, P @ Phi[:, -1], rtol=1e-12)
+
+
+def test_one_vector_pass_serves_every_lane_count_with_as_many_vectors():
+    """A vector pass counts its lanes at run time: 2 to 5 lanes share one compiled pass, 6 lanes need another,
+    and a pass refuses a count it was not made for."""
+    from hammerstein_ctrl.kernels import get_normal_kernel
+
+    kernel = get_normal_kernel(2, "foh", 5, 3, False, False)
+    assert all(get_normal_kernel(2, "foh", lanes, 3, False, False) is kernel for lanes in (2, 3, 4))
+    assert get_normal_kernel(2, "foh", 6, 3, False, False) is not kernel
+    E = np.zeros((1, 2, 4))
+    with pytest.raises(ValueError, match="2 to 5 lanes"):
+        kernel(E, np.zeros((1, 2)), np.zeros(1), np.zeros((6, 2)), np.zeros(6), np.zeros(6), np.zeros((6, 3)),
+               np.zeros((3, 10)), np.zeros((6, 0)), np.zeros(0), np.zeros(10), 0, np.zeros(31))
 
 
 def _plain_case(name):
