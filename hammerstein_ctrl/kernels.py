@@ -70,7 +70,7 @@ from ._jit import ENV_CACHE as _jit_ENV_CACHE, cached_njit, kernel_signature, ma
 from ._kernel_source import (_CHECK_MASK, _OVERFLOW, _terms, HOLDS, INTERLEAVE, LANE_MIN, LANE_WIDTHS,
                              MAX_LANE_BASIS, MAX_NORMAL_LANES, MAX_PASS_STATES, MAX_UNROLLED_STATES,
                              MAX_VECTOR_STATES, MODES, OUTPUT_TERMS, kernel_signature_codes, kernel_source, lane_source,
-                             normal_source, vector_chunks, vector_normal_source)
+                             normal_signature_codes, normal_source, vector_chunks, vector_normal_source)
 from ._linalg import tf_discrete
 
 __all__ = ["get_kernel", "get_coefficient_kernel", "get_normal_kernel", "get_lane_kernel", "lane_source",
@@ -220,39 +220,26 @@ def get_normal_kernel(n: int, hold: str, lanes: int, K: int, direct: bool = True
     return _load_source(src, name)
 
 
-#: Array types of :func:`get_normal_kernel`'s arguments as :func:`call_normal_kernel` passes them
-#: (all but ``Phi`` and ``y``, whose types the caller's arrays give): fresh, writeable, C-contiguous.
-_NORMAL_ARGUMENT_DIMS = {"E": 3, "C": 2, "D": 1, "X": 2, "Y0": 1, "VP": 1, "P": 2, "HP": 2, "HX": 1, "acc": 1}
-
-
-def _normal_signature(basis_type, y_type) -> tuple:
-    """The argument types of a summing normal-equation kernel called with a basis and a record of these numba types."""
-    a = {name: numba.types.Array(numba.types.float64, dims, "C") for name, dims in _NORMAL_ARGUMENT_DIMS.items()}
-    return (a["E"], a["C"], a["D"], a["X"], a["Y0"], a["VP"], a["P"], basis_type, a["HP"], a["HX"], y_type,
-            numba.types.int64, a["acc"])
+#: Argument types of a summing normal-equation pass (:func:`get_normal_kernel`), as compiled.
+_NORMAL_SIGNATURE = kernel_signature(normal_signature_codes())
 
 
 @functools.lru_cache(maxsize=None)
-def normal_kernel_address(n: int, hold: str, lanes: int, K: int, direct: bool, basis_type, y_type) -> int:
+def normal_kernel_address(n: int, hold: str, lanes: int, K: int, direct: bool) -> int:
     """Address of :func:`get_normal_kernel`'s summing kernel (no offset, map or outputs), for
     :func:`call_normal_kernel`.
 
     Compiled code that calls the kernel through its address is compiled once
     for every kernel (numba would otherwise compile the caller again for
-    each kernel it calls, and could not cache it).  ``basis_type`` and
-    ``y_type`` are the numba types (``numba.typeof``) of the basis and the
-    record the caller passes; the other arrays must be fresh float64 arrays
-    (C-contiguous, writeable), as :func:`call_normal_kernel` checks when the caller is compiled.
-    The address is valid for the life of the process.
+    each kernel it calls, and could not cache it).  The address is valid for
+    the life of the process.
 
     Examples
     --------
-    >>> import numba, numpy as np
-    >>> Phi, y = np.ones((1, 3)), np.zeros(3)
-    >>> normal_kernel_address(1, "zoh", 2, 1, False, numba.typeof(Phi), numba.typeof(y)) > 0
+    >>> normal_kernel_address(1, "zoh", 2, 1, False) > 0
     True
     """
-    return _address(get_normal_kernel(n, hold, lanes, K, direct, False), _normal_signature(basis_type, y_type))
+    return _address(get_normal_kernel(n, hold, lanes, K, direct, False), _NORMAL_SIGNATURE)
 
 
 def _address(kernel, signature) -> int:
@@ -261,6 +248,17 @@ def _address(kernel, signature) -> int:
         kernel.compile(signature)
     compiled = kernel.overloads[signature]
     return compiled.library.get_pointer_to_function(compiled.fndesc.llvm_func_name)
+
+
+def _typed_call(name: str, argtypes: tuple, address, args: tuple):
+    """An intrinsic's typing: the signature and code of a call through ``address`` with ``args`` passed as
+    ``argtypes``; other types are refused when the caller is compiled."""
+    if address != numba.types.int64 or not all(map(_converts, args, argtypes)):
+        raise numba.core.errors.TypingError(f"{name} takes an int64 address and {argtypes}, got {(address, *args)}")
+
+    def codegen(context, builder, signature, llargs):
+        return _call_through(context, builder, llargs, argtypes)
+    return numba.types.none(address, *args), codegen
 
 
 def _call_through(context, builder, llargs, argtypes) -> None:
@@ -274,30 +272,6 @@ def _call_through(context, builder, llargs, argtypes) -> None:
     return context.get_dummy_value()
 
 
-@numba.extending.intrinsic
-def call_normal_kernel(typingctx, address, E, C, D, X, Y0, VP, P, Phi, HP, HX, y, begin, acc):
-    """Call the kernel at ``address`` (:func:`normal_kernel_address`) from compiled code, as ``kernel(E, ..., acc)``.
-
-    The arguments' types are checked against the kernel's when the caller is
-    compiled: the same types give the same machine code, called through the pointer.
-    """
-    args = (E, C, D, X, Y0, VP, P, Phi, HP, HX, y, begin, acc)
-    expected = _normal_signature(Phi, y)
-    records = (isinstance(Phi, numba.types.Array) and isinstance(y, numba.types.Array) and Phi.ndim == 2
-               and y.ndim == 1 and Phi.layout == y.layout == "C" and Phi.dtype == y.dtype == numba.types.float64)
-    if address != numba.types.int64 or tuple(numba.types.unliteral(a) for a in args) != expected or not records:
-        raise numba.core.errors.TypingError(
-            f"call_normal_kernel takes an int64 address and {expected}, got {(address, *args)}")
-
-    def codegen(context, builder, signature, llargs):
-        return _call_through(context, builder, llargs, expected)
-    return numba.types.none(address, *args), codegen
-
-
-#: Argument types of every ``"sse"`` kernel with a basis signal (:func:`get_kernel` with ``K``).
-_BASIS_SSE_SIGNATURE = kernel_signature(kernel_signature_codes("sse", None, 1))
-
-
 def _converts(given, expected) -> bool:
     """Whether an argument of numba type ``given`` passes unchanged as ``expected`` (a writeable array as a read-only
     one: numba stores both alike)."""
@@ -307,16 +281,25 @@ def _converts(given, expected) -> bool:
 
 
 @numba.extending.intrinsic
-def _call_basis_kernel(typingctx, address, E, C, D, X0, Y0, P, Phi, y, out):
-    """Call the ``"sse"`` basis kernel at ``address`` (:func:`_basis_kernel_address`) from compiled code."""
-    args = (E, C, D, X0, Y0, P, Phi, y, out)
-    if address != numba.types.int64 or not all(map(_converts, args, _BASIS_SSE_SIGNATURE)):
-        raise numba.core.errors.TypingError(
-            f"_call_basis_kernel takes an int64 address and {_BASIS_SSE_SIGNATURE}, got {(address, *args)}")
+def call_normal_kernel(typingctx, address, E, C, D, X, Y0, VP, P, Phi, HP, HX, y, begin, acc):
+    """Call the kernel at ``address`` (:func:`normal_kernel_address`) from compiled code, as ``kernel(E, ..., acc)``.
 
-    def codegen(context, builder, signature, llargs):
-        return _call_through(context, builder, llargs, _BASIS_SSE_SIGNATURE)
-    return numba.types.none(address, *args), codegen
+    The arguments' types are checked against the kernel's when the caller is
+    compiled: the same types give the same machine code, called through the pointer.
+    """
+    return _typed_call("call_normal_kernel", _NORMAL_SIGNATURE, address, (E, C, D, X, Y0, VP, P, Phi, HP, HX, y,
+                                                                          begin, acc))
+
+
+#: Argument types of every ``"sse"`` kernel with a basis signal (:func:`get_kernel` with ``K``).
+_BASIS_SSE_SIGNATURE = kernel_signature(kernel_signature_codes("sse", None, 1))
+
+
+@numba.extending.intrinsic
+def _call_basis_kernel(typingctx, address, E, C, D, X0, Y0, P, Phi, y, out):
+    """Call the ``"sse"`` basis kernel at ``address`` (as :func:`get_coefficient_kernel` finds it) from compiled
+    code."""
+    return _typed_call("_call_basis_kernel", _BASIS_SSE_SIGNATURE, address, (E, C, D, X0, Y0, P, Phi, y, out))
 
 
 @cached_njit(depends=("_linalg.py",))

@@ -39,7 +39,6 @@ import functools
 import threading
 from typing import NamedTuple
 
-import numba
 import numpy as np
 
 from ._jit import cached_njit
@@ -123,9 +122,6 @@ class DirectPass(NamedTuple):
     max_norm: float
     basis: np.ndarray
     y: np.ndarray
-    #: numba types of ``basis`` and ``y`` (the compiled kernel's address is looked up for them).
-    basis_type: object
-    y_type: object
 
     @property
     def n_params(self) -> int:
@@ -610,7 +606,7 @@ class HammersteinCost:
         basis, y = np.ascontiguousarray(form[1]), np.ascontiguousarray(self._y)
         return DirectPass(self._direct[0], self.data.intersample, form[0].shape[1], bool(direct), num0, den0,
                           num_pos, den_pos, self.structure.input_nonlinearity is not None, float(self.data.dt),
-                          COMPILED_EXPM_MAX_NORM, basis, y, numba.typeof(basis), numba.typeof(y))
+                          COMPILED_EXPM_MAX_NORM, basis, y)
 
     def _signal_selection(self, params):
         """``(P, blocks)`` for a ``g`` without a basis: its distinct signals as the basis, each lane selecting one.

@@ -658,7 +658,7 @@ def test_a_kernel_called_through_its_address_gives_its_sums_and_takes_only_its_o
                            Phi, np.zeros((2, 0)), np.zeros(0), y, begin, acc)
         return acc
 
-    address = normal_kernel_address(1, "zoh", 2, 1, False, numba.typeof(Phi), numba.typeof(y))
+    address = normal_kernel_address(1, "zoh", 2, 1, False)
     np.testing.assert_array_equal(through(address, E, P, Phi, y), [13.0, 3.25, 0.8125])
     for bad in ({"E": E.transpose(0, 2, 1)}, {"y": y.astype(np.float32)}, {"P": np.ones((4, 1))[::2]}):
         args = {"E": E, "P": P, "Phi": Phi, "y": y, **bad}

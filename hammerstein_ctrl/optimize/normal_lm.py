@@ -155,7 +155,7 @@ class _Passes:
                        max(1, LOOP_MAX_WORK // (d.y.size * (p + 1) * d.n))))
         if rows < 1 or p != d.n_params:     # a point of another length: the general pass refuses it
             return x, ne, scale, HAND_BACK
-        address = normal_kernel_address(d.n, d.hold, p + 1, d.K, d.direct, d.basis_type, d.y_type)
+        address = normal_kernel_address(d.n, d.hold, p + 1, d.K, d.direct)
         x = np.array(x, dtype=float)
         if start:
             fun, gradient, gram, steps, scale = np.nan, np.empty(p), np.empty((p, p)), np.empty(p), np.empty(p)
