@@ -334,9 +334,14 @@ class HammersteinCost:
         return J
 
     def _basis_sse(self, b: np.ndarray) -> np.ndarray | None:
-        """J of a batch with the signals formed inside the compiled pass (``None`` where it does not apply)."""
+        """J of a batch with the signals formed inside the compiled pass (``None`` where it does not apply).
+
+        A single candidate of a ``g`` without a basis passes its evaluated signal
+        as a basis of one (weight 1: the same bits as the signal read as it is),
+        so its structure needs no pass of its own for signals read whole.
+        """
         s = self.structure
-        form = None if s.output_nonlinearity is not None else self._basis_form(b)
+        form = None if s.output_nonlinearity is not None else self._basis_form(b, evaluate=True)
         if form is None:
             return None
         P, basis = form

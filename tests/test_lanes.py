@@ -151,9 +151,10 @@ def test_kernels_compile_in_memory_without_a_cache_directory(monkeypatch):
     np.testing.assert_array_equal(J, [3.5, 3.5, 3.5])
 
 
-@pytest.mark.parametrize("kind", ["basis", "no g", "offset and x0", "reject unstable", "tanh"])
+@pytest.mark.parametrize("kind", ["basis", "no g", "offset and x0", "reject unstable", "tanh", "tanh, offset and x0"])
 def test_single_evaluations_give_the_bits_of_a_batch(kind):
-    """cost(beta) takes one compiled call where it can; every route gives what the batch gives."""
+    """cost(beta) takes one compiled call where it can; every route gives what the batch gives (a single
+    candidate of a g without a basis passes its evaluated signal as a basis of one, a batch its signals whole)."""
     import hammerstein_ctrl as hc
     from hammerstein_ctrl.objective import HammersteinCost
 
@@ -161,10 +162,11 @@ def test_single_evaluations_give_the_bits_of_a_batch(kind):
     N = 2000
     u = np.repeat(rng.uniform(-2, 2, N // 20), 20)
     data = hc.IOData(u, np.sin(np.arange(N) * 0.01) + 0.1 * rng.normal(size=N), dt=0.01, name="syn")
-    g = {"no g": None, "tanh": hc.Tanh()}.get(kind, hc.Polynomial(2))
+    g = None if kind == "no g" else hc.Tanh() if kind.startswith("tanh") else hc.Polynomial(2)
     from hammerstein_ctrl.structure import BlockStructure
 
-    options = {"offset": kind == "offset and x0", "initial_state": "estimate" if kind == "offset and x0" else "zero"}
+    nuisance = kind.endswith("offset and x0")
+    options = {"offset": nuisance, "initial_state": "estimate" if nuisance else "zero"}
     structure = (BlockStructure(hc.LinearStructure(1, 2), **options) if g is None      # a linear block alone
                  else hc.HammersteinStructure(hc.LinearStructure(1, 2), g, **options))
     cost = HammersteinCost(data, structure, reject_unstable=kind == "reject unstable")
