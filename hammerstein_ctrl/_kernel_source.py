@@ -517,12 +517,22 @@ def _if_lane(g: int, chunks: int, lines: list, bound: str = "lanes") -> list:
     return [f"if {g} < {bound}:"] + _indent(_INDENT, lines)
 
 
+def _vector_checks(K: int, chunks: int, terms: tuple) -> list:
+    """Lines refusing arrays too small for the lanes counted at run time (compiled code checks no index)."""
+    fewest, most = _fewest_lanes(chunks), 1 + chunks * WIDTH
+    small = ["X.shape[0] < lanes", "P.shape[0] < lanes", f"P.shape[1] < {K}", f"Phi.shape[0] < {K}",
+             "y.shape[0] < N", "acc.shape[0] < 1 + p * lanes", "E.shape[0] < 1", "C.shape[0] < E.shape[0]"]
+    small += ["D.shape[0] < E.shape[0]"] if "d" in terms else []
+    small += ["Y0.shape[0] < lanes"] if "o" in terms else []
+    return [f"if not {fewest} <= lanes <= {most} or {' or '.join(small)}:",
+            f"    raise ValueError('this pass takes {fewest} to {most} lanes (the length of VP), and X, P (and Y0) "
+            f"with a row for each, {K} basis rows, y as long as the basis, sums for them all and a linear block')"]
+
+
 def _vector_setup(n: int, hold: str, K: int, chunks: int, terms: tuple) -> list:
     """Each lane's coefficients, state and previous signal in scalars (padding lanes repeat lane 0), packed by
     chunks; the lanes are counted at run time (``VP``'s length)."""
-    lines = ["lanes = VP.shape[0]", "p = lanes - 1",
-             f"if not {_fewest_lanes(chunks)} <= lanes <= {1 + chunks * WIDTH} or X.shape[0] < lanes:",
-             f"    raise ValueError('this pass takes {_fewest_lanes(chunks)} to {1 + chunks * WIDTH} lanes')"]
+    lines = ["lanes = VP.shape[0]", "p = lanes - 1"] + _vector_checks(K, chunks, terms)
     for g in range(1 + chunks * WIDTH):
         q = _scalar_names(g)
         lines += [f"b{g} = {g}" if g < _fewest_lanes(chunks) else f"b{g} = {g} if {g} < lanes else 0",

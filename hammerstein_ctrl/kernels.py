@@ -253,7 +253,7 @@ def _address(kernel, signature) -> int:
 def _typed_call(name: str, argtypes: tuple, address, args: tuple):
     """An intrinsic's typing: the signature and code of a call through ``address`` with ``args`` passed as
     ``argtypes``; other types are refused when the caller is compiled."""
-    if address != numba.types.int64 or not all(map(_converts, args, argtypes)):
+    if address != numba.types.int64 or len(args) != len(argtypes) or not all(map(_converts, args, argtypes)):
         raise numba.core.errors.TypingError(f"{name} takes an int64 address and {argtypes}, got {(address, *args)}")
 
     def codegen(context, builder, signature, llargs):
@@ -273,10 +273,10 @@ def _call_through(context, builder, llargs, argtypes) -> None:
 
 
 def _converts(given, expected) -> bool:
-    """Whether an argument of numba type ``given`` passes unchanged as ``expected`` (a writeable array as a read-only
-    one: numba stores both alike)."""
-    if isinstance(given, numba.types.Array) and isinstance(expected, numba.types.Array):
-        return given.copy(readonly=not expected.mutable) == expected
+    """Whether an argument of numba type ``given`` passes unchanged as ``expected``: its own type, or a writeable
+    array where a read-only one is expected (numba stores both alike), never a read-only one where the callee writes."""
+    if isinstance(given, numba.types.Array) and isinstance(expected, numba.types.Array) and not expected.mutable:
+        return given.copy(readonly=True) == expected
     return numba.types.unliteral(given) == expected
 
 
@@ -302,7 +302,7 @@ def _call_basis_kernel(typingctx, address, E, C, D, X0, Y0, P, Phi, y, out):
     return _typed_call("_call_basis_kernel", _BASIS_SSE_SIGNATURE, address, (E, C, D, X0, Y0, P, Phi, y, out))
 
 
-@cached_njit(depends=("_linalg.py",))
+@cached_njit(depends=("_linalg.py", "_kernel_source.py"))
 def _from_coefficients(address, num, den, dt, max_norm, X0, Y0, P, Phi, y, out):  # pragma: no cover - compiled
     """Discretise the transfer functions and run the basis kernel at ``address``, in one call; False (nothing done)
     unless every row is clean.

@@ -338,10 +338,12 @@ class HammersteinCost:
 
         A single candidate of a ``g`` without a basis passes its evaluated signal
         as a basis of one (weight 1: the same bits as the signal read as it is),
-        so its structure needs no pass of its own for signals read whole.
+        so its structure needs no pass of its own for signals read whole (up to
+        :data:`~hammerstein_ctrl.kernels.MAX_UNROLLED_STATES` states, the orders with a basis pass).
         """
         s = self.structure
-        form = None if s.output_nonlinearity is not None else self._basis_form(b, evaluate=True)
+        evaluate = 1 <= s.linear.den_order <= MAX_UNROLLED_STATES      # as sse_basis_batch takes it (else read whole)
+        form = None if s.output_nonlinearity is not None else self._basis_form(b, evaluate=evaluate)
         if form is None:
             return None
         P, basis = form

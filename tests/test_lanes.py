@@ -177,6 +177,26 @@ def test_single_evaluations_give_the_bits_of_a_batch(kind):
     np.testing.assert_array_equal([cost(b) for b in betas], cost.batch(betas))
 
 
+def test_a_single_evaluation_evaluates_g_once_whatever_the_order():
+    """A candidate of a g without a basis is evaluated once per cost(beta), past the unrolled kernels' orders too
+    (where its signal is read whole, not passed as a basis of one)."""
+    import hammerstein_ctrl as hc
+    from hammerstein_ctrl.nonlinearities import CustomNonlinearity
+    from hammerstein_ctrl.objective import HammersteinCost
+
+    calls = []
+    g = CustomNonlinearity(lambda u, p: calls.append(u.size) or p[0] * np.tanh(u), 1)
+    rng = np.random.default_rng(2)
+    data = hc.IOData(rng.normal(size=3000), rng.normal(size=3000), dt=0.01)
+    counted = {}
+    for order in (2, 9):
+        cost = HammersteinCost(data, hc.HammersteinStructure(hc.LinearStructure(0, order), g, offset=True))
+        calls.clear()
+        assert np.isfinite(cost(np.r_[np.poly(-np.linspace(1.0, 2.0, order))[1:][::-1], 1.0, 0.1]))
+        counted[order] = sum(calls)
+    assert counted == {2: 3000, 9: 3000}
+
+
 def test_reject_unstable_set_after_construction_and_threads_keep_their_own_buffers():
     """The one-call path honours reject_unstable as it is now; each thread forms its signals in its own buffer."""
     import pickle

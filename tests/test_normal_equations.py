@@ -523,9 +523,17 @@ def test_one_vector_pass_serves_every_lane_count_with_as_many_vectors():
     assert all(get_normal_kernel(2, "foh", lanes, 3, False, False) is kernel for lanes in (2, 3, 4))
     assert get_normal_kernel(2, "foh", 6, 3, False, False) is not kernel
     E = np.zeros((1, 2, 4))
-    with pytest.raises(ValueError, match="2 to 5 lanes"):
-        kernel(E, np.zeros((1, 2)), np.zeros(1), np.zeros((6, 2)), np.zeros(6), np.zeros(6), np.zeros((6, 3)),
-               np.zeros((3, 10)), np.zeros((6, 0)), np.zeros(0), np.zeros(10), 0, np.zeros(31))
+
+    def run(lanes=4, P_rows=4, acc=13, Phi_rows=3, y=10):
+        kernel(E, np.zeros((1, 2)), np.zeros(1), np.zeros((lanes, 2)), np.zeros(lanes), np.zeros(lanes),
+               np.zeros((P_rows, 3)), np.zeros((Phi_rows, 10)), np.zeros((lanes, 0)), np.zeros(0), np.zeros(y), 0,
+               np.zeros(acc))
+
+    run()
+    # compiled code checks no index: arrays too small for the lanes counted are refused, never read past
+    for bad in ({"lanes": 6, "P_rows": 6, "acc": 31}, {"P_rows": 2}, {"acc": 12}, {"Phi_rows": 2}, {"y": 9}):
+        with pytest.raises(ValueError, match="2 to 5 lanes"):
+            run(**bad)
 
 
 def _plain_case(name):
@@ -664,6 +672,17 @@ def test_a_kernel_called_through_its_address_gives_its_sums_and_takes_only_its_o
         args = {"E": E, "P": P, "Phi": Phi, "y": y, **bad}
         with pytest.raises(numba.core.errors.TypingError, match="call_normal_kernel takes"):
             through(address, **args)
+
+    @numba.njit
+    def into(address, acc):                   # the caller's sums: the kernel writes them
+        X, VP = np.zeros((2, 1)), np.zeros(2)
+        call_normal_kernel(address, E, np.ones((2, 1)), np.zeros(2), X, np.zeros(2), VP, P, Phi, np.zeros((2, 0)),
+                           np.zeros(0), y, 0, acc)
+
+    frozen = np.zeros(3)
+    frozen.flags.writeable = False            # read-only arrays pass where the kernel reads, never where it writes
+    with pytest.raises(numba.core.errors.TypingError, match="call_normal_kernel takes"):
+        into(address, frozen)
 
 
 def test_a_subclass_that_redefines_its_evaluation_gets_no_compiled_lm_loop(emps_case):
