@@ -11,8 +11,8 @@ import numpy as np
 
 from ._checks import check_intersample
 from .exceptions import DataError, ParameterError
-from .kernels import (LANE_MIN, MAX_LANE_BASIS, MAX_UNROLLED_STATES,
-                      get_coefficient_kernel, get_kernel, get_lane_kernel, has_output_maps)
+from .kernels import (LANE_MIN, get_coefficient_kernel, get_kernel,
+                      get_lane_kernel, has_basis_kernels, has_output_maps)
 from ._discretize import (COMPILED_EXPM_MAX_NORM, _coefficient_rows, _float_matrix,
                           _offset_rows, _state_rows, _tf_system, unstable)
 
@@ -172,7 +172,7 @@ def sse_basis_batch(num, den, P, basis, dt: float, y, *, x0=None, offset=None, i
     -------
     ndarray, shape (B,) or None
         ``None`` where no compiled pass applies (no state, more than
-        :data:`MAX_UNROLLED_STATES` states or more than
+        :data:`~hammerstein_ctrl.kernels.MAX_UNROLLED_STATES` states or more than
         :data:`~hammerstein_ctrl.kernels.MAX_LANE_BASIS` basis signals).
 
     Examples
@@ -188,7 +188,7 @@ def sse_basis_batch(num, den, P, basis, dt: float, y, *, x0=None, offset=None, i
     hold = check_intersample(intersample)
     num, den, P, basis, y = _basis_arguments(num, den, P, basis, y)
     batch, n, K = den.shape[0], den.shape[1] - 1, P.shape[1]
-    if not (1 <= n <= MAX_UNROLLED_STATES and 1 <= K <= MAX_LANE_BASIS):
+    if not has_basis_kernels(n, K):
         return None
     X0, Y0 = _state_rows(x0, batch, n), _offset_rows(offset, batch)
     if batch < LANE_MIN:

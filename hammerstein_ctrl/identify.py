@@ -60,6 +60,7 @@ from .mimo_fit import MIMOCost
 from .objective import HammersteinCost
 from .result import IdentificationResult
 from .optimize import BUDGET_EXHAUSTED, COMPLETED, DIVERGED, SCIPY_METHODS, canonical_method, minimize
+from .optimize.normal_lm import _cosine     # MINPACK's gtol measure, as LM's own convergence test
 from .residual_analysis import residual_analysis
 from .structure import BlockStructure
 from .uncertainty import (channel_uncertainty, estimate_uncertainty, _check_noise)
@@ -356,8 +357,6 @@ def _not_a_minimum(cost, res, key: str, checks: _Checks, report: dict) -> list[V
     if (key not in ("lm", AUTO) or checks.bounded or int(res.status) != COMPLETED or type(cost) is not HammersteinCost
             or cost.structure.output_nonlinearity is not None or report["nrmse"] < EXACT_NRMSE):
         return []
-    from .optimize.normal_lm import _cosine      # MINPACK's gtol measure, as LM's own convergence test
-
     x = np.asarray(res.x, dtype=float)
     with np.errstate(all="ignore"):
         ne = cost.normal_equations(x)

@@ -74,8 +74,8 @@ from ._kernel_source import (_CHECK_MASK, _OVERFLOW, _terms, HOLDS, INTERLEAVE, 
 from ._linalg import tf_discrete
 
 __all__ = ["get_kernel", "get_coefficient_kernel", "get_normal_kernel", "get_lane_kernel", "lane_source",
-           "has_output_maps", "kernel_source", "normal_kernel_address", "call_normal_kernel", "normal_source",
-           "vector_normal_source", "cache_dir", "OUTPUT_TERMS",
+           "has_basis_kernels", "has_output_maps", "kernel_source", "normal_kernel_address", "call_normal_kernel",
+           "normal_source", "vector_normal_source", "cache_dir", "OUTPUT_TERMS",
            "MAX_UNROLLED_STATES", "MAX_PASS_STATES", "MAX_VECTOR_STATES", "MAX_NORMAL_LANES", "LANE_WIDTHS", "LANE_MIN",
            "MAX_LANE_BASIS", "INTERLEAVE", "MODES", "HOLDS", "ENV_CACHE"]
 
@@ -318,7 +318,7 @@ def _from_coefficients(address, num, den, dt, max_norm, X0, Y0, P, Phi, y, out):
 
 #: Argument types of :func:`_from_coefficients`: the kernel's address, the transfer functions' rows, the sample
 #: time and the largest 1-norm of the compiled exponential, then the basis kernel's arguments but ``E, C, D``.
-_COEFFICIENT_SIGNATURE = kernel_signature("i w2 w2 f f " + kernel_signature_codes("sse", None, 1).split(None, 3)[3])
+_COEFFICIENT_SIGNATURE = kernel_signature("i w2 w2 f f") + _BASIS_SSE_SIGNATURE[3:]
 
 
 #: Package modules whose compiled functions the generated kernels call.
@@ -478,6 +478,18 @@ def get_kernel(n: int, mode: str, hold: str = "foh", outmap: str | None = None, 
     if mode == "sse":
         return lambda E, C, D, X0, Y0, V, y, out: _sse_generic(E, C, D, X0, Y0, V, y, out, zoh)
     return lambda E, C, D, X0, Y0, V, out: _outputs_generic(E, C, D, X0, Y0, V, out, zoh)
+
+
+def has_basis_kernels(n: int, K: int = 1) -> bool:
+    """Whether kernels forming the signal from ``K`` basis signals are compiled for ``n`` states (as
+    :func:`get_kernel` with ``K`` and :func:`get_coefficient_kernel` take them).
+
+    Examples
+    --------
+    >>> has_basis_kernels(2, 3), has_basis_kernels(MAX_UNROLLED_STATES + 1)
+    (True, False)
+    """
+    return 1 <= n <= MAX_UNROLLED_STATES and 1 <= K <= MAX_LANE_BASIS
 
 
 def has_output_maps(n: int) -> bool:

@@ -44,7 +44,7 @@ import numpy as np
 from ._jit import cached_njit
 from ._linalg import single_threaded_blas, tf_discrete
 from .exceptions import ParameterError
-from .kernels import MAX_LANE_BASIS, MAX_NORMAL_LANES, MAX_UNROLLED_STATES, get_coefficient_kernel, get_normal_kernel
+from .kernels import MAX_LANE_BASIS, MAX_NORMAL_LANES, get_coefficient_kernel, get_normal_kernel, has_basis_kernels
 from .normal_equations import (NONFINITE_RESIDUAL, NormalEquations, from_difference_sums, from_factor,
                                from_residuals, neighbours, point_and_steps, scored_inf)
 from .simulate import (COMPILED_EXPM_MAX_NORM, GROUPS_MIN_BYTES, normal_factor, normal_pass, output_terms,
@@ -294,7 +294,7 @@ class HammersteinCost:
         :meth:`batch` gives.
         """
         s, n = self.structure, self.structure.linear.den_order
-        if s.output_nonlinearity is not None or s.n_params != s.n_core or not 1 <= n <= MAX_UNROLLED_STATES:
+        if s.output_nonlinearity is not None or s.n_params != s.n_core or not has_basis_kernels(n):
             return None
         return n, np.zeros((1, n)), np.zeros(1)
 
@@ -342,7 +342,7 @@ class HammersteinCost:
         :data:`~hammerstein_ctrl.kernels.MAX_UNROLLED_STATES` states, the orders with a basis pass).
         """
         s = self.structure
-        evaluate = 1 <= s.linear.den_order <= MAX_UNROLLED_STATES      # as sse_basis_batch takes it (else read whole)
+        evaluate = has_basis_kernels(s.linear.den_order)       # as sse_basis_batch takes it (else read whole)
         form = None if s.output_nonlinearity is not None else self._basis_form(b, evaluate=evaluate)
         if form is None:
             return None
