@@ -15,7 +15,9 @@ once the linear block ``H`` is fixed:
    otherwise (an affine stand-in for ``g``), plus a constant column for an
    output offset and the free responses for an estimated initial state.  The
    best few candidates are refined by Levenberg-Marquardt on this reduced
-   (variable-projection) residual.
+   (variable-projection) residual, with Kaufman's Jacobian where the columns
+   are held; a refinement that comes near an optimum an earlier one reached
+   stops there and gives no second start.
 2. **Nonlinearity.**  With ``H`` fixed, families linear in their parameters
    take the least-squares coefficients directly; families with a scale
    parameter (tanh, saturation, dead zone) scan their other parameters over
@@ -50,8 +52,8 @@ from .exceptions import ParameterError
 from .optimize import Budget, BudgetExhausted
 from .simulate import MAX_PASS_STATES, free_response, response_blocks, simulate_batch, unstable
 from . import streamed_lstsq
-from .streamed_lstsq import (constant_column, factor_of_blocks, factor_of_columns, factor_sse, residual,
-                             residual_of_columns, solve_minimum_norm, solve_scaled, triangular_factor)
+from .streamed_lstsq import (constant_column, factor_of_blocks, factor_of_columns, factor_sse, orthogonal_part,
+                             residual, residual_of_columns, solve_minimum_norm, solve_scaled, triangular_factor)
 
 __all__ = ["initial_points", "stabilize", "continuous_poles", "nuisance_estimate", "estimate_initial_state",
            "static_affine_sse", "static_affine_sse_columns",
@@ -86,6 +88,13 @@ SCAN_SHARE = 0.4
 REFINE_SHARE = 0.6
 #: Relative tolerance of the reduced refinement.
 REFINE_TOL = 1e-8
+#: A reduced refinement that comes within this relative distance of an optimum an earlier one reached (in
+#: every coefficient, or within :data:`JOIN_FLOOR` of a coefficient at zero) stops there: it would return
+#: the same start.
+JOIN_TOL = 1e-2
+JOIN_FLOOR = 1e-6
+#: Relative step of the forward differences of the reduced Jacobian (MINPACK's, ``sqrt(eps)``).
+FORWARD_STEP = float(np.sqrt(np.finfo(float).eps))
 #: Size of a regression's columns (``8 N`` bytes each) past which its driving signals and their
 #: simulated responses are formed a block of samples at a time instead of held whole.
 STREAMED_COLUMNS_BYTES = 1 << 24
@@ -357,6 +366,13 @@ class _Regression:
         columns = count + (n if self.free_columns else 0)
         return 1 <= n <= MAX_PASS_STATES and self.y.size * self.y.itemsize * columns > STREAMED_COLUMNS_BYTES
 
+    def responses(self, thetas, v) -> np.ndarray:
+        """Responses ``(k, N)`` of ``H(theta)`` to the one signal ``v`` for each of the ``k`` rows of ``thetas``
+        (``k`` counted evaluations)."""
+        self.budget.charge(len(thetas))
+        num, den = zip(*(self.structure.linear.coefficients(theta) for theta in thetas))
+        return simulate_batch(np.vstack(num), np.vstack(den), v, self.data.dt, intersample=self.data.intersample)
+
     def simulate(self, theta, drives) -> np.ndarray:
         """Responses ``(k, N)`` of ``H(theta)`` to each drive (``k`` counted evaluations)."""
         self.budget.charge(drives.shape[0])
@@ -402,9 +418,17 @@ class _Regression:
             parts.append(constant_column(self.y.size))
         return parts
 
+    def factor(self, columns) -> np.ndarray:
+        """The triangular factor of ``[X y]`` (:func:`~hammerstein_ctrl.streamed_lstsq.triangular_factor`)."""
+        return columns.factor(self.y) if isinstance(columns, _StreamedColumns) else triangular_factor(columns, self.y)
+
+    def residual(self, columns, w) -> np.ndarray:
+        """``y - X w``."""
+        return columns.residual(w, self.y) if isinstance(columns, _StreamedColumns) else residual(columns, w, self.y)
+
     def fit(self, columns) -> tuple[np.ndarray | None, float]:
         """Coefficients and sum of squared residuals of the least-squares fit (``(None, inf)`` if not finite)."""
-        R = columns.factor(self.y) if isinstance(columns, _StreamedColumns) else triangular_factor(columns, self.y)
+        R = self.factor(columns)
         w = solve_scaled(R, self.y.size)
         return (None, np.inf) if w is None else (w, factor_sse(R, w))
 
@@ -413,57 +437,142 @@ class _Regression:
         w, _ = self.fit(columns)
         if w is None:
             return None, None
-        return w, columns.residual(w, self.y) if isinstance(columns, _StreamedColumns) else residual(columns, w, self.y)
+        return w, self.residual(columns, w)
 
 
 def _reduced_sse(reg: _Regression, theta, drives) -> float:
-    return reg.fit(reg.columns(theta, drives))[1]
+    """The least-squares residual of ``H(theta)``'s regression, ``R_pp^2`` of its factor (inf if not finite).
+
+    Rank-deficient columns leave it unchanged, where a solve that drops their
+    dependent directions could lose a rounding's worth: the ranking of scan
+    candidates needs no coefficients.
+    """
+    R = reg.factor(reg.columns(theta, drives))
+    return float(R[-1, -1] ** 2) if np.all(np.isfinite(R)) else np.inf
 
 
-def _refine_linear(reg: _Regression, theta, drives, limit: int = REFINE_EVALUATIONS) -> tuple[np.ndarray, float]:
+class _Joined(Exception):
+    """A refinement came within :data:`JOIN_TOL` of an optimum an earlier refinement reached."""
+
+
+class _Fit:
+    """One evaluation of the reduced residual: the point, the columns, their factor and coefficients."""
+
+    def __init__(self, theta, columns, R, w):
+        self.theta, self.columns, self.R, self.w = np.array(theta, dtype=float), columns, R, w
+
+
+class _ReducedProblem:
+    """The variable-projection residual over the linear coefficients, within a budget of simulated signals.
+
+    Its Jacobian (:meth:`jacobian`) is Kaufman's: the simulated response to
+    the fitted drive ``v = sum w_i d_i`` (``H`` is linear, so ``H v = X w``),
+    differentiated by forward differences in one batch, less its fit by the
+    columns.  One Jacobian simulates ``p`` signals where forward
+    differences of the whole reduced residual re-ran every drive's response
+    and the regression ``p`` times.  It needs the columns held and no free
+    responses; otherwise :attr:`kaufman` is False and MINPACK differentiates.
+    """
+
+    def __init__(self, reg: _Regression, drives: _Drives, evaluations: int, known=()):
+        self.reg, self.drives, self.known = reg, drives, [np.asarray(k, dtype=float) for k in known]
+        self.left = evaluations * reg.evaluations(drives)         # simulated signals this refinement may use
+        self.kaufman = drives.array is not None and not reg.free_columns
+        self.big = np.sqrt(np.finfo(float).max) / max(reg.y.size, 1)
+        self.best, self.best_sse = None, np.inf
+        self.last = self.kept = None        # the last evaluation, and the best finite one
+
+    def _spend(self, signals: int):
+        if signals > self.left:
+            raise BudgetExhausted("refinement budget spent")
+        self.left -= signals
+
+    def _evaluate(self, theta) -> tuple[_Fit | None, np.ndarray]:
+        self._spend(self.reg.evaluations(self.drives))
+        columns = self.reg.columns(theta, self.drives)
+        R = self.reg.factor(columns)
+        w = solve_scaled(R, self.reg.y.size)
+        if w is None:
+            self.last = None
+            return None, np.full(self.reg.y.size, self.big)
+        r = self.reg.residual(columns, w)
+        self.last = _Fit(theta, columns, R, w)
+        sse = float(r @ r)
+        if sse < self.best_sse:
+            self.best, self.best_sse, self.kept = np.array(theta, dtype=float), sse, self.last
+        return self.last, r
+
+    def residual(self, theta) -> np.ndarray:
+        """The reduced residual at ``theta``; raises :class:`_Joined` near an earlier optimum."""
+        _, r = self._evaluate(theta)
+        if any(np.all(np.abs(theta - k) <= JOIN_TOL * np.maximum(np.abs(k), JOIN_FLOOR)) for k in self.known):
+            raise _Joined
+        return r
+
+    def _fit_at(self, theta) -> _Fit | None:
+        for fit in (self.last, self.kept):
+            if fit is not None and np.array_equal(fit.theta, theta):
+                return fit
+        return self._evaluate(theta)[0]
+
+    def jacobian(self, theta) -> np.ndarray:
+        """Kaufman's Jacobian of :meth:`residual` at ``theta``, as rows (``(p, N)``; zero if the fit is not finite)."""
+        fit = self._fit_at(theta)
+        theta = np.asarray(theta, dtype=float)
+        if fit is None:
+            return np.zeros((theta.size, self.reg.y.size))
+        self._spend(theta.size)
+        k = self.drives.count
+        v = fit.w[:k] @ self.drives.array
+        h = FORWARD_STEP * np.where(theta == 0, 1.0, np.abs(theta))
+        Y = self.reg.responses(theta + np.diag(h), v)
+        with np.errstate(all="ignore"):
+            D = (Y - fit.w[:k] @ fit.columns[0]) / h[:, None]     # H v = the drives' responses combined
+        if not np.all(np.isfinite(D)):
+            return np.zeros_like(D)
+        return -orthogonal_part(fit.columns, fit.R, D)
+
+
+def _served_twice(f):
+    """``f`` with its first result served once more for the same point (leastsq's input check evaluates x0,
+    then MINPACK evaluates it again)."""
+    calls, first = [0], []
+
+    def call(theta):
+        calls[0] += 1
+        if calls[0] == 2 and np.array_equal(theta, first[0][0]):
+            return first.pop()[1]
+        out = f(theta)
+        if calls[0] == 1:
+            first.append((np.array(theta, dtype=float), out))
+        return out
+    return call
+
+
+def _refine_linear(reg: _Regression, theta, drives, limit: int = REFINE_EVALUATIONS,
+                   known=()) -> tuple[np.ndarray, float] | None:
     """Levenberg-Marquardt on the variable-projection residual over the linear coefficients.
 
-    MINPACK's ``lmdif`` (through :func:`scipy.optimize.leastsq`) with its own
-    forward differences: it holds the residual, an ``N x p`` Jacobian and one
-    work vector, where ``least_squares`` kept several more residual and
-    Jacobian copies.  At most :data:`REFINE_EVALUATIONS` residuals (Jacobian
-    columns included) are computed; the best point seen is returned.
+    MINPACK (through :func:`scipy.optimize.leastsq`) with Kaufman's Jacobian
+    (:class:`_ReducedProblem`) where the columns are held, else with its own
+    forward differences.  At most :data:`REFINE_EVALUATIONS` residuals' worth
+    of signals are simulated; the best point seen is returned.  ``None``
+    when the search comes within :data:`JOIN_TOL` of one of the optima
+    ``known`` (it would only reach that start again).
     """
-    big = np.sqrt(np.finfo(float).max) / max(reg.y.size, 1)
-    best = [np.asarray(theta, dtype=float), np.inf]
-    calls = [int(min(REFINE_EVALUATIONS, limit, reg.budget.remaining // reg.evaluations(drives)))]
-    repeat = [None]  # leastsq evaluates x0 in its input check, then lmdif again: the second comes from here
-
-    def evaluate(th):
-        if calls[0] <= 0:
-            raise BudgetExhausted("refinement budget spent")
-        calls[0] -= 1
-        _, r = reg.solve(reg.columns(th, drives))
-        if r is None:
-            return np.full(reg.y.size, big)
-        sse = float(r @ r)
-        if sse < best[1]:
-            best[0], best[1] = np.array(th, dtype=float), sse
-        return r
-
-    def reduced_residual(th):
-        if repeat and repeat[0] is not None:
-            seen, r = repeat.pop()
-            if np.array_equal(th, seen):
-                return r
-        r = evaluate(th)
-        if repeat:  # the first evaluation, kept for the repeat
-            repeat[0] = (np.array(th, dtype=float), r)
-        return r
-
-    if theta.size == 0 or calls[0] <= theta.size + 1:
+    problem = _ReducedProblem(reg, drives, int(min(REFINE_EVALUATIONS, limit,
+                                                   reg.budget.remaining // reg.evaluations(drives))), known)
+    if theta.size == 0 or problem.left <= (theta.size + 1) * reg.evaluations(drives):
         return theta, _reduced_sse(reg, theta, drives)
+    jacobian = _served_twice(problem.jacobian) if problem.kaufman else None
     try:
-        x, _, info, _, _ = scipy.optimize.leastsq(reduced_residual, theta, full_output=True, xtol=REFINE_TOL,
-                                                  ftol=REFINE_TOL, gtol=REFINE_TOL)
+        x, _, info, _, _ = scipy.optimize.leastsq(_served_twice(problem.residual), theta, Dfun=jacobian, col_deriv=True,
+                                                  full_output=True, xtol=REFINE_TOL, ftol=REFINE_TOL, gtol=REFINE_TOL)
         return x, float(info["fvec"] @ info["fvec"])
     except BudgetExhausted:
-        return best[0], best[1]
+        return problem.best if problem.best is not None else theta, problem.best_sse
+    except _Joined:
+        return None
 
 
 def _fit_static(reg: _Regression, nl, signal, columns) -> tuple[np.ndarray, np.ndarray] | None:
@@ -594,18 +703,23 @@ def _refine_in_turn(reg: _Regression, starts: list, drives: _Drives, reserve: in
     ``reserve`` (the static fits that follow); a start that needs many
     steps to converge (a scan candidate far from the optimum) gets them,
     where an even split of the share left each a few steps and none
-    converged.  Starts past the share keep their scan value.
+    converged.  Starts past the share keep their scan value.  A refinement
+    that joins an optimum an earlier one reached is dropped (it would give
+    the same start again).
     """
     remaining = reg.budget.remaining
     pool, begin = min(REFINE_SHARE * remaining, remaining - reserve), reg.budget.nfev
-    refined = []
+    refined, reached = [], []
     for theta, sse in starts:
         left = (REFINE_EVALUATIONS if pool == np.inf
                 else int((pool - (reg.budget.nfev - begin)) // reg.evaluations(drives)))
         if left <= theta.size + 1:          # no step fits: the scan's value stands
             refined.append((theta, sse))
-        else:
-            refined.append(_refine_linear(reg, theta, drives, min(REFINE_EVALUATIONS, left)))
+            continue
+        out = _refine_linear(reg, theta, drives, min(REFINE_EVALUATIONS, left), reached)
+        if out is not None:
+            refined.append(out)
+            reached.append(out[0])
     return sorted(refined, key=lambda item: item[1])
 
 

@@ -44,7 +44,7 @@ from .exceptions import DataError
 
 __all__ = ["BLOCK_SAMPLES", "triangular_factor", "factor_of_blocks", "rank_tolerance", "solve_scaled",
            "solve_minimum_norm", "factor_sse", "residual", "constant_column", "column_blocks",
-           "factor_of_columns", "residual_of_columns"]
+           "factor_of_columns", "residual_of_columns", "orthogonal_part"]
 
 #: Samples per block of the streamed factorisation and residual (a block of
 #: ``p + 1`` columns takes ``8 (p + 1) BLOCK_SAMPLES`` bytes).
@@ -320,7 +320,10 @@ def factor_sse(R: np.ndarray, w) -> float:
 
 
 def residual(columns, w, y) -> np.ndarray:
-    """The residual vector ``y - X w``, formed block by block.
+    """The residual vector ``y - X w``.
+
+    The columns are held (rows of arrays), so each source's rows are combined
+    with their coefficients in one product: no block of ``X`` is formed.
 
     Examples
     --------
@@ -328,7 +331,68 @@ def residual(columns, w, y) -> np.ndarray:
     [1.0, 0.0, -1.0]
     """
     y = np.asarray(y, dtype=float)
-    return residual_of_columns(column_blocks(columns, y.shape[0]), w, y)
+    rows = _rows(columns)
+    for a in rows:
+        _check_length(a, y.shape[0])
+    return y - _combination(rows, np.asarray(w, dtype=float)[:, None])[0]
+
+
+def _combination(rows, C: np.ndarray) -> np.ndarray:
+    """``C^T X^T``: each column of ``C`` (``(p, m)``) combines the columns of ``X`` (``(m, N)``)."""
+    out, j = None, 0
+    for a in rows:
+        part = C[j:j + a.shape[0]].T @ a
+        out = part if out is None else np.add(out, part, out=out)
+        j += a.shape[0]
+    return out
+
+
+def _products(rows, Z: np.ndarray) -> np.ndarray:
+    """``X^T Z^T`` (``(p, m)``) for the rows ``Z`` (``(m, N)``) of other signals."""
+    return np.vstack([a @ Z.T for a in rows])
+
+
+def orthogonal_part(columns, R: np.ndarray, Z) -> np.ndarray:
+    """The rows of ``Z`` less their least-squares fit by the columns: ``(I - P_X) Z^T``, as rows.
+
+    ``R`` is the :func:`triangular_factor` of ``[X y]``.  The coefficients
+    come from ``R`` (corrected semi-normal equations: one solve on ``R``,
+    then one more on what it left), with the columns scaled to unit norm and
+    directions below :func:`rank_tolerance` dropped as in :func:`solve_scaled`.
+    A variable-projection Jacobian uses it: how a change of the simulated
+    columns moves the residual once the linear coefficients follow.
+
+    Parameters
+    ----------
+    columns : sequence of array_like, shape (N,) or (p_i, N)
+        The columns of ``X``, held.
+    R : ndarray, shape (p + 1, p + 1)
+    Z : array_like, shape (m, N)
+
+    Returns
+    -------
+    ndarray, shape (m, N)
+
+    Examples
+    --------
+    >>> t = np.linspace(0.0, 1.0, 5)
+    >>> columns = [np.ones(5)]
+    >>> R = triangular_factor(columns, t)
+    >>> orthogonal_part(columns, R, t[None, :]).round(12).tolist()     # t less its mean
+    [[-0.5, -0.25, 0.0, 0.25, 0.5]]
+    """
+    rows = _rows(columns)
+    Z = np.atleast_2d(np.asarray(Z, dtype=float))
+    R11 = R[:-1, :-1]
+    scale = np.sqrt(np.sum(R11 * R11, axis=0))
+    scale[scale == 0] = 1.0
+    inverse = np.linalg.pinv(R11 / scale, rcond=rank_tolerance(Z.shape[1]))
+
+    def coefficients(E):
+        return (inverse @ (inverse.T @ (_products(rows, E) / scale[:, None]))) / scale[:, None]
+
+    E = Z - _combination(rows, coefficients(Z))
+    return E - _combination(rows, coefficients(E))
 
 
 def residual_of_columns(blocks, w, y) -> np.ndarray:
