@@ -52,8 +52,9 @@ from .exceptions import ParameterError
 from .optimize import Budget, BudgetExhausted
 from .simulate import MAX_PASS_STATES, free_response, response_blocks, simulate_batch, unstable
 from . import streamed_lstsq
-from .streamed_lstsq import (constant_column, factor_of_blocks, factor_of_columns, factor_sse, orthogonal_part,
-                             residual, residual_of_columns, solve_minimum_norm, solve_scaled, triangular_factor)
+from .streamed_lstsq import (column_scale, constant_column, factor_of_blocks, factor_of_columns, factor_sse,
+                             orthogonal_part, residual, residual_of_columns, solve_minimum_norm, solve_scaled,
+                             triangular_factor)
 
 __all__ = ["initial_points", "stabilize", "continuous_poles", "nuisance_estimate", "estimate_initial_state",
            "static_affine_sse", "static_affine_sse_columns",
@@ -88,11 +89,14 @@ SCAN_SHARE = 0.4
 REFINE_SHARE = 0.6
 #: Relative tolerance of the reduced refinement.
 REFINE_TOL = 1e-8
-#: A reduced refinement that comes within this relative distance of an optimum an earlier one reached (in
-#: every coefficient, or within :data:`JOIN_FLOOR` of a coefficient at zero) stops there: it would return
-#: the same start.
+#: A reduced refinement whose best point comes within ``JOIN_TOL * max(|c|, JOIN_FLOOR)`` of an optimum an
+#: earlier one converged to, in every coefficient ``c`` of it, stops there: it would return the same start.
 JOIN_TOL = 1e-2
 JOIN_FLOOR = 1e-6
+#: Smallest diagonal element of a scan regression's column-scaled factor for which its columns count as
+#: independent and ``R_pp^2`` as its sum of squared residuals (far above the rounding level
+#: :func:`~hammerstein_ctrl.streamed_lstsq.rank_tolerance`).
+CLEAR_RANK = 1e-8
 #: Relative step of the forward differences of the reduced Jacobian (MINPACK's, ``sqrt(eps)``).
 FORWARD_STEP = float(np.sqrt(np.finfo(float).eps))
 #: Size of a regression's columns (``8 N`` bytes each) past which its driving signals and their
@@ -366,20 +370,16 @@ class _Regression:
         columns = count + (n if self.free_columns else 0)
         return 1 <= n <= MAX_PASS_STATES and self.y.size * self.y.itemsize * columns > STREAMED_COLUMNS_BYTES
 
-    def responses(self, thetas, v) -> np.ndarray:
-        """Responses ``(k, N)`` of ``H(theta)`` to the one signal ``v`` for each of the ``k`` rows of ``thetas``
-        (``k`` counted evaluations)."""
+    def responses(self, thetas, signals) -> np.ndarray:
+        """Responses ``(k, N)`` of ``H(theta)`` for each of the ``k`` rows of ``thetas`` to its row of ``signals``
+        (or to the one signal ``signals``), ``k`` counted evaluations."""
         self.budget.charge(len(thetas))
         num, den = zip(*(self.structure.linear.coefficients(theta) for theta in thetas))
-        return simulate_batch(np.vstack(num), np.vstack(den), v, self.data.dt, intersample=self.data.intersample)
+        return simulate_batch(np.vstack(num), np.vstack(den), signals, self.data.dt, intersample=self.data.intersample)
 
     def simulate(self, theta, drives) -> np.ndarray:
         """Responses ``(k, N)`` of ``H(theta)`` to each drive (``k`` counted evaluations)."""
-        self.budget.charge(drives.shape[0])
-        num, den = self.structure.linear.coefficients(theta)
-        k = drives.shape[0]
-        return simulate_batch(np.repeat(num, k, 0), np.repeat(den, k, 0), drives, self.data.dt,
-                              intersample=self.data.intersample)
+        return self.responses([theta] * drives.shape[0], drives)
 
     @property
     def free_columns(self) -> bool:
@@ -426,10 +426,14 @@ class _Regression:
         """``y - X w``."""
         return columns.residual(w, self.y) if isinstance(columns, _StreamedColumns) else residual(columns, w, self.y)
 
+    def solution(self, columns) -> tuple[np.ndarray, np.ndarray | None]:
+        """The factor ``R`` of ``[X y]`` and the least-squares coefficients (``None`` if not finite)."""
+        R = self.factor(columns)
+        return R, solve_scaled(R, self.y.size)
+
     def fit(self, columns) -> tuple[np.ndarray | None, float]:
         """Coefficients and sum of squared residuals of the least-squares fit (``(None, inf)`` if not finite)."""
-        R = self.factor(columns)
-        w = solve_scaled(R, self.y.size)
+        R, w = self.solution(columns)
         return (None, np.inf) if w is None else (w, factor_sse(R, w))
 
     def solve(self, columns):
@@ -441,14 +445,22 @@ class _Regression:
 
 
 def _reduced_sse(reg: _Regression, theta, drives) -> float:
-    """The least-squares residual of ``H(theta)``'s regression, ``R_pp^2`` of its factor (inf if not finite).
+    """The sum of squared residuals of ``H(theta)``'s regression (inf if not finite).
 
-    Rank-deficient columns leave it unchanged, where a solve that drops their
-    dependent directions could lose a rounding's worth: the ranking of scan
-    candidates needs no coefficients.
+    Where every column stands clear of the others' span (no diagonal element of
+    the column-scaled factor below :data:`CLEAR_RANK`) it is ``R_pp^2``,
+    which needs no solve; columns dependent but for rounding (a constant
+    drive's response beside an offset and free responses) take the solve,
+    which drops those directions.
     """
     R = reg.factor(reg.columns(theta, drives))
-    return float(R[-1, -1] ** 2) if np.all(np.isfinite(R)) else np.inf
+    if not np.all(np.isfinite(R)):
+        return np.inf
+    diag = np.abs(np.diag(R)[:-1]) / column_scale(R[:-1, :-1])
+    if diag.size == 0 or diag.min() > CLEAR_RANK:
+        return float(R[-1, -1] ** 2)
+    w = solve_scaled(R, reg.y.size)
+    return np.inf if w is None else factor_sse(R, w)
 
 
 class _Joined(Exception):
@@ -456,22 +468,27 @@ class _Joined(Exception):
 
 
 class _Fit:
-    """One evaluation of the reduced residual: the point, the columns, their factor and coefficients."""
+    """One evaluation of the reduced residual: the point, its coefficients, and (for Kaufman's Jacobian) the
+    columns and their factor."""
 
-    def __init__(self, theta, columns, R, w):
-        self.theta, self.columns, self.R, self.w = np.array(theta, dtype=float), columns, R, w
+    def __init__(self, theta, w, columns=None, R=None):
+        self.theta, self.w, self.columns, self.R = np.array(theta, dtype=float), w, columns, R
 
 
 class _ReducedProblem:
     """The variable-projection residual over the linear coefficients, within a budget of simulated signals.
 
     Its Jacobian (:meth:`jacobian`) is Kaufman's: the simulated response to
-    the fitted drive ``v = sum w_i d_i`` (``H`` is linear, so ``H v = X w``),
-    differentiated by forward differences in one batch, less its fit by the
-    columns.  One Jacobian simulates ``p`` signals where forward
-    differences of the whole reduced residual re-ran every drive's response
-    and the regression ``p`` times.  It needs the columns held and no free
-    responses; otherwise :attr:`kaufman` is False and MINPACK differentiates.
+    the fitted drive ``v = sum w_i d_i``, differentiated by forward
+    differences in one batch (with ``H(theta) v`` itself, so that the
+    differences see one rounding), less its fit by the columns.  One Jacobian
+    simulates ``p + 1`` signals where forward differences of the whole
+    reduced residual re-ran every drive's response and the regression ``p``
+    times.  It needs the columns held and no free responses; otherwise
+    :attr:`kaufman` is False and MINPACK differentiates.
+
+    The search stops (:class:`_Joined`) when a new best point comes within
+    :data:`JOIN_TOL` of one of the ``known`` optima.
     """
 
     def __init__(self, reg: _Regression, drives: _Drives, evaluations: int, known=()):
@@ -490,24 +507,25 @@ class _ReducedProblem:
     def _evaluate(self, theta) -> tuple[_Fit | None, np.ndarray]:
         self._spend(self.reg.evaluations(self.drives))
         columns = self.reg.columns(theta, self.drives)
-        R = self.reg.factor(columns)
-        w = solve_scaled(R, self.reg.y.size)
+        R, w = self.reg.solution(columns)
         if w is None:
             self.last = None
             return None, np.full(self.reg.y.size, self.big)
         r = self.reg.residual(columns, w)
-        self.last = _Fit(theta, columns, R, w)
+        self.last = _Fit(theta, w, *((columns, R) if self.kaufman else ()))
         sse = float(r @ r)
         if sse < self.best_sse:
-            self.best, self.best_sse, self.kept = np.array(theta, dtype=float), sse, self.last
+            self.best, self.best_sse, self.kept = self.last.theta, sse, self.last
+            self._check_joined(self.best)
         return self.last, r
 
-    def residual(self, theta) -> np.ndarray:
-        """The reduced residual at ``theta``; raises :class:`_Joined` near an earlier optimum."""
-        _, r = self._evaluate(theta)
+    def _check_joined(self, theta):
         if any(np.all(np.abs(theta - k) <= JOIN_TOL * np.maximum(np.abs(k), JOIN_FLOOR)) for k in self.known):
             raise _Joined
-        return r
+
+    def residual(self, theta) -> np.ndarray:
+        """The reduced residual at ``theta``."""
+        return self._evaluate(theta)[1]
 
     def _fit_at(self, theta) -> _Fit | None:
         for fit in (self.last, self.kept):
@@ -516,61 +534,63 @@ class _ReducedProblem:
         return self._evaluate(theta)[0]
 
     def jacobian(self, theta) -> np.ndarray:
-        """Kaufman's Jacobian of :meth:`residual` at ``theta``, as rows (``(p, N)``; zero if the fit is not finite)."""
+        """Kaufman's Jacobian of :meth:`residual` at ``theta``, as rows (``(p, N)``; zero rows where the fit or
+        a difference is not finite)."""
         fit = self._fit_at(theta)
         theta = np.asarray(theta, dtype=float)
         if fit is None:
             return np.zeros((theta.size, self.reg.y.size))
-        self._spend(theta.size)
-        k = self.drives.count
-        v = fit.w[:k] @ self.drives.array
+        self._spend(theta.size + 1)
+        v = fit.w[:self.drives.count] @ self.drives.array
         h = FORWARD_STEP * np.where(theta == 0, 1.0, np.abs(theta))
-        Y = self.reg.responses(theta + np.diag(h), v)
+        Y = self.reg.responses(np.vstack([theta, theta + np.diag(h)]), v)
         with np.errstate(all="ignore"):
-            D = (Y - fit.w[:k] @ fit.columns[0]) / h[:, None]     # H v = the drives' responses combined
-        if not np.all(np.isfinite(D)):
-            return np.zeros_like(D)
-        return -orthogonal_part(fit.columns, fit.R, D)
+            D = (Y[1:] - Y[0]) / h[:, None]
+        bad = ~np.all(np.isfinite(D), axis=1)
+        D[bad] = 0.0
+        J = -orthogonal_part(fit.columns, fit.R, D)
+        J[bad] = 0.0
+        return J
 
 
-def _served_twice(f):
-    """``f`` with its first result served once more for the same point (leastsq's input check evaluates x0,
-    then MINPACK evaluates it again)."""
-    calls, first = [0], []
+def _last_served(f):
+    """``f`` of a pure function of one point, its last result served again for the same point (leastsq
+    evaluates x0 in its input check, then MINPACK evaluates it twice more)."""
+    last = []
 
     def call(theta):
-        calls[0] += 1
-        if calls[0] == 2 and np.array_equal(theta, first[0][0]):
-            return first.pop()[1]
+        if last and np.array_equal(theta, last[0]):
+            return last[1]
         out = f(theta)
-        if calls[0] == 1:
-            first.append((np.array(theta, dtype=float), out))
+        last[:] = [np.array(theta, dtype=float), out]
         return out
     return call
 
 
 def _refine_linear(reg: _Regression, theta, drives, limit: int = REFINE_EVALUATIONS,
-                   known=()) -> tuple[np.ndarray, float] | None:
+                   known=()) -> tuple[np.ndarray, float, bool] | None:
     """Levenberg-Marquardt on the variable-projection residual over the linear coefficients.
 
     MINPACK (through :func:`scipy.optimize.leastsq`) with Kaufman's Jacobian
     (:class:`_ReducedProblem`) where the columns are held, else with its own
     forward differences.  At most :data:`REFINE_EVALUATIONS` residuals' worth
-    of signals are simulated; the best point seen is returned.  ``None``
-    when the search comes within :data:`JOIN_TOL` of one of the optima
-    ``known`` (it would only reach that start again).
+    of signals are simulated.  Returns ``(theta, sse, converged)``: the
+    best point seen, and whether MINPACK reported convergence; ``None`` when
+    the search comes within :data:`JOIN_TOL` of one of the optima ``known``
+    (it would only reach that start again).
     """
     problem = _ReducedProblem(reg, drives, int(min(REFINE_EVALUATIONS, limit,
                                                    reg.budget.remaining // reg.evaluations(drives))), known)
     if theta.size == 0 or problem.left <= (theta.size + 1) * reg.evaluations(drives):
-        return theta, _reduced_sse(reg, theta, drives)
-    jacobian = _served_twice(problem.jacobian) if problem.kaufman else None
+        return theta, _reduced_sse(reg, theta, drives), False
+    jacobian = _last_served(problem.jacobian) if problem.kaufman else None
     try:
-        x, _, info, _, _ = scipy.optimize.leastsq(_served_twice(problem.residual), theta, Dfun=jacobian, col_deriv=True,
-                                                  full_output=True, xtol=REFINE_TOL, ftol=REFINE_TOL, gtol=REFINE_TOL)
-        return x, float(info["fvec"] @ info["fvec"])
+        x, _, info, _, ier = scipy.optimize.leastsq(_last_served(problem.residual), theta, Dfun=jacobian,
+                                                    col_deriv=True, full_output=True, xtol=REFINE_TOL,
+                                                    ftol=REFINE_TOL, gtol=REFINE_TOL)
+        return x, float(info["fvec"] @ info["fvec"]), ier in (1, 2, 3, 4)
     except BudgetExhausted:
-        return problem.best if problem.best is not None else theta, problem.best_sse
+        return (problem.best if problem.best is not None else theta), problem.best_sse, False
     except _Joined:
         return None
 
@@ -704,8 +724,8 @@ def _refine_in_turn(reg: _Regression, starts: list, drives: _Drives, reserve: in
     steps to converge (a scan candidate far from the optimum) gets them,
     where an even split of the share left each a few steps and none
     converged.  Starts past the share keep their scan value.  A refinement
-    that joins an optimum an earlier one reached is dropped (it would give
-    the same start again).
+    that joins an optimum an earlier one converged to is dropped (it would
+    give the same start again).
     """
     remaining = reg.budget.remaining
     pool, begin = min(REFINE_SHARE * remaining, remaining - reserve), reg.budget.nfev
@@ -718,8 +738,9 @@ def _refine_in_turn(reg: _Regression, starts: list, drives: _Drives, reserve: in
             continue
         out = _refine_linear(reg, theta, drives, min(REFINE_EVALUATIONS, left), reached)
         if out is not None:
-            refined.append(out)
-            reached.append(out[0])
+            refined.append(out[:2])
+            if out[2]:
+                reached.append(out[0])
     return sorted(refined, key=lambda item: item[1])
 
 

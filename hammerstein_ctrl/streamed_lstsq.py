@@ -44,7 +44,7 @@ from .exceptions import DataError
 
 __all__ = ["BLOCK_SAMPLES", "triangular_factor", "factor_of_blocks", "rank_tolerance", "solve_scaled",
            "solve_minimum_norm", "factor_sse", "residual", "constant_column", "column_blocks",
-           "factor_of_columns", "residual_of_columns", "orthogonal_part"]
+           "factor_of_columns", "residual_of_columns", "orthogonal_part", "column_scale"]
 
 #: Samples per block of the streamed factorisation and residual (a block of
 #: ``p + 1`` columns takes ``8 (p + 1) BLOCK_SAMPLES`` bytes).
@@ -54,7 +54,7 @@ BLOCK_SAMPLES = 8192
 #: where the blocks and their merges took 430 us, and the copy is small beside the record.
 WHOLE_FACTOR_BYTES = 1 << 22
 
-_GEQRF = scipy.linalg.get_lapack_funcs("geqrf", dtype=np.float64)
+_GEQRF, _TRTRI = scipy.linalg.get_lapack_funcs(("geqrf", "trtri"), dtype=np.float64)
 _GELSY, _GELSY_LWORK = scipy.linalg.get_lapack_funcs(("gelsy", "gelsy_lwork"), dtype=np.float64)
 
 
@@ -135,9 +135,10 @@ def triangular_factor(columns, y) -> np.ndarray:
         whole[:, j:j + a.shape[0]] = a.T
         j += a.shape[0]
     whole[:, -1] = y
-    if not np.all(np.isfinite(whole)):
-        return np.full((width + 1, width + 1), np.nan)
-    return _triangle(whole, np.tri(width + 1, k=-1, dtype=bool))
+    R = _triangle(whole, np.tri(width + 1, k=-1, dtype=bool))
+    # a NaN or inf anywhere reaches R (a column's norm, then every reflector after it): checking the small R
+    # instead of the whole copy saves a pass over it
+    return R if np.all(np.isfinite(R)) else np.full((width + 1, width + 1), np.nan)
 
 
 def _check_length(a: np.ndarray, n_samples: int):
@@ -279,11 +280,9 @@ def solve_scaled(R: np.ndarray, n_samples: int) -> np.ndarray | None:
     when ``R`` or a column norm is not finite.
     """
     R11 = R[:-1, :-1]
-    with np.errstate(all="ignore"):
-        scale = np.sqrt(np.sum(R11 * R11, axis=0))
+    scale = column_scale(R11)
     if not (np.all(np.isfinite(R)) and np.all(np.isfinite(scale))):
         return None
-    scale[scale == 0] = 1.0
     p, cond = R11.shape[1], rank_tolerance(n_samples)
     if p == 0:
         return np.zeros(0)
@@ -291,6 +290,22 @@ def solve_scaled(R: np.ndarray, n_samples: int) -> np.ndarray | None:
     w = _GELSY(R11 / scale, R[:-1, -1].copy(), np.zeros((p, 1), dtype=np.int32), cond, _gelsy_work(p),
                True, True)[1]
     return w / scale
+
+
+def column_scale(R11: np.ndarray) -> np.ndarray:
+    """The norms of the columns of ``X`` from its factor ``R11`` (columns of ``R11``), a zero norm taken as 1.
+
+    Examples
+    --------
+    >>> column_scale(np.array([[3.0, 1.0], [0.0, 0.0]])).tolist()
+    [3.0, 1.0]
+    >>> column_scale(np.zeros((2, 2))).tolist()
+    [1.0, 1.0]
+    """
+    with np.errstate(all="ignore"):
+        scale = np.sqrt(np.sum(R11 * R11, axis=0))
+    scale[scale == 0] = 1.0
+    return scale
 
 
 @functools.lru_cache(maxsize=64)
@@ -331,10 +346,14 @@ def residual(columns, w, y) -> np.ndarray:
     [1.0, 0.0, -1.0]
     """
     y = np.asarray(y, dtype=float)
+    w = np.asarray(w, dtype=float).reshape(-1)
     rows = _rows(columns)
     for a in rows:
         _check_length(a, y.shape[0])
-    return y - _combination(rows, np.asarray(w, dtype=float)[:, None])[0]
+    width = sum(a.shape[0] for a in rows)
+    if w.size != width:
+        raise DataError(f"{w.size} coefficients for {width} columns")
+    return y.copy() if width == 0 else y - _combination(rows, w[:, None])[0]
 
 
 def _combination(rows, C: np.ndarray) -> np.ndarray:
@@ -352,15 +371,29 @@ def _products(rows, Z: np.ndarray) -> np.ndarray:
     return np.vstack([a @ Z.T for a in rows])
 
 
+def _inverse_factor(T: np.ndarray, cut: float) -> np.ndarray:
+    """``T^+`` of an upper-triangular ``T`` with unit-norm columns: LAPACK's triangular inverse when no diagonal
+    element lies below ``cut`` (a few microseconds), else the pseudo-inverse with singular values below ``cut``
+    dropped."""
+    if T.shape[0] and np.min(np.abs(np.diag(T))) > cut:
+        inverse, info = _TRTRI(T, lower=0)
+        if info == 0 and np.all(np.isfinite(inverse)):
+            return inverse
+    return np.linalg.pinv(T, rcond=cut)
+
+
 def orthogonal_part(columns, R: np.ndarray, Z) -> np.ndarray:
     """The rows of ``Z`` less their least-squares fit by the columns: ``(I - P_X) Z^T``, as rows.
 
     ``R`` is the :func:`triangular_factor` of ``[X y]``.  The coefficients
-    come from ``R`` (corrected semi-normal equations: one solve on ``R``,
-    then one more on what it left), with the columns scaled to unit norm and
-    directions below :func:`rank_tolerance` dropped as in :func:`solve_scaled`.
-    A variable-projection Jacobian uses it: how a change of the simulated
-    columns moves the residual once the linear coefficients follow.
+    come from ``R`` by the semi-normal equations ``R^T R C = X^T Z^T``, with
+    the columns scaled to unit norm and directions below
+    :func:`rank_tolerance` dropped as in :func:`solve_scaled`: their error
+    grows with the square of the condition number, but what is left of ``Z``
+    (the part along the columns removed) errs by about ``cond(X) eps``
+    (measured: 4e-10 of ``Z`` at a condition number of 1e6, 1e-6 at 1e10),
+    ample for a variable-projection Jacobian, which uses it: how a change of
+    the simulated columns moves the residual once the linear coefficients follow.
 
     Parameters
     ----------
@@ -372,6 +405,7 @@ def orthogonal_part(columns, R: np.ndarray, Z) -> np.ndarray:
     Returns
     -------
     ndarray, shape (m, N)
+        All NaN if ``R`` is not finite.
 
     Examples
     --------
@@ -384,15 +418,13 @@ def orthogonal_part(columns, R: np.ndarray, Z) -> np.ndarray:
     rows = _rows(columns)
     Z = np.atleast_2d(np.asarray(Z, dtype=float))
     R11 = R[:-1, :-1]
-    scale = np.sqrt(np.sum(R11 * R11, axis=0))
-    scale[scale == 0] = 1.0
-    inverse = np.linalg.pinv(R11 / scale, rcond=rank_tolerance(Z.shape[1]))
+    scale = column_scale(R11)
+    if not (np.all(np.isfinite(R)) and np.all(np.isfinite(scale))):
+        return np.full(Z.shape, np.nan)
+    inverse = _inverse_factor(R11 / scale, rank_tolerance(Z.shape[1]))
 
-    def coefficients(E):
-        return (inverse @ (inverse.T @ (_products(rows, E) / scale[:, None]))) / scale[:, None]
-
-    E = Z - _combination(rows, coefficients(Z))
-    return E - _combination(rows, coefficients(E))
+    coefficients = (inverse @ (inverse.T @ (_products(rows, Z) / scale[:, None]))) / scale[:, None]
+    return Z - _combination(rows, coefficients)
 
 
 def residual_of_columns(blocks, w, y) -> np.ndarray:

@@ -491,15 +491,91 @@ def test_kaufman_jacobian_of_the_reduced_residual_equals_its_central_differences
         np.testing.assert_allclose(J[j], central, rtol=0, atol=1e-5 * np.abs(central).max())
 
 
+@pytest.mark.parametrize("family", [Coulomb(), Tanh()], ids=["basis", "affine"])
+def test_kaufman_jacobian_equals_the_dense_formula_with_an_offset_and_a_residual(family):
+    """-(I - P_X) sum_i w_i d(H d_i)/d theta, formed densely (central differences of each column, numpy's
+    projection), away from the optimum of a noisy record: with a constant column after the drives' responses."""
+    data = _plant_record(1500, [1.0], [1.0, 2.0, 5.0], _coulomb, hold=40, noise=0.02)
+    s = HammersteinStructure(LinearStructure(0, 2), family, offset=True)
+    reg = initialize._Regression(s, data, Budget(None))
+    drives = initialize._drives(s.input_nonlinearity, np.asarray(data.u, dtype=float), reg)
+    theta = np.array([4.0, 1.5])
+    problem = initialize._ReducedProblem(reg, drives, 10**6)
+    problem.residual(theta)
+    J = problem.jacobian(theta)
+    X = dense_columns(reg, theta, drives)
+    w = np.linalg.lstsq(X, reg.y, rcond=None)[0]
+    k = drives.count
+    D = np.empty((2, reg.y.size))
+    for j in range(2):
+        h = np.zeros(2)
+        h[j] = 1e-6 * theta[j]
+        up, down = dense_columns(reg, theta + h, drives), dense_columns(reg, theta - h, drives)
+        D[j] = (up[:, :k] - down[:, :k]) @ w[:k] / (2 * h[j])
+    ref = -(D.T - X @ np.linalg.lstsq(X, D.T, rcond=None)[0]).T
+    np.testing.assert_allclose(J, ref, rtol=0, atol=1e-5 * np.abs(ref).max())
+
+
 def test_reduced_refinement_reaches_the_plant_and_spends_no_more_than_its_share():
     reg, drives, theta = _coulomb_truth()
     for limit in (8, 20, 60):
         before = reg.budget.nfev
-        x, sse = initialize._refine_linear(reg, np.array([3.0, 1.0]), drives, limit)
+        x, sse, converged = initialize._refine_linear(reg, np.array([3.0, 1.0]), drives, limit)
         assert reg.budget.nfev - before <= limit * reg.evaluations(drives)
         if limit == 60:
             np.testing.assert_allclose(x, theta, rtol=1e-7)
-            assert sse < 1e-16 * np.sum(reg.y ** 2)
+            assert sse < 1e-16 * np.sum(reg.y ** 2) and converged
+
+
+def test_reduced_refinement_simulates_its_start_once(monkeypatch):
+    """leastsq evaluates x0 in its input check and MINPACK twice more: one simulation serves all three."""
+    reg, drives, _ = _coulomb_truth()
+    seen = []
+    real = initialize._ReducedProblem._evaluate
+
+    def counting(self, theta):
+        seen.append(np.array(theta))
+        return real(self, theta)
+    monkeypatch.setattr(initialize._ReducedProblem, "_evaluate", counting)
+    start = np.array([3.0, 1.0])
+    initialize._refine_linear(reg, start, drives, 60)
+    assert sum(np.array_equal(t, start) for t in seen) == 1
+
+
+def test_a_refinement_stopped_by_its_share_does_not_drop_a_later_one(monkeypatch):
+    """Only optima MINPACK converged to are joined: a first refinement cut short (4 residuals' worth) is not
+    one, so the second start, near it, still runs to the plant."""
+    reg, drives, theta = _coulomb_truth()
+    real, known_sizes = initialize._refine_linear, []
+
+    def first_cut_short(reg_, theta_, drives_, limit, known):
+        known_sizes.append(len(known))
+        return real(reg_, theta_, drives_, 4 if len(known_sizes) == 1 else limit, known)
+    monkeypatch.setattr(initialize, "_refine_linear", first_cut_short)
+    out = initialize._refine_in_turn(reg, [(np.array([3.0, 1.0]), 1.0), (np.array([3.2, 1.1]), 2.0)], drives)
+    assert known_sizes == [0, 0] and len(out) == 2
+    np.testing.assert_allclose(out[0][0], theta, rtol=1e-7)
+
+
+def test_orthogonal_part_of_ill_conditioned_columns_equals_the_dense_projection():
+    """Columns nearly dependent (condition number about 1e6): the coefficients of the semi-normal equations err
+    by about cond^2 eps, but what is left of Z only by about cond eps (measured 4e-10)."""
+    rng = np.random.default_rng(5)
+    a = rng.normal(size=800)
+    columns = [np.stack([a, a + 1e-6 * rng.normal(size=800), rng.normal(size=800)])]
+    y = rng.normal(size=800)
+    R = triangular_factor(columns, y)
+    Z = np.stack([a + rng.normal(size=800), 2.0 * a - columns[0][1] + 0.5 * rng.normal(size=800)])
+    X = columns[0].T
+    ref = Z - (X @ np.linalg.lstsq(X, Z.T, rcond=None)[0]).T
+    np.testing.assert_allclose(orthogonal_part(columns, R, Z), ref, rtol=0, atol=1e-8 * np.abs(Z).max())
+
+
+def test_residual_refuses_coefficients_that_do_not_match_the_columns():
+    columns, X, y = regression(n=50)
+    with pytest.raises(DataError, match="5 coefficients for 4 columns"):
+        residual(columns, np.ones(5), y)
+    assert np.array_equal(residual([], [], y), y)
 
 
 def test_a_refinement_that_reaches_an_earlier_optimum_is_dropped():
@@ -511,3 +587,39 @@ def test_a_refinement_that_reaches_an_earlier_optimum_is_dropped():
     assert len(refined) == 1
     np.testing.assert_allclose(refined[0][0], theta, rtol=1e-7)
     assert initialize._refine_linear(reg, np.array([7.0, 3.0]), drives, known=[theta]) is None
+
+
+@pytest.mark.parametrize("value", [np.nan, np.inf, -np.inf])
+def test_a_non_finite_value_anywhere_in_a_whole_regression_gives_no_solution(value):
+    """The whole factor checks R, not the copy of [X y]: every position of one non-finite value must reach it
+    (with rows of zeros, equal columns and a zero column, where a reflector can be the identity)."""
+    rng = np.random.default_rng(11)
+    X = rng.normal(size=(3, 12))
+    X[1, 4:] = 0.0                          # a column with zeros below some rows
+    X[2] = X[0]                             # two equal columns
+    y = rng.normal(size=12)
+    for cols, target in [(X, y), (np.vstack([X, np.zeros(12)]), y)]:
+        for j in range(cols.shape[0] + 1):
+            for i in range(12):
+                c, t = cols.copy(), target.copy()
+                if j < c.shape[0]:
+                    c[j, i] = value
+                else:
+                    t[i] = value
+                R = triangular_factor([c], t)
+                assert np.all(np.isnan(R)) and solve_scaled(R, 12) is None, (j, i)
+
+
+@pytest.mark.parametrize("offset, initial_state", [(False, "zero"), (True, "estimate")])
+def test_scan_candidates_are_ranked_by_the_solved_sum_of_squares(offset, initial_state):
+    """R_pp^2 stands in for the solve only where the columns are independent: with an offset and free responses
+    beside a Coulomb basis (its constant's response lies in their span but for rounding) R_pp^2 was up to
+    half the solved value and reordered candidates."""
+    data, _ = hammerstein_case(n=1500)
+    s = HammersteinStructure(LinearStructure(0, 3), Coulomb(), offset=offset, initial_state=initial_state)
+    reg = initialize._Regression(s, data, Budget(None))
+    drives = initialize._drives(s.input_nonlinearity, np.asarray(data.u, dtype=float), reg)
+    groups = initialize._candidate_linear(s.linear, data, drives)
+    for theta in next(iter(groups.values())):
+        solved = reg.fit(reg.columns(theta, drives))[1]
+        np.testing.assert_allclose(initialize._reduced_sse(reg, theta, drives), solved, rtol=1e-9)
