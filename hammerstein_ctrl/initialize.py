@@ -370,16 +370,21 @@ class _Regression:
         columns = count + (n if self.free_columns else 0)
         return 1 <= n <= MAX_PASS_STATES and self.y.size * self.y.itemsize * columns > STREAMED_COLUMNS_BYTES
 
-    def responses(self, thetas, signals) -> np.ndarray:
-        """Responses ``(k, N)`` of ``H(theta)`` for each of the ``k`` rows of ``thetas`` to its row of ``signals``
-        (or to the one signal ``signals``), ``k`` counted evaluations."""
-        self.budget.charge(len(thetas))
+    def _responses(self, num, den, signals) -> np.ndarray:
+        self.budget.charge(num.shape[0])
+        return simulate_batch(num, den, signals, self.data.dt, intersample=self.data.intersample)
+
+    def responses(self, thetas, v) -> np.ndarray:
+        """Responses ``(k, N)`` of ``H(theta)`` to the one signal ``v`` for each of the ``k`` rows of ``thetas``
+        (``k`` counted evaluations)."""
         num, den = zip(*(self.structure.linear.coefficients(theta) for theta in thetas))
-        return simulate_batch(np.vstack(num), np.vstack(den), signals, self.data.dt, intersample=self.data.intersample)
+        return self._responses(np.vstack(num), np.vstack(den), v)
 
     def simulate(self, theta, drives) -> np.ndarray:
         """Responses ``(k, N)`` of ``H(theta)`` to each drive (``k`` counted evaluations)."""
-        return self.responses([theta] * drives.shape[0], drives)
+        num, den = self.structure.linear.coefficients(theta)
+        k = drives.shape[0]
+        return self._responses(np.repeat(num, k, 0), np.repeat(den, k, 0), drives)
 
     @property
     def free_columns(self) -> bool:
