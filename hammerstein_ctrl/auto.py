@@ -61,7 +61,7 @@ def _one_blas_thread(method):
     """``method`` with BLAS held to one thread (:func:`~hammerstein_ctrl._linalg.single_threaded_blas`), as in
     ``identify``: the start search's regressions are thousands of rows by a few columns, where OpenBLAS's
     threads only add their wake-ups (``auto_minimize`` called directly on the EMPS: 84 ms median with two
-    threads, 43 ms with one)."""
+    threads, 43 ms with one).  A ``callback`` runs under the same limit."""
     @functools.wraps(method)
     def run(*args, **kwargs):
         with single_threaded_blas():

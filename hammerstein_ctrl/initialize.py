@@ -52,7 +52,7 @@ from .exceptions import ParameterError
 from .optimize import Budget, BudgetExhausted
 from .simulate import MAX_PASS_STATES, free_response, response_blocks, simulate_batch, unstable
 from . import streamed_lstsq
-from .streamed_lstsq import (column_scale, constant_column, factor_of_blocks, factor_of_columns, factor_sse,
+from .streamed_lstsq import (constant_column, factor_of_blocks, factor_of_columns, factor_sse, independent,
                              orthogonal_part, residual, residual_of_columns, solve_minimum_norm, solve_scaled,
                              triangular_factor)
 
@@ -93,9 +93,9 @@ REFINE_TOL = 1e-8
 #: earlier one converged to, in every coefficient ``c`` of it, stops there: it would return the same start.
 JOIN_TOL = 1e-2
 JOIN_FLOOR = 1e-6
-#: Smallest diagonal element of a scan regression's column-scaled factor for which its columns count as
-#: independent and ``R_pp^2`` as its sum of squared residuals (far above the rounding level
-#: :func:`~hammerstein_ctrl.streamed_lstsq.rank_tolerance`).
+#: Smallest singular value, relative to the largest, of a scan regression's column-scaled factor for which
+#: its columns count as independent and ``R_pp^2`` as its sum of squared residuals (far above the rounding
+#: level :func:`~hammerstein_ctrl.streamed_lstsq.rank_tolerance`).
 CLEAR_RANK = 1e-8
 #: Relative step of the forward differences of the reduced Jacobian (MINPACK's, ``sqrt(eps)``).
 FORWARD_STEP = float(np.sqrt(np.finfo(float).eps))
@@ -452,17 +452,16 @@ class _Regression:
 def _reduced_sse(reg: _Regression, theta, drives) -> float:
     """The sum of squared residuals of ``H(theta)``'s regression (inf if not finite).
 
-    Where every column stands clear of the others' span (no diagonal element of
-    the column-scaled factor below :data:`CLEAR_RANK`) it is ``R_pp^2``,
-    which needs no solve; columns dependent but for rounding (a constant
-    drive's response beside an offset and free responses) take the solve,
-    which drops those directions.
+    Where the columns are independent well above the rounding level
+    (:func:`~hammerstein_ctrl.streamed_lstsq.independent` at
+    :data:`CLEAR_RANK`) it is ``R_pp^2``, which needs no solve; columns
+    dependent but for rounding (a constant drive's response beside an offset
+    and free responses) take the solve, which drops those directions.
     """
     R = reg.factor(reg.columns(theta, drives))
     if not np.all(np.isfinite(R)):
         return np.inf
-    diag = np.abs(np.diag(R)[:-1]) / column_scale(R[:-1, :-1])
-    if diag.size == 0 or diag.min() > CLEAR_RANK:
+    if independent(R, CLEAR_RANK):
         return float(R[-1, -1] ** 2)
     w = solve_scaled(R, reg.y.size)
     return np.inf if w is None else factor_sse(R, w)
@@ -473,8 +472,8 @@ class _Joined(Exception):
 
 
 class _Fit:
-    """One evaluation of the reduced residual: the point, its coefficients, and (for Kaufman's Jacobian) the
-    columns and their factor."""
+    """One evaluation of the reduced residual: the point, its coefficients (``None``: no finite fit), and (for
+    Kaufman's Jacobian) the columns and their factor."""
 
     def __init__(self, theta, w, columns=None, R=None):
         self.theta, self.w, self.columns, self.R = np.array(theta, dtype=float), w, columns, R
@@ -514,8 +513,8 @@ class _ReducedProblem:
         columns = self.reg.columns(theta, self.drives)
         R, w = self.reg.solution(columns)
         if w is None:
-            self.last = None
-            return None, np.full(self.reg.y.size, self.big)
+            self.last = _Fit(theta, None)
+            return self.last, np.full(self.reg.y.size, self.big)
         r = self.reg.residual(columns, w)
         self.last = _Fit(theta, w, *((columns, R) if self.kaufman else ()))
         sse = float(r @ r)
@@ -532,7 +531,7 @@ class _ReducedProblem:
         """The reduced residual at ``theta``."""
         return self._evaluate(theta)[1]
 
-    def _fit_at(self, theta) -> _Fit | None:
+    def _fit_at(self, theta) -> _Fit:
         for fit in (self.last, self.kept):
             if fit is not None and np.array_equal(fit.theta, theta):
                 return fit
@@ -543,7 +542,7 @@ class _ReducedProblem:
         a difference is not finite)."""
         fit = self._fit_at(theta)
         theta = np.asarray(theta, dtype=float)
-        if fit is None:
+        if fit.w is None:
             return np.zeros((theta.size, self.reg.y.size))
         self._spend(theta.size + 1)
         v = fit.w[:self.drives.count] @ self.drives.array
@@ -559,15 +558,16 @@ class _ReducedProblem:
 
 
 def _last_served(f):
-    """``f`` of a pure function of one point, its last result served again for the same point (leastsq
-    evaluates x0 in its input check, then MINPACK evaluates it twice more)."""
+    """``f`` (whose result depends on the point alone), its last result served again, as a copy, for the same
+    point: leastsq evaluates x0 in its input check, then MINPACK evaluates it twice more (and scipy keeps the
+    first array it is given as MINPACK's own work vector, which it overwrites later)."""
     last = []
 
     def call(theta):
         if last and np.array_equal(theta, last[0]):
-            return last[1]
+            return last[1].copy()
         out = f(theta)
-        last[:] = [np.array(theta, dtype=float), out]
+        last[:] = [np.array(theta, dtype=float), out.copy()]
         return out
     return call
 
@@ -593,6 +593,8 @@ def _refine_linear(reg: _Regression, theta, drives, limit: int = REFINE_EVALUATI
         x, _, info, _, ier = scipy.optimize.leastsq(_last_served(problem.residual), theta, Dfun=jacobian,
                                                     col_deriv=True, full_output=True, xtol=REFINE_TOL,
                                                     ftol=REFINE_TOL, gtol=REFINE_TOL)
+        if problem.kept is None:                # no finite fit anywhere: nothing converged
+            return theta, np.inf, False
         return x, float(info["fvec"] @ info["fvec"]), ier in (1, 2, 3, 4)
     except BudgetExhausted:
         return (problem.best if problem.best is not None else theta), problem.best_sse, False

@@ -623,3 +623,71 @@ def test_scan_candidates_are_ranked_by_the_solved_sum_of_squares(offset, initial
     for theta in next(iter(groups.values())):
         solved = reg.fit(reg.columns(theta, drives))[1]
         np.testing.assert_allclose(initialize._reduced_sse(reg, theta, drives), solved, rtol=1e-9)
+
+
+def test_columns_each_close_to_the_span_of_the_earlier_ones_are_not_independent():
+    """a, a + d b, b + d c (a, b, c orthonormal, d = 3e-8): no diagonal of the factor falls below 3e-8, yet the
+    columns span a plane to 1e-15.  independent() looks at the singular values; the scan's sum of squares then
+    takes the solve, and the projection drops the direction as solve_scaled does."""
+    rng = np.random.default_rng(2)
+    a, b, c = np.linalg.qr(rng.normal(size=(2000, 3)))[0].T
+    d = 3e-8
+    columns = [np.stack([a, a + d * b, b + d * c])]
+    y = rng.normal(size=2000)
+    R = triangular_factor(columns, y)
+    assert np.min(np.abs(np.diag(R)[:-1])) > 1e-8
+    assert not streamed_lstsq.independent(R, 1e-8)
+    assert streamed_lstsq.independent(triangular_factor([np.stack([a, b, c])], y), 1e-8)
+    Z = rng.normal(size=(2, 2000))
+    U, sv, _ = np.linalg.svd(columns[0].T / np.linalg.norm(columns[0], axis=1), full_matrices=False)
+    kept = U[:, sv > rank_tolerance(2000) * sv[0]]
+    np.testing.assert_allclose(orthogonal_part(columns, R, Z), Z - (kept @ (kept.T @ Z.T)).T, atol=1e-6)
+
+
+def test_orthogonal_part_without_columns_is_z_and_checks_lengths():
+    Z = np.arange(6.0).reshape(2, 3)
+    assert np.array_equal(orthogonal_part([], np.zeros((1, 1)), Z), Z)
+    R = triangular_factor([np.ones(4)], np.arange(4.0))
+    with pytest.raises(DataError, match="a column has 4 samples where y has 3"):
+        orthogonal_part([np.ones(4)], R, Z)
+
+
+def test_a_start_with_no_finite_fit_is_not_a_converged_optimum():
+    """A block whose simulation overflows (a fast unstable pole) has no finite fit: MINPACK sees a zero Jacobian
+    and reports gtol, which must not make it an optimum later refinements join."""
+    reg, drives, _ = _coulomb_truth()
+    theta = np.array([5.0, -400.0])
+    assert initialize._reduced_sse(reg, theta, drives) == np.inf
+    x, sse, converged = initialize._refine_linear(reg, theta, drives, 60)
+    assert sse == np.inf and not converged
+
+
+def test_kaufman_jacobian_of_a_cancelling_polynomial_basis_equals_the_dense_formula():
+    """A degree-9 polynomial basis of an input within [0.8, 1.2]: the fitted coefficients cancel by many orders,
+    so H(theta) v combined from the drives' own responses differs from H(theta) v simulated whole by far more
+    than a forward step moves it (that base made the Jacobian 1370 % wrong).  Reference: python-control's
+    response to v at theta -/+ h (central differences), projected by numpy."""
+    n, dt = 3000, 0.01
+    rng = np.random.default_rng(1)
+    u = np.repeat(rng.uniform(0.8, 1.2, n // 40 + 1), 40)[:n]
+    t = dt * np.arange(n)
+    y = ct.forced_response(ct.tf([1.0], [1.0, 2.0, 5.0]), t, np.sin(3.0 * u)).outputs + 1e-3 * rng.normal(size=n)
+    s = HammersteinStructure(LinearStructure(0, 2), Polynomial(9))
+    data = IOData(u, y, t)
+    reg = initialize._Regression(s, data, Budget(None))
+    drives = initialize._drives(s.input_nonlinearity, u, reg)
+    theta = np.array([5.0, 2.0])
+    problem = initialize._ReducedProblem(reg, drives, 10**6)
+    problem.residual(theta)
+    J = problem.jacobian(theta)
+    X = dense_columns(reg, theta, drives)
+    v = problem.last.w[:drives.count] @ drives.array
+    D = np.empty((2, n))
+    for j in range(2):
+        h = np.zeros(2)
+        h[j] = 1e-4 * theta[j]
+        up, down = ([ct.forced_response(ct.tf(*[list(c[0]) for c in s.linear.coefficients(th)]), t, v).outputs
+                     for th in (theta + h, theta - h)])
+        D[j] = (up - down) / (2 * h[j])
+    ref = -(D.T - X @ np.linalg.lstsq(X, D.T, rcond=None)[0]).T
+    np.testing.assert_allclose(J, ref, rtol=0, atol=1e-4 * np.abs(ref).max())
