@@ -205,13 +205,15 @@ def _candidate_linear(linear, data, drives) -> dict:
     if arx is not None:
         pole_sets.append(arx)
     groups: dict = {}
+    nums: dict = {}                     # each numerator once: pole sets share the scanned zeros
     for i, poles in enumerate(pole_sets):
         den = np.real(np.poly(poles))
         zero_freqs = freqs if i == len(pole_sets) - 1 and arx is not None else [freqs[i % freqs.size]]
         for w in zero_freqs:
             for side in ZERO_SIDES if linear.num_order else (-1.0,):
-                num = np.real(np.poly(side * w * np.ones(linear.num_order)))
-                groups.setdefault(side, []).append(linear.free_parameters(num, den))
+                if (w, side) not in nums:
+                    nums[w, side] = np.real(np.poly(side * w * np.ones(linear.num_order)))
+                groups.setdefault(side, []).append(linear.free_parameters(nums[w, side], den))
     return {side: np.unique(np.array(rows), axis=0) for side, rows in groups.items()}
 
 
