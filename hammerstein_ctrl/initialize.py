@@ -433,22 +433,15 @@ class _Regression:
         """``y - X w``."""
         return columns.residual(w, self.y) if isinstance(columns, _StreamedColumns) else residual(columns, w, self.y)
 
-    def solution(self, columns) -> tuple[np.ndarray, np.ndarray | None]:
-        """The factor ``R`` of ``[X y]`` and the least-squares coefficients (``None`` if not finite)."""
-        R = self.factor(columns)
-        return R, solve_scaled(R, self.y.size)
+    def fit_factor(self, R) -> tuple[np.ndarray | None, float]:
+        """Coefficients and sum of squared residuals from the factor ``R`` of ``[X y]`` (``(None, inf)`` if not
+        finite)."""
+        w = solve_scaled(R, self.y.size)
+        return (None, np.inf) if w is None else (w, factor_sse(R, w))
 
     def fit(self, columns) -> tuple[np.ndarray | None, float]:
         """Coefficients and sum of squared residuals of the least-squares fit (``(None, inf)`` if not finite)."""
-        R, w = self.solution(columns)
-        return (None, np.inf) if w is None else (w, factor_sse(R, w))
-
-    def solve(self, columns):
-        """Coefficients and residual vector of the least-squares fit (``None`` if not finite)."""
-        w, _ = self.fit(columns)
-        if w is None:
-            return None, None
-        return w, self.residual(columns, w)
+        return self.fit_factor(self.factor(columns))
 
 
 def _reduced_sse(reg: _Regression, theta, drives) -> float:
@@ -461,12 +454,9 @@ def _reduced_sse(reg: _Regression, theta, drives) -> float:
     and free responses) take the solve, which drops those directions.
     """
     R = reg.factor(reg.columns(theta, drives))
-    if not np.all(np.isfinite(R)):
-        return np.inf
-    if independent(R, CLEAR_RANK):
+    if np.all(np.isfinite(R)) and independent(R, CLEAR_RANK):
         return float(R[-1, -1] ** 2)
-    w = solve_scaled(R, reg.y.size)
-    return np.inf if w is None else factor_sse(R, w)
+    return reg.fit_factor(R)[1]
 
 
 class _Joined(Exception):
@@ -502,8 +492,8 @@ class _ReducedProblem:
         self.left = evaluations * reg.evaluations(drives)         # simulated signals this refinement may use
         self.kaufman = drives.array is not None and not reg.free_columns
         self.big = np.sqrt(np.finfo(float).max) / max(reg.y.size, 1)
-        self.best, self.best_sse = None, np.inf
-        self.last = self.kept = None        # the last evaluation, and the best finite one
+        self.best_sse = np.inf
+        self.last = self.kept = None        # the last evaluation, and the best finite one (its sse: best_sse)
 
     def _spend(self, signals: int):
         if signals > self.left:
@@ -513,7 +503,8 @@ class _ReducedProblem:
     def _evaluate(self, theta) -> tuple[_Fit | None, np.ndarray]:
         self._spend(self.reg.evaluations(self.drives))
         columns = self.reg.columns(theta, self.drives)
-        R, w = self.reg.solution(columns)
+        R = self.reg.factor(columns)
+        w = solve_scaled(R, self.reg.y.size)
         if w is None:
             self.last = _Fit(theta, None)
             return self.last, np.full(self.reg.y.size, self.big)
@@ -521,8 +512,8 @@ class _ReducedProblem:
         self.last = _Fit(theta, w, *((columns, R) if self.kaufman else ()))
         sse = float(r @ r)
         if sse < self.best_sse:
-            self.best, self.best_sse, self.kept = self.last.theta, sse, self.last
-            self._check_joined(self.best)
+            self.best_sse, self.kept = sse, self.last
+            self._check_joined(self.kept.theta)
         return self.last, r
 
     def _check_joined(self, theta):
@@ -599,7 +590,7 @@ def _refine_linear(reg: _Regression, theta, drives, limit: int = REFINE_EVALUATI
             return theta, np.inf, False
         return x, float(info["fvec"] @ info["fvec"]), ier in (1, 2, 3, 4)
     except BudgetExhausted:
-        return (problem.best if problem.best is not None else theta), problem.best_sse, False
+        return (theta if problem.kept is None else problem.kept.theta), problem.best_sse, False
     except _Joined:
         return None
 

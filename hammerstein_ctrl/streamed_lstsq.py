@@ -280,16 +280,15 @@ def solve_scaled(R: np.ndarray, n_samples: int) -> np.ndarray | None:
     Directions below :func:`rank_tolerance` are dropped.  Returns ``None``
     when ``R`` or a column norm is not finite.
     """
-    R11 = R[:-1, :-1]
-    scale = column_scale(R11)
-    if not (np.all(np.isfinite(R)) and np.all(np.isfinite(scale))):
+    scaled = _scaled_factor(R)
+    if scaled is None:
         return None
-    p, cond = R11.shape[1], rank_tolerance(n_samples)
+    T, scale = scaled
+    p, cond = T.shape[1], rank_tolerance(n_samples)
     if p == 0:
         return np.zeros(0)
     # LAPACK's gelsy as scipy.linalg.lstsq calls it (the same bits), without its checks and workspace query
-    w = _GELSY(R11 / scale, R[:-1, -1].copy(), np.zeros((p, 1), dtype=np.int32), cond, _gelsy_work(p),
-               True, True)[1]
+    w = _GELSY(T, R[:-1, -1].copy(), np.zeros((p, 1), dtype=np.int32), cond, _gelsy_work(p), True, True)[1]
     return w / scale
 
 
@@ -307,6 +306,22 @@ def column_scale(R11: np.ndarray) -> np.ndarray:
         scale = np.sqrt(np.sum(R11 * R11, axis=0))
     scale[scale == 0] = 1.0
     return scale
+
+
+def _scaled_factor(R: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+    """``(R_11 / scale, scale)``: the factor of ``X`` (``R`` of ``[X y]``) with its columns scaled to unit norm,
+    and the scale (:func:`column_scale`); ``None`` when ``R`` or a column norm is not finite."""
+    R11 = R[:-1, :-1]
+    scale = column_scale(R11)
+    if not (np.all(np.isfinite(R)) and np.all(np.isfinite(scale))):
+        return None
+    return R11 / scale, scale
+
+
+def _clear_of_rank_loss(T: np.ndarray, cut: float) -> bool:
+    """Whether the smallest singular value of ``T`` (unit-norm columns) exceeds ``cut`` times the largest."""
+    sigma = np.linalg.svd(T, compute_uv=False)
+    return bool(sigma.size == 0 or sigma[-1] > cut * sigma[0])
 
 
 @functools.lru_cache(maxsize=64)
@@ -380,27 +395,22 @@ def independent(R: np.ndarray, cut: float) -> bool:
     smallest singular value from above only (three columns each within
     ``3e-8`` of the next span a plane to ``1e-15``).
 
+    False when ``R`` or a column norm is not finite.
+
     Examples
     --------
     >>> t = np.linspace(0.0, 1.0, 50)
     >>> independent(triangular_factor([t, 2.0 * t], t), 1e-8), independent(triangular_factor([t, t * t], t), 1e-8)
     (False, True)
     """
-    R11 = R[:-1, :-1]
-    if R11.size == 0:
-        return True
-    scale = column_scale(R11)
-    if not (np.all(np.isfinite(R11)) and np.all(np.isfinite(scale))):
-        return False
-    sigma = np.linalg.svd(R11 / scale, compute_uv=False)
-    return bool(sigma[-1] > cut * sigma[0])
+    scaled = _scaled_factor(R)
+    return scaled is not None and _clear_of_rank_loss(scaled[0], cut)
 
 
 def _inverse_factor(T: np.ndarray, cut: float) -> np.ndarray:
     """``T^+`` of an upper-triangular ``T`` with unit-norm columns, singular values below ``cut`` times the largest
     dropped: LAPACK's triangular inverse where none is, else the pseudo-inverse."""
-    sigma = np.linalg.svd(T, compute_uv=False)
-    if sigma.size and sigma[-1] > cut * sigma[0]:
+    if T.size and _clear_of_rank_loss(T, cut):
         inverse, info = _TRTRI(T, lower=0)
         if info == 0 and np.all(np.isfinite(inverse)):
             return inverse
@@ -446,12 +456,11 @@ def orthogonal_part(columns, R: np.ndarray, Z) -> np.ndarray:
         _check_length(a, Z.shape[1])
     if not rows:
         return Z.copy()
-    R11 = R[:-1, :-1]
-    scale = column_scale(R11)
-    if not (np.all(np.isfinite(R)) and np.all(np.isfinite(scale))):
+    scaled = _scaled_factor(R)
+    if scaled is None:
         return np.full(Z.shape, np.nan)
-    inverse = _inverse_factor(R11 / scale, rank_tolerance(Z.shape[1]))
-
+    T, scale = scaled
+    inverse = _inverse_factor(T, rank_tolerance(Z.shape[1]))
     coefficients = (inverse @ (inverse.T @ (_products(rows, Z) / scale[:, None]))) / scale[:, None]
     return Z - _combination(rows, coefficients)
 

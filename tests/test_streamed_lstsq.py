@@ -150,7 +150,7 @@ def test_reduced_fit_equals_dense_lstsq(small_blocks, offset, initial_state, str
         w, sse = reg.fit(reg.columns(np.array(theta), drives))
         np.testing.assert_allclose(w, ref, rtol=1e-9)
         assert sse == pytest.approx(float(res[0]), rel=1e-9)
-        _, r = reg.solve(reg.columns(np.array(theta), drives))
+        r = reg.residual(reg.columns(np.array(theta), drives), w)
         np.testing.assert_allclose(r, reg.y - Phi @ ref, rtol=1e-7, atol=1e-10)
 
 
