@@ -175,7 +175,7 @@ _SIGNATURE_CODES = {"r": True, "w": False}
 
 def kernel_signature(spec: str) -> tuple:
     """Argument types from a compact description: ``r2`` a read-only C-ordered float64 array of 2 dimensions,
-    ``w1`` a writeable one of 1, ``f`` a float64, ``i`` an int64.
+    ``w1`` a writeable one of 1, ``b1`` a writeable boolean one of 1, ``f`` a float64, ``i`` an int64.
 
     Declaring the arrays a function only reads as read-only lets one compiled
     version take writeable and read-only arrays alike (a record's arrays are
@@ -184,8 +184,8 @@ def kernel_signature(spec: str) -> tuple:
 
     Examples
     --------
-    >>> [str(t) for t in kernel_signature("r1 w2 f")]
-    ['readonly array(float64, 1d, C)', 'array(float64, 2d, C)', 'float64']
+    >>> [str(t) for t in kernel_signature("r1 w2 b1 f")]
+    ['readonly array(float64, 1d, C)', 'array(float64, 2d, C)', 'array(bool, 1d, C)', 'float64']
     """
     types = []
     for code in spec.split():
@@ -193,6 +193,8 @@ def kernel_signature(spec: str) -> tuple:
             types.append(numba.types.float64 if code == "f" else numba.types.int64)
         elif len(code) == 2 and code[0] in _SIGNATURE_CODES and code[1].isdigit():
             types.append(numba.types.Array(numba.types.float64, int(code[1]), "C", readonly=_SIGNATURE_CODES[code[0]]))
+        elif len(code) == 2 and code[0] == "b" and code[1].isdigit():
+            types.append(numba.types.Array(numba.types.bool_, int(code[1]), "C"))
         else:
             raise ValueError(f"unknown argument code {code!r} in {spec!r}")
     return tuple(types)

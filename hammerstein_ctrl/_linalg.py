@@ -26,8 +26,8 @@ import numpy as np
 
 from ._jit import cached_njit
 
-__all__ = ["fill_coefficients", "expm_batch", "expm_into", "tf_augmented", "tf_discrete", "single_threaded_blas",
-           "solve_in_place", "symmetric_eigenvalues", "PADE13_THETA", "JACOBI_MAX_SWEEPS"]
+__all__ = ["fill_coefficients", "expm_batch", "expm_into", "tf_augmented", "tf_discrete", "tf_discrete_into",
+           "single_threaded_blas", "solve_in_place", "symmetric_eigenvalues", "PADE13_THETA", "JACOBI_MAX_SWEEPS"]
 
 #: Largest 1-norm for which the degree-13 Pade approximant is accurate to unit
 #: roundoff without scaling (Higham 2005, Table 2.3).
@@ -328,28 +328,30 @@ def tf_augmented(num, den, dt):  # pragma: no cover - compiled
 
 
 @cached_njit()
-def tf_discrete(num, den, dt, max_norm):  # pragma: no cover - compiled
-    """:func:`tf_augmented` and the compiled exponential in one call.
+def tf_discrete_into(num, den, dt, max_norm, E, C, D, ok, big):  # pragma: no cover - compiled
+    """:func:`tf_discrete` into the caller's arrays ``E`` (B, n+2, n+2), ``C`` (B, n), ``D``, ``ok`` and ``big`` (B,);
+    returns ``clean``.
 
-    Returns ``(E, C, D, ok, big, clean)``: unusable rows (``~ok``) are
-    replaced by ``1/p`` before the exponential; rows whose augmented matrix
-    has a 1-norm above ``max_norm`` (``big``) are left for scipy's expm;
-    ``clean`` says that every row is usable and done.
+    Compiled code calls it through its address
+    (:func:`hammerstein_ctrl.kernels.discretisation_address`), so its code is
+    compiled once, not again inside every compiled caller.
 
     Examples
     --------
     >>> import numpy as np
-    >>> E, C, D, ok, big, clean = tf_discrete(np.array([[1.0]]), np.array([[1.0, 2.0]]), 0.5, 64.0)
-    >>> bool(np.isclose(E[0, 0, 0], np.exp(-1.0))), bool(clean)
-    (True, True)
+    >>> E, C, D = np.empty((1, 3, 3)), np.empty((1, 1)), np.empty(1)
+    >>> ok, big = np.empty(1, dtype=bool), np.empty(1, dtype=bool)
+    >>> tf_discrete_into(np.array([[1.0]]), np.array([[1.0, 2.0]]), 0.5, 64.0, E, C, D, ok, big)
+    True
+    >>> bool(np.isclose(E[0, 0, 0], np.exp(-1.0))), C[0, 0], D[0]
+    (True, np.float64(1.0), np.float64(0.0))
     """
-    batch, n = den.shape[0], den.shape[1] - 1
-    ok = np.ones(batch, dtype=np.bool_)
+    batch = den.shape[0]
     for b in range(batch):
         good = den[b, 0] != 0
         for j in range(num.shape[1]):
             good = good and np.isfinite(num[b, j])
-        for j in range(n + 1):
+        for j in range(den.shape[1]):
             good = good and np.isfinite(den[b, j])
         ok[b] = good
     if not ok.all():
@@ -359,14 +361,37 @@ def tf_discrete(num, den, dt, max_norm):  # pragma: no cover - compiled
                 num[b, :] = 0.0
                 den[b, :] = 0.0
                 den[b, 0] = 1.0
-    M, C, D = tf_augmented(num, den, dt)
-    E = np.empty_like(M)
-    big = np.zeros(batch, dtype=np.bool_)
-    for b in range(batch):
+    M, C_new, D_new = tf_augmented(num, den, dt)
+    for b in range(batch):     # element by element: a slice assignment compiles numba's shape-error reporting
+        D[b] = D_new[b]
+        for j in range(C.shape[1]):
+            C[b, j] = C_new[b, j]
         big[b] = _one_norm(M[b]) > max_norm
         if not big[b]:
             _expm_one(M[b], E[b], _B13)  # not through expm_into: one level less to compile on a first fit
-    return E, C, D, ok, big, ok.all() and not big.any()
+    return ok.all() and not big.any()
+
+
+def tf_discrete(num, den, dt, max_norm):
+    """:func:`tf_augmented` and the compiled exponential in one call.
+
+    Returns ``(E, C, D, ok, big, clean)``: unusable rows (``~ok``) are
+    replaced by ``1/p`` before the exponential; rows whose augmented matrix
+    has a 1-norm above ``max_norm`` (``big``) are left for scipy's expm
+    (their ``E`` is not set); ``clean`` says that every row is usable and done.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> E, C, D, ok, big, clean = tf_discrete(np.array([[1.0]]), np.array([[1.0, 2.0]]), 0.5, 64.0)
+    >>> bool(np.isclose(E[0, 0, 0], np.exp(-1.0))), bool(clean)
+    (True, True)
+    """
+    batch, m = den.shape[0], den.shape[1] + 1
+    E, C, D = np.empty((batch, m, m)), np.empty((batch, m - 2)), np.empty(batch)
+    ok, big = np.empty(batch, dtype=np.bool_), np.empty(batch, dtype=np.bool_)
+    clean = tf_discrete_into(num, den, dt, max_norm, E, C, D, ok, big)
+    return E, C, D, ok, big, clean
 
 
 def expm_batch(M) -> np.ndarray:

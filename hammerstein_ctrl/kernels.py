@@ -71,10 +71,11 @@ from ._kernel_source import (_CHECK_MASK, _OVERFLOW, _terms, HOLDS, INTERLEAVE, 
                              MAX_LANE_BASIS, MAX_NORMAL_LANES, MAX_PASS_STATES, MAX_UNROLLED_STATES,
                              MAX_VECTOR_STATES, MODES, OUTPUT_TERMS, kernel_signature_codes, kernel_source, lane_source,
                              normal_signature_codes, normal_source, vector_chunks, vector_normal_source)
-from ._linalg import tf_discrete
+from ._linalg import tf_discrete_into
 
 __all__ = ["get_kernel", "get_coefficient_kernel", "get_normal_kernel", "get_lane_kernel", "lane_source",
            "has_basis_kernels", "has_output_maps", "kernel_source", "normal_kernel_address", "call_normal_kernel",
+           "discretisation_address", "call_discretisation",
            "normal_source", "vector_normal_source", "cache_dir", "OUTPUT_TERMS",
            "MAX_UNROLLED_STATES", "MAX_PASS_STATES", "MAX_VECTOR_STATES", "MAX_NORMAL_LANES", "LANE_WIDTHS", "LANE_MIN",
            "MAX_LANE_BASIS", "INTERLEAVE", "MODES", "HOLDS", "ENV_CACHE"]
@@ -250,26 +251,26 @@ def _address(kernel, signature) -> int:
     return compiled.library.get_pointer_to_function(compiled.fndesc.llvm_func_name)
 
 
-def _typed_call(name: str, argtypes: tuple, address, args: tuple):
+def _typed_call(name: str, argtypes: tuple, address, args: tuple, restype=numba.types.none):
     """An intrinsic's typing: the signature and code of a call through ``address`` with ``args`` passed as
-    ``argtypes``; other types are refused when the caller is compiled."""
+    ``argtypes``, returning ``restype``; other types are refused when the caller is compiled."""
     if address != numba.types.int64 or len(args) != len(argtypes) or not all(map(_converts, args, argtypes)):
         raise numba.core.errors.TypingError(f"{name} takes an int64 address and {argtypes}, got {(address, *args)}")
 
     def codegen(context, builder, signature, llargs):
-        return _call_through(context, builder, llargs, argtypes)
-    return numba.types.none(address, *args), codegen
+        return _call_through(context, builder, llargs, argtypes, restype)
+    return restype(address, *args), codegen
 
 
-def _call_through(context, builder, llargs, argtypes) -> None:
-    """Code calling the function at address ``llargs[0]`` (numba's calling convention, no result) with ``llargs[1:]``
-    as ``argtypes``; an exception it raises propagates."""
-    function = context.call_conv.get_function_type(numba.types.none, argtypes)
+def _call_through(context, builder, llargs, argtypes, restype):
+    """Code calling the function at address ``llargs[0]`` (numba's calling convention) with ``llargs[1:]`` as
+    ``argtypes``; its result of type ``restype``; an exception it raises propagates."""
+    function = context.call_conv.get_function_type(restype, argtypes)
     pointer = builder.inttoptr(llargs[0], function.as_pointer())
-    status, _ = context.call_conv.call_function(builder, pointer, numba.types.none, argtypes, llargs[1:])
+    status, value = context.call_conv.call_function(builder, pointer, restype, argtypes, llargs[1:])
     with numba.core.cgutils.if_unlikely(builder, status.is_error):
         context.call_conv.return_status_propagate(builder, status)
-    return context.get_dummy_value()
+    return context.get_dummy_value() if restype == numba.types.none else value
 
 
 def _converts(given, expected) -> bool:
@@ -302,23 +303,65 @@ def _call_basis_kernel(typingctx, address, E, C, D, X0, Y0, P, Phi, y, out):
     return _typed_call("_call_basis_kernel", _BASIS_SSE_SIGNATURE, address, (E, C, D, X0, Y0, P, Phi, y, out))
 
 
+#: Argument types of :func:`~hammerstein_ctrl._linalg.tf_discrete_into`, as compiled for calls through its address.
+_DISCRETISATION_SIGNATURE = kernel_signature("w2 w2 f f w3 w2 w1 b1 b1")
+
+
+@functools.lru_cache(maxsize=1)
+def discretisation_address() -> int:
+    """Address of :func:`~hammerstein_ctrl._linalg.tf_discrete_into`'s machine code, for :func:`call_discretisation`.
+
+    Compiled callers that call it through its address share one compiled copy
+    (numba would otherwise compile its code, with the matrix exponential's,
+    again into each caller: about two seconds apiece on a first use).
+
+    Examples
+    --------
+    >>> discretisation_address() > 0
+    True
+    """
+    return _address(tf_discrete_into, _DISCRETISATION_SIGNATURE)
+
+
+@numba.extending.intrinsic
+def call_discretisation(typingctx, address, num, den, dt, max_norm, E, C, D, ok, big):
+    """Call :func:`~hammerstein_ctrl._linalg.tf_discrete_into` at ``address`` (:func:`discretisation_address`) from
+    compiled code; its result ``clean``."""
+    return _typed_call("call_discretisation", _DISCRETISATION_SIGNATURE, address,
+                       (num, den, dt, max_norm, E, C, D, ok, big), numba.types.boolean)
+
+
+@cached_njit(inline="always")
+def discretised(address, num, den, dt, max_norm):  # pragma: no cover - compiled
+    """``(E, C, D, clean)`` of :func:`~hammerstein_ctrl._linalg.tf_discrete`, computed by the code at ``address``
+    (:func:`discretisation_address`): compiled callers' one way to discretise."""
+    batch, m = den.shape[0], den.shape[1] + 1
+    E, C, D = np.empty((batch, m, m)), np.empty((batch, m - 2)), np.empty(batch)
+    ok, big = np.empty(batch, dtype=np.bool_), np.empty(batch, dtype=np.bool_)
+    clean = call_discretisation(address, num, den, dt, max_norm, E, C, D, ok, big)
+    return E, C, D, clean
+
+
 @cached_njit(depends=("_linalg.py", "_kernel_source.py"))
-def _from_coefficients(address, num, den, dt, max_norm, X0, Y0, P, Phi, y, out):  # pragma: no cover - compiled
+def _from_coefficients(address, discretise, num, den, dt, max_norm, X0, Y0, P, Phi, y,
+                       out):  # pragma: no cover - compiled
     """Discretise the transfer functions and run the basis kernel at ``address``, in one call; False (nothing done)
     unless every row is clean.
 
-    One compiled function for every state dimension and basis: the kernel is
-    called through its address, so its code is not compiled again in here.
+    One compiled function for every state dimension and basis: the kernel and
+    the discretisation (at ``discretise``) are called through their addresses,
+    so their code is not compiled again in here.
     """
-    E, C, D, ok, big, clean = tf_discrete(num, den, dt, max_norm)
+    E, C, D, clean = discretised(discretise, num, den, dt, max_norm)
     if clean:
         _call_basis_kernel(address, E, C, D, X0, Y0, P, Phi, y, out)
     return clean
 
 
-#: Argument types of :func:`_from_coefficients`: the kernel's address, the transfer functions' rows, the sample
-#: time and the largest 1-norm of the compiled exponential, then the basis kernel's arguments but ``E, C, D``.
-_COEFFICIENT_SIGNATURE = kernel_signature("i w2 w2 f f") + _BASIS_SSE_SIGNATURE[3:]
+#: Argument types of :func:`_from_coefficients`: the kernel's and the discretisation's addresses, the transfer
+#: functions' rows, the sample time and the largest 1-norm of the compiled exponential, then the basis kernel's
+#: arguments but ``E, C, D``.
+_COEFFICIENT_SIGNATURE = kernel_signature("i i w2 w2 f f") + _BASIS_SSE_SIGNATURE[3:]
 
 
 #: Package modules whose compiled functions the generated kernels call.
@@ -407,7 +450,8 @@ def get_coefficient_kernel(n: int, hold: str, K: int):
     (True, array([3.5]))
     """
     address = _address(get_kernel(n, "sse", hold, None, K), _BASIS_SSE_SIGNATURE)    # checks the arguments
-    return functools.partial(only_for(_from_coefficients, (_COEFFICIENT_SIGNATURE,)), address)
+    return functools.partial(only_for(_from_coefficients, (_COEFFICIENT_SIGNATURE,)), address,
+                             discretisation_address())
 
 
 def _module_name(n: int, mode: str, hold: str, outmap: str | None, K: int | None) -> str:

@@ -182,3 +182,50 @@ def test_single_threaded_blas_opened_before_scipy_linalg_also_holds_scipys_blas(
         pytest.skip("no BLAS pool with more than one thread in the child")
     assert len(r["inside"]) >= 2 and set(r["inside"].values()) == {1}, r
     assert r["after"] == {k: 2 for k in r["inside"]}, r
+
+
+def _transfer_rows(rng, rows: int, n: int):
+    """Stable-ish transfer functions of ``n`` poles as (num, den) rows, and the usual odd rows: a NaN, a zero
+    leading coefficient, and a pole fast enough for scipy's exponential."""
+    num = rng.standard_normal((rows, n))
+    den = np.hstack([np.ones((rows, 1)), np.abs(rng.standard_normal((rows, n))) + 0.1])
+    num[1, 0], den[2, 0], den[3, 1] = np.nan, 0.0, 1e4
+    return np.ascontiguousarray(num), np.ascontiguousarray(den)
+
+
+def test_the_discretisation_through_its_address_gives_tf_discretes_bits_and_scipys_exponential():
+    """Compiled callers discretise through tf_discrete_into's address (kernels.discretised), so its code is
+    compiled once; the result must be tf_discrete's to the bit, row flags included, and the exponential
+    scipy's (independent oracle) for every usable row."""
+    import numba
+
+    from hammerstein_ctrl._linalg import tf_augmented, tf_discrete
+    from hammerstein_ctrl.kernels import call_discretisation, discretisation_address, discretised
+
+    @numba.njit
+    def through(address, num, den, dt, max_norm):
+        return discretised(address, num, den, dt, max_norm)
+
+    rng, address = np.random.default_rng(5), discretisation_address()
+    for n in (1, 2, 4):
+        num, den = _transfer_rows(rng, 6, n)
+        E, C, D, ok, big, clean = tf_discrete(num, den, 0.05, 64.0)
+        E2, C2, D2, clean2 = through(address, num, den, 0.05, 64.0)
+        assert ok.tolist() == [True, False, False, True, True, True]
+        assert big.tolist() == [False, False, False, True, False, False]
+        assert not clean and not clean2
+        np.testing.assert_array_equal(E2[~big], E[~big])
+        np.testing.assert_array_equal(C2, C)
+        np.testing.assert_array_equal(D2, D)
+        M = tf_augmented(num[ok], den[ok], 0.05)[0]
+        np.testing.assert_allclose(E[ok & ~big], scipy.linalg.expm(M[~big[ok]]), rtol=1e-12, atol=1e-14)
+        assert through(address, num[[0, 4]].copy(), den[[0, 4]].copy(), 0.05, 64.0)[3]      # usable rows: clean
+
+    @numba.njit
+    def wrong(address, num, den):
+        E, C, D = np.empty((1, 3, 3)), np.empty((1, 1)), np.empty(1)
+        ok, big = np.empty(1, dtype=np.bool_), np.empty(1, dtype=np.bool_)
+        return call_discretisation(address, num, den, 0.05, 64.0, E, C, D, ok, big)
+
+    with pytest.raises(numba.core.errors.TypingError, match="call_discretisation takes"):
+        wrong(address, np.ones((1, 1), dtype=np.float32), np.ones((1, 2)))

@@ -36,8 +36,8 @@ import numpy as np
 
 from .. import config
 from .._jit import _digest, cached_njit, machine_cache_dir
-from .._linalg import fill_coefficients, solve_in_place, symmetric_eigenvalues, tf_discrete
-from ..kernels import call_normal_kernel, normal_kernel_address
+from .._linalg import fill_coefficients, solve_in_place, symmetric_eigenvalues
+from ..kernels import call_normal_kernel, discretisation_address, discretised, normal_kernel_address
 from ..normal_equations import (NormalEquations, compiled_neighbourhood, compiled_sums, forward_steps,
                                 from_residuals, neighbours)
 from ._common import BudgetExhausted
@@ -165,8 +165,8 @@ class _Passes:
         lam_nu = np.array([damping.lam, damping.nu])
         counts = np.array([self.steps, max_steps, rows * (p + 1), 0], dtype=np.int64)
         logs = np.empty((rows, p)), np.empty((rows, p)), np.empty((rows, p + 1))
-        code, fun = _compiled_loop(address, x, fun, gradient, gram, steps, scale, lam_nu, counts,
-                                  np.array([*tolerances, ILL_CONDITIONED]), start, d.num0, d.den0, d.num_pos,
+        code, fun = _compiled_loop(address, discretisation_address(), x, fun, gradient, gram, steps, scale, lam_nu,
+                                  counts, np.array([*tolerances, ILL_CONDITIONED]), start, d.num0, d.den0, d.num_pos,
                                   d.den_pos, d.has_g, d.dt, d.max_norm, d.direct, d.basis, d.y, *logs)
         passes = int(counts[3])
         if passes:
@@ -391,15 +391,16 @@ def compiled_loop_wanted() -> bool:
 
 
 @cached_njit(depends=LOOP_DEPENDS)
-def _compiled_loop(address, x, fun, gradient, gram, steps, scale, damping, counts, tolerances, start, num0, den0,
-                  num_pos, den_pos, has_g, dt, max_norm, direct, Phi, y, log_x, log_steps,
+def _compiled_loop(address, discretise, x, fun, gradient, gram, steps, scale, damping, counts, tolerances, start,
+                  num0, den0, num_pos, den_pos, has_g, dt, max_norm, direct, Phi, y, log_x, log_steps,
                   log_values):  # pragma: no cover - compiled
     """The Levenberg-Marquardt loop of :func:`normal_equations_lm`, compiled around the pass of a plain cost.
 
     For a cost's :meth:`~hammerstein_ctrl.objective.HammersteinCost.direct_pass`
     (no offset, initial state or output map; the signal ``P @ Phi`` with ``P``
     the parameters of ``g``), whose pass kernel is at ``address``
-    (:func:`~hammerstein_ctrl.kernels.normal_kernel_address`).  The loop takes
+    (:func:`~hammerstein_ctrl.kernels.normal_kernel_address`), the discretisation's at ``discretise``
+    (:func:`~hammerstein_ctrl.kernels.discretisation_address`).  The loop takes
     the steps of the Python loop one after another while each trial point is
     accepted, with the same compiled helpers in the same order (so the same
     bits), and returns where the Python loop must take the next iteration: a
@@ -421,7 +422,7 @@ def _compiled_loop(address, x, fun, gradient, gram, steps, scale, damping, count
     while True:
         code, trial, small, predicted, h, E, C, D, P = _loop_prepare(
             x, fun, gradient, gram, scale, damping, counts, tolerances, start, num0, den0, num_pos, den_pos, has_g,
-            dt, max_norm, direct)
+            dt, max_norm, direct, discretise)
         if code != GO_ON:
             return code, fun
         sums = np.zeros(1 + x.size * lanes)
@@ -436,7 +437,7 @@ def _compiled_loop(address, x, fun, gradient, gram, steps, scale, damping, count
 
 @cached_njit(inline="always")
 def _loop_prepare(x, fun, gradient, gram, scale, damping, counts, tolerances, start, num0, den0, num_pos, den_pos,
-                 has_g, dt, max_norm, direct):  # pragma: no cover - compiled
+                 has_g, dt, max_norm, direct, discretise):  # pragma: no cover - compiled
     """Before a pass of the compiled loop: ``(code, trial, small, predicted, h, E, C, D, P)``.
 
     With ``start`` the pass is at ``x`` itself, else at the step of
@@ -451,7 +452,8 @@ def _loop_prepare(x, fun, gradient, gram, scale, damping, counts, tolerances, st
     if code != GO_ON:
         return code, trial, small, predicted, np.empty(0), np.empty((0, 0, 0)), np.empty((0, 0)), np.empty(0), \
             np.empty((0, 0))
-    ok, h, E, C, D, P = _loop_pass_inputs(trial, num0, den0, num_pos, den_pos, has_g, dt, max_norm, direct)
+    ok, h, E, C, D, P = _loop_pass_inputs(trial, num0, den0, num_pos, den_pos, has_g, dt, max_norm, direct,
+                                          discretise)
     return GO_ON if ok else HAND_BACK, trial, small, predicted, h, E, C, D, P
 
 
@@ -505,7 +507,8 @@ def _loop_trial(gram, gradient, fun, scale, damping, x, counts, tolerances):  # 
 
 
 @cached_njit(inline="always")
-def _loop_pass_inputs(trial, num0, den0, num_pos, den_pos, has_g, dt, max_norm, direct):  # pragma: no cover - compiled
+def _loop_pass_inputs(trial, num0, den0, num_pos, den_pos, has_g, dt, max_norm, direct,
+                      discretise):  # pragma: no cover - compiled
     """What the pass at ``trial`` needs: ``(ok, h, E, C, D, P)``, as ``HammersteinCost.normal_equations`` forms them.
 
     Not ``ok`` where the general pass must take the point: a row for scipy's
@@ -514,7 +517,7 @@ def _loop_pass_inputs(trial, num0, den0, num_pos, den_pos, has_g, dt, max_norm, 
     h, X = compiled_neighbourhood(trial)
     n_linear = num_pos.size + den_pos.size
     num, den = fill_coefficients(X[:1 + n_linear, :n_linear].copy(), num0, den0, num_pos, den_pos)
-    E, C, D, _, _, clean = tf_discrete(num, den, dt, max_norm)
+    E, C, D, clean = discretised(discretise, num, den, dt, max_norm)
     P = X[:, n_linear:].copy() if has_g else np.ones((X.shape[0], 1))
     return clean and (num.shape[1] == den.shape[1] and D.any()) == direct, h, E, C, D, P
 
