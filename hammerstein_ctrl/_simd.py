@@ -22,6 +22,12 @@ Examples
 ...     return lane(v, 0), lane(rotate(v, 1), 0), lane(v, 3)
 >>> demo(1.0, 2.0)
 (3.0, 5.0, 9.0)
+>>> @cached_njit(cache=False)
+... def moved(a, out):
+...     store(load(a, 1) * splat(2.0), out, 0)
+>>> import numpy as np
+>>> out = np.zeros(4); moved(np.arange(6.0), out); out
+array([2., 4., 6., 8.])
 """
 
 from __future__ import annotations
@@ -32,7 +38,7 @@ from llvmlite import ir
 from numba import types
 from numba.extending import intrinsic, models, overload, register_model
 
-__all__ = ["Lanes4", "lanes4", "WIDTH", "pack", "splat", "lane", "rotate"]
+__all__ = ["Lanes4", "lanes4", "WIDTH", "pack", "splat", "lane", "rotate", "load", "store"]
 
 #: Lanes of one vector.
 WIDTH = 4
@@ -106,6 +112,43 @@ def rotate(typingctx, v, k):
     def codegen(context, builder, signature, args):
         return _shuffle(builder, args[0], [(i + shift) % WIDTH for i in range(WIDTH)])
     return lanes4(v, k), codegen
+
+
+def _flat_float_array(a) -> bool:
+    return isinstance(a, types.Array) and a.dtype == types.float64 and a.ndim == 1 and a.layout == "C"
+
+
+def _lanes_pointer(context, builder, array_type, array, index_type, index):
+    """Pointer to ``array[index]`` as a pointer to a vector (elements' alignment)."""
+    data = context.make_array(array_type)(context, builder, array).data
+    offset = context.cast(builder, index, index_type, types.intp)
+    return builder.bitcast(builder.gep(data, [offset]), _VECTOR.as_pointer())
+
+
+@intrinsic
+def load(typingctx, a, i):
+    """The vector of ``a[i], ..., a[i + 3]`` (``a`` a C-contiguous float64 array of one dimension; no index is
+    checked): one load, where :func:`pack` would take four statements of indexing to compile."""
+    if not (_flat_float_array(a) and isinstance(i, types.Integer)):
+        return None
+
+    def codegen(context, builder, signature, args):
+        pointer = _lanes_pointer(context, builder, signature.args[0], args[0], signature.args[1], args[1])
+        return builder.load(pointer, align=8)
+    return lanes4(a, i), codegen
+
+
+@intrinsic
+def store(typingctx, v, a, i):
+    """Write the lanes of ``v`` to ``a[i], ..., a[i + 3]`` (``a`` as :func:`load` takes it)."""
+    if not (isinstance(v, Lanes4) and _flat_float_array(a) and a.mutable and isinstance(i, types.Integer)):
+        return None
+
+    def codegen(context, builder, signature, args):
+        pointer = _lanes_pointer(context, builder, signature.args[1], args[1], signature.args[2], args[2])
+        builder.store(args[0], pointer, align=8)
+        return context.get_dummy_value()
+    return types.none(v, a, i), codegen
 
 
 def _arithmetic(instruction: str):

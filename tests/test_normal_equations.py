@@ -476,6 +476,7 @@ def _lane_outputs_by_hand(E, C, D, X, Y0, P, Phi, hold):
 @pytest.mark.parametrize("n, hold, lanes, direct, offset", [
     (1, "zoh", 2, True, True), (2, "foh", 5, False, False), (3, "zoh", 9, True, False),
     (2, "foh", 3, False, False), (3, "zoh", 6, True, False),     # fewer lanes in the same vectors (same kernels)
+    (1, "foh", 12, False, True),    # three vectors: the sums of products across them
     pytest.param(4, "foh", 16, False, True, marks=pytest.mark.slow),     # the widest vector pass: 10 s to compile
     (5, "foh", 6, True, True),      # past MAX_VECTOR_STATES: the lanes in an array
 ])
