@@ -514,11 +514,11 @@ def _most_lanes(chunks: int) -> int:
     return 1 + chunks * WIDTH
 
 
-def _if_lane(g: int, chunks: int, lines: list, bound: str = "lanes") -> list:
-    """``lines`` as they are for a lane every pass of ``chunks`` vectors has, else only if ``g < bound`` at run time."""
-    if g < _fewest_lanes(chunks) - (bound == "p"):
+def _if_lane(g: int, chunks: int, lines: list) -> list:
+    """``lines`` as they are for a lane every pass of ``chunks`` vectors has, else only if ``g < lanes`` at run time."""
+    if g < _fewest_lanes(chunks):
         return lines
-    return [f"if {g} < {bound}:"] + _indent(_INDENT, lines)
+    return [f"if {g} < lanes:"] + _indent(_INDENT, lines)
 
 
 def _vector_checks(K: int, chunks: int, terms: tuple) -> list:
@@ -578,8 +578,9 @@ def _vector_sample(n: int, hold: str, K: int, chunks: int, terms: tuple, first: 
 
 
 def _sum_vectors(chunks: int) -> list:
-    """The vectors of :func:`_vector_sample`'s sums in the order :func:`_vector_store` stores them: ``G`` of each
-    chunk, its ``S`` (rotations 0-2), then the ``T`` of each pair of chunks (rotations 0-3)."""
+    """The vectors of :func:`_vector_sample`'s sums in the order :func:`_vector_store` stores them: first the ``G``
+    of every chunk (so that lane ``j`` of them all is entry ``j``), then the ``S`` of every chunk (rotations 0-2),
+    then the ``T`` of each pair of chunks (rotations 0-3)."""
     names = [f"G{c}" for c in range(chunks)] + [f"S{c}_{s}" for c in range(chunks) for s in range(3)]
     return names + [f"T{c}_{d}_{s}" for c in range(chunks) for d in range(c) for s in range(WIDTH)]
 

@@ -334,7 +334,9 @@ def tf_discrete_into(num, den, dt, max_norm, E, C, D, ok, big):  # pragma: no co
 
     Compiled code calls it through its address
     (:func:`hammerstein_ctrl.kernels.discretisation_address`), so its code is
-    compiled once, not again inside every compiled caller.
+    compiled once, not again inside every compiled caller.  The arrays'
+    shapes are not checked (compiled code checks no index): the caller sizes
+    them, as :func:`tf_discrete` and :func:`hammerstein_ctrl.kernels.discretised` do.
 
     Examples
     --------

@@ -115,7 +115,7 @@ def rotate(typingctx, v, k):
 
 
 def _flat_float_array(a) -> bool:
-    return isinstance(a, types.Array) and a.dtype == types.float64 and a.ndim == 1 and a.layout == "C"
+    return isinstance(a, types.Array) and a.dtype == types.float64 and a.ndim == 1 and a.layout == "C" and a.aligned
 
 
 def _lanes_pointer(context, builder, array_type, array, index_type, index):

@@ -75,7 +75,7 @@ from ._linalg import tf_discrete_into
 
 __all__ = ["get_kernel", "get_coefficient_kernel", "get_normal_kernel", "get_lane_kernel", "lane_source",
            "has_basis_kernels", "has_output_maps", "kernel_source", "normal_kernel_address", "call_normal_kernel",
-           "discretisation_address", "call_discretisation",
+           "discretisation_address", "call_discretisation", "discretised",
            "normal_source", "vector_normal_source", "cache_dir", "OUTPUT_TERMS",
            "MAX_UNROLLED_STATES", "MAX_PASS_STATES", "MAX_VECTOR_STATES", "MAX_NORMAL_LANES", "LANE_WIDTHS", "LANE_MIN",
            "MAX_LANE_BASIS", "INTERLEAVE", "MODES", "HOLDS", "ENV_CACHE"]
@@ -320,7 +320,11 @@ def discretisation_address() -> int:
     >>> discretisation_address() > 0
     True
     """
-    return _address(tf_discrete_into, _DISCRETISATION_SIGNATURE)
+    address = _address(tf_discrete_into, _DISCRETISATION_SIGNATURE)
+    result = tf_discrete_into.overloads[_DISCRETISATION_SIGNATURE].signature.return_type
+    if result != numba.types.boolean:      # call_discretisation reads a boolean: anything else would be misread
+        raise TypeError(f"tf_discrete_into returns {result}, not the boolean call_discretisation reads")
+    return address
 
 
 @numba.extending.intrinsic
