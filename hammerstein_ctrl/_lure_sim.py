@@ -83,7 +83,7 @@ def lure_setup(num, den, dt, slope, feedback):  # pragma: no cover - compiled
             for j in range(n):
                 good = good and np.isfinite(A[i, j])
         if feedback == 0:
-            Cz[b, :] = C[b, :]
+            _assign(Cz[b], C[b])
         else:
             for j in range(n):
                 s = 0.0
@@ -113,15 +113,19 @@ def lure_setup(num, den, dt, slope, feedback):  # pragma: no cover - compiled
                 Adt[b, i, j] = Ae[i, j] * dt
                 Asdt[b, i, j] = (Ae[i, j] - B[i] * q[j]) * dt
         aug[:, :] = 0.0
-        aug[:n, :n] = Adt[b]
-        aug[:n, n] = Bdt[b]
+        for i in range(n):
+            for j in range(n):
+                aug[i, j] = Adt[b, i, j]
+            aug[i, n] = Bdt[b, i]
         aug[n, n + 1] = 1.0
         expm_into(aug, E)
         expm_into(Asdt[b].copy(), Es)
-        Phi[b] = E[:n, :n]
-        G0[b] = E[:n, n]
-        G1[b] = E[:n, n + 1]
-        Ps[b] = Es
+        for i in range(n):
+            for j in range(n):
+                Phi[b, i, j] = E[i, j]
+                Ps[b, i, j] = Es[i, j]
+            G0[b, i] = E[i, n]
+            G1[b, i] = E[i, n + 1]
         for i in range(n):
             for j in range(n):
                 if not (np.isfinite(Phi[b, i, j]) and np.isfinite(Ps[b, i, j])):
@@ -144,7 +148,7 @@ def _propagate(Adt, Bdt, x, w0, s, delta, out, t1, t2):  # pragma: no cover - co
         _propagate_expm(Adt, Bdt, x, w0, s, delta, out)
         return
     step = delta / pieces
-    out[:] = x
+    _assign(out, x)
     w = w0
     for _ in range(pieces):
         # t1: the current derivative term d_k step^k / k!; t2: scratch
@@ -192,6 +196,14 @@ def _propagate_expm(Adt, Bdt, x, w0, s, delta, out):  # pragma: no cover - compi
         for j in range(n):
             acc += E[i, j] * x[j]
         out[i] = acc
+
+
+@cached_njit(depends=_DEPENDS, inline="always")
+def _assign(dst, src):  # pragma: no cover - compiled
+    """``dst[:] = src`` for vectors of one length, element by element: an array assigned to a slice compiles
+    numba's shape-mismatch reporting (string formatting, about 7 s on a first use)."""
+    for i in range(dst.shape[0]):
+        dst[i] = src[i]
 
 
 @cached_njit(depends=_DEPENDS)
@@ -374,11 +386,11 @@ def _sample(Adt, Asdt, Bdt, Cz, q, h, Phi, G0, G1, Ps, x, mode, uk, s, c, fc, xn
             if z1 * mode >= 0.0:
                 hi, z1 = _slip_dip(Adt, Bdt, Cz, x, xn, w0, s, rest, mode, pv, xs, t1, t2)
                 if hi < 0.0:
-                    x[:] = xn
+                    _assign(x, xn)
                     return mode
             d = _crossing(Adt, Bdt, Cz, x, w0, s, hi, z1, mode, pv, xn, xs, t1, t2)
             _propagate(Adt, Bdt, x, w0, s, d, xs, t1, t2)
-            x[:] = xs
+            _assign(x, xs)
             tau += d
             mode = _decide(Cz, q, x, uk + s * tau - c, fc, h)
             if mode == 0:                       # on z = 0 exactly (the root search leaves ~1e-19)
@@ -403,13 +415,13 @@ def _sample(Adt, Asdt, Bdt, Cz, q, h, Phi, G0, G1, Ps, x, mode, uk, s, c, fc, xn
             if abs(f1) <= fc:
                 hi, f1 = _stick_peak(Asdt, Bdt, q, x, xn, f0, s, rest, fc, pv, xs, t1, t2)
                 if hi < 0.0:
-                    x[:] = xn
+                    _assign(x, xn)
                     return 0
             sign = 1.0 if f1 > 0 else -1.0
             lo_val = f0 + _dot(q, x) - sign * fc
             d = _root(Asdt, Bdt, q, x, 0.0, 0.0, s, f0 - sign * fc, lo_val, hi, f1 - sign * fc, xs, t1, t2)
             _propagate(Asdt, Bdt, x, 0.0, 0.0, d, xs, t1, t2)
-            x[:] = xs
+            _assign(x, xs)
             tau += d
             mode = 1 if sign * h > 0 else -1
         if tau >= 1.0:
@@ -440,7 +452,7 @@ def lure_run(Adt, Asdt, Bdt, C, Cz, h, Q, Phi, G0, G1, Ps, ok, fc, c, X0, Y0, u,
             continue
         Ab, Asb, Bb, Cb, Czb, Phib, G0b, G1b, Psb = Adt[b], Asdt[b], Bdt[b], C[b], Cz[b], Phi[b], G0[b], G1[b], Ps[b]
         hb, cb, fcb, y0, q = h[b], c[b], abs(fc[b]), Y0[b], Q[b]
-        x[:] = X0[b]
+        _assign(x, X0[b])
         mode = _first_mode(Czb, q, x, u[0] - cb, fcb, hb)
         if n == 2:
             sse = _samples_two(Ab, Asb, Bb, Cb, Czb, q, hb, Phib, G0b, G1b, Psb, x, mode, cb, fcb, y0, u, y, out[b],
@@ -554,8 +566,8 @@ def lure_loop_run(Adt, Asdt, Bdt, C, Cz, h, Q, Phi, G0, G1, Ps, ok, fc, c, X0, Y
             U[b, :] = np.inf
             continue
         hb, cb, fcb, q = h[b], c[b], abs(fc[b]), Q[b]
-        x[:] = X0[b]
-        xc[:] = xc0
+        _assign(x, X0[b])
+        _assign(xc, xc0)
         mode = 2                                # decided at the first sample, once u_0 is known
         for k in range(N):
             yk = Y0[b] + _dot(C[b], x)
@@ -567,7 +579,7 @@ def lure_loop_run(Adt, Asdt, Bdt, C, Cz, h, Q, Phi, G0, G1, Ps, ok, fc, c, X0, Y
                 for j in range(nc):
                     acc += Ac[i, j] * xc[j]
                 xcn[i] = acc
-            xc[:] = xcn
+            _assign(xc, xcn)
             if mode == 2:
                 mode = _first_mode(Cz[b], q, x, uk - cb, fcb, hb)
             if k + 1 < N:
