@@ -26,8 +26,9 @@ import numpy as np
 
 from ._jit import cached_njit
 
-__all__ = ["fill_coefficients", "expm_batch", "expm_into", "tf_augmented", "tf_discrete", "tf_discrete_into",
-           "single_threaded_blas", "solve_in_place", "symmetric_eigenvalues", "PADE13_THETA", "JACOBI_MAX_SWEEPS"]
+__all__ = ["copy_vector", "fill_coefficients", "expm_batch", "expm_into", "tf_augmented", "tf_discrete",
+           "tf_discrete_into", "single_threaded_blas", "solve_in_place", "symmetric_eigenvalues", "PADE13_THETA",
+           "JACOBI_MAX_SWEEPS"]
 
 #: Largest 1-norm for which the degree-13 Pade approximant is accurate to unit
 #: roundoff without scaling (Higham 2005, Table 2.3).
@@ -165,6 +166,21 @@ def symmetric_eigenvalues(S):  # pragma: no cover - compiled
             j -= 1
         w[j] = v
     return w
+
+
+@cached_njit(inline="always")
+def copy_vector(src, dst):  # pragma: no cover - compiled
+    """``dst[:] = src`` for vectors of one length, element by element, in compiled code: an array assigned to a
+    slice makes numba compile its shape-mismatch reporting (string formatting, about 5 s on a first use).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> dst = np.zeros(2); copy_vector(np.array([1.0, 2.0]), dst); dst
+    array([1., 2.])
+    """
+    for i in range(dst.shape[0]):
+        dst[i] = src[i]
 
 
 @cached_njit()

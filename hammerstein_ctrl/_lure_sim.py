@@ -30,7 +30,7 @@ from __future__ import annotations
 import numpy as np
 
 from ._jit import cached_njit
-from ._linalg import _one_norm, expm_into, tf_augmented
+from ._linalg import _one_norm, copy_vector, expm_into, tf_augmented
 
 __all__ = ["lure_setup", "lure_run", "MAX_EVENTS", "FEEDBACK_CODES"]
 
@@ -83,7 +83,7 @@ def lure_setup(num, den, dt, slope, feedback):  # pragma: no cover - compiled
             for j in range(n):
                 good = good and np.isfinite(A[i, j])
         if feedback == 0:
-            _assign(Cz[b], C[b])
+            copy_vector(C[b], Cz[b])
         else:
             for j in range(n):
                 s = 0.0
@@ -148,7 +148,7 @@ def _propagate(Adt, Bdt, x, w0, s, delta, out, t1, t2):  # pragma: no cover - co
         _propagate_expm(Adt, Bdt, x, w0, s, delta, out)
         return
     step = delta / pieces
-    _assign(out, x)
+    copy_vector(x, out)
     w = w0
     for _ in range(pieces):
         # t1: the current derivative term d_k step^k / k!; t2: scratch
@@ -196,14 +196,6 @@ def _propagate_expm(Adt, Bdt, x, w0, s, delta, out):  # pragma: no cover - compi
         for j in range(n):
             acc += E[i, j] * x[j]
         out[i] = acc
-
-
-@cached_njit(depends=_DEPENDS, inline="always")
-def _assign(dst, src):  # pragma: no cover - compiled
-    """``dst[:] = src`` for vectors of one length, element by element: an array assigned to a slice compiles
-    numba's shape-mismatch reporting (string formatting, about 7 s on a first use)."""
-    for i in range(dst.shape[0]):
-        dst[i] = src[i]
 
 
 @cached_njit(depends=_DEPENDS)
@@ -386,11 +378,11 @@ def _sample(Adt, Asdt, Bdt, Cz, q, h, Phi, G0, G1, Ps, x, mode, uk, s, c, fc, xn
             if z1 * mode >= 0.0:
                 hi, z1 = _slip_dip(Adt, Bdt, Cz, x, xn, w0, s, rest, mode, pv, xs, t1, t2)
                 if hi < 0.0:
-                    _assign(x, xn)
+                    copy_vector(xn, x)
                     return mode
             d = _crossing(Adt, Bdt, Cz, x, w0, s, hi, z1, mode, pv, xn, xs, t1, t2)
             _propagate(Adt, Bdt, x, w0, s, d, xs, t1, t2)
-            _assign(x, xs)
+            copy_vector(xs, x)
             tau += d
             mode = _decide(Cz, q, x, uk + s * tau - c, fc, h)
             if mode == 0:                       # on z = 0 exactly (the root search leaves ~1e-19)
@@ -415,13 +407,13 @@ def _sample(Adt, Asdt, Bdt, Cz, q, h, Phi, G0, G1, Ps, x, mode, uk, s, c, fc, xn
             if abs(f1) <= fc:
                 hi, f1 = _stick_peak(Asdt, Bdt, q, x, xn, f0, s, rest, fc, pv, xs, t1, t2)
                 if hi < 0.0:
-                    _assign(x, xn)
+                    copy_vector(xn, x)
                     return 0
             sign = 1.0 if f1 > 0 else -1.0
             lo_val = f0 + _dot(q, x) - sign * fc
             d = _root(Asdt, Bdt, q, x, 0.0, 0.0, s, f0 - sign * fc, lo_val, hi, f1 - sign * fc, xs, t1, t2)
             _propagate(Asdt, Bdt, x, 0.0, 0.0, d, xs, t1, t2)
-            _assign(x, xs)
+            copy_vector(xs, x)
             tau += d
             mode = 1 if sign * h > 0 else -1
         if tau >= 1.0:
@@ -452,7 +444,7 @@ def lure_run(Adt, Asdt, Bdt, C, Cz, h, Q, Phi, G0, G1, Ps, ok, fc, c, X0, Y0, u,
             continue
         Ab, Asb, Bb, Cb, Czb, Phib, G0b, G1b, Psb = Adt[b], Asdt[b], Bdt[b], C[b], Cz[b], Phi[b], G0[b], G1[b], Ps[b]
         hb, cb, fcb, y0, q = h[b], c[b], abs(fc[b]), Y0[b], Q[b]
-        _assign(x, X0[b])
+        copy_vector(X0[b], x)
         mode = _first_mode(Czb, q, x, u[0] - cb, fcb, hb)
         if n == 2:
             sse = _samples_two(Ab, Asb, Bb, Cb, Czb, q, hb, Phib, G0b, G1b, Psb, x, mode, cb, fcb, y0, u, y, out[b],
@@ -566,8 +558,8 @@ def lure_loop_run(Adt, Asdt, Bdt, C, Cz, h, Q, Phi, G0, G1, Ps, ok, fc, c, X0, Y
             U[b, :] = np.inf
             continue
         hb, cb, fcb, q = h[b], c[b], abs(fc[b]), Q[b]
-        _assign(x, X0[b])
-        _assign(xc, xc0)
+        copy_vector(X0[b], x)
+        copy_vector(xc0, xc)
         mode = 2                                # decided at the first sample, once u_0 is known
         for k in range(N):
             yk = Y0[b] + _dot(C[b], x)
@@ -579,7 +571,7 @@ def lure_loop_run(Adt, Asdt, Bdt, C, Cz, h, Q, Phi, G0, G1, Ps, ok, fc, c, X0, Y
                 for j in range(nc):
                     acc += Ac[i, j] * xc[j]
                 xcn[i] = acc
-            _assign(xc, xcn)
+            copy_vector(xcn, xc)
             if mode == 2:
                 mode = _first_mode(Cz[b], q, x, uk - cb, fcb, hb)
             if k + 1 < N:

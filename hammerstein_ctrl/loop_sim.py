@@ -46,6 +46,7 @@ import numpy as np
 from numba import literal_unroll
 
 from ._jit import cached_njit
+from ._linalg import copy_vector
 from .exact_export import model_settings, sampled_iosys, sampled_matrices
 from .exceptions import DataError, ParameterError
 from .compiled_maps import FAMILY_CODES, MAPS
@@ -56,6 +57,8 @@ __all__ = ["simulate_loops", "simulate_controller_loop", "sampled_plant", "Sampl
 
 #: Files whose code the loops call through the compiled maps: an edit of a formula compiles the loops again.
 MAP_SOURCES = ("compiled_maps.py", "nonlinearities.py")
+#: The same and the module of the compiled helpers the loops inline.
+_LOOP_SOURCES = MAP_SOURCES + ("_linalg.py",)
 #: Code of each named nonlinearity family in the compiled loops (its position among the compiled maps).
 NONLINEARITY_CODES = FAMILY_CODES
 
@@ -149,7 +152,7 @@ def _plant_output(C, x, offset, hcode, hp, hbp):  # pragma: no cover - compiled
     return _g(hcode, hp, hbp, z) + offset
 
 
-@cached_njit()
+@cached_njit(depends=("_linalg.py",))
 def _plant_step(Ad, Bd, x, xn, v):  # pragma: no cover - compiled
     """``x <- Ad x + Bd v`` (the exact ZOH step)."""
     n = x.size
@@ -158,7 +161,7 @@ def _plant_step(Ad, Bd, x, xn, v):  # pragma: no cover - compiled
         for j in range(n):
             s += Ad[i, j] * x[j]
         xn[i] = s
-    x[:] = xn
+    copy_vector(xn, x)
 
 
 @cached_njit()
@@ -168,7 +171,7 @@ def _cut(Y, U, b, k):  # pragma: no cover - compiled
         U[b, j] = np.nan
 
 
-@cached_njit(depends=MAP_SOURCES)
+@cached_njit(depends=_LOOP_SOURCES)
 def _loops(Ad, Bd, C, x0, offset, code, p, bp, hcode, hp, hbp, G, r, dt, lo, hi, bias, bound, Y, U):  # pragma: no cover
     batch, N = Y.shape
     x = np.empty(x0.size)
@@ -177,7 +180,7 @@ def _loops(Ad, Bd, C, x0, offset, code, p, bp, hcode, hp, hbp, G, r, dt, lo, hi,
         kp, ki, kd, tf, kt = G[b, 0], G[b, 1], G[b, 2], G[b, 3], G[b, 4]
         ad = tf / (tf + dt)
         bd = kd / (tf + dt)
-        x[:] = x0
+        copy_vector(x0, x)
         integ, deriv, ep = bias, 0.0, 0.0
         for k in range(N):
             y = _plant_output(C, x, offset, hcode, hp, hbp)
@@ -195,7 +198,7 @@ def _loops(Ad, Bd, C, x0, offset, code, p, bp, hcode, hp, hbp, G, r, dt, lo, hi,
             ep = e
 
 
-@cached_njit(depends=MAP_SOURCES)
+@cached_njit(depends=_LOOP_SOURCES)
 def _controller_loop(Ad, Bd, C, x0, offset, code, p, bp, hcode, hp, hbp, Ac, Bc, Cc, Dc, r, lo, hi, bias,
                      bound, Y, U):  # pragma: no cover
     """A linear discrete controller ``xc+ = Ac xc + Bc e``, ``u = clip(bias + Cc xc + Dc e)`` (from rest)."""
@@ -222,7 +225,7 @@ def _controller_loop(Ad, Bd, C, x0, offset, code, p, bp, hcode, hp, hbp, Ac, Bc,
             for j in range(xc.size):
                 s += Ac[i, j] * xc[j]
             xcn[i] = s
-        xc[:] = xcn
+        copy_vector(xcn, xc)
 
 
 def _gain_table(gains) -> np.ndarray:

@@ -36,7 +36,7 @@ import numpy as np
 
 from .. import config
 from .._jit import _digest, cached_njit, machine_cache_dir
-from .._linalg import fill_coefficients, solve_in_place, symmetric_eigenvalues
+from .._linalg import _copy, copy_vector, fill_coefficients, solve_in_place, symmetric_eigenvalues
 from ..kernels import call_normal_kernel, discretisation_address, discretised, normal_kernel_address
 from ..normal_equations import (NormalEquations, compiled_neighbourhood, compiled_sums, forward_steps,
                                 from_residuals, neighbours)
@@ -474,8 +474,10 @@ def _loop_absorb(x, trial, fun, sums, h, gradient, gram, steps, scale, damping, 
     counts[2] -= values.size
     counts[3] += 1
     if start:
-        gradient[:], gram[:, :], steps[:] = new_gradient, new_gram, h
-        scale[:] = _norms(gram, np.zeros(gram.shape[0]))
+        copy_vector(new_gradient, gradient)
+        _copy(new_gram, gram)
+        copy_vector(h, steps)
+        copy_vector(_norms(gram, np.zeros(gram.shape[0])), scale)
         return GO_ON, new_fun
     counts[0] += 1
     return _loop_outcome(x, trial, fun, new_fun, new_gradient, new_gram, h, gradient, gram, steps, scale, damping,
@@ -531,11 +533,11 @@ def _loop_outcome(x, trial, fun, f_trial, new_gradient, new_gram, new_steps, gra
         actual = fun - f_trial
         damping[0] = _lowered_damping(damping[0], actual / predicted)
         damping[1] = 2.0
-        x[:] = trial
-        gradient[:] = new_gradient
-        gram[:, :] = new_gram
-        steps[:] = new_steps
-        scale[:] = _norms(gram, scale)
+        copy_vector(trial, x)
+        copy_vector(new_gradient, gradient)
+        _copy(new_gram, gram)
+        copy_vector(new_steps, steps)
+        copy_vector(_norms(gram, scale), scale)
         code = _accepted_code(actual, predicted, fun, tolerances[0], small)
         return (code if code else GO_ON), f_trial
     damping[0] *= damping[1]
