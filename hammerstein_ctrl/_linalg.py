@@ -172,6 +172,7 @@ def symmetric_eigenvalues(S):  # pragma: no cover - compiled
 def copy_vector(src, dst):  # pragma: no cover - compiled
     """``dst[:] = src`` for vectors of one length, element by element, in compiled code: an array assigned to a
     slice makes numba compile its shape-mismatch reporting (string formatting, about 5 s on a first use).
+    The lengths are not checked (``dst``'s is used): the caller makes them equal.
 
     Examples
     --------

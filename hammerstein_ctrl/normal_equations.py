@@ -218,7 +218,9 @@ def compiled_sums(sums, steps):  # pragma: no cover - compiled
     fun = sums[0]
     values = np.empty(steps.size + 1)
     values[0] = fun
-    values[1:] = _neighbour_values(fun, gradient, gram, steps)
+    neighbours = _neighbour_values(fun, gradient, gram, steps)
+    for j in range(neighbours.size):     # not a slice assignment: that compiles numba's shape-error reporting
+        values[1 + j] = neighbours[j]
     for j in range(values.size):
         if not np.isfinite(values[j]):
             values[j] = np.inf

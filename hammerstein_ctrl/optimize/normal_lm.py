@@ -470,7 +470,9 @@ def _loop_absorb(x, trial, fun, sums, h, gradient, gram, steps, scale, damping, 
     if not finite:
         return HAND_BACK, fun
     row = counts[3]
-    log_x[row], log_steps[row], log_values[row] = trial, h, values
+    copy_vector(trial, log_x[row])
+    copy_vector(h, log_steps[row])
+    copy_vector(values, log_values[row])
     counts[2] -= values.size
     counts[3] += 1
     if start:
