@@ -588,7 +588,9 @@ def _sum_vectors(chunks: int) -> list:
 def _product_lines(chunks: int) -> list:
     """Lines setting ``row``, ``ln`` to where :func:`_sum_vectors`'s stored sums hold the sum of ``d_j d_k``
     (``j >= k``, neighbour indices; ``cj, aj`` and ``ck, ak`` their chunks and lanes)."""
-    S0, T0 = chunks, 4 * chunks          # rows of S0_0 and T1_0_0 among the stored vectors
+    vectors = _sum_vectors(chunks)
+    S0 = vectors.index("S0_0")
+    T0 = vectors.index("T1_0_0") if chunks > 1 else len(vectors)    # rows of the first S and T among them
     return [f"s = (ak - aj + {WIDTH}) % {WIDTH}",
             "if cj != ck:",
             f"    row, ln = {T0} + ((cj * (cj - 1)) // 2 + ck) * {WIDTH} + s, aj",

@@ -19,6 +19,7 @@ True
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import threading
 
@@ -381,10 +382,9 @@ def tf_discrete_into(num, den, dt, max_norm, E, C, D, ok, big):  # pragma: no co
                 den[b, :] = 0.0
                 den[b, 0] = 1.0
     M, C_new, D_new = tf_augmented(num, den, dt)
-    for b in range(batch):     # element by element: a slice assignment compiles numba's shape-error reporting
-        D[b] = D_new[b]
-        for j in range(C.shape[1]):
-            C[b, j] = C_new[b, j]
+    copy_vector(D_new, D)
+    for b in range(batch):
+        copy_vector(C_new[b], C[b])
         big[b] = _one_norm(M[b]) > max_norm
         if not big[b]:
             _expm_one(M[b], E[b], _B13)  # not through expm_into: one level less to compile on a first fit
@@ -456,6 +456,7 @@ def single_threaded_blas():
     (a few microseconds), the last to close restores them, and blocks nested
     in those (``identify`` calls ``minimize``, which calls its solver) cost nothing.  The
     manager is a class rather than a generator: about 8 µs to enter and leave the outermost block instead of 11.
+    It also decorates a function (``@single_threaded_blas()``), which then runs whole under the limit.
 
     Examples
     --------
@@ -467,7 +468,7 @@ def single_threaded_blas():
     return _SINGLE_THREADED_BLAS
 
 
-class _SingleThreadedBlas:
+class _SingleThreadedBlas(contextlib.ContextDecorator):
     """The context manager of :func:`single_threaded_blas` (one for the process: its state is process-wide)."""
 
     __slots__ = ()

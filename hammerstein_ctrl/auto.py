@@ -26,7 +26,6 @@ Examples
 
 from __future__ import annotations
 
-import functools
 import time
 
 import numpy as np
@@ -55,18 +54,6 @@ MAX_RESTARTS = 8
 REFINE_TOL = 1e-8
 #: Fewest evaluations worth giving one refinement.
 MIN_REFINE_BUDGET = 10
-
-
-def _one_blas_thread(method):
-    """``method`` with BLAS held to one thread (:func:`~hammerstein_ctrl._linalg.single_threaded_blas`), as in
-    ``identify``: the start search's regressions are thousands of rows by a few columns, where OpenBLAS's
-    threads only add their wake-ups (``auto_minimize`` called directly on the EMPS: 84 ms median with two
-    threads, 43 ms with one).  A ``callback`` runs under the same limit."""
-    @functools.wraps(method)
-    def run(*args, **kwargs):
-        with single_threaded_blas():
-            return method(*args, **kwargs)
-    return run
 
 
 class _Merged:
@@ -203,7 +190,10 @@ def _search(cost, starts, next_restart, budget: Budget, merged: _Merged, allow_u
     return best, runs
 
 
-@_one_blas_thread
+# Every auto_* function runs with BLAS held to one thread, as identify does: the start search's regressions
+# are thousands of rows by a few columns, where OpenBLAS's threads only add their wake-ups (auto_minimize
+# called directly on the EMPS: 84 ms median with two threads, 43 ms with one).
+@single_threaded_blas()
 def auto_minimize(cost, x0=None, *, maxfev: int | None = None, seed=None, allow_unstable: bool = False,
                   callback=None):
     """Minimise a :class:`~hammerstein_ctrl.objective.HammersteinCost` without tuning.
@@ -304,7 +294,7 @@ def _result(cost, best, budget, runs, n_starts, merged, allow_unstable, started)
                           elapsed=time.perf_counter() - started)
 
 
-@_one_blas_thread
+@single_threaded_blas()
 def auto_records(cost, x0=None, *, maxfev: int | None = None, seed=None, allow_unstable: bool = False,
                  callback=None):
     """:func:`auto_minimize` for several records of one plant (a :class:`~hammerstein_ctrl.experiments.RecordsCost`).
@@ -368,7 +358,7 @@ def _record_start(rs, x0, record: int):
                          f"{rs.base.n_params}, or all {rs.n_params} {list(rs.param_names)}; got {x.size}")
 
 
-@_one_blas_thread
+@single_threaded_blas()
 def auto_delayed(cost, x0=None, *, maxfev: int | None = None, seed=None, allow_unstable: bool = False,
                  callback=None):
     """:func:`auto_minimize` for a structure with a dead time (a :class:`~hammerstein_ctrl.delay_fit.DelayedCost`).
@@ -427,7 +417,7 @@ def auto_delayed(cost, x0=None, *, maxfev: int | None = None, seed=None, allow_u
     return result
 
 
-@_one_blas_thread
+@single_threaded_blas()
 def auto_mimo(cost, x0=None, *, maxfev: int | None = None, seed=None, allow_unstable: bool = False,
               callback=None):
     """:func:`auto_minimize` for a MIMO structure (a :class:`~hammerstein_ctrl.mimo_fit.MIMOCost`).
@@ -525,7 +515,7 @@ LURE_RESTARTS = 12
 LURE_START_SHARE = 0.3
 
 
-@_one_blas_thread
+@single_threaded_blas()
 def auto_lure(cost, x0=None, *, maxfev: int | None = None, seed=None, allow_unstable: bool = False,
               callback=None):
     """:func:`auto_minimize` for a Lur'e loop (a :class:`~hammerstein_ctrl.lure_fit.LureCost`).

@@ -32,6 +32,7 @@ import numpy as np
 
 from ._checks import as_real_array
 from ._jit import cached_njit
+from ._linalg import copy_vector
 from .exceptions import ParameterError
 
 __all__ = ["NormalEquations", "from_residuals", "from_difference_sums", "from_factor", "scored_inf", "forward_steps",
@@ -206,7 +207,7 @@ def compiled_neighbourhood(x):  # pragma: no cover - compiled
     return h, _neighbours(x, h)
 
 
-@cached_njit()
+@cached_njit(depends=("_linalg.py",))
 def compiled_sums(sums, steps):  # pragma: no cover - compiled
     """:func:`from_difference_sums` for compiled callers: ``(finite, fun, gradient, gram, values)``.
 
@@ -218,9 +219,7 @@ def compiled_sums(sums, steps):  # pragma: no cover - compiled
     fun = sums[0]
     values = np.empty(steps.size + 1)
     values[0] = fun
-    neighbours = _neighbour_values(fun, gradient, gram, steps)
-    for j in range(neighbours.size):     # not a slice assignment: that compiles numba's shape-error reporting
-        values[1 + j] = neighbours[j]
+    copy_vector(_neighbour_values(fun, gradient, gram, steps), values[1:])
     for j in range(values.size):
         if not np.isfinite(values[j]):
             values[j] = np.inf
