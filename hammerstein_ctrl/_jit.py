@@ -29,10 +29,13 @@ from pathlib import Path
 
 import numba
 import numba.core.caching
+import numba.core.cgutils
+import numba.core.errors
 
 from .exceptions import CacheWarning
 
-__all__ = ["cached_njit", "kernel_signature", "only_for", "tolerate_damaged_cache", "machine_cache_dir", "ENV_CACHE"]
+__all__ = ["cached_njit", "kernel_signature", "only_for", "tolerate_damaged_cache", "machine_cache_dir",
+           "function_address", "typed_call", "ENV_CACHE"]
 
 #: Environment variable overriding the per-machine cache root (also of the generated kernels).
 ENV_CACHE = "HAMMERSTEIN_CTRL_CACHE"
@@ -277,3 +280,87 @@ def _set_aside(cache, sig, target_context):
             os.remove(index)
         except OSError:
             pass
+
+
+def function_address(dispatcher, signature: tuple, returns=None) -> int:
+    """Address of ``dispatcher``'s machine code for the argument types ``signature`` (compiled or loaded if need be).
+
+    For compiled callers that call it through the address (:func:`typed_call`):
+    its code is then compiled once, not again into every caller, which numba
+    does for a direct call (and each caller's machine code holds a copy).
+    The address is valid for the life of the process.
+
+    Parameters
+    ----------
+    dispatcher : numba dispatcher
+    signature : tuple
+        Argument types (:func:`kernel_signature`).
+    returns : numba type, optional
+        The return type the callers read: another one raises ``TypeError``
+        (a caller would misread the result).
+
+    Examples
+    --------
+    >>> @cached_njit(cache=False)
+    ... def half(x):
+    ...     return 0.5 * x
+    >>> function_address(half, kernel_signature("f"), numba.types.float64) > 0
+    True
+    """
+    if signature not in dispatcher.overloads:
+        dispatcher.compile(signature)
+    compiled = dispatcher.overloads[signature]
+    if returns is not None and compiled.signature.return_type != returns:
+        raise TypeError(f"{dispatcher.py_func.__name__} returns {compiled.signature.return_type}, not the {returns} "
+                        "its callers read")
+    return compiled.library.get_pointer_to_function(compiled.fndesc.llvm_func_name)
+
+
+def typed_call(name: str, argtypes: tuple, address, args: tuple, restype=numba.types.none):
+    """The typing of an intrinsic calling the function at ``address`` (:func:`function_address`) with ``args``
+    passed as ``argtypes``, returning ``restype``: ``(signature, codegen)``.
+
+    Arguments of other types are refused with a ``TypingError`` when the caller
+    is compiled (a writeable array passes where a read-only one is expected);
+    an exception the callee raises propagates to the caller.
+
+    Examples
+    --------
+    >>> import numba.extending
+    >>> @numba.extending.intrinsic
+    ... def call_half(typingctx, address, x):
+    ...     return typed_call("call_half", kernel_signature("f"), address, (x,), numba.types.float64)
+    >>> @cached_njit(cache=False)
+    ... def caller(address, x):
+    ...     return call_half(address, x)
+    >>> @cached_njit(cache=False)
+    ... def half(x):
+    ...     return 0.5 * x
+    >>> caller(function_address(half, kernel_signature("f")), 3.0)
+    1.5
+    """
+    if address != numba.types.int64 or len(args) != len(argtypes) or not all(map(_converts, args, argtypes)):
+        raise numba.core.errors.TypingError(f"{name} takes an int64 address and {argtypes}, got {(address, *args)}")
+
+    def codegen(context, builder, signature, llargs):
+        return _call_through(context, builder, llargs, argtypes, restype)
+    return restype(address, *args), codegen
+
+
+def _call_through(context, builder, llargs, argtypes, restype):
+    """Code calling the function at address ``llargs[0]`` (numba's calling convention) with ``llargs[1:]`` as
+    ``argtypes``; its result of type ``restype``; an exception it raises propagates."""
+    function = context.call_conv.get_function_type(restype, argtypes)
+    pointer = builder.inttoptr(llargs[0], function.as_pointer())
+    status, value = context.call_conv.call_function(builder, pointer, restype, argtypes, llargs[1:])
+    with numba.core.cgutils.if_unlikely(builder, status.is_error):
+        context.call_conv.return_status_propagate(builder, status)
+    return context.get_dummy_value() if restype == numba.types.none else value
+
+
+def _converts(given, expected) -> bool:
+    """Whether an argument of numba type ``given`` passes unchanged as ``expected``: its own type, or a writeable
+    array where a read-only one is expected (numba stores both alike), never a read-only one where the callee writes."""
+    if isinstance(given, numba.types.Array) and isinstance(expected, numba.types.Array) and not expected.mutable:
+        return given.copy(readonly=True) == expected
+    return numba.types.unliteral(given) == expected

@@ -27,12 +27,16 @@ be driven directly by ``w`` (``Cz B != 0``: relative degree 1 from ``w`` to ``z`
 
 from __future__ import annotations
 
+import functools
+
+import numba
+import numba.extending
 import numpy as np
 
-from ._jit import cached_njit
+from ._jit import cached_njit, function_address, kernel_signature, typed_call
 from ._linalg import _one_norm, copy_vector, expm_into, tf_augmented
 
-__all__ = ["lure_setup", "lure_run", "MAX_EVENTS", "FEEDBACK_CODES"]
+__all__ = ["lure_setup", "lure_run", "lure_loop_run", "sample_address", "MAX_EVENTS", "FEEDBACK_CODES"]
 
 #: Files whose compiled code these functions call (the matrix exponential, the 1-norm): an edit compiles them again.
 _DEPENDS = ("_linalg.py",)
@@ -426,9 +430,35 @@ def _sample(Adt, Asdt, Bdt, Cz, q, h, Phi, G0, G1, Ps, x, mode, uk, s, c, fc, xn
     return mode
 
 
+#: Argument types of :func:`_sample` as compiled for calls through its address.
+_SAMPLE_SIGNATURE = kernel_signature("w2 w2 w1 w1 w1 f w2 w1 w1 w2 w1 i f f f f w1 w1 w1 w1 w1")
+
+
+@functools.lru_cache(maxsize=1)
+def sample_address() -> int:
+    """Address of :func:`_sample`'s machine code: the simulations call it through this address, so its code
+    (the event handling, most of the simulator) is compiled once, not again into each of them.
+
+    Examples
+    --------
+    >>> sample_address() > 0
+    True
+    """
+    return function_address(_sample, _SAMPLE_SIGNATURE, numba.types.int64)
+
+
+@numba.extending.intrinsic
+def _call_sample(typingctx, address, Adt, Asdt, Bdt, Cz, q, h, Phi, G0, G1, Ps, x, mode, uk, s, c, fc, xn, xs, t1,
+                 t2, pv):
+    """``_sample(Adt, ..., pv)`` called at ``address`` (:func:`sample_address`) from compiled code."""
+    return typed_call("_call_sample", _SAMPLE_SIGNATURE, address,
+                      (Adt, Asdt, Bdt, Cz, q, h, Phi, G0, G1, Ps, x, mode, uk, s, c, fc, xn, xs, t1, t2, pv),
+                      numba.types.int64)
+
+
 @cached_njit(depends=_DEPENDS)
-def lure_run(Adt, Asdt, Bdt, C, Cz, h, Q, Phi, G0, G1, Ps, ok, fc, c, X0, Y0, u, foh, y, out,
-             want_outputs):  # pragma: no cover - compiled
+def _lure_run(Adt, Asdt, Bdt, C, Cz, h, Q, Phi, G0, G1, Ps, ok, fc, c, X0, Y0, u, foh, y, out, want_outputs,
+              sample):  # pragma: no cover - compiled
     """Simulate every candidate over ``u``: outputs into ``out[b]`` (``want_outputs``) or the SSE
     against ``y`` into ``out[b, 0]``; ``inf`` for a candidate that is not ``ok`` or overflows."""
     batch, n = Cz.shape
@@ -448,10 +478,10 @@ def lure_run(Adt, Asdt, Bdt, C, Cz, h, Q, Phi, G0, G1, Ps, ok, fc, c, X0, Y0, u,
         mode = _first_mode(Czb, q, x, u[0] - cb, fcb, hb)
         if n == 2:
             sse = _samples_two(Ab, Asb, Bb, Cb, Czb, q, hb, Phib, G0b, G1b, Psb, x, mode, cb, fcb, y0, u, y, out[b],
-                               want_outputs, foh, xn, xs, t1, t2, pv)
+                               want_outputs, foh, xn, xs, t1, t2, pv, sample)
         else:
             sse = _samples(Ab, Asb, Bb, Cb, Czb, q, hb, Phib, G0b, G1b, Psb, x, mode, cb, fcb, y0, u, y, out[b],
-                           want_outputs, foh, xn, xs, t1, t2, pv)
+                           want_outputs, foh, xn, xs, t1, t2, pv, sample)
         if not want_outputs:
             out[b, 0] = sse if np.isfinite(sse) and sse < 1.7e308 else np.inf
     return out
@@ -460,7 +490,7 @@ def lure_run(Adt, Asdt, Bdt, C, Cz, h, Q, Phi, G0, G1, Ps, ok, fc, c, X0, Y0, u,
 
 @cached_njit(depends=_DEPENDS)
 def _samples(Ab, Asb, Bb, Cb, Czb, q, hb, Phib, G0b, G1b, Psb, x, mode, cb, fcb, y0, u, y, outb, want_outputs, foh,
-             xn, xs, t1, t2, pv):  # pragma: no cover - compiled
+             xn, xs, t1, t2, pv, sample):  # pragma: no cover - compiled
     """One candidate over the record (any order): its outputs into ``outb``, or its SSE returned."""
     n, N = x.shape[0], u.shape[0]
     pz = np.zeros(n)                         # z' = pz . x + cz w (a turn of z inside a sample: the full check)
@@ -493,13 +523,14 @@ def _samples(Ab, Asb, Bb, Cb, Czb, q, hb, Phib, G0b, G1b, Psb, x, mode, cb, fcb,
                 for i in range(n):
                     x[i] = xn[i]
                 continue
-        mode = _sample(Ab, Asb, Bb, Czb, q, hb, Phib, G0b, G1b, Psb, x, mode, u[k], s, cb, fcb, xn, xs, t1, t2, pv)
+        mode = _call_sample(sample, Ab, Asb, Bb, Czb, q, hb, Phib, G0b, G1b, Psb, x, mode, u[k], s, cb, fcb, xn, xs,
+                                t1, t2, pv)
     return sse
 
 
 @cached_njit(depends=_DEPENDS)
 def _samples_two(Ab, Asb, Bb, Cb, Czb, q, hb, Phib, G0b, G1b, Psb, x, mode, cb, fcb, y0, u, y, outb, want_outputs,
-                 foh, xn, xs, t1, t2, pv):  # pragma: no cover - compiled
+                 foh, xn, xs, t1, t2, pv, sample):  # pragma: no cover - compiled
     """:func:`_samples` for two states (a mass: the common case), the state in registers between switches."""
     N = u.shape[0]
     p00, p01, p10, p11 = Phib[0, 0], Phib[0, 1], Phib[1, 0], Phib[1, 1]
@@ -532,7 +563,8 @@ def _samples_two(Ab, Asb, Bb, Cb, Czb, q, hb, Phib, G0b, G1b, Psb, x, mode, cb, 
                 x0, x1 = n0, n1
                 continue
         x[0], x[1] = x0, x1
-        mode = _sample(Ab, Asb, Bb, Czb, q, hb, Phib, G0b, G1b, Psb, x, mode, u[k], s, cb, fcb, xn, xs, t1, t2, pv)
+        mode = _call_sample(sample, Ab, Asb, Bb, Czb, q, hb, Phib, G0b, G1b, Psb, x, mode, u[k], s, cb, fcb, xn, xs,
+                                t1, t2, pv)
         x0, x1 = x[0], x[1]
         side = float(mode)
         shift = cb + side * fcb
@@ -540,8 +572,8 @@ def _samples_two(Ab, Asb, Bb, Cb, Czb, q, hb, Phib, G0b, G1b, Psb, x, mode, cb, 
 
 
 @cached_njit(depends=_DEPENDS)
-def lure_loop_run(Adt, Asdt, Bdt, C, Cz, h, Q, Phi, G0, G1, Ps, ok, fc, c, X0, Y0, Ac, Bc, Cc, Dc, xc0, r, d,
-                  Y, U):  # pragma: no cover - compiled
+def _lure_loop_run(Adt, Asdt, Bdt, C, Cz, h, Q, Phi, G0, G1, Ps, ok, fc, c, X0, Y0, Ac, Bc, Cc, Dc, xc0, r, d,
+                   Y, U, sample):  # pragma: no cover - compiled
     """Every candidate inside a known sampled controller: outputs ``Y[b]`` and control signals ``U[b]``.
 
     At sample ``k``: ``y_k = C x_k + y0``; ``u_k = Cc xc_k + Dc [r_k, y_k] + d_k``;
@@ -575,6 +607,27 @@ def lure_loop_run(Adt, Asdt, Bdt, C, Cz, h, Q, Phi, G0, G1, Ps, ok, fc, c, X0, Y
             if mode == 2:
                 mode = _first_mode(Cz[b], q, x, uk - cb, fcb, hb)
             if k + 1 < N:
-                mode = _sample(Adt[b], Asdt[b], Bdt[b], Cz[b], q, hb, Phi[b], G0[b], G1[b], Ps[b], x, mode, uk, 0.0,
-                               cb, fcb, xn, xs, t1, t2, pv)
+                mode = _call_sample(sample, Adt[b], Asdt[b], Bdt[b], Cz[b], q, hb, Phi[b], G0[b], G1[b], Ps[b], x, mode,
+                                    uk, 0.0, cb, fcb, xn, xs, t1, t2, pv)
     return Y, U
+
+
+def lure_run(Adt, Asdt, Bdt, C, Cz, h, Q, Phi, G0, G1, Ps, ok, fc, c, X0, Y0, u, foh, y, out, want_outputs):
+    """Simulate every candidate over ``u``: outputs into ``out[b]`` (``want_outputs``) or the SSE against ``y``
+    into ``out[b, 0]``; ``inf`` for a candidate that is not ``ok`` or overflows.  Returns ``out``.
+
+    The first arguments are :func:`lure_setup`'s results; ``fc``, ``c``
+    ``(B,)`` the friction levels and constant inputs, ``X0`` ``(B, n)`` and
+    ``Y0`` ``(B,)`` the initial states and output offsets, ``u`` the input,
+    ``foh`` its hold.
+    """
+    return _lure_run(Adt, Asdt, Bdt, C, Cz, h, Q, Phi, G0, G1, Ps, ok, fc, c, X0, Y0, u, foh, y, out, want_outputs,
+                     sample_address())
+
+
+def lure_loop_run(Adt, Asdt, Bdt, C, Cz, h, Q, Phi, G0, G1, Ps, ok, fc, c, X0, Y0, Ac, Bc, Cc, Dc, xc0, r, d, Y, U):
+    """Every candidate inside a known sampled controller ``(Ac, Bc, Cc, Dc)`` from its state ``xc0``, with
+    reference ``r`` and added input ``d``: outputs into ``Y[b]`` and control signals into ``U[b]``; returns
+    ``(Y, U)`` (:func:`_lure_loop_run` gives the recursion)."""
+    return _lure_loop_run(Adt, Asdt, Bdt, C, Cz, h, Q, Phi, G0, G1, Ps, ok, fc, c, X0, Y0, Ac, Bc, Cc, Dc, xc0, r, d,
+                          Y, U, sample_address())

@@ -61,12 +61,11 @@ import types
 from pathlib import Path
 
 import numba
-import numba.core.cgutils
-import numba.core.errors
 import numba.extending
 import numpy as np
 
-from ._jit import ENV_CACHE as _jit_ENV_CACHE, cached_njit, kernel_signature, machine_cache_dir, only_for
+from ._jit import (ENV_CACHE as _jit_ENV_CACHE, cached_njit, function_address, kernel_signature, machine_cache_dir,
+                   only_for, typed_call)
 from ._kernel_source import (_CHECK_MASK, _OVERFLOW, _terms, HOLDS, INTERLEAVE, LANE_MIN, LANE_WIDTHS,
                              MAX_LANE_BASIS, MAX_NORMAL_LANES, MAX_PASS_STATES, MAX_UNROLLED_STATES,
                              MAX_VECTOR_STATES, MODES, OUTPUT_TERMS, kernel_signature_codes, kernel_source, lane_source,
@@ -240,45 +239,7 @@ def normal_kernel_address(n: int, hold: str, lanes: int, K: int, direct: bool) -
     >>> normal_kernel_address(1, "zoh", 2, 1, False) > 0
     True
     """
-    return _address(get_normal_kernel(n, hold, lanes, K, direct, False), _NORMAL_SIGNATURE)
-
-
-def _address(kernel, signature) -> int:
-    """Address of ``kernel``'s machine code for the argument types ``signature`` (compiled or loaded if need be)."""
-    if signature not in kernel.overloads:
-        kernel.compile(signature)
-    compiled = kernel.overloads[signature]
-    return compiled.library.get_pointer_to_function(compiled.fndesc.llvm_func_name)
-
-
-def _typed_call(name: str, argtypes: tuple, address, args: tuple, restype=numba.types.none):
-    """An intrinsic's typing: the signature and code of a call through ``address`` with ``args`` passed as
-    ``argtypes``, returning ``restype``; other types are refused when the caller is compiled."""
-    if address != numba.types.int64 or len(args) != len(argtypes) or not all(map(_converts, args, argtypes)):
-        raise numba.core.errors.TypingError(f"{name} takes an int64 address and {argtypes}, got {(address, *args)}")
-
-    def codegen(context, builder, signature, llargs):
-        return _call_through(context, builder, llargs, argtypes, restype)
-    return restype(address, *args), codegen
-
-
-def _call_through(context, builder, llargs, argtypes, restype):
-    """Code calling the function at address ``llargs[0]`` (numba's calling convention) with ``llargs[1:]`` as
-    ``argtypes``; its result of type ``restype``; an exception it raises propagates."""
-    function = context.call_conv.get_function_type(restype, argtypes)
-    pointer = builder.inttoptr(llargs[0], function.as_pointer())
-    status, value = context.call_conv.call_function(builder, pointer, restype, argtypes, llargs[1:])
-    with numba.core.cgutils.if_unlikely(builder, status.is_error):
-        context.call_conv.return_status_propagate(builder, status)
-    return context.get_dummy_value() if restype == numba.types.none else value
-
-
-def _converts(given, expected) -> bool:
-    """Whether an argument of numba type ``given`` passes unchanged as ``expected``: its own type, or a writeable
-    array where a read-only one is expected (numba stores both alike), never a read-only one where the callee writes."""
-    if isinstance(given, numba.types.Array) and isinstance(expected, numba.types.Array) and not expected.mutable:
-        return given.copy(readonly=True) == expected
-    return numba.types.unliteral(given) == expected
+    return function_address(get_normal_kernel(n, hold, lanes, K, direct, False), _NORMAL_SIGNATURE)
 
 
 @numba.extending.intrinsic
@@ -288,7 +249,7 @@ def call_normal_kernel(typingctx, address, E, C, D, X, Y0, VP, P, Phi, HP, HX, y
     The arguments' types are checked against the kernel's when the caller is
     compiled: the same types give the same machine code, called through the pointer.
     """
-    return _typed_call("call_normal_kernel", _NORMAL_SIGNATURE, address, (E, C, D, X, Y0, VP, P, Phi, HP, HX, y,
+    return typed_call("call_normal_kernel", _NORMAL_SIGNATURE, address, (E, C, D, X, Y0, VP, P, Phi, HP, HX, y,
                                                                           begin, acc))
 
 
@@ -300,7 +261,7 @@ _BASIS_SSE_SIGNATURE = kernel_signature(kernel_signature_codes("sse", None, 1))
 def _call_basis_kernel(typingctx, address, E, C, D, X0, Y0, P, Phi, y, out):
     """Call the ``"sse"`` basis kernel at ``address`` (as :func:`get_coefficient_kernel` finds it) from compiled
     code."""
-    return _typed_call("_call_basis_kernel", _BASIS_SSE_SIGNATURE, address, (E, C, D, X0, Y0, P, Phi, y, out))
+    return typed_call("_call_basis_kernel", _BASIS_SSE_SIGNATURE, address, (E, C, D, X0, Y0, P, Phi, y, out))
 
 
 #: Argument types of :func:`~hammerstein_ctrl._linalg.tf_discrete_into`, as compiled for calls through its address.
@@ -320,18 +281,14 @@ def discretisation_address() -> int:
     >>> discretisation_address() > 0
     True
     """
-    address = _address(tf_discrete_into, _DISCRETISATION_SIGNATURE)
-    result = tf_discrete_into.overloads[_DISCRETISATION_SIGNATURE].signature.return_type
-    if result != numba.types.boolean:      # call_discretisation reads a boolean: anything else would be misread
-        raise TypeError(f"tf_discrete_into returns {result}, not the boolean call_discretisation reads")
-    return address
+    return function_address(tf_discrete_into, _DISCRETISATION_SIGNATURE, numba.types.boolean)
 
 
 @numba.extending.intrinsic
 def call_discretisation(typingctx, address, num, den, dt, max_norm, E, C, D, ok, big):
     """Call :func:`~hammerstein_ctrl._linalg.tf_discrete_into` at ``address`` (:func:`discretisation_address`) from
     compiled code; its result ``clean``."""
-    return _typed_call("call_discretisation", _DISCRETISATION_SIGNATURE, address,
+    return typed_call("call_discretisation", _DISCRETISATION_SIGNATURE, address,
                        (num, den, dt, max_norm, E, C, D, ok, big), numba.types.boolean)
 
 
@@ -453,7 +410,7 @@ def get_coefficient_kernel(n: int, hold: str, K: int):
     ...   np.ones((1, 1)), np.ones((1, 4)), np.zeros(4), J), J        # an integrator: y = (0, 0.5, 1, 1.5)
     (True, array([3.5]))
     """
-    address = _address(get_kernel(n, "sse", hold, None, K), _BASIS_SSE_SIGNATURE)    # checks the arguments
+    address = function_address(get_kernel(n, "sse", hold, None, K), _BASIS_SSE_SIGNATURE)    # checks the arguments
     return functools.partial(only_for(_from_coefficients, (_COEFFICIENT_SIGNATURE,)), address,
                              discretisation_address())
 

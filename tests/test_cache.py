@@ -240,9 +240,9 @@ def test_the_compiled_loop_is_not_loaded_from_numbas_cache_after_the_kernel_modu
     assert run() == ("ran", 1)          # the control: the second process loads _compiled_loop from the cache
     kernels = root / "hammerstein_ctrl" / "kernels.py"
     text = kernels.read_text()
-    check = '_typed_call("call_normal_kernel", _NORMAL_SIGNATURE,'       # the pass's check alone, not the others'
+    check = 'typed_call("call_normal_kernel", _NORMAL_SIGNATURE,'       # the pass's check alone, not the others'
     assert check in text
-    kernels.write_text(text.replace(check, '_typed_call("call_normal_kernel", (numba.types.float32,) * 13,'))
+    kernels.write_text(text.replace(check, 'typed_call("call_normal_kernel", (numba.types.float32,) * 13,'))
     assert run() == ("TypingError", 0)
 
 
@@ -279,3 +279,18 @@ def test_the_compiled_code_is_kept_once_per_machine_and_shared_by_copies_of_the_
                           env={**env, "PYTHONPATH": str(copy)}, timeout=600, cwd=tmp_path)
     assert proc.returncode == 0, proc.stderr[-3000:]
     assert len(sorted((tmp_path / "cache").rglob("normal_equations._forward_steps-*.nbi"))) == 2
+
+
+def test_an_address_is_refused_to_callers_that_would_misread_its_result():
+    """function_address checks the return type its callers read: a float function asked for as a boolean
+    one raises instead of handing compiled code an address whose result it would misinterpret."""
+    import numba
+
+    from hammerstein_ctrl._jit import cached_njit, function_address, kernel_signature
+
+    @cached_njit(cache=False)
+    def half(x):
+        return 0.5 * x
+    assert function_address(half, kernel_signature("f"), numba.types.float64) > 0
+    with pytest.raises(TypeError, match="half returns float64, not the bool"):
+        function_address(half, kernel_signature("f"), numba.types.boolean)
