@@ -31,6 +31,7 @@ import numba
 import numba.core.caching
 import numba.core.cgutils
 import numba.core.errors
+from numba.core.runtime import rtsys
 
 from .exceptions import CacheWarning
 
@@ -224,20 +225,21 @@ def tolerate_damaged_cache(dispatcher):
     """Make a cache file of ``dispatcher`` that cannot be read a cache miss: compiled again, with a warning.
 
     The guard wraps the two methods numba calls to load and to save a cached
-    version (once per signature and process), so calls cost nothing more.  A
+    version (once per signature and process), so calls cost nothing more; the
+    load skips numba's loading of its compiler (:func:`_load_cached`).  A
     version that cannot be saved (a full disk, a cache folder no longer
     writable) runs from memory in this process, with a warning.  A
     dispatcher without a disk cache is returned unchanged.
     """
     cache = getattr(dispatcher, "_cache", None)
-    load, save = getattr(cache, "load_overload", None), getattr(cache, "save_overload", None)
-    if load is None or save is None:
+    save = getattr(cache, "save_overload", None)
+    if getattr(cache, "_load_overload", None) is None or save is None:
         return dispatcher
     name = f"{dispatcher.py_func.__module__}.{dispatcher.py_func.__qualname__}"
 
     def load_overload(sig, target_context):
         try:
-            return load(sig, target_context)
+            return _load_cached(cache, sig, target_context)
         except Exception as exc:       # any failure to read back cached code: compile it again
             _set_aside(cache, sig, target_context)
             _warn(f"numba's cache of {name} could not be read ({type(exc).__name__}: {exc}); "
@@ -253,6 +255,44 @@ def tolerate_damaged_cache(dispatcher):
 
     cache.load_overload, cache.save_overload = load_overload, save_overload
     return dispatcher
+
+
+#: Symbols numba adds to the compiled code's symbol table only when it loads the registries of its compiler
+#: (``numba.cpython.hashing``'s secret), not when it starts its runtime: cached code that refers to one is
+#: loaded after those registries (a symbol the loader cannot resolve would abort the process).
+LATE_SYMBOLS = (b"_numba_hashsecret_",)
+
+
+def _load_cached(cache, sig, target_context):
+    """numba's ``Cache.load_overload`` without loading the compiler's registries first, unless the code needs them.
+
+    numba refreshes the target context before every load from its cache: in a
+    fresh process the first load imports and registers its whole compiler
+    (470 modules, about 0.5 s), which running cached machine code does not
+    need.  Here only the runtime (memory management) is started; the
+    registries are loaded first only for code that refers to one of
+    :data:`LATE_SYMBOLS`, or whose cached form is not the one expected.
+    Compiling anything later loads them as numba always does.
+    """
+    rtsys.initialize(target_context)
+    with cache._guard_against_spurious_io_errors():
+        if not cache._enabled:
+            return None
+        data = cache._cache_file.load(cache._index_key(sig, target_context.codegen()))
+        if data is None:
+            return None
+        if _needs_registries(data):
+            target_context.refresh()
+        return cache._impl.rebuild(target_context, data)
+
+
+def _needs_registries(data) -> bool:
+    """Whether a cached compile result (numba's reduced form) must be loaded after the compiler's registries."""
+    try:
+        name, kind, (object_code, bitcode) = data[0]
+    except (TypeError, ValueError, IndexError):
+        return True
+    return kind != "object" or not isinstance(object_code, bytes) or any(s in object_code for s in LATE_SYMBOLS)
 
 
 def _warn(message: str):

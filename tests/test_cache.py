@@ -294,3 +294,84 @@ def test_an_address_is_refused_to_callers_that_would_misread_its_result():
     assert function_address(half, kernel_signature("f"), numba.types.float64) > 0
     with pytest.raises(TypeError, match="half returns float64, not the bool"):
         function_address(half, kernel_signature("f"), numba.types.boolean)
+
+
+_HASHING_MODULE = """
+from hammerstein_ctrl._jit import cached_njit
+
+
+@cached_njit()
+def text_hash(n):
+    return hash("friction" * n)
+
+
+@cached_njit()
+def plain(x):
+    return 2.0 * x
+"""
+
+_LOAD_CHILD = """
+import json, sys
+import hammerstein_ctrl._jit as jit
+seen = []
+needs = jit._needs_registries
+jit._needs_registries = lambda data: seen.append(needs(data)) or seen[-1]
+import cachedmod
+value = cachedmod.plain(1.5)
+compiler_loaded = "numba.cpython.hashing" in sys.modules
+text = cachedmod.text_hash(2)
+print(json.dumps({"plain": value, "compiler_loaded_for_plain": compiler_loaded, "seen": seen,
+                  "hash_ok": text == hash("friction" * 2),
+                  "hits": [cachedmod.plain.stats.cache_hits.get(s, 0) for s in cachedmod.plain.signatures]
+                          + [cachedmod.text_hash.stats.cache_hits.get(s, 0) for s in cachedmod.text_hash.signatures]}))
+"""
+
+
+def test_cached_code_runs_without_loading_numbas_compiler_unless_it_needs_its_symbols(tmp_path):
+    """A fresh process loads cached machine code without importing numba's compiler (about 470 modules,
+    half a second); code that refers to a symbol only the compiler's registries provide (a string hash
+    uses the interpreter's hash secret) is loaded after them, and gives the interpreter's own hash."""
+    (tmp_path / "cachedmod.py").write_text(_HASHING_MODULE)
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(tmp_path), str(REPO)]), "PYTHONHASHSEED": "7"}
+
+    def run():
+        proc = subprocess.run([sys.executable, "-c", _LOAD_CHILD], capture_output=True, text=True, env=env,
+                              timeout=600, cwd=tmp_path)
+        assert proc.returncode == 0, proc.stderr[-3000:]
+        return json.loads(proc.stdout.splitlines()[-1])
+
+    first = run()                                      # compiles and saves both
+    assert first["hash_ok"] and first["hits"] == [0, 0]
+    second = run()
+    assert second["hits"] == [1, 1]                    # both loaded from the cache
+    assert second["plain"] == 3.0 and not second["compiler_loaded_for_plain"]
+    assert second["seen"] == [False, True] and second["hash_ok"]
+
+
+_SYMBOLS_CHILD = """
+import json
+import llvmlite.binding as ll
+from numba.core.registry import cpu_target
+from numba.core.runtime import rtsys
+added = []
+real = ll.add_symbol
+ll.add_symbol = lambda name, address: added.append(name) or real(name, address)
+context = cpu_target.target_context
+rtsys.initialize(context)
+started = len(added)
+context.refresh()
+print(json.dumps(added[started:]))
+"""
+
+
+def test_numbas_compiler_adds_no_symbol_that_cached_code_is_not_checked_for():
+    """Loading numba's compiler (its registries) adds symbols to the loader's table; cached code is loaded
+    before that unless it refers to one of _jit.LATE_SYMBOLS.  Every symbol the registries add must be one
+    of those, or a load could meet a symbol it cannot resolve (a new numba version fails here first)."""
+    from hammerstein_ctrl._jit import LATE_SYMBOLS
+
+    proc = subprocess.run([sys.executable, "-c", _SYMBOLS_CHILD], capture_output=True, text=True, timeout=600)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    added = json.loads(proc.stdout.splitlines()[-1])
+    assert added                                       # the control: the registries do add symbols
+    assert all(name.encode().startswith(LATE_SYMBOLS) for name in added), added
