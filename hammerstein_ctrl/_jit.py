@@ -1,4 +1,5 @@
-"""Compiled functions cached on disk, where a damaged cache file is a cache miss rather than an error.
+"""Compiled functions cached on disk once per machine, loaded without numba's compiler, where a damaged cache file
+is a cache miss rather than an error.
 
 numba keeps each cached function in an index file (``.nbi``) and data files
 (``.nbc``).  A write cut short (a killed process, a full disk) leaves a file
@@ -8,7 +9,11 @@ someone deletes the file.  :func:`cached_njit` compiles like ``numba.njit``
 with ``cache=True`` and ``nogil=True``, and guards the load of a cached
 version: a cache that cannot be read is set aside (its index removed), a
 :class:`~hammerstein_ctrl.exceptions.CacheWarning` says which function it was,
-and the function is compiled again and saved afresh.
+and the function is compiled again and saved afresh.  The cache lives under
+:func:`machine_cache_dir`, keyed on each file's content, and a load from it
+skips numba's import of its compiler's registries (:func:`_load_cached`).
+Compiled code can call another compiled function through its address
+(:func:`function_address`, :func:`typed_call`), so the callee is compiled once.
 
 Examples
 --------
@@ -232,14 +237,16 @@ def tolerate_damaged_cache(dispatcher):
     dispatcher without a disk cache is returned unchanged.
     """
     cache = getattr(dispatcher, "_cache", None)
-    save = getattr(cache, "save_overload", None)
-    if getattr(cache, "_load_overload", None) is None or save is None:
+    load, save = getattr(cache, "load_overload", None), getattr(cache, "save_overload", None)
+    if load is None or save is None:
         return dispatcher
     name = f"{dispatcher.py_func.__module__}.{dispatcher.py_func.__qualname__}"
+    # numba's own load where its cache lacks a part _load_cached reads (another numba version)
+    fast = _loads_without_registries(cache)
 
     def load_overload(sig, target_context):
         try:
-            return _load_cached(cache, sig, target_context)
+            return _load_cached(cache, sig, target_context) if fast else load(sig, target_context)
         except Exception as exc:       # any failure to read back cached code: compile it again
             _set_aside(cache, sig, target_context)
             _warn(f"numba's cache of {name} could not be read ({type(exc).__name__}: {exc}); "
@@ -257,22 +264,33 @@ def tolerate_damaged_cache(dispatcher):
     return dispatcher
 
 
-#: Symbols numba adds to the compiled code's symbol table only when it loads the registries of its compiler
-#: (``numba.cpython.hashing``'s secret), not when it starts its runtime: cached code that refers to one is
-#: loaded after those registries (a symbol the loader cannot resolve would abort the process).
+#: Symbols numba adds to the compiled code's symbol table when a module of its registries is imported
+#: (``numba.cpython.hashing``'s copy of the interpreter's hash secret), not when it starts its runtime.  Cached
+#: code that refers to one is loaded after the registries (a symbol the loader cannot resolve would abort the
+#: process).  Defence in depth: the load of such code imports that module itself as it rebuilds the code's
+#: environment, and a test checks that the registries add no symbol outside this list.
 LATE_SYMBOLS = (b"_numba_hashsecret_",)
+
+#: The parts of numba's cache (``numba.core.caching.Cache``) that :func:`_load_cached` reads.
+_CACHE_PARTS = ("_enabled", "_cache_file", "_index_key", "_impl", "_guard_against_spurious_io_errors")
+
+
+def _loads_without_registries(cache) -> bool:
+    """Whether ``cache`` has every part :func:`_load_cached` reads (numba's layout of 0.58 to 0.68)."""
+    return all(hasattr(cache, part) for part in _CACHE_PARTS) and hasattr(cache._impl, "rebuild")
 
 
 def _load_cached(cache, sig, target_context):
     """numba's ``Cache.load_overload`` without loading the compiler's registries first, unless the code needs them.
 
     numba refreshes the target context before every load from its cache: in a
-    fresh process the first load imports and registers its whole compiler
-    (470 modules, about 0.5 s), which running cached machine code does not
-    need.  Here only the runtime (memory management) is started; the
-    registries are loaded first only for code that refers to one of
-    :data:`LATE_SYMBOLS`, or whose cached form is not the one expected.
-    Compiling anything later loads them as numba always does.
+    fresh process the first refresh imports its compiler's registries (about
+    200 modules past numba's own import, 0.5 s), which running cached machine
+    code does not need.  Here only the runtime (memory management, which
+    compiled code that allocates needs) is started; the registries are loaded
+    first only for code that refers to one of :data:`LATE_SYMBOLS`, or whose
+    cached form is not the one expected.  Compiling anything later loads them
+    as numba always does.
     """
     rtsys.initialize(target_context)
     with cache._guard_against_spurious_io_errors():
@@ -289,8 +307,8 @@ def _load_cached(cache, sig, target_context):
 def _needs_registries(data) -> bool:
     """Whether a cached compile result (numba's reduced form) must be loaded after the compiler's registries."""
     try:
-        name, kind, (object_code, bitcode) = data[0]
-    except (TypeError, ValueError, IndexError):
+        _, kind, (object_code, _) = data[0]
+    except (TypeError, ValueError, IndexError, KeyError):
         return True
     return kind != "object" or not isinstance(object_code, bytes) or any(s in object_code for s in LATE_SYMBOLS)
 

@@ -487,7 +487,6 @@ def _lure_run(Adt, Asdt, Bdt, C, Cz, h, Q, Phi, G0, G1, Ps, ok, fc, c, X0, Y0, u
     return out
 
 
-
 @cached_njit(depends=_DEPENDS)
 def _samples(Ab, Asb, Bb, Cb, Czb, q, hb, Phib, G0b, G1b, Psb, x, mode, cb, fcb, y0, u, y, outb, want_outputs, foh,
              xn, xs, t1, t2, pv, sample):  # pragma: no cover - compiled
@@ -524,7 +523,7 @@ def _samples(Ab, Asb, Bb, Cb, Czb, q, hb, Phib, G0b, G1b, Psb, x, mode, cb, fcb,
                     x[i] = xn[i]
                 continue
         mode = _call_sample(sample, Ab, Asb, Bb, Czb, q, hb, Phib, G0b, G1b, Psb, x, mode, u[k], s, cb, fcb, xn, xs,
-                                t1, t2, pv)
+                            t1, t2, pv)
     return sse
 
 
@@ -564,7 +563,7 @@ def _samples_two(Ab, Asb, Bb, Cb, Czb, q, hb, Phib, G0b, G1b, Psb, x, mode, cb, 
                 continue
         x[0], x[1] = x0, x1
         mode = _call_sample(sample, Ab, Asb, Bb, Czb, q, hb, Phib, G0b, G1b, Psb, x, mode, u[k], s, cb, fcb, xn, xs,
-                                t1, t2, pv)
+                            t1, t2, pv)
         x0, x1 = x[0], x[1]
         side = float(mode)
         shift = cb + side * fcb
@@ -616,10 +615,14 @@ def lure_run(Adt, Asdt, Bdt, C, Cz, h, Q, Phi, G0, G1, Ps, ok, fc, c, X0, Y0, u,
     """Simulate every candidate over ``u``: outputs into ``out[b]`` (``want_outputs``) or the SSE against ``y``
     into ``out[b, 0]``; ``inf`` for a candidate that is not ``ok`` or overflows.  Returns ``out``.
 
-    The first arguments are :func:`lure_setup`'s results; ``fc``, ``c``
-    ``(B,)`` the friction levels and constant inputs, ``X0`` ``(B, n)`` and
-    ``Y0`` ``(B,)`` the initial states and output offsets, ``u`` the input,
-    ``foh`` its hold.
+    The first twelve arguments are :func:`lure_setup`'s results, as it returns
+    them (writeable C-ordered float arrays: the sample with events is compiled
+    for those alone, and others are refused when the simulation is compiled);
+    ``fc``, ``c`` ``(B,)`` the friction levels and constant inputs; ``X0``
+    ``(B, n)`` and ``Y0`` ``(B,)`` the initial states and output offsets;
+    ``u`` ``(N,)`` the input and ``foh`` its hold (True: first order); ``y``
+    ``(N,)`` the measured output (read for SSEs only); ``out`` ``(B, N)``
+    for outputs or ``(B, 1)`` for SSEs.
     """
     return _lure_run(Adt, Asdt, Bdt, C, Cz, h, Q, Phi, G0, G1, Ps, ok, fc, c, X0, Y0, u, foh, y, out, want_outputs,
                      sample_address())
@@ -628,6 +631,6 @@ def lure_run(Adt, Asdt, Bdt, C, Cz, h, Q, Phi, G0, G1, Ps, ok, fc, c, X0, Y0, u,
 def lure_loop_run(Adt, Asdt, Bdt, C, Cz, h, Q, Phi, G0, G1, Ps, ok, fc, c, X0, Y0, Ac, Bc, Cc, Dc, xc0, r, d, Y, U):
     """Every candidate inside a known sampled controller ``(Ac, Bc, Cc, Dc)`` from its state ``xc0``, with
     reference ``r`` and added input ``d``: outputs into ``Y[b]`` and control signals into ``U[b]``; returns
-    ``(Y, U)`` (:func:`_lure_loop_run` gives the recursion)."""
+    ``(Y, U)`` (:func:`_lure_loop_run` gives the recursion).  The plant's arguments are as for :func:`lure_run`."""
     return _lure_loop_run(Adt, Asdt, Bdt, C, Cz, h, Q, Phi, G0, G1, Ps, ok, fc, c, X0, Y0, Ac, Bc, Cc, Dc, xc0, r, d,
                           Y, U, sample_address())
