@@ -25,6 +25,7 @@ import threading
 
 import numpy as np
 
+from ._attributes import never_inline
 from ._jit import cached_njit
 
 __all__ = ["copy_vector", "fill_coefficients", "expm_batch", "expm_into", "tf_augmented", "tf_discrete",
@@ -45,6 +46,7 @@ _B13 = np.array([
 
 @cached_njit()
 def _matmul(X, Y, out):  # pragma: no cover - compiled
+    never_inline()                      # six calls in the exponential: one copy of its loops, not six
     n = X.shape[0]
     for i in range(n):
         for j in range(n):

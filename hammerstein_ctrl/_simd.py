@@ -38,8 +38,7 @@ from llvmlite import ir
 from numba import types
 from numba.extending import intrinsic, models, overload, register_model
 
-__all__ = ["Lanes4", "lanes4", "WIDTH", "pack", "splat", "lane", "rotate", "load", "store", "align_stack",
-           "STACK_ALIGNMENT"]
+__all__ = ["Lanes4", "lanes4", "WIDTH", "pack", "splat", "lane", "rotate", "load", "store"]
 
 #: Lanes of one vector.
 WIDTH = 4
@@ -150,40 +149,6 @@ def store(typingctx, v, a, i):
         builder.store(args[0], pointer, align=8)
         return context.get_dummy_value()
     return types.none(v, a, i), codegen
-
-
-#: Stack alignment (bytes) :func:`align_stack` gives a compiled function: a cache line, so no spilled vector
-#: straddles two.
-STACK_ALIGNMENT = 64
-
-
-@intrinsic
-def align_stack(typingctx):
-    """Make the compiled function that calls it align its stack frame to :data:`STACK_ALIGNMENT` bytes.
-
-    A function whose vectors do not all fit in registers keeps the rest in its
-    stack frame.  The calling convention aligns the stack to 16 bytes only, so
-    without this a 32-byte vector slot straddles two cache lines in half the
-    processes and call depths, and the same loop runs up to 1.4x slower there.
-
-    Examples
-    --------
-    >>> from hammerstein_ctrl._jit import cached_njit
-    >>> @cached_njit(cache=False)
-    ... def aligned(x):
-    ...     align_stack()
-    ...     return 2.0 * x
-    >>> aligned(1.5), "alignstack(64)" in aligned.inspect_llvm(aligned.signatures[0])
-    (3.0, True)
-    """
-    def codegen(context, builder, signature, args):
-        attributes = builder.function.attributes
-        attributes.alignstack = STACK_ALIGNMENT
-        # llvmlite writes no attribute at all while its set of named ones is empty; numba's compiled functions
-        # return their errors as status codes, so they never unwind
-        attributes.add("nounwind")
-        return context.get_dummy_value()
-    return types.none(), codegen
 
 
 def _arithmetic(instruction: str):

@@ -326,7 +326,7 @@ _COEFFICIENT_SIGNATURE = kernel_signature("i i w2 w2 f f") + _BASIS_SSE_SIGNATUR
 
 
 #: Package modules whose compiled functions the generated kernels call.
-_CALLED_MODULES = ("compiled_maps.py", "nonlinearities.py", "_simd.py")
+_CALLED_MODULES = ("compiled_maps.py", "nonlinearities.py", "_simd.py", "_attributes.py")
 
 
 @functools.lru_cache(maxsize=1)

@@ -543,7 +543,7 @@ def test_vector_passes_keep_their_spilled_vectors_on_cache_lines():
     slower there).  The pass asks for a frame aligned to a cache line (alignstack in its compiled code)."""
     from hammerstein_ctrl import kernels
     from hammerstein_ctrl._kernel_source import vector_normal_source
-    from hammerstein_ctrl._simd import STACK_ALIGNMENT
+    from hammerstein_ctrl._attributes import STACK_ALIGNMENT
 
     source = vector_normal_source(4, "zoh", 13, 3, False, True).replace("cached_njit(", "cached_njit(cache=False, ")
     kernel = kernels._load_source(source, "aligned_stack_pass")
