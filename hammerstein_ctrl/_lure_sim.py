@@ -33,6 +33,7 @@ import numba
 import numba.extending
 import numpy as np
 
+from ._attributes import never_inline
 from ._jit import cached_njit, function_address, kernel_signature, typed_call
 from ._linalg import _one_norm, copy_vector, expm_into, tf_augmented
 
@@ -146,6 +147,7 @@ def _propagate(Adt, Bdt, x, w0, s, delta, out, t1, t2):  # pragma: no cover - co
     longer change the sum); past :data:`_TAYLOR_MAX` pieces (a stiff block or
     a coarse sample) the matrix exponential of the augmented system.
     """
+    never_inline()                      # called at a dozen places of the event handling: one copy of it
     n = x.shape[0]
     pieces = max(1, int(np.ceil(_one_norm(Adt) * delta / _TAYLOR_NORM)))
     if pieces > _TAYLOR_MAX:
