@@ -1,5 +1,5 @@
-"""Compiled functions cached on disk once per machine, loaded without numba's compiler, where a damaged cache file
-is a cache miss rather than an error.
+"""Compiled functions cached on disk once per machine, loaded without numba's compiler registries, where a damaged
+cache file is a cache miss rather than an error.
 
 numba keeps each cached function in an index file (``.nbi``) and data files
 (``.nbc``).  A write cut short (a killed process, a full disk) leaves a file
@@ -238,7 +238,7 @@ def tolerate_damaged_cache(dispatcher):
     """
     cache = getattr(dispatcher, "_cache", None)
     load, save = getattr(cache, "load_overload", None), getattr(cache, "save_overload", None)
-    if load is None or save is None:
+    if load is None or save is None or isinstance(cache, numba.core.caching.NullCache):
         return dispatcher
     name = f"{dispatcher.py_func.__module__}.{dispatcher.py_func.__qualname__}"
     # numba's own load where its cache lacks a part _load_cached reads (another numba version)

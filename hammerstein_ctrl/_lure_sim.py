@@ -618,8 +618,10 @@ def lure_run(Adt, Asdt, Bdt, C, Cz, h, Q, Phi, G0, G1, Ps, ok, fc, c, X0, Y0, u,
     into ``out[b, 0]``; ``inf`` for a candidate that is not ``ok`` or overflows.  Returns ``out``.
 
     The first twelve arguments are :func:`lure_setup`'s results, as it returns
-    them (writeable C-ordered float arrays: the sample with events is compiled
-    for those alone, and others are refused when the simulation is compiled);
+    them: the sample with events is compiled for writeable C-ordered float
+    arrays alone, so a read-only or differently laid-out ``Adt``, ``Asdt``,
+    ``Bdt``, ``Cz``, ``Q``, ``Phi``, ``G0``, ``G1`` or ``Ps`` is refused
+    (a ``TypingError``) when the simulation is compiled;
     ``fc``, ``c`` ``(B,)`` the friction levels and constant inputs; ``X0``
     ``(B, n)`` and ``Y0`` ``(B,)`` the initial states and output offsets;
     ``u`` ``(N,)`` the input and ``foh`` its hold (True: first order); ``y``

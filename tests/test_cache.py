@@ -358,7 +358,8 @@ def test_cached_code_runs_without_loading_numbas_compiler_unless_it_needs_its_sy
 
 def test_a_cache_layout_the_fast_load_does_not_know_is_loaded_by_numba_itself():
     """The load without numba's registries reads parts of numba's cache object; where one is missing (another
-    numba version), numba's own load is used instead of every load failing and compiling again."""
+    numba version), numba's own load is used instead of every load failing and compiling again.  This checks
+    the test that chooses between them, on numba's cache and on one without a part."""
     from hammerstein_ctrl._jit import _loads_without_registries, cached_njit
 
     @cached_njit()

@@ -6,6 +6,7 @@ Jacobian (``residuals_batch``), scipy's own 2-point Jacobian, and
 """
 
 import os
+import re
 import tracemalloc
 import warnings
 
@@ -537,19 +538,32 @@ def test_one_vector_pass_serves_every_lane_count_with_as_many_vectors():
             run(**bad)
 
 
-def test_vector_passes_keep_their_spilled_vectors_on_cache_lines():
-    """The widest vector passes keep vectors in their stack frame; with the calling convention's 16-byte
-    alignment a slot straddled two cache lines in some processes and call depths (the same pass 1.2-1.4x
-    slower there).  The pass asks for a frame aligned to a cache line (alignstack in its compiled code)."""
-    from hammerstein_ctrl import kernels
-    from hammerstein_ctrl._kernel_source import vector_normal_source
-    from hammerstein_ctrl._attributes import STACK_ALIGNMENT
+def _kernel_attributes(kernel) -> str:
+    """The LLVM attribute group of a compiled kernel's own function (``kernel``, not numba's wrappers)."""
+    llvm = kernel.inspect_llvm(kernel.signatures[0]).splitlines()
+    define = next(line for line in llvm if line.startswith("define") and "6kernel" in line and "cpython" not in line)
+    group = re.search(r"#(\d+) \{$", define)
+    return next(line for line in llvm if line.startswith(f"attributes #{group[1]} ")) if group else ""
 
-    source = vector_normal_source(4, "zoh", 13, 3, False, True).replace("cached_njit(", "cached_njit(cache=False, ")
-    kernel = kernels._load_source(source, "aligned_stack_pass")
-    llvm = kernel.inspect_llvm(kernel.signatures[0])
-    header = next(line for line in llvm.splitlines() if line.startswith("define") and "kernel" in line)
-    assert STACK_ALIGNMENT == 64 and f"alignstack({STACK_ALIGNMENT})" in llvm, header
+
+@pytest.mark.parametrize("template", ["vector pass", "array pass", "lanes"])
+def test_passes_that_keep_vectors_on_the_stack_align_their_frame_to_a_cache_line(template):
+    """The vector, array and lanes passes keep vectors in their stack frame; with the calling convention's 16-byte
+    alignment a slot straddled two cache lines in some processes and call depths (the same pass 1.2-1.6x slower
+    there).  Each pass's own function asks for a frame aligned to a cache line."""
+    from hammerstein_ctrl import kernels
+    from hammerstein_ctrl._attributes import STACK_ALIGNMENT
+    from hammerstein_ctrl._kernel_source import lane_source, normal_source, vector_normal_source
+
+    source = {"vector pass": lambda: vector_normal_source(4, "zoh", 13, 3, False, True),
+              "array pass": lambda: normal_source(5, "foh", 8, 3, False, True),
+              "lanes": lambda: lane_source(2, "foh", 3, False, False)}[template]()
+    name = f"aligned_{template.replace(' ', '_')}"
+    kernel = kernels._load_source(source.replace("cached_njit(", "cached_njit(cache=False, "), name)
+    assert f"alignstack={STACK_ALIGNMENT}" in _kernel_attributes(kernel)
+    unaligned = kernels._load_source(source.replace("cached_njit(", "cached_njit(cache=False, ")
+                                     .replace("    align_stack()\n", ""), f"{name}_control")
+    assert "alignstack" not in _kernel_attributes(unaligned)          # the control: the check can fail
 
 
 def _plain_case(name):
