@@ -241,8 +241,10 @@ def tolerate_damaged_cache(dispatcher):
     if load is None or save is None or isinstance(cache, numba.core.caching.NullCache):
         return dispatcher
     name = f"{dispatcher.py_func.__module__}.{dispatcher.py_func.__qualname__}"
-    # numba's own load where its cache lacks a part _load_cached reads (another numba version)
+    # numba's own load where its cache lacks a part _load_cached uses (another numba version)
     fast = _loads_without_registries(cache)
+    if fast:
+        cache._impl.rebuild = functools.partial(_rebuild, cache._impl.rebuild)
 
     def load_overload(sig, target_context):
         try:
@@ -271,12 +273,12 @@ def tolerate_damaged_cache(dispatcher):
 #: environment, and a test checks that the registries add no symbol outside this list.
 LATE_SYMBOLS = (b"_numba_hashsecret_",)
 
-#: The parts of numba's cache (``numba.core.caching.Cache``) that :func:`_load_cached` reads.
-_CACHE_PARTS = ("_enabled", "_cache_file", "_index_key", "_impl", "_guard_against_spurious_io_errors")
+#: The parts of numba's cache (``numba.core.caching.Cache``) that :func:`_load_cached` uses.
+_CACHE_PARTS = ("_load_overload", "_impl", "_guard_against_spurious_io_errors")
 
 
 def _loads_without_registries(cache) -> bool:
-    """Whether ``cache`` has every part :func:`_load_cached` reads (numba's layout of 0.58 to 0.68)."""
+    """Whether ``cache`` has every part :func:`_load_cached` uses (numba's layout of 0.58 to 0.68)."""
     return all(hasattr(cache, part) for part in _CACHE_PARTS) and hasattr(cache._impl, "rebuild")
 
 
@@ -287,21 +289,22 @@ def _load_cached(cache, sig, target_context):
     fresh process the first refresh imports its compiler's registries (about
     200 modules past numba's own import, 0.5 s), which running cached machine
     code does not need.  Here only the runtime (memory management, which
-    compiled code that allocates needs) is started; the registries are loaded
-    first only for code that refers to one of :data:`LATE_SYMBOLS`, or whose
-    cached form is not the one expected.  Compiling anything later loads them
-    as numba always does.
+    compiled code that allocates needs) is started before numba's own load;
+    its rebuild of the cached code (:func:`_rebuild`) loads the registries first
+    only for code that refers to one of :data:`LATE_SYMBOLS`, or whose cached
+    form is not the one expected.  Compiling anything later loads them as
+    numba always does.
     """
     rtsys.initialize(target_context)
     with cache._guard_against_spurious_io_errors():
-        if not cache._enabled:
-            return None
-        data = cache._cache_file.load(cache._index_key(sig, target_context.codegen()))
-        if data is None:
-            return None
-        if _needs_registries(data):
-            target_context.refresh()
-        return cache._impl.rebuild(target_context, data)
+        return cache._load_overload(sig, target_context)
+
+
+def _rebuild(rebuild, target_context, data):
+    """numba's ``rebuild`` of cached code read from disk, after the compiler's registries where it needs them."""
+    if _needs_registries(data):
+        target_context.refresh()
+    return rebuild(target_context, data)
 
 
 def _needs_registries(data) -> bool:

@@ -521,8 +521,7 @@ def _samples(Ab, Asb, Bb, Cb, Czb, q, hb, Phib, G0b, G1b, Psb, x, mode, cb, fcb,
                 z1 += Czb[i] * acc
             if z1 * mode >= 0.0 and not _may_turn(_dot(Czb, x) * mode, (_dot(pz, x) + cz * w0) * mode,
                                                   (_dot(pz, xn) + cz * (w0 + s)) * mode):
-                for i in range(n):
-                    x[i] = xn[i]
+                copy_vector(xn, x)
                 continue
         mode = _call_sample(sample, Ab, Asb, Bb, Czb, q, hb, Phib, G0b, G1b, Psb, x, mode, u[k], s, cb, fcb, xn, xs,
                             t1, t2, pv)

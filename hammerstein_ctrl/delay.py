@@ -42,6 +42,7 @@ import numpy as np
 from ._checks import (ESTIMATE, as_signal, check_delay, check_dt, check_intersample, check_transfer_function,
                       uniform_grid)
 from ._jit import cached_njit
+from ._linalg import copy_vector
 from .exceptions import ParameterError
 from .simulate import companion_realization, discretize
 
@@ -105,7 +106,7 @@ def delayed_values(now, before, a: float, hold: str):
     return a * before + (1.0 - a) * now, now
 
 
-@cached_njit()
+@cached_njit(depends=("_linalg.py",))     # copy_vector is compiled into it
 def _recursion(M, Pa, Pb, Pc, C, D, x0, w0, w1, out):  # pragma: no cover - compiled
     n = M.shape[0]
     x = x0.copy()
@@ -123,8 +124,7 @@ def _recursion(M, Pa, Pb, Pc, C, D, x0, w0, w1, out):  # pragma: no cover - comp
             for j in range(n):
                 s += M[i, j] * x[j]
             xn[i] = s
-        for i in range(n):
-            x[i] = xn[i]
+        copy_vector(xn, x)
 
 
 def delayed_response(num, den, v, dt: float, delay: float, *, x0=None, intersample: str = "foh") -> np.ndarray:

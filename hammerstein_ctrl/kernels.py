@@ -250,7 +250,7 @@ def call_normal_kernel(typingctx, address, E, C, D, X, Y0, VP, P, Phi, HP, HX, y
     compiled: the same types give the same machine code, called through the pointer.
     """
     return typed_call("call_normal_kernel", _NORMAL_SIGNATURE, address, (E, C, D, X, Y0, VP, P, Phi, HP, HX, y,
-                                                                          begin, acc))
+                                                                         begin, acc))
 
 
 #: Argument types of every ``"sse"`` kernel with a basis signal (:func:`get_kernel` with ``K``).
@@ -289,7 +289,7 @@ def call_discretisation(typingctx, address, num, den, dt, max_norm, E, C, D, ok,
     """Call :func:`~hammerstein_ctrl._linalg.tf_discrete_into` at ``address`` (:func:`discretisation_address`) from
     compiled code; its result ``clean``."""
     return typed_call("call_discretisation", _DISCRETISATION_SIGNATURE, address,
-                       (num, den, dt, max_norm, E, C, D, ok, big), numba.types.boolean)
+                      (num, den, dt, max_norm, E, C, D, ok, big), numba.types.boolean)
 
 
 @cached_njit(inline="always")
