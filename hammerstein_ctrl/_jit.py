@@ -26,15 +26,18 @@ Examples
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import hashlib
 import os
+import sys
 import warnings
 from pathlib import Path
 
 import numba
 import numba.core.caching
 import numba.core.cgutils
+import numba.core.environment
 import numba.core.errors
 from numba.core.runtime import rtsys
 
@@ -296,8 +299,44 @@ def _load_cached(cache, sig, target_context):
     numba always does.
     """
     rtsys.initialize(target_context)
-    with cache._guard_against_spurious_io_errors():
+    with cache._guard_against_spurious_io_errors(), _environments_without_imports():
         return cache._load_overload(sig, target_context)
+
+
+@contextlib.contextmanager
+def _environments_without_imports():
+    """Rebuild the environments of cached code without importing numba modules they are named after.
+
+    Cached code keeps the environment (globals and constants) of every
+    function it links; numba rebuilds one by importing its module, and the
+    environments of numba's own array functions name ``numba.np.arrayobj``,
+    ``numba.np.arraymath`` and the like: about 25 modules of its registries,
+    0.12 s in a fresh process.  Compiled (nopython) code reads only an
+    environment's constants; its globals serve object mode, which numba's own
+    functions do not use.  Here such an environment gets a globals dict holding
+    the module's name alone (what numba writes when it caches the environment
+    again), unless the module is imported already.  numba loads cached code
+    under its compiler lock, so swapping its rebuild function here is seen by
+    this load alone.
+    """
+    rebuild = numba.core.environment._rebuild_env
+    numba.core.environment._rebuild_env = functools.partial(_rebuild_env, rebuild)
+    try:
+        yield
+    finally:
+        numba.core.environment._rebuild_env = rebuild
+
+
+def _rebuild_env(rebuild, modname, consts, env_name):
+    """numba's ``_rebuild_env``, with a stand-in for the globals of a numba module not imported yet."""
+    Environment = numba.core.environment.Environment
+    if modname in sys.modules or not str(modname).startswith("numba.") or env_name in Environment._memo:
+        return rebuild(modname, consts, env_name)
+    env = Environment({"__name__": modname})
+    env.consts[:] = consts
+    env.env_name = env_name
+    Environment._memo[env_name] = env
+    return env
 
 
 def _rebuild(rebuild, target_context, data):

@@ -324,8 +324,10 @@ numba.core.base.BaseContext.refresh = lambda self: refreshed.append(1) or refres
 import cachedmod
 value = cachedmod.plain(1.5).tolist()
 compiler_loaded = len(refreshed)
+numpy_registry_loaded = "numba.np.arrayobj" in sys.modules
 text = cachedmod.text_hash(2)
 print(json.dumps({"plain": value, "compiler_loaded_for_plain": compiler_loaded, "seen": seen,
+                  "numpy_registry_loaded_for_plain": numpy_registry_loaded,
                   "hash_ok": text == hash("friction" * 2),
                   "hits": [cachedmod.plain.stats.cache_hits.get(s, 0) for s in cachedmod.plain.signatures]
                           + [cachedmod.text_hash.stats.cache_hits.get(s, 0) for s in cachedmod.text_hash.signatures]}))
@@ -351,6 +353,8 @@ def test_cached_code_runs_without_loading_numbas_compiler_unless_it_needs_its_sy
     second = run()
     assert second["hits"] == [1, 1]                    # both loaded from the cache
     assert second["plain"] == [3.0, 3.0] and not second["compiler_loaded_for_plain"]
+    # np.full's compiled code keeps an environment named after numba's array module: rebuilt without importing it
+    assert first["numpy_registry_loaded_for_plain"] and not second["numpy_registry_loaded_for_plain"]
     # the string hash refers to the hash secret: loaded after the registries (the load would import the module
     # that adds the secret anyway, so this is the check itself, not a crash avoided)
     assert second["seen"] == [False, True] and second["hash_ok"]
