@@ -232,6 +232,7 @@ def _expm_one(M, out, b):  # pragma: no cover - compiled
     which keeps loading it from the cache quick, and nothing is allocated but
     the work block.
     """
+    never_inline()                      # one copy per caller's module, however many times it calls
     n = M.shape[0]
     norm = _one_norm(M)
     if not np.isfinite(norm):
