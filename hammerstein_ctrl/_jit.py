@@ -11,7 +11,7 @@ version: a cache that cannot be read is set aside (its index removed), a
 :class:`~hammerstein_ctrl.exceptions.CacheWarning` says which function it was,
 and the function is compiled again and saved afresh.  The cache lives under
 :func:`machine_cache_dir`, keyed on each file's content, and a load from it
-skips numba's import of its compiler's registries (:func:`_load_cached`).
+skips what only numba's compiler needs (:mod:`~hammerstein_ctrl._cache_load`).
 Compiled code can call another compiled function through its address
 (:func:`function_address`, :func:`typed_call`), so the callee is compiled once.
 
@@ -26,21 +26,18 @@ Examples
 
 from __future__ import annotations
 
-import contextlib
 import functools
 import hashlib
 import os
-import sys
 import warnings
 from pathlib import Path
 
 import numba
 import numba.core.caching
 import numba.core.cgutils
-import numba.core.environment
 import numba.core.errors
-from numba.core.runtime import rtsys
 
+from ._cache_load import fast_load_possible, load_cached, rebuild_cached
 from .exceptions import CacheWarning
 
 __all__ = ["cached_njit", "kernel_signature", "only_for", "tolerate_damaged_cache", "machine_cache_dir",
@@ -234,7 +231,7 @@ def tolerate_damaged_cache(dispatcher):
 
     The guard wraps the two methods numba calls to load and to save a cached
     version (once per signature and process), so calls cost nothing more; the
-    load skips numba's loading of its compiler (:func:`_load_cached`).  A
+    load skips what only numba's compiler needs (:mod:`~hammerstein_ctrl._cache_load`).  A
     version that cannot be saved (a full disk, a cache folder no longer
     writable) runs from memory in this process, with a warning.  A
     dispatcher without a disk cache is returned unchanged.
@@ -244,14 +241,14 @@ def tolerate_damaged_cache(dispatcher):
     if load is None or save is None or isinstance(cache, numba.core.caching.NullCache):
         return dispatcher
     name = f"{dispatcher.py_func.__module__}.{dispatcher.py_func.__qualname__}"
-    # numba's own load where its cache lacks a part _load_cached uses (another numba version)
-    fast = _loads_without_registries(cache)
+    # numba's own load where its cache lacks a part load_cached uses (another numba version)
+    fast = fast_load_possible(cache)
     if fast:
-        cache._impl.rebuild = functools.partial(_rebuild, cache._impl.rebuild)
+        cache._impl.rebuild = functools.partial(rebuild_cached, cache._impl.rebuild)
 
     def load_overload(sig, target_context):
         try:
-            return _load_cached(cache, sig, target_context) if fast else load(sig, target_context)
+            return load_cached(cache, sig, target_context) if fast else load(sig, target_context)
         except Exception as exc:       # any failure to read back cached code: compile it again
             _set_aside(cache, sig, target_context)
             _warn(f"numba's cache of {name} could not be read ({type(exc).__name__}: {exc}); "
@@ -267,92 +264,6 @@ def tolerate_damaged_cache(dispatcher):
 
     cache.load_overload, cache.save_overload = load_overload, save_overload
     return dispatcher
-
-
-#: Symbols numba adds to the compiled code's symbol table when a module of its registries is imported
-#: (``numba.cpython.hashing``'s copy of the interpreter's hash secret), not when it starts its runtime.  Cached
-#: code that refers to one is loaded after the registries (a symbol the loader cannot resolve would abort the
-#: process).  Defence in depth: the load of such code imports that module itself as it rebuilds the code's
-#: environment, and a test checks that the registries add no symbol outside this list.
-LATE_SYMBOLS = (b"_numba_hashsecret_",)
-
-#: The parts of numba's cache (``numba.core.caching.Cache``) that :func:`_load_cached` uses.
-_CACHE_PARTS = ("_load_overload", "_impl", "_guard_against_spurious_io_errors")
-
-
-def _loads_without_registries(cache) -> bool:
-    """Whether ``cache`` has every part :func:`_load_cached` uses (numba's layout of 0.58 to 0.68)."""
-    return all(hasattr(cache, part) for part in _CACHE_PARTS) and hasattr(cache._impl, "rebuild")
-
-
-def _load_cached(cache, sig, target_context):
-    """numba's ``Cache.load_overload`` without loading the compiler's registries first, unless the code needs them.
-
-    numba refreshes the target context before every load from its cache: in a
-    fresh process the first refresh imports its compiler's registries (about
-    200 modules past numba's own import, 0.5 s), which running cached machine
-    code does not need.  Here only the runtime (memory management, which
-    compiled code that allocates needs) is started before numba's own load;
-    its rebuild of the cached code (:func:`_rebuild`) loads the registries first
-    only for code that refers to one of :data:`LATE_SYMBOLS`, or whose cached
-    form is not the one expected.  Compiling anything later loads them as
-    numba always does.
-    """
-    rtsys.initialize(target_context)
-    with cache._guard_against_spurious_io_errors(), _environments_without_imports():
-        return cache._load_overload(sig, target_context)
-
-
-@contextlib.contextmanager
-def _environments_without_imports():
-    """Rebuild the environments of cached code without importing numba modules they are named after.
-
-    Cached code keeps the environment (globals and constants) of every
-    function it links; numba rebuilds one by importing its module, and the
-    environments of numba's own array functions name ``numba.np.arrayobj``,
-    ``numba.np.arraymath`` and the like: about 25 modules of its registries,
-    0.12 s in a fresh process.  Compiled (nopython) code reads only an
-    environment's constants; its globals serve object mode, which numba's own
-    functions do not use.  Here such an environment gets a globals dict holding
-    the module's name alone (what numba writes when it caches the environment
-    again), unless the module is imported already.  numba loads cached code
-    under its compiler lock, so swapping its rebuild function here is seen by
-    this load alone.
-    """
-    rebuild = numba.core.environment._rebuild_env
-    numba.core.environment._rebuild_env = functools.partial(_rebuild_env, rebuild)
-    try:
-        yield
-    finally:
-        numba.core.environment._rebuild_env = rebuild
-
-
-def _rebuild_env(rebuild, modname, consts, env_name):
-    """numba's ``_rebuild_env``, with a stand-in for the globals of a numba module not imported yet."""
-    Environment = numba.core.environment.Environment
-    if modname in sys.modules or not str(modname).startswith("numba.") or env_name in Environment._memo:
-        return rebuild(modname, consts, env_name)
-    env = Environment({"__name__": modname})
-    env.consts[:] = consts
-    env.env_name = env_name
-    Environment._memo[env_name] = env
-    return env
-
-
-def _rebuild(rebuild, target_context, data):
-    """numba's ``rebuild`` of cached code read from disk, after the compiler's registries where it needs them."""
-    if _needs_registries(data):
-        target_context.refresh()
-    return rebuild(target_context, data)
-
-
-def _needs_registries(data) -> bool:
-    """Whether a cached compile result (numba's reduced form) must be loaded after the compiler's registries."""
-    try:
-        _, kind, (object_code, _) = data[0]
-    except (TypeError, ValueError, IndexError, KeyError):
-        return True
-    return kind != "object" or not isinstance(object_code, bytes) or any(s in object_code for s in LATE_SYMBOLS)
 
 
 def _warn(message: str):
