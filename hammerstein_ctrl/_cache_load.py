@@ -11,7 +11,8 @@ for three things that running machine code does not need:
    after its module; numba imports that module to rebuild one, and its own
    array functions name ``numba.np.arrayobj`` and the like (about 25 modules
    of the registries, 0.12 s).  Compiled code reads an environment's
-   constants only: a numba module not imported yet lends just its name.
+   constants only: a numba module not imported yet lends just its name
+   (:func:`_rebuild_env`).
 3. A cached library carries the LLVM bitcode of everything it defines, for
    linking into later compiles; numba parses it at every load and lists its
    symbols (7 ms a library, 70 ms for a first EMPS identification).  Here the
@@ -19,10 +20,11 @@ for three things that running machine code does not need:
    are read from the object code's symbol table (ELF; other object formats
    take numba's own path).
 
-Every piece checks that numba still has the parts it uses
-(:func:`fast_load_possible`); otherwise numba's own load runs.  The cache
-guard of :mod:`~hammerstein_ctrl._jit` calls :func:`load_cached` and wraps
-numba's rebuild in :func:`rebuild_cached`.
+Where numba lacks a part a piece uses (another numba version), that piece
+takes numba's own way: :func:`fast_load_possible` for the cache,
+:func:`_environments_without_imports` for the environments, :func:`_unserialize`
+for the library.  The cache guard of :mod:`~hammerstein_ctrl._jit` calls
+:func:`load_cached` and wraps numba's rebuild in :func:`rebuild_cached`.
 
 Examples
 --------
@@ -38,23 +40,27 @@ import contextlib
 import functools
 import struct
 import sys
+import weakref
 
 import llvmlite.binding as ll
 import numba.core.environment
 from numba.core.runtime import rtsys
 
-__all__ = ["LATE_SYMBOLS", "CACHE_PARTS", "fast_load_possible", "load_cached", "rebuild_cached",
-           "needs_registries", "defined_symbols"]
+__all__ = ["LATE_SYMBOLS", "fast_load_possible", "load_cached", "rebuild_cached", "needs_registries",
+           "defined_symbols"]
 
 #: Symbols numba adds to the compiled code's symbol table when a module of its registries is imported
 #: (``numba.cpython.hashing``'s copy of the interpreter's hash secret), not when it starts its runtime.  Cached
 #: code that refers to one is loaded after the registries (a symbol the loader cannot resolve would abort the
 #: process).  Defence in depth: the load of such code imports that module itself as it rebuilds the code's
-#: environment, and a test checks that the registries add no symbol outside this list.
+#: environment (:data:`_SYMBOL_MODULES`), and a test checks that the registries add no symbol outside this list.
 LATE_SYMBOLS = (b"_numba_hashsecret_",)
 
+#: numba modules whose import adds :data:`LATE_SYMBOLS`: an environment named after one is rebuilt by importing it.
+_SYMBOL_MODULES = ("numba.cpython.hashing",)
+
 #: The parts of numba's cache (``numba.core.caching.Cache``) that :func:`load_cached` uses.
-CACHE_PARTS = ("_load_overload", "_impl", "_guard_against_spurious_io_errors")
+_CACHE_PARTS = ("_load_overload", "_impl", "_guard_against_spurious_io_errors")
 
 #: The parts of numba's code library that :func:`_unserialize` uses.
 _LIBRARY_PARTS = ("enable_object_caching", "_set_compiled_object", "_finalize_final_module",
@@ -63,7 +69,7 @@ _LIBRARY_PARTS = ("enable_object_caching", "_set_compiled_object", "_finalize_fi
 
 def fast_load_possible(cache) -> bool:
     """Whether ``cache`` has every part :func:`load_cached` uses (numba's layout of 0.58 to 0.68)."""
-    return all(hasattr(cache, part) for part in CACHE_PARTS) and hasattr(cache._impl, "rebuild")
+    return all(hasattr(cache, part) for part in _CACHE_PARTS) and hasattr(cache._impl, "rebuild")
 
 
 def load_cached(cache, sig, target_context):
@@ -88,22 +94,45 @@ def _environments_without_imports():
     globals serve object mode, which numba's own functions do not use.  Such
     an environment gets a globals dict holding the module's name alone (what
     numba writes when it caches the environment again), unless the module is
-    imported already.  numba loads cached code under its compiler lock, so
-    swapping its rebuild function here is seen by this load alone.
+    imported already or adds symbols (:data:`_SYMBOL_MODULES`).  The stand-in
+    stays numba's environment of that name for the process (a later compile
+    of the same function gets it back, harmlessly).  The swap of numba's
+    rebuild function is seen by the whole process while the load runs (under
+    numba's compiler lock); the replacement carries numba's name, so anything
+    pickled meanwhile refers to numba's own.  Without the parts it uses
+    (another numba version) nothing is swapped.
     """
-    rebuild = numba.core.environment._rebuild_env
-    numba.core.environment._rebuild_env = functools.partial(_rebuild_env, rebuild)
+    module = numba.core.environment
+    rebuild = getattr(module, "_rebuild_env", None)
+    if not callable(rebuild) or not isinstance(getattr(module.Environment, "_memo", None), weakref.WeakValueDictionary):
+        yield
+        return
+    module._rebuild_env = _quiet_rebuild(rebuild)
     try:
         yield
     finally:
-        numba.core.environment._rebuild_env = rebuild
+        module._rebuild_env = rebuild
 
 
-def _rebuild_env(rebuild, modname, consts, env_name):
-    """numba's ``_rebuild_env``, with a stand-in for the globals of a numba module not imported yet."""
+def _quiet_rebuild(rebuild):
+    """:func:`_rebuild_env` around numba's ``rebuild``, named as numba's own (for pickle's lookup by name)."""
+    def _rebuild_env_quietly(*args):
+        return _rebuild_env(rebuild, *args)
+    _rebuild_env_quietly.__module__, _rebuild_env_quietly.__qualname__ = rebuild.__module__, rebuild.__qualname__
+    _rebuild_env_quietly.__name__ = rebuild.__name__
+    return _rebuild_env_quietly
+
+
+def _rebuild_env(rebuild, *args):
+    """numba's ``_rebuild_env(modname, consts, env_name)``, with a stand-in for the globals of a numba module not
+    imported yet."""
     Environment = numba.core.environment.Environment
-    if modname in sys.modules or not str(modname).startswith("numba.") or env_name in Environment._memo:
-        return rebuild(modname, consts, env_name)
+    if len(args) != 3:                 # another numba's arguments: its own rebuild
+        return rebuild(*args)
+    modname, consts, env_name = args
+    if (modname in sys.modules or not str(modname).startswith("numba.") or modname in _SYMBOL_MODULES
+            or env_name in Environment._memo):
+        return rebuild(*args)
     env = Environment({"__name__": modname})
     env.consts[:] = consts
     env.env_name = env_name
@@ -118,7 +147,8 @@ def rebuild_cached(rebuild, target_context, data):
         target_context.refresh()
     codegen = target_context.codegen()
     own = codegen.__dict__.get("unserialize_library")
-    codegen.unserialize_library = functools.partial(_unserialize, codegen, codegen.unserialize_library)
+    codegen.unserialize_library = functools.partial(_unserialize, codegen, codegen.unserialize_library,
+                                                    _entry_points(data))
     try:
         return rebuild(target_context, data)
     finally:
@@ -130,31 +160,49 @@ def rebuild_cached(rebuild, target_context, data):
 
 def needs_registries(data) -> bool:
     """Whether a cached compile result (numba's reduced form) must be loaded after the compiler's registries."""
+    form = _object_form(data[0] if isinstance(data, (tuple, list)) and data else None)
+    return form is None or any(s in form[1] for s in LATE_SYMBOLS)
+
+
+def _object_form(state) -> tuple[str, bytes, bytes] | None:
+    """``(name, object code, bitcode)`` of a cached library in numba's object form, else ``None``."""
     try:
-        _, kind, (object_code, _) = data[0]
-    except (TypeError, ValueError, IndexError, KeyError):
-        return True
-    return kind != "object" or not isinstance(object_code, bytes) or any(s in object_code for s in LATE_SYMBOLS)
+        name, kind, (object_code, bitcode) = state
+    except (TypeError, ValueError):
+        return None
+    ok = kind == "object" and isinstance(object_code, bytes) and isinstance(bitcode, bytes)
+    return (name, object_code, bitcode) if ok else None
 
 
-def _unserialize(codegen, unserialize, state):
+def _entry_points(data) -> tuple[str, ...]:
+    """The symbols numba looks up in the library of a cached compile result (its function and wrapper)."""
+    fndesc = data[1] if isinstance(data, (tuple, list)) and len(data) > 1 else None
+    try:
+        return fndesc.llvm_func_name, fndesc.llvm_cpython_wrapper_name
+    except AttributeError:
+        return ()
+
+
+def _unserialize(codegen, unserialize, entry_points, state):
     """numba's load of a cached code library (``CPUCodeLibrary._unserialize``), its bitcode parsed on first link.
 
     The library's defined symbols (numba's record of what the process's
     code defines) come from the object code's symbol table; the bitcode,
     which serves only a later compile that links this library, is parsed
-    then (:func:`_module_for_linking`).  Any other cached form, an object
-    format :func:`defined_symbols` does not read, or a numba whose library
-    or engine lacks a part used here, takes numba's own load.
+    then (:func:`_module_for_linking`).  numba's own load takes any other
+    cached form, an object format :func:`defined_symbols` does not read, an
+    object without the ``entry_points`` numba will look up, bitcode without
+    its magic number, or a numba whose library or engine lacks a part used
+    here.
     """
-    try:
-        name, kind, (object_code, bitcode) = state
-    except (TypeError, ValueError):
-        return unserialize(state)
-    symbols = defined_symbols(object_code) if kind == "object" and isinstance(object_code, bytes) else None
+    form = _object_form(state)
+    symbols = defined_symbols(form[1]) if form is not None and form[2][:4] == _BITCODE_MAGIC else None
     defined = getattr(getattr(codegen, "_engine", None), "_defined_symbols", None)
-    library = codegen.create_library(name) if symbols is not None and isinstance(defined, set) else None
-    if library is None or not all(hasattr(library, part) for part in _LIBRARY_PARTS):
+    if symbols is None or not entry_points or not symbols.issuperset(entry_points) or not isinstance(defined, set):
+        return unserialize(state)
+    name, object_code, bitcode = form
+    library = codegen.create_library(name)
+    if not all(hasattr(library, part) for part in _LIBRARY_PARTS):
         return unserialize(state)
     library.enable_object_caching()
     library._set_compiled_object(object_code)
@@ -164,10 +212,18 @@ def _unserialize(codegen, unserialize, state):
     return library
 
 
+_BITCODE_MAGIC = b"BC\xc0\xde"
+
+
 def _module_for_linking(library, bitcode: bytes):
     """The module a compile links ``library`` from: its cached bitcode, parsed once (numba's ``_shared_module``)."""
     if library._shared_module is None:
-        library._shared_module = ll.parse_bitcode(bitcode)
+        try:
+            library._shared_module = ll.parse_bitcode(bitcode)
+        except RuntimeError as exc:
+            raise RuntimeError(f"the cached code of {library.name} cannot be linked ({exc}); delete the folder "
+                               "$HAMMERSTEIN_CTRL_CACHE (default ~/.cache/hammerstein_ctrl) to compile it "
+                               "again") from exc
     return library._shared_module
 
 
@@ -176,11 +232,12 @@ _ELF_OBJECT, _ELF_FUNCTION = 1, 2      # STT_OBJECT, STT_FUNC
 
 
 def defined_symbols(object_code: bytes) -> set[str] | None:
-    """Names of the functions and data an object file defines (its symbol table), or ``None`` if not 64-bit
-    little-endian ELF.
+    """Names of the functions and data an object file defines (its symbol table), or ``None`` if it is not
+    64-bit little-endian ELF or defines none.
 
     These are the names numba lists from the library's bitcode (its defined
-    functions and global variables), read without parsing the bitcode.
+    functions and global variables) that have a symbol: private definitions
+    (a switch's lookup table) have none, and numba never looks them up.
 
     Examples
     --------
@@ -203,6 +260,6 @@ def defined_symbols(object_code: bytes) -> set[str] | None:
                 if section and name and info & 0xF in (_ELF_OBJECT, _ELF_FUNCTION):
                     end = object_code.index(b"\0", strings + name)
                     names.add(object_code[strings + name:end].decode())
-        return names
     except (struct.error, ValueError, IndexError, UnicodeDecodeError):
         return None
+    return names or None               # no symbol table (or extended section numbering, count 0): numba's load

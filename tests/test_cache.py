@@ -416,23 +416,92 @@ def test_numbas_compiler_adds_no_symbol_that_cached_code_is_not_checked_for():
     assert all(name.encode().startswith(LATE_SYMBOLS) for name in added), added
 
 
+def _compiled_library(function, *args):
+    """``(library, object code, bitcode)`` of ``function`` compiled afresh for ``args`` (every nopython compile keeps
+    its object code until the library is loaded)."""
+    function(*args)
+    library = function.overloads[function.signatures[0]].library
+    _, kind, (code, bitcode) = library.serialize_using_object_code()
+    assert kind == "object"
+    return library, code, bitcode
+
+
 def test_the_symbols_read_from_the_object_code_are_those_numba_lists_from_the_bitcode():
     """A cached library's defined symbols are read from its object code's symbol table instead of its parsed
-    bitcode (7 ms a library): the two lists are the same, for a function that links numba's array code."""
+    bitcode (7 ms a library): the names numba lists from the bitcode, but for private definitions (a switch's
+    lookup table), which have no symbol and which numba never looks up; for a function that links numba's array
+    code and has a switch."""
+    import types
+
     import llvmlite.binding
+    import numba.core.codegen
     import numpy as np
 
     from hammerstein_ctrl._cache_load import defined_symbols
     from hammerstein_ctrl._jit import cached_njit
 
-    @cached_njit()
-    def spread(x):
-        return np.full(3, x).sum() + np.exp(x)
-    spread._cache.flush()          # compiled afresh: a library loaded from the cache no longer holds its object code
-    spread(1.0)
-    library = spread.overloads[spread.signatures[0]].library
-    _, kind, (code, bitcode) = library.serialize_using_object_code()
+    @cached_njit(cache=False)
+    def spread(x, k):
+        scale = 1.5 if k == 0 else 2.5 if k == 1 else 3.5 if k == 2 else 4.5 if k == 3 else 5.5
+        return np.full(3, x).sum() * scale + np.exp(x)
+    _, code, bitcode = _compiled_library(spread, 1.0, 2)
     module = llvmlite.binding.parse_bitcode(bitcode)
-    listed = {g.name for group in (module.functions, module.global_variables) for g in group if not g.is_declaration}
-    assert kind == "object" and len(listed) > 3
-    assert defined_symbols(code) == listed
+    engine = types.SimpleNamespace(_defined_symbols=set())
+    numba.core.codegen.JitEngine._load_defined_symbols(engine, module)         # numba's own listing
+    private = {g.name for group in (module.functions, module.global_variables) for g in group
+               if not g.is_declaration and g.linkage == llvmlite.binding.Linkage.private}
+    assert len(engine._defined_symbols) > 3 and private                         # the control: a private table
+    assert defined_symbols(code) == engine._defined_symbols - private
+
+
+def test_a_cached_library_the_fast_load_cannot_read_is_loaded_by_numba_itself():
+    """numba's own load takes a library without the symbols it will look up, with damaged bitcode, in another
+    object format or another cached form; an ELF file without a symbol table lists none (not an empty set)."""
+    import numba
+
+    from hammerstein_ctrl._cache_load import _unserialize, defined_symbols
+    from hammerstein_ctrl._jit import cached_njit
+
+    @cached_njit(cache=False)
+    def quarter(x):
+        return 0.25 * x
+    library, code, bitcode = _compiled_library(quarter, 2.0)
+    codegen = numba.core.registry.cpu_target.target_context.codegen()
+    fndesc = quarter.overloads[quarter.signatures[0]].fndesc
+    entry = (fndesc.llvm_func_name, fndesc.llvm_cpython_wrapper_name)
+    assert set(entry) <= defined_symbols(code)
+
+    def numbas(state):
+        return "numba's own load"
+    for state, points in [(("q", "object", (code, bitcode)), ("no_such_symbol",)),          # a symbol missing
+                          (("q", "object", (code, b"damaged" + bitcode)), entry),            # no bitcode magic
+                          (("q", "object", (b"\xcf\xfa\xed\xfe" + code[4:], bitcode)), entry),  # not ELF
+                          (("q", "bitcode", bitcode), entry), (("q", "object", code), entry)]:
+        assert _unserialize(codegen, numbas, points, state) == "numba's own load"
+    header = bytearray(code[:64])
+    header[0x3C:0x3E] = (0).to_bytes(2, "little")                              # no section headers at all
+    assert defined_symbols(bytes(header)) is None
+
+
+def test_environments_of_numba_modules_not_imported_get_a_stand_in_that_pickles_as_numbas():
+    """While cached code loads, an environment named after a numba module not imported yet gets its name alone
+    for globals; one named after a module whose import adds symbols (the hash secret) is rebuilt by numba.  The
+    swapped rebuild keeps numba's name: an environment pickled meanwhile loads with numba's own."""
+    import pickle
+
+    import numba.core.environment as environment
+
+    from hammerstein_ctrl._cache_load import _environments_without_imports, _rebuild_env
+
+    def numbas(modname, consts, env_name):
+        return "numba's own rebuild"
+    stand_in = _rebuild_env(numbas, "numba.no_such_module", [1.5], "hc_test_env_stand_in")
+    assert stand_in.globals == {"__name__": "numba.no_such_module"} and list(stand_in.consts) == [1.5]
+    assert _rebuild_env(numbas, "numba.cpython.hashing", [], "hc_test_env_hashing") == "numba's own rebuild"
+    assert _rebuild_env(numbas, "mypackage.module", [], "hc_test_env_other") == "numba's own rebuild"
+    original = environment._rebuild_env
+    with _environments_without_imports():
+        assert environment._rebuild_env is not original
+        data = pickle.dumps(stand_in)
+    assert environment._rebuild_env is original
+    assert pickle.loads(data) is stand_in                       # numba's rebuild finds it among the living ones
