@@ -487,9 +487,10 @@ def first_call_latency(*, repeat: int = 3) -> dict:
 
     The kernel and bytecode caches are warmed by one untimed run first (see
     :func:`_child_env`).  The package imports
-    its dependencies on first use; ``dependencies_s`` is the import of those
-    an identification needs (numpy, scipy, numba, python-control, which the
-    returned ``TransferFunction`` needs), ``load_s`` reading the EMPS preset,
+    its dependencies on first use; ``dependencies_s`` is the import of numpy,
+    scipy, numba and python-control (the last for a model's transfer function,
+    made when first asked for: an identification itself does not import it),
+    imported before the call so that it is not counted there; ``load_s`` reading the EMPS preset,
     ``first_identify_s`` the first call (loading the compiled kernels) and
     ``second_identify_s`` the same call again, so their difference is the
     package's own first-call overhead.  ``python_s`` is a bare interpreter's start-up, to
@@ -783,8 +784,8 @@ def format_first_call(r) -> str:
     return "\n".join([
         f"Fresh process, kernel and bytecode caches warm (medians of {r.get('processes', 3)} processes)", "",
         f"import hammerstein_ctrl            {r['import_s']:.3f} s",
-        f"then numpy, scipy, numba, control  {r['dependencies_s']:.3f} s (imported on first use; "
-        "identify returns a control.TransferFunction)",
+        f"then numpy, scipy, numba, control  {r['dependencies_s']:.3f} s (imported on first use; control for a "
+        "model's transfer function)",
         f"then presets.emps() (read record)  {r['load_s']:.3f} s",
         f"first identify(method='lm'), EMPS  {r['first_identify_s']:.3f} s "
         f"(the same call again: {r['second_identify_s']:.3f} s; first-call overhead "
