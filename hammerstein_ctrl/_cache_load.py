@@ -40,7 +40,9 @@ import contextlib
 import functools
 import struct
 import sys
+import types
 import weakref
+from pathlib import Path
 
 import llvmlite.binding as ll
 import numba.core.environment
@@ -62,6 +64,11 @@ _SYMBOL_MODULES = ("numba.cpython.hashing",)
 #: The parts of numba's cache (``numba.core.caching.Cache``) that :func:`load_cached` uses.
 _CACHE_PARTS = ("_load_overload", "_impl", "_guard_against_spurious_io_errors")
 
+#: The first bytes of LLVM bitcode.
+_BITCODE_MAGIC = b"BC\xc0\xde"
+_ELF_SYMBOL_TABLE = 2                  # SHT_SYMTAB
+_ELF_OBJECT, _ELF_FUNCTION = 1, 2      # STT_OBJECT, STT_FUNC
+
 #: The parts of numba's code library that :func:`_unserialize` uses.
 _LIBRARY_PARTS = ("enable_object_caching", "_set_compiled_object", "_finalize_final_module",
                   "_get_module_for_linking", "_shared_module")
@@ -76,7 +83,9 @@ def load_cached(cache, sig, target_context):
     """numba's ``Cache.load_overload`` without loading the compiler's registries first, unless the code needs them.
 
     Only the runtime (memory management, which compiled code that allocates
-    needs) is started before numba's own load; its rebuild of the cached code
+    needs) is started before numba's own load, which rebuilds the code's
+    environments without importing numba's modules
+    (:func:`_environments_without_imports`); its rebuild of the cached code
     (:func:`rebuild_cached`) loads the registries first only for code that
     refers to one of :data:`LATE_SYMBOLS`, or whose cached form is not the one
     expected.  Compiling anything later loads them as numba always does.
@@ -104,7 +113,8 @@ def _environments_without_imports():
     """
     module = numba.core.environment
     rebuild = getattr(module, "_rebuild_env", None)
-    if not callable(rebuild) or not isinstance(getattr(module.Environment, "_memo", None), weakref.WeakValueDictionary):
+    if not isinstance(rebuild, types.FunctionType) or not isinstance(getattr(module.Environment, "_memo", None),
+                                                                     weakref.WeakValueDictionary):
         yield
         return
     module._rebuild_env = _quiet_rebuild(rebuild)
@@ -116,11 +126,10 @@ def _environments_without_imports():
 
 def _quiet_rebuild(rebuild):
     """:func:`_rebuild_env` around numba's ``rebuild``, named as numba's own (for pickle's lookup by name)."""
-    def _rebuild_env_quietly(*args):
+    @functools.wraps(rebuild)
+    def quietly(*args):
         return _rebuild_env(rebuild, *args)
-    _rebuild_env_quietly.__module__, _rebuild_env_quietly.__qualname__ = rebuild.__module__, rebuild.__qualname__
-    _rebuild_env_quietly.__name__ = rebuild.__name__
-    return _rebuild_env_quietly
+    return quietly
 
 
 def _rebuild_env(rebuild, *args):
@@ -140,15 +149,15 @@ def _rebuild_env(rebuild, *args):
     return env
 
 
-def rebuild_cached(rebuild, target_context, data):
-    """numba's ``rebuild`` of cached code read from disk: after the compiler's registries where it needs them,
-    its library's bitcode left unparsed until a compile links it (:func:`_unserialize`)."""
+def rebuild_cached(rebuild, folder, target_context, data):
+    """numba's ``rebuild`` of cached code read from disk (from ``folder``): after the compiler's registries where
+    it needs them, its library's bitcode left unparsed until a compile links it (:func:`_unserialize`)."""
     if needs_registries(data):
         target_context.refresh()
     codegen = target_context.codegen()
     own = codegen.__dict__.get("unserialize_library")
     codegen.unserialize_library = functools.partial(_unserialize, codegen, codegen.unserialize_library,
-                                                    _entry_points(data))
+                                                    _entry_points(data), folder)
     try:
         return rebuild(target_context, data)
     finally:
@@ -183,7 +192,7 @@ def _entry_points(data) -> tuple[str, ...]:
         return ()
 
 
-def _unserialize(codegen, unserialize, entry_points, state):
+def _unserialize(codegen, unserialize, entry_points, folder, state):
     """numba's load of a cached code library (``CPUCodeLibrary._unserialize``), its bitcode parsed on first link.
 
     The library's defined symbols (numba's record of what the process's
@@ -206,29 +215,30 @@ def _unserialize(codegen, unserialize, entry_points, state):
         return unserialize(state)
     library.enable_object_caching()
     library._set_compiled_object(object_code)
-    library._get_module_for_linking = functools.partial(_module_for_linking, library, bitcode)
+    library._get_module_for_linking = functools.partial(_module_for_linking, library, bitcode, folder)
     library._finalize_final_module()
     defined |= symbols
     return library
 
 
-_BITCODE_MAGIC = b"BC\xc0\xde"
+def _module_for_linking(library, bitcode: bytes, folder):
+    """The module a compile links ``library`` from: its cached bitcode, parsed once (numba's ``_shared_module``).
 
-
-def _module_for_linking(library, bitcode: bytes):
-    """The module a compile links ``library`` from: its cached bitcode, parsed once (numba's ``_shared_module``)."""
+    Bitcode that does not parse (damaged past its first bytes, which the load
+    checks) fails the compile that links it; the index files of its cache
+    ``folder`` are removed first, so the next process compiles the folder's
+    functions afresh.
+    """
     if library._shared_module is None:
         try:
             library._shared_module = ll.parse_bitcode(bitcode)
         except RuntimeError as exc:
-            raise RuntimeError(f"the cached code of {library.name} cannot be linked ({exc}); delete the folder "
-                               "$HAMMERSTEIN_CTRL_CACHE (default ~/.cache/hammerstein_ctrl) to compile it "
-                               "again") from exc
+            for index in Path(folder).glob("*.nbi") if folder else ():
+                with contextlib.suppress(OSError):
+                    index.unlink()
+            raise RuntimeError(f"the cached code of {library.name} in {folder} cannot be linked ({exc}); its index "
+                               "was removed, so the next process compiles it afresh") from exc
     return library._shared_module
-
-
-_ELF_SYMBOL_TABLE = 2                  # SHT_SYMTAB
-_ELF_OBJECT, _ELF_FUNCTION = 1, 2      # STT_OBJECT, STT_FUNC
 
 
 def defined_symbols(object_code: bytes) -> set[str] | None:
@@ -260,6 +270,6 @@ def defined_symbols(object_code: bytes) -> set[str] | None:
                 if section and name and info & 0xF in (_ELF_OBJECT, _ELF_FUNCTION):
                     end = object_code.index(b"\0", strings + name)
                     names.add(object_code[strings + name:end].decode())
-    except (struct.error, ValueError, IndexError, UnicodeDecodeError):
+    except (struct.error, ValueError, IndexError):        # (a UnicodeDecodeError is a ValueError)
         return None
     return names or None               # no symbol table (or extended section numbering, count 0): numba's load

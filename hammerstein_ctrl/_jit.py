@@ -9,7 +9,9 @@ someone deletes the file.  :func:`cached_njit` compiles like ``numba.njit``
 with ``cache=True`` and ``nogil=True``, and guards the load of a cached
 version: a cache that cannot be read is set aside (its index removed), a
 :class:`~hammerstein_ctrl.exceptions.CacheWarning` says which function it was,
-and the function is compiled again and saved afresh.  The cache lives under
+and the function is compiled again and saved afresh (a library whose bitcode
+turns out damaged only when a later compile links it fails that compile once,
+and its folder's index is removed).  The cache lives under
 :func:`machine_cache_dir`, keyed on each file's content, and a load from it
 skips what only numba's compiler needs (:mod:`~hammerstein_ctrl._cache_load`).
 Compiled code can call another compiled function through its address
@@ -244,7 +246,8 @@ def tolerate_damaged_cache(dispatcher):
     # numba's own load where its cache lacks a part load_cached uses (another numba version)
     fast = fast_load_possible(cache)
     if fast:
-        cache._impl.rebuild = functools.partial(rebuild_cached, cache._impl.rebuild)
+        cache._impl.rebuild = functools.partial(rebuild_cached, cache._impl.rebuild,
+                                                getattr(cache, "_cache_path", None))
 
     def load_overload(sig, target_context):
         try:

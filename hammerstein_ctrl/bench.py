@@ -490,7 +490,7 @@ def first_call_latency(*, repeat: int = 3) -> dict:
     its dependencies on first use; ``dependencies_s`` is the import of numpy,
     scipy, numba and python-control (the last for a model's transfer function,
     made when first asked for: an identification itself does not import it),
-    imported before the call so that it is not counted there; ``load_s`` reading the EMPS preset,
+    so that the first call's time is the package's own; ``load_s`` reading the EMPS preset,
     ``first_identify_s`` the first call (loading the compiled kernels) and
     ``second_identify_s`` the same call again, so their difference is the
     package's own first-call overhead.  ``python_s`` is a bare interpreter's start-up, to

@@ -477,31 +477,54 @@ def test_a_cached_library_the_fast_load_cannot_read_is_loaded_by_numba_itself():
                           (("q", "object", (code, b"damaged" + bitcode)), entry),            # no bitcode magic
                           (("q", "object", (b"\xcf\xfa\xed\xfe" + code[4:], bitcode)), entry),  # not ELF
                           (("q", "bitcode", bitcode), entry), (("q", "object", code), entry)]:
-        assert _unserialize(codegen, numbas, points, state) == "numba's own load"
+        assert _unserialize(codegen, numbas, points, None, state) == "numba's own load"
     header = bytearray(code[:64])
     header[0x3C:0x3E] = (0).to_bytes(2, "little")                              # no section headers at all
     assert defined_symbols(bytes(header)) is None
 
 
-def test_environments_of_numba_modules_not_imported_get_a_stand_in_that_pickles_as_numbas():
+def test_environments_of_numba_modules_not_imported_get_a_stand_in_that_pickles_as_numbas(monkeypatch):
     """While cached code loads, an environment named after a numba module not imported yet gets its name alone
-    for globals; one named after a module whose import adds symbols (the hash secret) is rebuilt by numba.  The
-    swapped rebuild keeps numba's name: an environment pickled meanwhile loads with numba's own."""
+    for globals; one named after a module whose import adds symbols (the hash secret) is rebuilt by numba, as
+    is any with another numba's arguments.  The swapped rebuild keeps numba's name: an environment pickled
+    meanwhile loads with numba's own.  A rebuild numba no longer has as a plain function is not swapped."""
+    import functools
     import pickle
 
     import numba.core.environment as environment
 
     from hammerstein_ctrl._cache_load import _environments_without_imports, _rebuild_env
 
-    def numbas(modname, consts, env_name):
+    def numbas(*args):
         return "numba's own rebuild"
+    monkeypatch.delitem(sys.modules, "numba.cpython.hashing", raising=False)   # as in a fresh process
     stand_in = _rebuild_env(numbas, "numba.no_such_module", [1.5], "hc_test_env_stand_in")
     assert stand_in.globals == {"__name__": "numba.no_such_module"} and list(stand_in.consts) == [1.5]
     assert _rebuild_env(numbas, "numba.cpython.hashing", [], "hc_test_env_hashing") == "numba's own rebuild"
     assert _rebuild_env(numbas, "mypackage.module", [], "hc_test_env_other") == "numba's own rebuild"
+    assert _rebuild_env(numbas, "numba.no_such_module", [], "hc_test_env_four", "more") == "numba's own rebuild"
     original = environment._rebuild_env
     with _environments_without_imports():
         assert environment._rebuild_env is not original
         data = pickle.dumps(stand_in)
     assert environment._rebuild_env is original
     assert pickle.loads(data) is stand_in                       # numba's rebuild finds it among the living ones
+    other = functools.partial(original)
+    monkeypatch.setattr(environment, "_rebuild_env", other)
+    with _environments_without_imports():
+        assert environment._rebuild_env is other
+
+
+def test_cached_bitcode_that_cannot_be_linked_fails_once_and_drops_its_folders_index(tmp_path):
+    """Bitcode damaged past the first bytes the load checks fails the compile that links it, naming the library
+    and its folder, whose index files are removed so that the next process compiles afresh."""
+    import types
+
+    from hammerstein_ctrl._cache_load import _module_for_linking
+
+    (tmp_path / "f-1.py39.nbi").write_bytes(b"index")
+    (tmp_path / "f-1.py39.1.nbc").write_bytes(b"data")
+    library = types.SimpleNamespace(_shared_module=None, name="cached_function")
+    with pytest.raises(RuntimeError, match=f"cached_function in {tmp_path} cannot be linked"):
+        _module_for_linking(library, b"BC\xc0\xde" + b"damaged", tmp_path)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["f-1.py39.1.nbc"]
