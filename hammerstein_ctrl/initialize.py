@@ -52,9 +52,9 @@ from .exceptions import ParameterError
 from .optimize import Budget, BudgetExhausted
 from .simulate import MAX_PASS_STATES, free_response, response_blocks, simulate_batch, unstable
 from . import streamed_lstsq
-from .streamed_lstsq import (constant_column, factor_of_blocks, factor_of_columns, factor_sse, independent,
-                             orthogonal_part, residual, residual_of_columns, solve_minimum_norm, solve_scaled,
-                             triangular_factor)
+from .streamed_lstsq import (constant_column, factor_of_blocks, factor_of_columns, factor_of_rows, factor_sse,
+                             held_whole, independent, orthogonal_part, residual, residual_of_columns,
+                             solve_minimum_norm, solve_scaled, triangular_factor)
 
 __all__ = ["initial_points", "stabilize", "continuous_poles", "nuisance_estimate", "estimate_initial_state",
            "static_affine_sse", "static_affine_sse_columns",
@@ -372,9 +372,9 @@ class _Regression:
         columns = count + (n if self.free_columns else 0)
         return 1 <= n <= MAX_PASS_STATES and self.y.size * self.y.itemsize * columns > STREAMED_COLUMNS_BYTES
 
-    def _responses(self, num, den, signals) -> np.ndarray:
+    def _responses(self, num, den, signals, out=None) -> np.ndarray:
         self.budget.charge(num.shape[0])
-        return simulate_batch(num, den, signals, self.data.dt, intersample=self.data.intersample)
+        return simulate_batch(num, den, signals, self.data.dt, intersample=self.data.intersample, out=out)
 
     def responses(self, thetas, v) -> np.ndarray:
         """Responses ``(k, N)`` of ``H(theta)`` to the one signal ``v`` for each of the ``k`` rows of ``thetas``
@@ -382,11 +382,11 @@ class _Regression:
         num, den = zip(*(self.structure.linear.coefficients(theta) for theta in thetas))
         return self._responses(np.vstack(num), np.vstack(den), v)
 
-    def simulate(self, theta, drives) -> np.ndarray:
-        """Responses ``(k, N)`` of ``H(theta)`` to each drive (``k`` counted evaluations)."""
+    def simulate(self, theta, drives, out=None) -> np.ndarray:
+        """Responses ``(k, N)`` of ``H(theta)`` to each drive (``k`` counted evaluations), in ``out`` if given."""
         num, den = self.structure.linear.coefficients(theta)
         k = drives.shape[0]
-        return self._responses(np.repeat(num, k, 0), np.repeat(den, k, 0), drives)
+        return self._responses(np.repeat(num, k, 0), np.repeat(den, k, 0), drives, out)
 
     @property
     def free_columns(self) -> bool:
@@ -410,10 +410,14 @@ class _Regression:
         if self.constant:
             parts.append(constant_column(self.y.size))
         if self.free_columns:
-            num, den = self.structure.linear.coefficients(theta)
-            self.budget.charge(self.structure.linear.den_order)
-            parts.append(free_response(num[0], den[0], self.data.dt, self.y.size).T)
+            parts.append(self._free_rows(theta))
         return parts
+
+    def _free_rows(self, theta) -> np.ndarray:
+        """The free responses of ``H(theta)`` (``(n, N)``, ``n`` counted evaluations): the estimated state's columns."""
+        num, den = self.structure.linear.coefficients(theta)
+        self.budget.charge(self.structure.linear.den_order)
+        return free_response(num[0], den[0], self.data.dt, self.y.size).T
 
     def static_columns(self, signals):
         """The signals themselves (``(k, N)``, or :class:`_Drives`), then the offset column."""
@@ -428,6 +432,23 @@ class _Regression:
     def factor(self, columns) -> np.ndarray:
         """The triangular factor of ``[X y]`` (:func:`~hammerstein_ctrl.streamed_lstsq.triangular_factor`)."""
         return columns.factor(self.y) if isinstance(columns, _StreamedColumns) else triangular_factor(columns, self.y)
+
+    def factor_at(self, theta, drives: _Drives) -> np.ndarray:
+        """:meth:`factor` of :meth:`columns` at ``theta``, the same bits; a factor held whole has its responses
+        simulated straight into the matrix LAPACK factors (no copy of the columns)."""
+        drives = drives if isinstance(drives, _Drives) else _Drives.rows(drives)
+        n = self.structure.linear.den_order
+        width = drives.count + self.constant + (n if self.free_columns else 0)
+        if drives.array is None or not held_whole(width, self.y.size):
+            return self.factor(self.columns(theta, drives))
+        whole = np.empty((width + 1, self.y.size))
+        self.simulate(theta, drives.array, out=whole[:drives.count])
+        if self.constant:
+            whole[drives.count] = 1.0
+        if self.free_columns:
+            whole[width - n:width] = self._free_rows(theta)
+        whole[-1] = self.y
+        return factor_of_rows(whole)
 
     def residual(self, columns, w) -> np.ndarray:
         """``y - X w``."""
@@ -453,8 +474,8 @@ def _reduced_sse(reg: _Regression, theta, drives) -> float:
     dependent but for rounding (a constant drive's response beside an offset
     and free responses) take the solve, which drops those directions.
     """
-    R = reg.factor(reg.columns(theta, drives))
-    if np.all(np.isfinite(R)) and independent(R, CLEAR_RANK):
+    R = reg.factor_at(theta, drives)
+    if independent(R, CLEAR_RANK):         # False where R is not finite
         return float(R[-1, -1] ** 2)
     return reg.fit_factor(R)[1]
 

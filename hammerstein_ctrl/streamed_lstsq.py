@@ -44,7 +44,8 @@ from .exceptions import DataError
 
 __all__ = ["BLOCK_SAMPLES", "triangular_factor", "factor_of_blocks", "rank_tolerance", "solve_scaled",
            "solve_minimum_norm", "factor_sse", "residual", "constant_column", "column_blocks",
-           "factor_of_columns", "residual_of_columns", "orthogonal_part", "column_scale", "independent"]
+           "factor_of_columns", "factor_of_rows", "held_whole", "residual_of_columns", "orthogonal_part",
+           "column_scale", "independent"]
 
 #: Samples per block of the streamed factorisation and residual (a block of
 #: ``p + 1`` columns takes ``8 (p + 1) BLOCK_SAMPLES`` bytes).
@@ -128,18 +129,53 @@ def triangular_factor(columns, y) -> np.ndarray:
     for a in rows:
         _check_length(a, y.shape[0])
     width = sum(a.shape[0] for a in rows)
-    if 8 * (width + 1) * y.shape[0] > WHOLE_FACTOR_BYTES or y.shape[0] <= width:
+    if not held_whole(width, y.shape[0]):
         return factor_of_columns(column_blocks(rows, y.shape[0]), y, width)
-    whole = np.empty((y.shape[0], width + 1), order="F")
+    whole = np.empty((width + 1, y.shape[0]))
     j = 0
     for a in rows:
-        whole[:, j:j + a.shape[0]] = a.T
+        whole[j:j + a.shape[0]] = a
         j += a.shape[0]
-    whole[:, -1] = y
-    R = _triangle(whole, np.tri(width + 1, k=-1, dtype=bool))
+    whole[-1] = y
+    return factor_of_rows(whole)
+
+
+def held_whole(width: int, n_samples: int) -> bool:
+    """Whether :func:`triangular_factor` factors ``[X y]`` of ``width`` columns held whole (in one LAPACK call).
+
+    Examples
+    --------
+    >>> held_whole(5, 12_000), held_whole(5, 1_000_000), held_whole(5, 5)
+    (True, False, False)
+    """
+    return 8 * (width + 1) * n_samples <= WHOLE_FACTOR_BYTES and n_samples > width
+
+
+def factor_of_rows(whole: np.ndarray) -> np.ndarray:
+    """:func:`triangular_factor` of ``[X y]`` held whole as C-ordered rows ``(p + 1, N)`` (overwritten), ``y`` last.
+
+    The rows' transpose is ``[X y]`` in Fortran order, which LAPACK factors
+    where it lies, so a caller may simulate its columns straight into
+    ``whole``.  All NaN if a value is not finite (or the factorisation overflows).
+
+    Examples
+    --------
+    >>> t = np.linspace(0.0, 1.0, 20)
+    >>> bool(np.array_equal(factor_of_rows(np.vstack([t, 3.0 * t])), triangular_factor([t], 3.0 * t)))
+    True
+    """
+    R = _triangle(whole.T, _below(whole.shape[0]))
     # a NaN or inf anywhere reaches R (a column's norm, then every reflector after it): checking the small R
     # instead of the whole copy saves a pass over it
-    return R if np.all(np.isfinite(R)) else np.full((width + 1, width + 1), np.nan)
+    return R if np.all(np.isfinite(R)) else np.full(R.shape, np.nan)
+
+
+@functools.lru_cache(maxsize=64)
+def _below(width: int) -> np.ndarray:
+    """The (read-only) mask of the strict lower triangle of a ``width x width`` matrix."""
+    mask = np.tri(width, k=-1, dtype=bool)
+    mask.flags.writeable = False
+    return mask
 
 
 def _check_length(a: np.ndarray, n_samples: int):
@@ -236,7 +272,7 @@ def factor_of_blocks(blocks, width: int) -> np.ndarray:
     >>> bool(np.allclose(R.T @ R, A.T @ A))
     True
     """
-    below = np.tri(width, k=-1, dtype=bool)
+    below = _below(width)
     pending: list[tuple[int, np.ndarray]] = []  # (level, R) with strictly decreasing levels
     for part in blocks:
         if not np.all(np.isfinite(part)):

@@ -154,6 +154,22 @@ def test_reduced_fit_equals_dense_lstsq(small_blocks, offset, initial_state, str
         np.testing.assert_allclose(r, reg.y - Phi @ ref, rtol=1e-7, atol=1e-10)
 
 
+@pytest.mark.parametrize("offset, initial_state", [(False, "zero"), (True, "zero"), (False, "estimate"),
+                                                   (True, "estimate")])
+def test_the_scans_factor_simulated_in_place_has_the_bits_and_cost_of_the_columns_factor(
+        small_blocks, offset, initial_state, streamed):
+    data, s = hammerstein_case(offset=offset, initial_state=initial_state)
+    theirs, ours = initialize.Budget(None), initialize.Budget(None)
+    drives = initialize._drives(s.input_nonlinearity, np.asarray(data.u), initialize._Regression(s, data, None))
+    for theta in ([4.0, 1.2], [1.0, 3.0], [-2.0, 0.5], [np.nan, 1.0]):
+        R = initialize._Regression(s, data, theirs).factor(
+            initialize._Regression(s, data, theirs).columns(np.array(theta), drives))
+        R_at = initialize._Regression(s, data, ours).factor_at(np.array(theta), drives)
+        assert R_at.tobytes() == R.tobytes()
+        assert np.all(np.isfinite(R)) == np.all(np.isfinite(theta))
+    assert ours.nfev == theirs.nfev > 0
+
+
 def test_arx_poles_equal_dense_equation_error_fit(small_blocks, streamed):
     data, s = hammerstein_case(n=2000)
     drives = initialize._drives(s.input_nonlinearity, np.asarray(data.u), initialize._Regression(s, data, None))
