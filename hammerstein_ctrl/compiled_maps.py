@@ -30,7 +30,11 @@ from ._jit import cached_njit
 from .nonlinearities import NONLINEARITIES
 
 #: The compiled maps, in the order of the registry (the closed-loop simulator picks one by its position).
-MAPS = tuple(cached_njit()(family.formula) for family in NONLINEARITIES.values() if family.formula is not None)
+#: Inlined into every compiled caller, so a map follows its caller's floating-point flags: a map compiled once
+#: and linked would keep the flags of whichever caller compiled it first (numba compiles a callee with its
+#: caller's ``fastmath``), and a kernel's bits would depend on what the machine had compiled before.
+MAPS = tuple(cached_njit(inline="always")(family.formula) for family in NONLINEARITIES.values()
+             if family.formula is not None)
 #: Position in :data:`MAPS` of each family's map.
 FAMILY_CODES = {family: i for i, family in enumerate(f for f in NONLINEARITIES.values() if f.formula is not None)}
 

@@ -528,3 +528,39 @@ def test_cached_bitcode_that_cannot_be_linked_fails_once_and_drops_its_folders_i
     with pytest.raises(RuntimeError, match=f"cached_function in {tmp_path} cannot be linked"):
         _module_for_linking(library, b"BC\xc0\xde" + b"damaged", tmp_path)
     assert sorted(p.name for p in tmp_path.iterdir()) == ["f-1.py39.1.nbc"]
+
+
+_MAP_ORDER_CHILD = r"""
+import hashlib, sys
+import numpy as np
+from hammerstein_ctrl import kernels
+lanes, N = 7, 400                                   # the shape of the EMPS Wiener fit's pass
+rng = np.random.default_rng(0)
+E = np.zeros((lanes, 2, 4))
+E[:, :, :2], E[:, :, 2:] = [[0.9, 0.05], [-0.1, 0.95]], [[0.01, 0.003], [0.02, 0.001]]
+E += 1e-3 * rng.normal(size=E.shape)
+C, D, X, Y0, VP = rng.normal(size=(lanes, 2)), np.zeros(lanes), np.zeros((lanes, 2)), np.zeros(lanes), np.zeros(lanes)
+P, Phi, y = np.ones((lanes, 1)), rng.normal(size=(1, N)), rng.normal(size=N)
+HP, HX = np.abs(rng.normal(size=(lanes, 3))), np.zeros(0)
+if sys.argv[1] == "scalar kernel first":           # compiles the map as the callee of a kernel without fastmath
+    kernels.get_kernel(2, "outputs", "foh", "coulomb_map")
+acc = np.zeros(1 + (lanes - 1) * lanes)
+kernels.get_normal_kernel(2, "foh", lanes, 1, False, False, "coulomb_map")(E, C, D, X, Y0, VP, P, Phi, HP, HX, y,
+                                                                             0, acc)
+print(hashlib.sha256(acc.tobytes()).hexdigest())
+"""
+
+
+def test_a_passs_bits_do_not_depend_on_which_kernel_compiled_its_output_map_first(tmp_path):
+    """The summing pass (contracting multiply-adds) and the scalar kernel (not) both call a compiled output map.
+    numba compiles a callee with its first caller's floating-point flags and then serves that one version (and
+    its cached copy) to every caller, so the pass's bits depended on which kernel the machine had compiled first;
+    the maps are inlined into each caller instead, so every kernel's map follows the kernel's own flags."""
+    digests = []
+    for order in ("scalar kernel first", "pass alone"):
+        env = {**os.environ, "HAMMERSTEIN_CTRL_CACHE": str(tmp_path / order.replace(" ", "-"))}
+        proc = subprocess.run([sys.executable, "-c", _MAP_ORDER_CHILD, order], capture_output=True, text=True,
+                              env=env, timeout=600)
+        assert proc.returncode == 0, proc.stderr
+        digests.append(proc.stdout.strip())
+    assert digests[0] == digests[1]
