@@ -30,11 +30,13 @@ from ._jit import cached_njit
 from .nonlinearities import NONLINEARITIES
 
 #: The compiled maps, in the order of the registry (the closed-loop simulator picks one by its position).
-#: Inlined into every compiled caller, so a map follows its caller's floating-point flags: a map compiled once
-#: and linked would keep the flags of whichever caller compiled it first (numba compiles a callee with its
-#: caller's ``fastmath``), and a kernel's bits would depend on what the machine had compiled before.
-MAPS = tuple(cached_njit(inline="always")(family.formula) for family in NONLINEARITIES.values()
-             if family.formula is not None)
+#: numba compiles a callee with its first caller's floating-point flags unless the callee sets its own, then
+#: serves that one version (and its cached copy) to every caller: a kernel's bits would depend on what the
+#: machine had compiled first.  So the generated kernels inline the maps (``inline="always"``: a map follows
+#: its kernel's own flags), and the version compiled on its own (for Python calls and the closed-loop
+#: simulator, which picks a map from this tuple and so links it) has its flags fixed, keyed on this file.
+MAPS = tuple(cached_njit(inline="always", fastmath=False, depends=("compiled_maps.py",))(family.formula)
+             for family in NONLINEARITIES.values() if family.formula is not None)
 #: Position in :data:`MAPS` of each family's map.
 FAMILY_CODES = {family: i for i, family in enumerate(f for f in NONLINEARITIES.values() if f.formula is not None)}
 

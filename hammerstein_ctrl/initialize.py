@@ -398,7 +398,8 @@ class _Regression:
         return drives.count + (self.structure.linear.den_order if self.free_columns else 0)
 
     def columns(self, theta, drives):
-        """Responses of ``H(theta)`` to each drive, then constant and free-response columns.
+        """Responses of ``H(theta)`` to each drive, then constant and free-response columns (:meth:`factor_at`
+        writes the same rows in this order).
 
         A list of arrays, or, for drives formed by blocks, :class:`_StreamedColumns`.
         """
@@ -437,8 +438,7 @@ class _Regression:
         """:meth:`factor` of :meth:`columns` at ``theta``, the same bits; a factor held whole has its responses
         simulated straight into the matrix LAPACK factors (no copy of the columns)."""
         drives = drives if isinstance(drives, _Drives) else _Drives.rows(drives)
-        n = self.structure.linear.den_order
-        width = drives.count + self.constant + (n if self.free_columns else 0)
+        width = self.evaluations(drives) + self.constant         # the columns of columns(), in its order
         if drives.array is None or not held_whole(width, self.y.size):
             return self.factor(self.columns(theta, drives))
         whole = np.empty((width + 1, self.y.size))
@@ -446,7 +446,7 @@ class _Regression:
         if self.constant:
             whole[drives.count] = 1.0
         if self.free_columns:
-            whole[width - n:width] = self._free_rows(theta)
+            whole[drives.count + self.constant:width] = self._free_rows(theta)
         whole[-1] = self.y
         return factor_of_rows(whole)
 

@@ -18,9 +18,9 @@ from hammerstein_ctrl import (Coulomb, HammersteinStructure, IOData, LinearStruc
 from hammerstein_ctrl import initialize
 from hammerstein_ctrl.exceptions import DataError
 from hammerstein_ctrl.initialize import Budget, initial_points
-from hammerstein_ctrl.streamed_lstsq import (column_blocks, constant_column, factor_of_columns, factor_sse,
-                                             orthogonal_part, rank_tolerance, residual, residual_of_columns,
-                                             solve_minimum_norm, solve_scaled, triangular_factor)
+from hammerstein_ctrl.streamed_lstsq import (column_blocks, constant_column, factor_of_columns, factor_of_rows,
+                                             factor_sse, orthogonal_part, rank_tolerance, residual,
+                                             residual_of_columns, solve_minimum_norm, solve_scaled, triangular_factor)
 
 SMALL_BLOCK = 37
 
@@ -157,9 +157,11 @@ def test_reduced_fit_equals_dense_lstsq(small_blocks, offset, initial_state, str
 @pytest.mark.parametrize("offset, initial_state", [(False, "zero"), (True, "zero"), (False, "estimate"),
                                                    (True, "estimate")])
 def test_the_scans_factor_simulated_in_place_has_the_bits_and_cost_of_the_columns_factor(
-        small_blocks, offset, initial_state, streamed):
+        small_blocks, offset, initial_state, streamed, monkeypatch):
     data, s = hammerstein_case(offset=offset, initial_state=initial_state)
     theirs, ours = initialize.Budget(None), initialize.Budget(None)
+    in_place = []
+    monkeypatch.setattr(initialize, "factor_of_rows", lambda whole: in_place.append(1) or factor_of_rows(whole))
     drives = initialize._drives(s.input_nonlinearity, np.asarray(data.u), initialize._Regression(s, data, None))
     for theta in ([4.0, 1.2], [1.0, 3.0], [-2.0, 0.5], [np.nan, 1.0]):
         R = initialize._Regression(s, data, theirs).factor(
@@ -168,6 +170,7 @@ def test_the_scans_factor_simulated_in_place_has_the_bits_and_cost_of_the_column
         assert R_at.tobytes() == R.tobytes()
         assert np.all(np.isfinite(R)) == np.all(np.isfinite(theta))
     assert ours.nfev == theirs.nfev > 0
+    assert len(in_place) == (0 if streamed else 4)        # held drives take the in-place factor, streamed ones not
 
 
 def test_arx_poles_equal_dense_equation_error_fit(small_blocks, streamed):
