@@ -46,10 +46,9 @@ Examples
 from __future__ import annotations
 
 import numpy as np
-import scipy.optimize
 
 from .exceptions import ParameterError
-from .optimize import Budget, BudgetExhausted
+from .optimize import Budget, BudgetExhausted, lmder
 from .simulate import MAX_PASS_STATES, free_response, response_blocks, simulate_batch, unstable
 from . import streamed_lstsq
 from .streamed_lstsq import (constant_column, factor_of_blocks, factor_of_columns, factor_of_rows, factor_sse,
@@ -571,26 +570,11 @@ class _ReducedProblem:
         return J
 
 
-def _last_served(f):
-    """``f`` (whose result depends on the point alone), its last result served again, as a copy, for the same
-    point: leastsq evaluates x0 in its input check, then MINPACK evaluates it twice more (and scipy keeps the
-    first array it is given as MINPACK's own work vector, which it overwrites later)."""
-    last = []
-
-    def call(theta):
-        if last and np.array_equal(theta, last[0]):
-            return last[1].copy()
-        out = f(theta)
-        last[:] = [np.array(theta, dtype=float), out.copy()]
-        return out
-    return call
-
-
 def _refine_linear(reg: _Regression, theta, drives, limit: int = REFINE_EVALUATIONS,
                    known=()) -> tuple[np.ndarray, float, bool] | None:
     """Levenberg-Marquardt on the variable-projection residual over the linear coefficients.
 
-    MINPACK (through :func:`scipy.optimize.leastsq`) with Kaufman's Jacobian
+    MINPACK's lmder (:func:`~hammerstein_ctrl.optimize.lmder`) with Kaufman's Jacobian
     (:class:`_ReducedProblem`) where the columns are held, else with its own
     forward differences.  At most :data:`REFINE_EVALUATIONS` residuals' worth
     of signals are simulated.  Returns ``(theta, sse, converged)``: the
@@ -602,14 +586,12 @@ def _refine_linear(reg: _Regression, theta, drives, limit: int = REFINE_EVALUATI
                                                    reg.budget.remaining // reg.evaluations(drives))), known)
     if theta.size == 0 or problem.left <= (theta.size + 1) * reg.evaluations(drives):
         return theta, _reduced_sse(reg, theta, drives), False
-    jacobian = _last_served(problem.jacobian) if problem.kaufman else None
+    jacobian = problem.jacobian if problem.kaufman else None
     try:
-        x, _, info, _, ier = scipy.optimize.leastsq(_last_served(problem.residual), theta, Dfun=jacobian,
-                                                    col_deriv=True, full_output=True, xtol=REFINE_TOL,
-                                                    ftol=REFINE_TOL, gtol=REFINE_TOL)
+        res = lmder(problem.residual, jacobian, theta, xtol=REFINE_TOL, ftol=REFINE_TOL, gtol=REFINE_TOL)
         if problem.kept is None:                # no finite fit anywhere: nothing converged
             return theta, np.inf, False
-        return x, float(info["fvec"] @ info["fvec"]), ier in (1, 2, 3, 4)
+        return res.x, float(res.fvec @ res.fvec), res.info in (1, 2, 3, 4)
     except BudgetExhausted:
         return (theta if problem.kept is None else problem.kept.theta), problem.best_sse, False
     except _Joined:

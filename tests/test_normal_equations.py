@@ -134,12 +134,12 @@ def test_lm_reaches_minpacks_optimum_from_perturbed_starts(case, request):
 
 def test_emps_from_the_nspsa_vector_stays_on_the_normal_equations(emps_case, monkeypatch):
     """A stable start: every step from the fused pass (no hand-over to MINPACK), to the optimum."""
-    import scipy.optimize
+    from hammerstein_ctrl.optimize import least_squares as ls
 
     def refuse(*args, **kwargs):
         raise AssertionError("handed over to MINPACK")
 
-    monkeypatch.setattr(scipy.optimize, "leastsq", refuse)
+    monkeypatch.setattr(ls, "lmder", refuse)
     r = levenberg_marquardt(emps_case.cost, np.asarray(emps_case.paper["nspsa"]["beta"]))
     assert r.success and abs(r.fun - 0.208517) < 1e-6 and r.nit < 20
     assert r.nfev % 5 == 0  # passes of p + 1 = 5 evaluations only (no trial was rejected)

@@ -547,7 +547,7 @@ def test_reduced_refinement_reaches_the_plant_and_spends_no_more_than_its_share(
 
 
 def test_reduced_refinement_simulates_its_start_once(monkeypatch):
-    """leastsq evaluates x0 in its input check and MINPACK twice more: one simulation serves all three."""
+    """The refinement simulates its start once (MINPACK's first residual, which its first Jacobian reuses)."""
     reg, drives, _ = _coulomb_truth()
     seen = []
     real = initialize._ReducedProblem._evaluate

@@ -19,6 +19,7 @@ with a finite ``fun``):
 
 from ._common import (BUDGET_EXHAUSTED, CALLBACK_STOP, COMPLETED, DIVERGED, NO_FINITE_VALUE, SOLVER_FAILED,
                       STATUS_CODES, Budget, BudgetExhausted, History, as_rng, as_x0)
+from ._minpack import MinpackResult, lmder
 from .amvo_sca import amvo_sca
 from .least_squares import levenberg_marquardt
 from .gains import SPALL_ALPHA, SPALL_GAMMA, GainSequence, PerturbationGain, StepGain
@@ -31,6 +32,6 @@ __all__ = [
     "spsa", "nlspsa", "nspsa", "amvo_sca", "levenberg_marquardt", "normalized_difference",
     "GainSequence", "StepGain", "PerturbationGain", "SPALL_ALPHA", "SPALL_GAMMA",
     "COMPLETED", "CALLBACK_STOP", "DIVERGED", "NO_FINITE_VALUE", "SOLVER_FAILED", "BUDGET_EXHAUSTED", "STATUS_CODES",
-    "History",
+    "History", "lmder", "MinpackResult",
     "as_rng", "as_x0",
 ]

@@ -46,6 +46,7 @@ from ._common import (
     make_result,
     residual_array,
 )
+from ._minpack import lmder
 from .normal_lm import CONVERGED, ILL_CONDITIONED_CODE, MESSAGES, normal_equations_lm
 
 __all__ = ["levenberg_marquardt", "MINPACK_MAX_BYTES"]
@@ -59,7 +60,7 @@ MINPACK_MAX_BYTES = 1 << 24
 #: MINPACK's exit codes that mean convergence, and the messages scipy's least_squares gives for them.
 _MINPACK_CONVERGED = (1, 2, 3, 4)
 _MINPACK_MESSAGES = {
-    0: "Improper input parameters status returned from `leastsq`",
+    0: "Improper input parameters status returned from MINPACK",
     1: "`ftol` termination condition is satisfied.",
     2: "`xtol` termination condition is satisfied.",
     3: "Both `ftol` and `xtol` termination conditions are satisfied.",
@@ -179,9 +180,9 @@ class _BatchedJacobian:
     def columns(self, x):
         """The Jacobian's columns as the rows of an ``(n, N)`` array.
 
-        The first one is kept for one repeated request at the same point
-        (leastsq checks the shape at ``x0`` before MINPACK asks for it); later
-        ones are not kept, since MINPACK holds its own copy.
+        The first one is kept for one repeated request at the same point (a
+        solver that checks the shape at ``x0`` before it starts); later ones
+        are not kept, since the solver holds its own copy.
         """
         x = np.asarray(x, dtype=float)
         (cached_x, cached), self._cache = self._cache, (None, None)
@@ -228,16 +229,12 @@ def _solve(fun, counted, jac, x0, box, tolerances):
     if code != ILL_CONDITIONED_CODE:
         return x, f, code in CONVERGED, MESSAGES[code], iterations
     x0 = x
-    # lmder through leastsq: the Jacobian goes in as rows (col_deriv), copied once into MINPACK's own
-    # array, and no extra Jacobian is formed at the solution (least_squares does both, at n evaluations
-    # and two more Jacobian-sized copies)
+    # MINPACK's lmder (this package's port: scipy's reads past a Jacobian column), the Jacobian as rows
     with _steps_on_exhaustion(counted, iterations), _solver_refusal(), np.errstate(all="ignore"):
-        x, _, info, _, ier = scipy.optimize.leastsq(
-            counted, x0, Dfun=jac.columns, full_output=True, col_deriv=True,
-            maxfev=_MINPACK_MAXFEV_PER_PARAM * x0.size, **tolerances)
-    f = info["fvec"]
+        res = lmder(counted, jac.columns, x0, maxfev=_MINPACK_MAXFEV_PER_PARAM * x0.size, **tolerances)
+    x, f, ier = res.x, res.fvec, res.info
     message = _MINPACK_MESSAGES.get(ier, f"MINPACK exit code {ier}")
-    return x, float(f @ f), ier in _MINPACK_CONVERGED, message, iterations + int(info["nfev"])
+    return x, float(f @ f), ier in _MINPACK_CONVERGED, message, iterations + res.nfev
 
 
 @contextlib.contextmanager

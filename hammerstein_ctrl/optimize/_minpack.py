@@ -1,0 +1,524 @@
+"""MINPACK's Levenberg-Marquardt (``lmder``, ``lmdif``), with its column-norm fix.
+
+scipy 1.15 to 1.17 carry a C translation of MINPACK whose ``qrfac``, when it
+recomputes a column norm that cancellation has made inaccurate, reads one
+element past the column: the next column's first element, and past the end of
+the Jacobian's array for the last column (fixed in scipy 1.18).  What lies
+there depends on the process's heap, so an ill-conditioned fit could end at
+another point in a process that had, say, compiled something before it.
+This module runs the same algorithm (Moré's trust-region Levenberg-Marquardt
+with column pivoting and scaling, his ``lmpar`` and ``qrsolv``) with the
+norm over the column's own elements, so its iterates depend on the problem's
+values alone.  It does MINPACK's arithmetic in MINPACK's order (sums added
+left to right, ``enorm``'s scaled sums), so where the over-read changes no
+pivot its iterates are scipy's bit for bit (checked on Moré, Garbow and
+Hillstrom's test problems and on the paper's EMPS and TRS starts).  The long
+(per-sample) loops are two small compiled functions and numpy's elementwise
+operations; the small ``n x n`` ones are MINPACK's loops in Python.
+
+Termination codes are MINPACK's (``info``): 0 improper input, 1-4
+converged, 5 ``maxfev`` reached, 6-8 tolerances too small.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import NamedTuple
+
+import numpy as np
+
+from .._jit import cached_njit
+
+__all__ = ["lmder", "MinpackResult"]
+
+_EPSMCH = float(np.finfo(float).eps)
+_DWARF = float(np.finfo(float).tiny)
+_RDWARF, _RGIANT = 3.834e-20, 1.304e19          # enorm's plain range
+
+
+class MinpackResult(NamedTuple):
+    """The solution ``x``, its residual ``fvec``, MINPACK's ``info`` and the counts of
+    residual vectors (``nfev``, differences included) and Jacobians (``njev``) asked for."""
+
+    x: np.ndarray
+    fvec: np.ndarray
+    info: int
+    nfev: int
+    njev: int
+
+
+def _fmax(a: float, b: float) -> float:
+    """C's ``fmax``: the larger, and the number where one is NaN."""
+    return b if (a < b or a != a) else a
+
+
+def _fmin(a: float, b: float) -> float:
+    """C's ``fmin``: the smaller, and the number where one is NaN."""
+    return b if (a > b or a != a) else a
+
+
+@cached_njit()
+def reflect(v, w):  # pragma: no cover - compiled
+    """``w -= (sum(v * w) / v[0]) * v``: ``w`` through the Householder reflection of vector ``v`` (scaled so
+    that ``v[0]`` is its ``1 + |.|``), MINPACK's loops: the sum added left to right, then the update.
+
+    Examples
+    --------
+    >>> w = np.array([1.0, 2.0]); reflect(np.array([2.0, 1.0]), w); w
+    array([-3.,  0.])
+    """
+    s = 0.0
+    for i in range(v.shape[0]):
+        s += v[i] * w[i]
+    t = s / v[0]
+    for i in range(v.shape[0]):
+        w[i] -= t * v[i]
+
+
+@cached_njit()
+def plain_sum_of_squares(x, low, high):  # pragma: no cover - compiled
+    """``sum(x**2)`` added left to right if every ``|x_i|`` is zero or inside ``(low, high)``, else -1.0
+    (NaN is outside).
+
+    Examples
+    --------
+    >>> plain_sum_of_squares(np.array([3.0, 0.0, 4.0]), 1e-20, 1e10)
+    25.0
+    >>> plain_sum_of_squares(np.array([1e11, 1.0]), 1e-20, 1e10)
+    -1.0
+    """
+    s = 0.0
+    for i in range(x.shape[0]):
+        v = abs(x[i])
+        if not (v == 0.0 or (v > low and v < high)):
+            return -1.0
+        s += v * v
+    return s
+
+
+def enorm(x: np.ndarray) -> float:
+    """MINPACK's ``enorm``: the Euclidean norm, its squares added left to right, scaled where they would
+    overflow or underflow (components beyond ``1.304e19 / n`` or below ``3.834e-20``).
+
+    >>> enorm(np.array([3.0, 4.0]))
+    5.0
+    >>> enorm(np.array([3e-300, 4e-300])) / 1e-300
+    5.0
+    """
+    x = np.ascontiguousarray(x, dtype=float).ravel()
+    if x.size == 0:
+        return 0.0
+    squares = plain_sum_of_squares(x, _RDWARF, _RGIANT / x.size)
+    if squares >= 0.0:                          # every component zero or in the plain range
+        return math.sqrt(squares)
+    with np.errstate(all="ignore"):
+        return float(_enorm_scaled(np.abs(x)))
+
+
+def _series(terms) -> float:
+    """A short sum added left to right (Python 3.12's ``sum`` compensates)."""
+    total = 0.0
+    for t in terms:
+        total += t
+    return total
+
+
+def _enorm_scaled(xabs: np.ndarray):
+    """:func:`enorm` with its three sums, MINPACK's loop as written (components out of the plain range;
+    numpy's scalars, whose division by zero gives C's infinity or NaN)."""
+    s1 = s2 = s3 = x1max = x3max = np.float64(0.0)
+    agiant = _RGIANT / len(xabs)
+    for v in xabs:
+        if _RDWARF < v < agiant:
+            s2 += v * v
+        elif v <= _RDWARF:
+            if v > x3max:
+                s3 = 1.0 + s3 * (x3max / v) ** 2
+                x3max = v
+            elif v != 0.0:
+                s3 += (v / x3max) ** 2
+        elif v > x1max:
+            s1 = 1.0 + s1 * (x1max / v) ** 2
+            x1max = v
+        else:
+            s1 += (v / x1max) ** 2
+    if s1 != 0.0:
+        return x1max * math.sqrt(s1 + (s2 / x1max) / x1max)
+    if s2 == 0.0:
+        return x3max * math.sqrt(s3)
+    if s2 >= x3max:
+        return math.sqrt(s2 * (1.0 + (x3max / s2) * (x3max * s3)))
+    return math.sqrt(x3max * ((s2 / x3max) + (x3max * s3)))
+
+
+def _qrfac(a: np.ndarray):
+    """Householder QR with column pivoting of the matrix whose columns are the rows of ``a`` (in place).
+
+    MINPACK's ``qrfac``: returns ``(rdiag, acnorm, ipvt)``; ``a[j, j:]`` holds the
+    j-th Householder vector, ``a[k, :k]`` the strict upper part of R's column k.
+    """
+    n, m = a.shape
+    acnorm = np.array([enorm(col) for col in a])
+    rdiag, wa, ipvt = acnorm.copy(), acnorm.copy(), list(range(n))
+    for j in range(min(m, n)):
+        kmax = j
+        for k in range(j, n):
+            if rdiag[k] > rdiag[kmax]:
+                kmax = k
+        if kmax != j:
+            row = a[j].copy()
+            a[j] = a[kmax]
+            a[kmax] = row
+            rdiag[kmax], wa[kmax] = rdiag[j], wa[j]
+            ipvt[j], ipvt[kmax] = ipvt[kmax], ipvt[j]
+        v = a[j, j:]
+        ajnorm = float(acnorm[ipvt[0]]) if j == 0 else enorm(v)   # the first: a whole column, untouched
+        if ajnorm == 0.0:
+            rdiag[j] = -ajnorm
+            continue
+        if v[0] < 0.0:
+            ajnorm = -ajnorm
+        v /= ajnorm
+        v[0] += 1.0
+        for k in range(j + 1, n):
+            reflect(v, a[k, j:])
+            if rdiag[k] != 0.0:
+                temp = a[k, j] / rdiag[k]
+                rdiag[k] *= math.sqrt(_fmax(0.0, 1.0 - temp * temp))
+                if 0.05 * (rdiag[k] / wa[k]) ** 2 <= _EPSMCH:
+                    rdiag[k] = wa[k] = enorm(a[k, j + 1:])
+        rdiag[j] = -ajnorm
+    return rdiag, acnorm, ipvt
+
+
+def _norm(v) -> float:
+    """:func:`enorm` of a short sequence of floats (``n``-vectors), in Python's own arithmetic."""
+    agiant = _RGIANT / max(len(v), 1)
+    total = 0.0
+    for t in v:
+        a = abs(t)
+        if not (a == 0.0 or _RDWARF < a < agiant):
+            return enorm(np.array(v, dtype=float))
+        total += a * a
+    return math.sqrt(total)
+
+
+def _qrsolv(r, ipvt, diag, qtb):
+    """MINPACK's ``qrsolv`` on ``r`` (``r[j][i]``: R's element (i, j), i <= j; the strict
+    ``i > j`` part receives S transposed).  Returns ``(x, sdiag)``."""
+    n = len(qtb)
+    x, wa, sdiag = [0.0] * n, list(qtb), [0.0] * n
+    for j in range(n):
+        for i in range(j, n):
+            r[j][i] = r[i][j]
+        x[j] = r[j][j]
+    for j in range(n):
+        dl = diag[ipvt[j]]
+        if dl != 0.0:
+            for k in range(j, n):
+                sdiag[k] = 0.0
+            sdiag[j] = dl
+            qtbpj = 0.0
+            for k in range(j, n):
+                if sdiag[k] == 0.0:
+                    continue
+                rk = r[k]
+                if abs(rk[k]) < abs(sdiag[k]):
+                    cotan = rk[k] / sdiag[k]
+                    sin = 0.5 / math.sqrt(0.25 + 0.25 * cotan * cotan)
+                    cos = sin * cotan
+                else:
+                    tan = sdiag[k] / rk[k]
+                    cos = 0.5 / math.sqrt(0.25 + 0.25 * tan * tan)
+                    sin = cos * tan
+                rk[k] = cos * rk[k] + sin * sdiag[k]
+                temp = cos * wa[k] + sin * qtbpj
+                qtbpj = -sin * wa[k] + cos * qtbpj
+                wa[k] = temp
+                for i in range(k + 1, n):
+                    temp = cos * rk[i] + sin * sdiag[i]
+                    sdiag[i] = -sin * rk[i] + cos * sdiag[i]
+                    rk[i] = temp
+        sdiag[j] = r[j][j]
+        r[j][j] = x[j]
+    nsing = next((j for j in range(n) if sdiag[j] == 0.0), n)
+    wa[nsing:] = [0.0] * (n - nsing)
+    for j in range(nsing - 1, -1, -1):
+        s = _series(r[j][i] * wa[i] for i in range(j + 1, nsing))
+        wa[j] = (wa[j] - s) / sdiag[j]
+    for j in range(n):
+        x[ipvt[j]] = wa[j]
+    return x, sdiag
+
+
+def _gauss_newton(r, ipvt, qtb):
+    """Step 1 of ``lmpar``: the Gauss-Newton direction (least-squares where R is singular) and ``nsing``."""
+    n = len(qtb)
+    nsing = next((j for j in range(n) if r[j][j] == 0.0), n)
+    wa1 = list(qtb[:nsing]) + [0.0] * (n - nsing)
+    for j in range(nsing - 1, -1, -1):
+        wa1[j] /= r[j][j]
+        temp = wa1[j]
+        for i in range(j):
+            wa1[i] -= r[j][i] * temp
+    x = [0.0] * n
+    for j in range(n):
+        x[ipvt[j]] = wa1[j]
+    return x, nsing
+
+
+def _lmpar(r, ipvt, diag, qtb, delta: float, par: float):
+    """MINPACK's ``lmpar``: the damping ``par`` whose step ``x`` has ``|D x|`` within 10 % of ``delta``.
+
+    Returns ``(par, x)``; ``r`` as for :func:`_qrsolv`.
+    """
+    n = len(qtb)
+    x, nsing = _gauss_newton(r, ipvt, qtb)
+    dx = [diag[j] * x[j] for j in range(n)]
+    dxnorm = _norm(dx)
+    fp = dxnorm - delta
+    if fp <= 0.1 * delta:
+        return 0.0, x
+    parl = 0.0
+    if nsing == n:
+        wa1 = [diag[ipvt[j]] * (dx[ipvt[j]] / dxnorm) for j in range(n)]
+        for j in range(n):
+            s = _series(r[j][i] * wa1[i] for i in range(j))
+            wa1[j] = (wa1[j] - s) / r[j][j]
+        temp = _norm(wa1)
+        parl = ((fp / delta) / temp) / temp
+    wa1 = [_series(r[j][i] * qtb[i] for i in range(j + 1)) / diag[ipvt[j]] for j in range(n)]
+    gnorm = _norm(wa1)
+    paru = gnorm / delta
+    if paru == 0.0:
+        paru = _DWARF / _fmin(delta, 0.1)
+    par = _fmin(_fmax(par, parl), paru)
+    if par == 0.0:
+        par = gnorm / dxnorm
+    for iteration in range(1, 11):
+        if par == 0.0:
+            par = _fmax(_DWARF, 0.001 * paru)
+        sq = math.sqrt(par)
+        x, sdiag = _qrsolv(r, ipvt, [sq * d for d in diag], qtb)
+        dx = [diag[j] * x[j] for j in range(n)]
+        dxnorm = _norm(dx)
+        temp, fp = fp, dxnorm - delta
+        if abs(fp) <= 0.1 * delta or (parl == 0.0 and fp <= temp < 0.0) or iteration == 10:
+            break
+        wa1 = [diag[ipvt[j]] * (dx[ipvt[j]] / dxnorm) for j in range(n)]
+        for j in range(n):
+            wa1[j] /= sdiag[j]
+            temp = wa1[j]
+            for i in range(j + 1, n):
+                wa1[i] -= r[j][i] * temp
+        temp = _norm(wa1)
+        parc = ((fp / delta) / temp) / temp
+        if fp > 0.0:
+            parl = _fmax(parl, par)
+        if fp < 0.0:
+            paru = _fmin(paru, par)
+        par = _fmax(parl, par + parc)
+    return par, x
+
+
+def _forward_jacobian(fun, x, fvec, epsfcn: float):
+    """MINPACK's ``fdjac2``: forward differences with steps ``sqrt(max(epsfcn, eps)) |x_j|``, as rows."""
+    eps = math.sqrt(_fmax(epsfcn, _EPSMCH))
+    rows = np.empty((x.size, fvec.size))
+    for j in range(x.size):
+        temp = x[j]
+        h = eps * abs(temp) or eps
+        x[j] = temp + h
+        rows[j] = (_residual(fun, x, fvec.size) - fvec) / h
+        x[j] = temp
+    return rows
+
+
+def _residual(fun, x, m: int | None = None) -> np.ndarray:
+    f = np.array(fun(x.copy()), dtype=float).ravel()
+    if m is not None and f.size != m:
+        raise ValueError(f"the residual function returned {f.size} values, not {m} as at the start")
+    return f
+
+
+class _Factor(NamedTuple):
+    r: list              # r[j][i]: R's element (i, j), i <= j
+    ipvt: list
+    acnorm: np.ndarray
+    qtf: list
+
+
+def _factor(rows: np.ndarray, fvec: np.ndarray) -> _Factor:
+    """The pivoted QR factor of the Jacobian (columns = ``rows``, overwritten) and ``Q^T f``."""
+    rdiag, acnorm, ipvt = _qrfac(rows)
+    n = rows.shape[0]
+    wa4 = fvec.copy()
+    for j in range(n):
+        v = rows[j, j:]
+        if v[0] != 0.0:
+            reflect(v, wa4[j:])
+    r = [rows[j, :n].tolist() for j in range(n)]
+    for j in range(n):
+        r[j][j] = float(rdiag[j])
+    return _Factor(r, ipvt, acnorm, wa4[:n].tolist())
+
+
+def _gradient_cosine(fac: _Factor, fnorm: float) -> float:
+    """The largest cosine between the residual and a Jacobian column (``gnorm``)."""
+    gnorm = 0.0
+    if fnorm != 0.0:
+        for j, col in enumerate(fac.ipvt):
+            if fac.acnorm[col] != 0.0:
+                s = _series(fac.r[j][i] * (fac.qtf[i] / fnorm) for i in range(j + 1))
+                gnorm = _fmax(gnorm, abs(s / fac.acnorm[col]))
+    return gnorm
+
+
+def _predicted(fac: _Factor, step, par: float, pnorm: float, fnorm: float) -> tuple[float, float]:
+    """The scaled predicted reduction and directional derivative of ``step``."""
+    n = len(step)
+    wa3 = [0.0] * n
+    for j in range(n):
+        temp = step[fac.ipvt[j]]
+        for i in range(j + 1):
+            wa3[i] += fac.r[j][i] * temp
+    temp1 = _norm(wa3) / fnorm
+    temp2 = (math.sqrt(par) * pnorm) / fnorm
+    return temp1 * temp1 + temp2 * temp2 / 0.5, -(temp1 * temp1 + temp2 * temp2)
+
+
+def _termination(actred, prered, ratio, delta, xnorm, ftol, xtol) -> int:
+    """MINPACK's tests after a trial step, in its order (0: go on)."""
+    small = abs(actred) <= ftol and prered <= ftol and 0.5 * ratio <= 1.0
+    info = 1 if small else 0
+    if delta <= xtol * xnorm:
+        info = 3 if small else 2
+    return info
+
+
+def _stalled(actred, prered, ratio, delta, xnorm, gnorm, nfev: int, maxfev: int) -> int:
+    """MINPACK's tests that stop a run short of its tolerances, in its order (0: go on)."""
+    info = 5 if nfev >= maxfev else 0
+    if abs(actred) <= _EPSMCH and prered <= _EPSMCH and 0.5 * ratio <= 1.0:
+        info = 6
+    if delta <= _EPSMCH * xnorm:
+        info = 7
+    if gnorm <= _EPSMCH:
+        info = 8
+    return info
+
+
+def lmder(fun, jac, x0, *, ftol: float = 1.49012e-8, xtol: float = 1.49012e-8, gtol: float = 0.0,
+          maxfev: int = 0, factor: float = 100.0, epsfcn: float = 0.0) -> MinpackResult:
+    """Minimise ``sum(fun(x)**2)`` by MINPACK's Levenberg-Marquardt, deterministically.
+
+    ``jac(x)`` returns the Jacobian as rows, one per parameter (shape ``(n, m)``,
+    scipy's ``col_deriv=True``); with ``jac=None`` it is formed by MINPACK's
+    forward differences (``lmdif``, each column one evaluation).  ``maxfev``
+    ``0`` means MINPACK's default: ``100 (n + 1)`` with ``jac``, ``200 (n + 1)``
+    without.  Scaling is MINPACK's ``mode=1`` (the columns' norms).  The start,
+    its residuals and every Jacobian must be finite (else ``ValueError``); a
+    trial point whose residuals are not is a rejected step, as in MINPACK.
+    Exceptions raised by ``fun`` or ``jac`` propagate.
+
+    Examples
+    --------
+    >>> t = np.linspace(0.0, 1.0, 20)
+    >>> y = 2.0 * np.exp(-1.5 * t)
+    >>> res = lmder(lambda p: p[0] * np.exp(-p[1] * t) - y,
+    ...             lambda p: np.array([np.exp(-p[1] * t), -p[0] * t * np.exp(-p[1] * t)]), [1.0, 1.0])
+    >>> res.info in (1, 2, 3, 4), np.round(res.x, 8).tolist()
+    (True, [2.0, 1.5])
+    """
+    x = np.array(x0, dtype=float).ravel()
+    fvec = _residual(fun, x)
+    n, m = x.size, fvec.size
+    if not (np.isfinite(x).all() and np.isfinite(fvec).all()):
+        raise ValueError("lmder needs a finite start and finite residuals there")
+    if maxfev <= 0:
+        maxfev = (100 if jac is not None else 200) * (n + 1)
+    run = _Run(fun, x, fvec, maxfev=maxfev, factor=factor, differences=jac is None)
+    if n == 0 or m < n or min(ftol, xtol, gtol) < 0.0 or factor <= 0.0:
+        return run.result(0)
+    while True:
+        if jac is None:
+            rows = _forward_jacobian(fun, run.x, run.fvec, epsfcn)
+            run.nfev += n
+        else:
+            rows = np.array(jac(run.x.copy()), dtype=float, order="C")
+            run.njev += 1
+            if rows.shape != (n, m):
+                raise ValueError(f"the Jacobian has shape {rows.shape}, not (n, m) = {(n, m)} (a row a parameter)")
+        if not np.isfinite(rows).all():
+            raise ValueError("the Jacobian has non-finite entries (replace them before lmder)")
+        fac = _factor(rows, run.fvec)
+        run.scale(fac.acnorm)
+        gnorm = _gradient_cosine(fac, run.fnorm)
+        if gnorm <= gtol:
+            return run.result(4)
+        run.diag = [_fmax(d, float(c)) for d, c in zip(run.diag, fac.acnorm)]
+        info = run.steps(fac, gnorm, ftol, xtol)
+        if info:
+            return run.result(info)
+
+
+class _Run:
+    """The state of one ``lmder`` run between Jacobians: the point, its residual, the scaling,
+    the trust region, the damping and the counts."""
+
+    def __init__(self, fun, x, fvec, *, maxfev: int, factor: float, differences: bool):
+        self.fun, self.x, self.fvec, self.fnorm = fun, x, fvec, enorm(fvec)
+        self.maxfev, self.factor = maxfev, factor
+        self.nfev, self.njev, self.iteration = 1, 0, 1
+        self.par = self.delta = self.xnorm = 0.0
+        self.diag = None
+
+    def result(self, info: int) -> MinpackResult:
+        return MinpackResult(self.x, self.fvec, info, self.nfev, self.njev)
+
+    def _scaled_norm(self, v) -> float:
+        return _norm([d * e for d, e in zip(self.diag, v)])
+
+    def scale(self, acnorm):
+        """At the first Jacobian: MINPACK's scaling (the columns' norms) and the initial trust region."""
+        if self.iteration == 1:
+            self.diag = [float(c) if c != 0.0 else 1.0 for c in acnorm]
+            self.xnorm = self._scaled_norm(self.x)
+            self.delta = self.factor * self.xnorm or self.factor
+
+    def steps(self, fac: _Factor, gnorm: float, ftol: float, xtol: float) -> int:
+        """Trial steps from one factor until one is accepted (0) or a test ends the run (its code)."""
+        while True:
+            self.par, p = _lmpar([col[:] for col in fac.r], fac.ipvt, self.diag, fac.qtf, self.delta, self.par)
+            step = [-v for v in p]
+            trial = self.x + np.array(step)
+            pnorm = self._scaled_norm(step)
+            if self.iteration == 1:
+                self.delta = _fmin(self.delta, pnorm)
+            ftrial = _residual(self.fun, trial, self.fvec.size)
+            self.nfev += 1
+            fnorm1 = enorm(ftrial)
+            actred = 1.0 - (fnorm1 / self.fnorm) ** 2 if 0.1 * fnorm1 < self.fnorm else -1.0
+            prered, dirder = _predicted(fac, step, self.par, pnorm, self.fnorm)
+            ratio = actred / prered if prered != 0.0 else 0.0
+            self._update_region(ratio, actred, dirder, pnorm, fnorm1)
+            if ratio >= 1e-4:
+                self.x, self.fvec, self.fnorm = trial, ftrial, fnorm1
+                self.xnorm = self._scaled_norm(self.x)
+                self.iteration += 1
+            info = (_termination(actred, prered, ratio, self.delta, self.xnorm, ftol, xtol)
+                    or _stalled(actred, prered, ratio, self.delta, self.xnorm, gnorm, self.nfev, self.maxfev))
+            if info or ratio >= 1e-4:
+                return info
+
+    def _update_region(self, ratio: float, actred: float, dirder: float, pnorm: float, fnorm1: float):
+        """MINPACK's trust-region radius and damping after a trial of reduction ratio ``ratio``."""
+        if ratio <= 0.25:
+            temp = 0.5 * dirder / (dirder + 0.5 * actred) if actred < 0.0 else 0.5
+            if 0.1 * fnorm1 >= self.fnorm or temp < 0.1:
+                temp = 0.1
+            self.delta = temp * _fmin(self.delta, pnorm / 0.1)
+            self.par /= temp
+        elif self.par == 0.0 or ratio >= 0.75:
+            self.delta = pnorm / 0.5
+            self.par *= 0.5
