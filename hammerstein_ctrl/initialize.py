@@ -591,7 +591,7 @@ def _refine_linear(reg: _Regression, theta, drives, limit: int = REFINE_EVALUATI
         res = lmder(problem.residual, jacobian, theta, xtol=REFINE_TOL, ftol=REFINE_TOL, gtol=REFINE_TOL)
         if problem.kept is None:                # no finite fit anywhere: nothing converged
             return theta, np.inf, False
-        return res.x, float(res.fvec @ res.fvec), res.info in (1, 2, 3, 4)
+        return res.x, float(res.fvec @ res.fvec), res.converged
     except BudgetExhausted:
         return (theta if problem.kept is None else problem.kept.theta), problem.best_sse, False
     except _Joined:

@@ -3,6 +3,9 @@
 Use :func:`minimize` (``scipy.optimize.minimize`` style) or the individual
 functions.  Every routine takes a ``seed`` (int or ``numpy.random.Generator``),
 counts every objective evaluation in ``nfev`` and never exceeds ``maxfev``.
+:func:`lmder` is MINPACK's Levenberg-Marquardt on a residual vector, the
+package's own copy (scipy 1.15-1.17's reads past a Jacobian column), which the
+``"lm"`` method and the start search hand ill-conditioned problems to.
 
 Result status (``OptimizeResult.status``; ``success`` is true for the first two
 with a finite ``fun``):

@@ -9,12 +9,14 @@ another point in a process that had, say, compiled something before it.
 This module runs the same algorithm (Moré's trust-region Levenberg-Marquardt
 with column pivoting and scaling, his ``lmpar`` and ``qrsolv``) with the
 norm over the column's own elements, so its iterates depend on the problem's
-values alone.  It does MINPACK's arithmetic in MINPACK's order (sums added
-left to right, ``enorm``'s scaled sums), so where the over-read changes no
-pivot its iterates are scipy's bit for bit (checked on Moré, Garbow and
-Hillstrom's test problems and on the paper's EMPS and TRS starts).  The long
-(per-sample) loops are two small compiled functions and numpy's elementwise
-operations; the small ``n x n`` ones are MINPACK's loops in Python.
+values alone.  It does the C translation's arithmetic in its order (sums
+added left to right, ``enorm``'s three sums and constants, squares as
+products, no fused multiply-adds), so where the over-read changes no pivot
+its iterates are those of scipy's x86-64 wheels bit for bit (checked on
+Moré, Garbow and Hillstrom's test problems and on the paper's EMPS and TRS
+starts).  The long (per-sample) loops are small compiled functions and
+numpy's elementwise operations; the ``n x n`` ones are MINPACK's loops in
+Python, with C's division where a divisor can be zero.
 
 Termination codes are MINPACK's (``info``): 0 improper input, 1-4
 converged, 5 ``maxfev`` reached, 6-8 tolerances too small.
@@ -29,22 +31,37 @@ import numpy as np
 
 from .._jit import cached_njit
 
-__all__ = ["lmder", "MinpackResult"]
+__all__ = ["lmder", "enorm", "MinpackResult", "CONVERGED"]
+
+#: MINPACK's exit codes that mean convergence.
+CONVERGED = (1, 2, 3, 4)
 
 _EPSMCH = float(np.finfo(float).eps)
 _DWARF = float(np.finfo(float).tiny)
-_RDWARF, _RGIANT = 3.834e-20, 1.304e19          # enorm's plain range
+_RGIANT = 2.0 ** 63.5               # enorm's constants, as the C translation computes them
+_RDWARF = 0.5 / _RGIANT
 
 
 class MinpackResult(NamedTuple):
     """The solution ``x``, its residual ``fvec``, MINPACK's ``info`` and the counts of
-    residual vectors (``nfev``, differences included) and Jacobians (``njev``) asked for."""
+    residual vectors (``nfev``, differences included) and Jacobians (``njev``) asked for.
+
+    Examples
+    --------
+    >>> MinpackResult(np.zeros(1), np.zeros(2), 2, 3, 1).converged
+    True
+    """
 
     x: np.ndarray
     fvec: np.ndarray
     info: int
     nfev: int
     njev: int
+
+    @property
+    def converged(self) -> bool:
+        """Whether MINPACK reported convergence (:data:`CONVERGED`)."""
+        return self.info in CONVERGED
 
 
 def _fmax(a: float, b: float) -> float:
@@ -57,7 +74,20 @@ def _fmin(a: float, b: float) -> float:
     return b if (a > b or a != a) else a
 
 
-@cached_njit()
+def _div(a: float, b: float) -> float:
+    """``a / b`` as C divides: infinite or NaN where ``b`` is zero, not an exception.
+
+    >>> _div(1.0, -0.0), _div(0.0, 0.0)
+    (-inf, nan)
+    """
+    if b != 0.0 or b != b:
+        return a / b
+    if a == 0.0 or a != a:
+        return math.nan
+    return math.copysign(math.inf, a) * math.copysign(1.0, b)
+
+
+@cached_njit(error_model="numpy")
 def reflect(v, w):  # pragma: no cover - compiled
     """``w -= (sum(v * w) / v[0]) * v``: ``w`` through the Householder reflection of vector ``v`` (scaled so
     that ``v[0]`` is its ``1 + |.|``), MINPACK's loops: the sum added left to right, then the update.
@@ -75,44 +105,58 @@ def reflect(v, w):  # pragma: no cover - compiled
         w[i] -= t * v[i]
 
 
-@cached_njit()
-def plain_sum_of_squares(x, low, high):  # pragma: no cover - compiled
-    """``sum(x**2)`` added left to right if every ``|x_i|`` is zero or inside ``(low, high)``, else -1.0
-    (NaN is outside).
+@cached_njit(error_model="numpy")
+def _enorm(x, rdwarf, rgiant):  # pragma: no cover - compiled
+    """MINPACK's ``enorm`` loop as the C translation writes it (``pow(q, 2.0)`` as ``q * q``; C's division)."""
+    s1 = s2 = s3 = x1max = x3max = 0.0
+    agiant = rgiant / x.shape[0]
+    for i in range(x.shape[0]):
+        xabs = abs(x[i])
+        if xabs <= rdwarf or xabs >= agiant:
+            if xabs > rdwarf:
+                if xabs > x1max:
+                    q = x1max / xabs
+                    s1 = 1.0 + s1 * (q * q)
+                    x1max = xabs
+                else:
+                    q = xabs / x1max
+                    s1 += q * q
+            elif xabs > x3max:
+                q = x3max / xabs
+                s3 = 1.0 + s3 * (q * q)
+                x3max = xabs
+            elif xabs != 0.0:
+                q = xabs / x3max
+                s3 += q * q
+        else:
+            s2 += xabs * xabs
+    if s1 != 0.0:
+        return x1max * np.sqrt(s1 + (s2 / x1max) / x1max)
+    if s2 != 0.0:
+        if s2 >= x3max:
+            return np.sqrt(s2 * (1.0 + (x3max / s2) * (x3max * s3)))
+        return np.sqrt(x3max * ((s2 / x3max) + (x3max * s3)))
+    return x3max * np.sqrt(s3)
+
+
+def enorm(x) -> float:
+    """MINPACK's ``enorm``: the Euclidean norm, its squares added left to right, in three sums scaled
+    where squares would overflow or underflow (components beyond ``2**63.5 / n`` or below ``2**-64.5``).
 
     Examples
     --------
-    >>> plain_sum_of_squares(np.array([3.0, 0.0, 4.0]), 1e-20, 1e10)
-    25.0
-    >>> plain_sum_of_squares(np.array([1e11, 1.0]), 1e-20, 1e10)
-    -1.0
-    """
-    s = 0.0
-    for i in range(x.shape[0]):
-        v = abs(x[i])
-        if not (v == 0.0 or (v > low and v < high)):
-            return -1.0
-        s += v * v
-    return s
-
-
-def enorm(x: np.ndarray) -> float:
-    """MINPACK's ``enorm``: the Euclidean norm, its squares added left to right, scaled where they would
-    overflow or underflow (components beyond ``1.304e19 / n`` or below ``3.834e-20``).
-
     >>> enorm(np.array([3.0, 4.0]))
     5.0
     >>> enorm(np.array([3e-300, 4e-300])) / 1e-300
     5.0
     """
     x = np.ascontiguousarray(x, dtype=float).ravel()
-    if x.size == 0:
-        return 0.0
-    squares = plain_sum_of_squares(x, _RDWARF, _RGIANT / x.size)
-    if squares >= 0.0:                          # every component zero or in the plain range
-        return math.sqrt(squares)
-    with np.errstate(all="ignore"):
-        return float(_enorm_scaled(np.abs(x)))
+    return float(_enorm(x, _RDWARF, _RGIANT)) if x.size else 0.0
+
+
+def _norm(v) -> float:
+    """:func:`enorm` of a short sequence of floats (an ``n``-vector)."""
+    return enorm(np.array(v, dtype=float))
 
 
 def _series(terms) -> float:
@@ -123,32 +167,39 @@ def _series(terms) -> float:
     return total
 
 
-def _enorm_scaled(xabs: np.ndarray):
-    """:func:`enorm` with its three sums, MINPACK's loop as written (components out of the plain range;
-    numpy's scalars, whose division by zero gives C's infinity or NaN)."""
-    s1 = s2 = s3 = x1max = x3max = np.float64(0.0)
-    agiant = _RGIANT / len(xabs)
-    for v in xabs:
-        if _RDWARF < v < agiant:
-            s2 += v * v
-        elif v <= _RDWARF:
-            if v > x3max:
-                s3 = 1.0 + s3 * (x3max / v) ** 2
-                x3max = v
-            elif v != 0.0:
-                s3 += (v / x3max) ** 2
-        elif v > x1max:
-            s1 = 1.0 + s1 * (x1max / v) ** 2
-            x1max = v
+def _unpivot(w, ipvt) -> list:
+    """``x`` with ``x[ipvt[j]] = w[j]``: a vector of the pivoted order back in the parameters'."""
+    x = [0.0] * len(w)
+    for j, col in enumerate(ipvt):
+        x[col] = w[j]
+    return x
+
+
+def _scaled(diag, v) -> list:
+    """``D v``, elementwise."""
+    return [d * e for d, e in zip(diag, v)]
+
+
+def _newton_correction(r, ipvt, diag, dx, dxnorm, fp, delta, sdiag=None) -> float:
+    """lmpar's Newton correction of the damping: ``((fp / delta) / |w|) / |w|`` with ``w`` the solution of
+    ``S^T w = P^T D dx / |D x|``; ``S`` is R (``sdiag`` None) or the damped factor of qrsolv."""
+    n = len(dx)
+    wa1 = [diag[ipvt[j]] * _div(dx[ipvt[j]], dxnorm) for j in range(n)]
+    for j in range(n):
+        if sdiag is None:
+            wa1[j] = _div(wa1[j] - _series(r[j][i] * wa1[i] for i in range(j)), r[j][j])
         else:
-            s1 += (v / x1max) ** 2
-    if s1 != 0.0:
-        return x1max * math.sqrt(s1 + (s2 / x1max) / x1max)
-    if s2 == 0.0:
-        return x3max * math.sqrt(s3)
-    if s2 >= x3max:
-        return math.sqrt(s2 * (1.0 + (x3max / s2) * (x3max * s3)))
-    return math.sqrt(x3max * ((s2 / x3max) + (x3max * s3)))
+            wa1[j] = _div(wa1[j], sdiag[j])
+            for i in range(j + 1, n):
+                wa1[i] -= r[j][i] * wa1[j]
+    temp = _norm(wa1)
+    return _div(_div(_div(fp, delta), temp), temp)
+
+
+def _recomputed_norm(rest: np.ndarray) -> float:
+    """The norm of a column's remaining elements, where cancellation has spoilt its running estimate:
+    the elements below the current row and no more (scipy 1.15-1.17 read one element past them)."""
+    return enorm(rest)
 
 
 def _qrfac(a: np.ndarray):
@@ -185,22 +236,11 @@ def _qrfac(a: np.ndarray):
             if rdiag[k] != 0.0:
                 temp = a[k, j] / rdiag[k]
                 rdiag[k] *= math.sqrt(_fmax(0.0, 1.0 - temp * temp))
-                if 0.05 * (rdiag[k] / wa[k]) ** 2 <= _EPSMCH:
-                    rdiag[k] = wa[k] = enorm(a[k, j + 1:])
+                q = rdiag[k] / wa[k]
+                if 0.05 * (q * q) <= _EPSMCH:
+                    rdiag[k] = wa[k] = _recomputed_norm(a[k, j + 1:])
         rdiag[j] = -ajnorm
     return rdiag, acnorm, ipvt
-
-
-def _norm(v) -> float:
-    """:func:`enorm` of a short sequence of floats (``n``-vectors), in Python's own arithmetic."""
-    agiant = _RGIANT / max(len(v), 1)
-    total = 0.0
-    for t in v:
-        a = abs(t)
-        if not (a == 0.0 or _RDWARF < a < agiant):
-            return enorm(np.array(v, dtype=float))
-        total += a * a
-    return math.sqrt(total)
 
 
 def _qrsolv(r, ipvt, diag, qtb):
@@ -225,11 +265,11 @@ def _qrsolv(r, ipvt, diag, qtb):
                 rk = r[k]
                 if abs(rk[k]) < abs(sdiag[k]):
                     cotan = rk[k] / sdiag[k]
-                    sin = 0.5 / math.sqrt(0.25 + 0.25 * cotan * cotan)
+                    sin = 0.5 / math.sqrt(0.25 + 0.25 * (cotan * cotan))
                     cos = sin * cotan
                 else:
                     tan = sdiag[k] / rk[k]
-                    cos = 0.5 / math.sqrt(0.25 + 0.25 * tan * tan)
+                    cos = 0.5 / math.sqrt(0.25 + 0.25 * (tan * tan))
                     sin = cos * tan
                 rk[k] = cos * rk[k] + sin * sdiag[k]
                 temp = cos * wa[k] + sin * qtbpj
@@ -246,9 +286,7 @@ def _qrsolv(r, ipvt, diag, qtb):
     for j in range(nsing - 1, -1, -1):
         s = _series(r[j][i] * wa[i] for i in range(j + 1, nsing))
         wa[j] = (wa[j] - s) / sdiag[j]
-    for j in range(n):
-        x[ipvt[j]] = wa[j]
-    return x, sdiag
+    return _unpivot(wa, ipvt), sdiag
 
 
 def _gauss_newton(r, ipvt, qtb):
@@ -261,10 +299,7 @@ def _gauss_newton(r, ipvt, qtb):
         temp = wa1[j]
         for i in range(j):
             wa1[i] -= r[j][i] * temp
-    x = [0.0] * n
-    for j in range(n):
-        x[ipvt[j]] = wa1[j]
-    return x, nsing
+    return _unpivot(wa1, ipvt), nsing
 
 
 def _lmpar(r, ipvt, diag, qtb, delta: float, par: float):
@@ -274,45 +309,31 @@ def _lmpar(r, ipvt, diag, qtb, delta: float, par: float):
     """
     n = len(qtb)
     x, nsing = _gauss_newton(r, ipvt, qtb)
-    dx = [diag[j] * x[j] for j in range(n)]
+    dx = _scaled(diag, x)
     dxnorm = _norm(dx)
     fp = dxnorm - delta
     if fp <= 0.1 * delta:
         return 0.0, x
-    parl = 0.0
-    if nsing == n:
-        wa1 = [diag[ipvt[j]] * (dx[ipvt[j]] / dxnorm) for j in range(n)]
-        for j in range(n):
-            s = _series(r[j][i] * wa1[i] for i in range(j))
-            wa1[j] = (wa1[j] - s) / r[j][j]
-        temp = _norm(wa1)
-        parl = ((fp / delta) / temp) / temp
-    wa1 = [_series(r[j][i] * qtb[i] for i in range(j + 1)) / diag[ipvt[j]] for j in range(n)]
+    parl = _newton_correction(r, ipvt, diag, dx, dxnorm, fp, delta) if nsing == n else 0.0
+    wa1 = [_div(_series(r[j][i] * qtb[i] for i in range(j + 1)), diag[ipvt[j]]) for j in range(n)]
     gnorm = _norm(wa1)
-    paru = gnorm / delta
+    paru = _div(gnorm, delta)
     if paru == 0.0:
-        paru = _DWARF / _fmin(delta, 0.1)
+        paru = _div(_DWARF, _fmin(delta, 0.1))
     par = _fmin(_fmax(par, parl), paru)
     if par == 0.0:
-        par = gnorm / dxnorm
+        par = _div(gnorm, dxnorm)
     for iteration in range(1, 11):
         if par == 0.0:
             par = _fmax(_DWARF, 0.001 * paru)
         sq = math.sqrt(par)
         x, sdiag = _qrsolv(r, ipvt, [sq * d for d in diag], qtb)
-        dx = [diag[j] * x[j] for j in range(n)]
+        dx = _scaled(diag, x)
         dxnorm = _norm(dx)
         temp, fp = fp, dxnorm - delta
         if abs(fp) <= 0.1 * delta or (parl == 0.0 and fp <= temp < 0.0) or iteration == 10:
             break
-        wa1 = [diag[ipvt[j]] * (dx[ipvt[j]] / dxnorm) for j in range(n)]
-        for j in range(n):
-            wa1[j] /= sdiag[j]
-            temp = wa1[j]
-            for i in range(j + 1, n):
-                wa1[i] -= r[j][i] * temp
-        temp = _norm(wa1)
-        parc = ((fp / delta) / temp) / temp
+        parc = _newton_correction(r, ipvt, diag, dx, dxnorm, fp, delta, sdiag)
         if fp > 0.0:
             parl = _fmax(parl, par)
         if fp < 0.0:
@@ -382,14 +403,19 @@ def _predicted(fac: _Factor, step, par: float, pnorm: float, fnorm: float) -> tu
         temp = step[fac.ipvt[j]]
         for i in range(j + 1):
             wa3[i] += fac.r[j][i] * temp
-    temp1 = _norm(wa3) / fnorm
-    temp2 = (math.sqrt(par) * pnorm) / fnorm
+    temp1 = _div(_norm(wa3), fnorm)
+    temp2 = _div(math.sqrt(par) * pnorm, fnorm)
     return temp1 * temp1 + temp2 * temp2 / 0.5, -(temp1 * temp1 + temp2 * temp2)
+
+
+def _small(actred: float, prered: float, ratio: float, tol: float) -> bool:
+    """MINPACK's test of a step's actual and predicted reductions against ``tol``."""
+    return abs(actred) <= tol and prered <= tol and 0.5 * ratio <= 1.0
 
 
 def _termination(actred, prered, ratio, delta, xnorm, ftol, xtol) -> int:
     """MINPACK's tests after a trial step, in its order (0: go on)."""
-    small = abs(actred) <= ftol and prered <= ftol and 0.5 * ratio <= 1.0
+    small = _small(actred, prered, ratio, ftol)
     info = 1 if small else 0
     if delta <= xtol * xnorm:
         info = 3 if small else 2
@@ -399,7 +425,7 @@ def _termination(actred, prered, ratio, delta, xnorm, ftol, xtol) -> int:
 def _stalled(actred, prered, ratio, delta, xnorm, gnorm, nfev: int, maxfev: int) -> int:
     """MINPACK's tests that stop a run short of its tolerances, in its order (0: go on)."""
     info = 5 if nfev >= maxfev else 0
-    if abs(actred) <= _EPSMCH and prered <= _EPSMCH and 0.5 * ratio <= 1.0:
+    if _small(actred, prered, ratio, _EPSMCH):
         info = 6
     if delta <= _EPSMCH * xnorm:
         info = 7
@@ -412,14 +438,39 @@ def lmder(fun, jac, x0, *, ftol: float = 1.49012e-8, xtol: float = 1.49012e-8, g
           maxfev: int = 0, factor: float = 100.0, epsfcn: float = 0.0) -> MinpackResult:
     """Minimise ``sum(fun(x)**2)`` by MINPACK's Levenberg-Marquardt, deterministically.
 
-    ``jac(x)`` returns the Jacobian as rows, one per parameter (shape ``(n, m)``,
-    scipy's ``col_deriv=True``); with ``jac=None`` it is formed by MINPACK's
-    forward differences (``lmdif``, each column one evaluation).  ``maxfev``
-    ``0`` means MINPACK's default: ``100 (n + 1)`` with ``jac``, ``200 (n + 1)``
-    without.  Scaling is MINPACK's ``mode=1`` (the columns' norms).  The start,
-    its residuals and every Jacobian must be finite (else ``ValueError``); a
-    trial point whose residuals are not is a rejected step, as in MINPACK.
-    Exceptions raised by ``fun`` or ``jac`` propagate.
+    Parameters
+    ----------
+    fun : callable
+        ``fun(x)``: the residual vector (length ``m >= n``).  A trial point
+        whose residuals are not finite is a rejected step, as in MINPACK.
+    jac : callable or None
+        ``jac(x)``: the Jacobian as rows, one per parameter (shape ``(n, m)``,
+        scipy's ``col_deriv=True``); ``None``: MINPACK's forward differences
+        (``lmdif``, each column one evaluation).
+    x0 : array_like
+        The start (``n`` parameters).
+    ftol, xtol, gtol : float
+        MINPACK's tolerances on the relative reduction, the relative step and
+        the gradient's cosine.
+    maxfev : int
+        Most residual vectors; ``0``: MINPACK's ``100 (n + 1)`` with ``jac``,
+        ``200 (n + 1)`` without.
+    factor : float
+        The first trust region, ``factor |D x0|``; scaling ``D`` is MINPACK's
+        ``mode=1`` (the columns' norms).
+    epsfcn : float
+        Forward differences' relative step squared (at least machine epsilon).
+
+    Returns
+    -------
+    MinpackResult
+        ``info`` 0 for improper input (``m < n``, a negative tolerance).
+
+    Raises
+    ------
+    ValueError
+        A start or its residuals not finite, a Jacobian of another shape or
+        not finite.  Exceptions raised by ``fun`` or ``jac`` propagate.
 
     Examples
     --------
@@ -427,7 +478,7 @@ def lmder(fun, jac, x0, *, ftol: float = 1.49012e-8, xtol: float = 1.49012e-8, g
     >>> y = 2.0 * np.exp(-1.5 * t)
     >>> res = lmder(lambda p: p[0] * np.exp(-p[1] * t) - y,
     ...             lambda p: np.array([np.exp(-p[1] * t), -p[0] * t * np.exp(-p[1] * t)]), [1.0, 1.0])
-    >>> res.info in (1, 2, 3, 4), np.round(res.x, 8).tolist()
+    >>> res.converged, np.round(res.x, 8).tolist()
     (True, [2.0, 1.5])
     """
     x = np.array(x0, dtype=float).ravel()
@@ -437,8 +488,8 @@ def lmder(fun, jac, x0, *, ftol: float = 1.49012e-8, xtol: float = 1.49012e-8, g
         raise ValueError("lmder needs a finite start and finite residuals there")
     if maxfev <= 0:
         maxfev = (100 if jac is not None else 200) * (n + 1)
-    run = _Run(fun, x, fvec, maxfev=maxfev, factor=factor, differences=jac is None)
-    if n == 0 or m < n or min(ftol, xtol, gtol) < 0.0 or factor <= 0.0:
+    run = _Run(fun, x, fvec, maxfev=maxfev, factor=factor)
+    if n == 0 or m < n or ftol < 0.0 or xtol < 0.0 or gtol < 0.0 or factor <= 0.0:
         return run.result(0)
     while True:
         if jac is None:
@@ -450,7 +501,7 @@ def lmder(fun, jac, x0, *, ftol: float = 1.49012e-8, xtol: float = 1.49012e-8, g
             if rows.shape != (n, m):
                 raise ValueError(f"the Jacobian has shape {rows.shape}, not (n, m) = {(n, m)} (a row a parameter)")
         if not np.isfinite(rows).all():
-            raise ValueError("the Jacobian has non-finite entries (replace them before lmder)")
+            raise ValueError("the Jacobian has non-finite entries")
         fac = _factor(rows, run.fvec)
         run.scale(fac.acnorm)
         gnorm = _gradient_cosine(fac, run.fnorm)
@@ -466,7 +517,7 @@ class _Run:
     """The state of one ``lmder`` run between Jacobians: the point, its residual, the scaling,
     the trust region, the damping and the counts."""
 
-    def __init__(self, fun, x, fvec, *, maxfev: int, factor: float, differences: bool):
+    def __init__(self, fun, x, fvec, *, maxfev: int, factor: float):
         self.fun, self.x, self.fvec, self.fnorm = fun, x, fvec, enorm(fvec)
         self.maxfev, self.factor = maxfev, factor
         self.nfev, self.njev, self.iteration = 1, 0, 1
@@ -476,45 +527,46 @@ class _Run:
     def result(self, info: int) -> MinpackResult:
         return MinpackResult(self.x, self.fvec, info, self.nfev, self.njev)
 
-    def _scaled_norm(self, v) -> float:
-        return _norm([d * e for d, e in zip(self.diag, v)])
-
     def scale(self, acnorm):
         """At the first Jacobian: MINPACK's scaling (the columns' norms) and the initial trust region."""
         if self.iteration == 1:
             self.diag = [float(c) if c != 0.0 else 1.0 for c in acnorm]
-            self.xnorm = self._scaled_norm(self.x)
+            self.xnorm = _norm(_scaled(self.diag, self.x))
             self.delta = self.factor * self.xnorm or self.factor
 
     def steps(self, fac: _Factor, gnorm: float, ftol: float, xtol: float) -> int:
-        """Trial steps from one factor until one is accepted (0) or a test ends the run (its code)."""
+        """Trial steps from one factor until one is accepted (0), the ratio is NaN (0, as C's loop
+        leaves), or a test ends the run (its code)."""
         while True:
             self.par, p = _lmpar([col[:] for col in fac.r], fac.ipvt, self.diag, fac.qtf, self.delta, self.par)
             step = [-v for v in p]
             trial = self.x + np.array(step)
-            pnorm = self._scaled_norm(step)
+            pnorm = _norm(_scaled(self.diag, step))
             if self.iteration == 1:
                 self.delta = _fmin(self.delta, pnorm)
             ftrial = _residual(self.fun, trial, self.fvec.size)
             self.nfev += 1
             fnorm1 = enorm(ftrial)
-            actred = 1.0 - (fnorm1 / self.fnorm) ** 2 if 0.1 * fnorm1 < self.fnorm else -1.0
+            actred = -1.0
+            if 0.1 * fnorm1 < self.fnorm:
+                q = fnorm1 / self.fnorm
+                actred = 1.0 - q * q
             prered, dirder = _predicted(fac, step, self.par, pnorm, self.fnorm)
             ratio = actred / prered if prered != 0.0 else 0.0
             self._update_region(ratio, actred, dirder, pnorm, fnorm1)
             if ratio >= 1e-4:
                 self.x, self.fvec, self.fnorm = trial, ftrial, fnorm1
-                self.xnorm = self._scaled_norm(self.x)
+                self.xnorm = _norm(_scaled(self.diag, self.x))
                 self.iteration += 1
             info = (_termination(actred, prered, ratio, self.delta, self.xnorm, ftol, xtol)
                     or _stalled(actred, prered, ratio, self.delta, self.xnorm, gnorm, self.nfev, self.maxfev))
-            if info or ratio >= 1e-4:
+            if info or not ratio < 1e-4:
                 return info
 
     def _update_region(self, ratio: float, actred: float, dirder: float, pnorm: float, fnorm1: float):
         """MINPACK's trust-region radius and damping after a trial of reduction ratio ``ratio``."""
         if ratio <= 0.25:
-            temp = 0.5 * dirder / (dirder + 0.5 * actred) if actred < 0.0 else 0.5
+            temp = _div(0.5 * dirder, dirder + 0.5 * actred) if actred < 0.0 else 0.5
             if 0.1 * fnorm1 >= self.fnorm or temp < 0.1:
                 temp = 0.1
             self.delta = temp * _fmin(self.delta, pnorm / 0.1)

@@ -12,7 +12,10 @@ forward-difference Jacobian (scipy's ``"2-point"`` steps), which
 :meth:`HammersteinCost.normal_equations
 <hammerstein_ctrl.objective.HammersteinCost.normal_equations>` forms in one
 compiled pass together with the trial point, with MINPACK's termination tests
-and messages.  With bounds it runs scipy's trust-region reflective method
+and messages; where the normal equations are too ill-conditioned it goes on
+from that point with MINPACK's QR-based ``lmder`` (:func:`~hammerstein_ctrl.optimize.lmder`,
+the package's copy) or, on long records, on a streamed QR factor.  With
+bounds it runs scipy's trust-region reflective method
 (:func:`scipy.optimize.least_squares`, ``method="trf"``) with the batched
 Jacobian.  Evaluation counting is exact: every residual vector computed,
 including the Jacobian's, is one evaluation, and ``maxfev`` is never
@@ -57,8 +60,7 @@ __all__ = ["levenberg_marquardt", "MINPACK_MAX_BYTES"]
 #: below it, MINPACK's iterates and messages are kept.
 MINPACK_MAX_BYTES = 1 << 24
 
-#: MINPACK's exit codes that mean convergence, and the messages scipy's least_squares gives for them.
-_MINPACK_CONVERGED = (1, 2, 3, 4)
+#: The messages scipy's least_squares gives for MINPACK's exit codes.
 _MINPACK_MESSAGES = {
     0: "Improper input parameters status returned from MINPACK",
     1: "`ftol` termination condition is satisfied.",
@@ -171,24 +173,14 @@ class _BatchedJacobian:
         self.counted = counted
         self.residuals_batch = residuals_batch or (lambda X: [counted.check(counted.fun(x)) for x in X])
         self.lower, self.upper = (None, None) if box is None else box
-        self._cache = (None, None)
-        self._formed = 0
 
     def steps(self, x):
         return forward_steps(x, self.upper, self.lower)
 
     def columns(self, x):
-        """The Jacobian's columns as the rows of an ``(n, N)`` array.
-
-        The first one is kept for one repeated request at the same point (a
-        solver that checks the shape at ``x0`` before it starts); later ones
-        are not kept, since the solver holds its own copy.
-        """
+        """The Jacobian's columns as the rows of an ``(n, N)`` array (the residual at ``x`` from the
+        counted objective's last value where it is the same point)."""
         x = np.asarray(x, dtype=float)
-        (cached_x, cached), self._cache = self._cache, (None, None)
-        if cached_x is not None and np.array_equal(cached_x, x):
-            return cached
-        del cached
         r0 = self.counted(x)
         h = self.steps(x)
         X = x + np.diag(h)
@@ -204,9 +196,6 @@ class _BatchedJacobian:
             R[~np.isfinite(R)] = NONFINITE_RESIDUAL
             R -= r0
             R /= h[:, None]
-        if not self._formed:
-            self._cache = (x.copy(), R)
-        self._formed += 1
         return R
 
     def __call__(self, x):
@@ -234,23 +223,25 @@ def _solve(fun, counted, jac, x0, box, tolerances):
         res = lmder(counted, jac.columns, x0, maxfev=_MINPACK_MAXFEV_PER_PARAM * x0.size, **tolerances)
     x, f, ier = res.x, res.fvec, res.info
     message = _MINPACK_MESSAGES.get(ier, f"MINPACK exit code {ier}")
-    return x, float(f @ f), ier in _MINPACK_CONVERGED, message, iterations + res.nfev
+    return x, float(f @ f), res.converged, message, iterations + res.nfev
 
 
 @contextlib.contextmanager
 def _solver_refusal():
-    """scipy's solvers refusing residuals (non-finite values it computed from them) as a :class:`ResidualsFault`."""
+    """A solver (lmder, scipy's trf) refusing non-finite values it formed from the residuals, as a
+    :class:`ResidualsFault`."""
     try:
         yield
     except (ValueError, FloatingPointError) as exc:
-        raise ResidualsFault(f"scipy's least-squares solver stopped: {exc} (residuals too large to square?)") from None
+        raise ResidualsFault(f"the least-squares solver stopped: {exc} (residuals too large to square?)") from None
 
 
 @contextlib.contextmanager
 def _steps_on_exhaustion(counted: _CountedResiduals, before: int):
-    """On :class:`BudgetExhausted` inside scipy's solver, set its ``nit``: ``before`` plus the trial points asked for.
+    """On :class:`BudgetExhausted` inside a solver (lmder, scipy's trf), set its ``nit``: ``before`` plus
+    the trial points asked for.
 
-    Counted as on a normal return (scipy's ``nfev``: residual vectors, not Jacobian columns).
+    Counted as on a normal return (the solver's ``nfev``: residual vectors, not Jacobian columns).
     """
     calls = counted.calls
     try:
