@@ -107,10 +107,11 @@ def reflect(v, w):  # pragma: no cover - compiled
 
 @cached_njit(error_model="numpy")
 def _enorm(x, rdwarf, rgiant):  # pragma: no cover - compiled
-    """MINPACK's ``enorm`` loop as the C translation writes it (``pow(q, 2.0)`` as ``q * q``; C's division)."""
+    """MINPACK's ``enorm`` loop as the C translation writes it (``pow(q, 2.0)`` as ``q * q``): compiled for
+    long vectors, and run as Python (``_enorm.py_func``) on short lists (see :func:`_norm`)."""
     s1 = s2 = s3 = x1max = x3max = 0.0
-    agiant = rgiant / x.shape[0]
-    for i in range(x.shape[0]):
+    agiant = rgiant / len(x)
+    for i in range(len(x)):
         xabs = abs(x[i])
         if xabs <= rdwarf or xabs >= agiant:
             if xabs > rdwarf:
@@ -131,12 +132,12 @@ def _enorm(x, rdwarf, rgiant):  # pragma: no cover - compiled
         else:
             s2 += xabs * xabs
     if s1 != 0.0:
-        return x1max * np.sqrt(s1 + (s2 / x1max) / x1max)
+        return x1max * math.sqrt(s1 + (s2 / x1max) / x1max)
     if s2 != 0.0:
         if s2 >= x3max:
-            return np.sqrt(s2 * (1.0 + (x3max / s2) * (x3max * s3)))
-        return np.sqrt(x3max * ((s2 / x3max) + (x3max * s3)))
-    return x3max * np.sqrt(s3)
+            return math.sqrt(s2 * (1.0 + (x3max / s2) * (x3max * s3)))
+        return math.sqrt(x3max * ((s2 / x3max) + (x3max * s3)))
+    return x3max * math.sqrt(s3)
 
 
 def enorm(x) -> float:
@@ -154,9 +155,13 @@ def enorm(x) -> float:
     return float(_enorm(x, _RDWARF, _RGIANT)) if x.size else 0.0
 
 
-def _norm(v) -> float:
-    """:func:`enorm` of a short sequence of floats (an ``n``-vector)."""
-    return enorm(np.array(v, dtype=float))
+def _norm(v: list) -> float:
+    """:func:`enorm` of a short list of floats (an ``n``-vector), the same loop in Python's arithmetic (the
+    compiled loop where Python would raise on a zero divisor, after a NaN)."""
+    try:
+        return _enorm.py_func(v, _RDWARF, _RGIANT) if v else 0.0
+    except ZeroDivisionError:
+        return enorm(np.array(v, dtype=float))
 
 
 def _series(terms) -> float:
