@@ -131,33 +131,71 @@ def _squares_by_pow(p):
                      p[1] * 0.5 - np.sin(p[0] * p[1])])
 
 
+_REJECTED_A = np.array([[1.0, 2, 0], [0, 1, 3], [1, 0, 1], [2, 1, 1]])
+
+
 def _rejected_everywhere(x):
-    """Finite at the start (zero) alone: every trial is rejected until the region has shrunk to nothing."""
-    a = np.array([[1.0, 2, 0], [0, 1, 3], [1, 0, 1], [2, 1, 1]])
-    return a @ x - np.array([1.0, 2, 3, 4]) if not np.any(x) else np.full(4, 1e150)
+    """Finite at the start (zero) alone: every trial is rejected until the region has shrunk to nothing
+    (lmpar's Newton correction divides by a zero norm on the way)."""
+    return _REJECTED_A @ x - np.array([1.0, 2, 3, 4]) if not np.any(x) else np.full(4, 1e150)
 
 
-@pytest.mark.parametrize("fun, x0", [(_tiny_rosenbrock, [-1.2, 1.0]),
-                                     (_squares_by_pow, [0.94776761058022, 4.805196838758132]),
-                                     (_rejected_everywhere, [0.0, 0.0, 0.0])],
-                         ids=["enorm constants", "squares as products", "every trial rejected"])
-@pytest.mark.parametrize("with_jacobian", [True, False], ids=["lmder", "lmdif"])
+def _linear(a, b):
+    """``a^T x - b`` and its Jacobian as rows ``a``."""
+    a, b = np.array(a), np.array(b)
+    return (lambda x: a.T @ x - b), (lambda x: a.copy())
+
+
+#: Linear problems scaled to overflow, where the damping turns NaN: qrsolv then divides NaN by a zero
+#: diagonal, and lmpar takes the square root of a damping gone negative; C carries NaN on.
+_OVERFLOWING = [_linear([[-0.0, -0.0], [-1.7768718048124447e+154, -0.0]],
+                        [-5.985466095353628e+299, -1.0698555930156628e+300]),
+                _linear([[7.5616832890788e-309, 1.5032120261756127e-308, -0.0]],
+                        [1.0202300220430767, 2.6202175169607935, -1.0570373716573604])]
+
+
+@pytest.mark.parametrize("fun, jac, x0", [
+    (_tiny_rosenbrock, _complex_step_rows(_tiny_rosenbrock), [-1.2, 1.0]),
+    (_tiny_rosenbrock, None, [-1.2, 1.0]),
+    (_squares_by_pow, _complex_step_rows(_squares_by_pow), [0.94776761058022, 4.805196838758132]),
+    (_squares_by_pow, None, [0.94776761058022, 4.805196838758132]),
+    (_rejected_everywhere, lambda x: _REJECTED_A.T.copy(), [0.0, 0.0, 0.0]),
+    (*_OVERFLOWING[0], [-0.4036663853964377, -5.650993908991825e+153]),
+    (*_OVERFLOWING[1], [-1.6322698589335294e+307]),
+], ids=["enorm constants-lmder", "enorm constants-lmdif", "squares as products-lmder",
+        "squares as products-lmdif", "every trial rejected", "NaN over a zero", "root of a negative"])
 @pytest.mark.skipif(platform.machine() not in ("x86_64", "AMD64"), reason="scipy's x86-64 arithmetic")
-def test_lmder_rounds_as_scipys_minpack(fun, x0, with_jacobian):
-    """Cases where the C translation's constants, its squares as products (not libm's pow) and C's
-    division (where a step underflows to zero) decide the bits."""
-    jac = _complex_step_rows(fun) if with_jacobian else None
-    ours = lmder(fun, jac, x0)
-    x, _, info, _, ier = scipy.optimize.leastsq(fun, np.array(x0), Dfun=jac, col_deriv=True, full_output=True)
+def test_lmder_rounds_as_scipys_minpack(fun, jac, x0, monkeypatch):
+    """Cases where the C translation's constants, its squares as products (not libm's pow), C's division
+    and C's square root (a step underflowing to zero, a damping overflowing) decide the bits, or whether
+    the run ends at all: scipy's run, with no column norm recomputed."""
+    recomputed = []
+    real = _minpack._recomputed_norm
+    monkeypatch.setattr(_minpack, "_recomputed_norm", lambda rest: recomputed.append(rest.size) or real(rest))
+    with np.errstate(all="ignore"):
+        ours = lmder(fun, jac, x0)
+        x, _, info, _, ier = scipy.optimize.leastsq(fun, np.array(x0, dtype=float), Dfun=jac, col_deriv=True,
+                                                    full_output=True)
+    assert not recomputed
     assert (ours.info, ours.nfev, ours.njev) == (ier, info["nfev"], info.get("njev", 0))
     np.testing.assert_array_equal(ours.x, x)
     np.testing.assert_array_equal(ours.fvec, info["fvec"])
 
 
-def test_qrfac_pivots_and_factors_as_lapack():
+def test_each_negative_tolerance_is_improper_input():
+    """Each tolerance is tested on its own (a NaN beside a negative one must not hide it)."""
+    for tolerances in ({"ftol": -1.0}, {"xtol": -1.0}, {"gtol": -1.0}, {"ftol": np.nan, "xtol": -1.0}):
+        assert lmder(lambda x: x - 1.0, None, [2.0], **tolerances).info == 0
+    assert lmder(lambda x: x - 1.0, None, [2.0], factor=0.0).info == 0
+
+
+def test_qrfac_pivots_and_factors_as_lapack(monkeypatch):
     """The pivoted QR (MINPACK's qrfac) against LAPACK's dgeqp3: the same pivots, the same |R| diagonal,
     on random columns and on nearly dependent ones, where two column norms are recomputed (a norm over
     one element too many there, scipy 1.15-1.17's over-read, gives other pivots: checked by hand)."""
+    recomputed = []
+    real = _minpack._recomputed_norm
+    monkeypatch.setattr(_minpack, "_recomputed_norm", lambda rest: recomputed.append(rest.size) or real(rest))
     rng = np.random.default_rng(4)
     base = rng.standard_normal((301, 5))
     near = np.column_stack([base[:, :3], base[:, 0] + 1e-9 * rng.standard_normal(301),
@@ -169,6 +207,7 @@ def test_qrfac_pivots_and_factors_as_lapack():
         assert list(ipvt) == list(perm)
         np.testing.assert_allclose(np.abs(rdiag), np.abs(np.diag(r)), rtol=1e-6, atol=1e-12 * np.abs(r[0, 0]))
         np.testing.assert_allclose(acnorm, np.linalg.norm(a, axis=0), rtol=1e-14)
+    assert recomputed == [299, 298]         # the nearly dependent columns, below rows 1 and 2
 
 
 def test_enorm_neither_overflows_nor_underflows():

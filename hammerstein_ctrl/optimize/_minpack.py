@@ -16,7 +16,8 @@ its iterates are those of scipy's x86-64 wheels bit for bit (checked on
 Moré, Garbow and Hillstrom's test problems and on the paper's EMPS and TRS
 starts).  The long (per-sample) loops are small compiled functions and
 numpy's elementwise operations; the ``n x n`` ones are MINPACK's loops in
-Python, with C's division where a divisor can be zero.
+Python, with C's division and square root where an argument can be zero or
+negative (after an overflow).
 
 Termination codes are MINPACK's (``info``): 0 improper input, 1-4
 converged, 5 ``maxfev`` reached, 6-8 tolerances too small.
@@ -85,6 +86,15 @@ def _div(a: float, b: float) -> float:
     if a == 0.0 or a != a:
         return math.nan
     return math.copysign(math.inf, a) * math.copysign(1.0, b)
+
+
+def _sqrt(v: float) -> float:
+    """C's ``sqrt``: NaN below zero (a damping that went through NaN), not an exception.
+
+    >>> _sqrt(4.0), _sqrt(-1.0)
+    (2.0, nan)
+    """
+    return math.sqrt(v) if not v < 0.0 else math.nan
 
 
 @cached_njit(error_model="numpy")
@@ -273,7 +283,7 @@ def _qrsolv(r, ipvt, diag, qtb):
                     sin = 0.5 / math.sqrt(0.25 + 0.25 * (cotan * cotan))
                     cos = sin * cotan
                 else:
-                    tan = sdiag[k] / rk[k]
+                    tan = _div(sdiag[k], rk[k])     # NaN over a zero once the damping overflowed
                     cos = 0.5 / math.sqrt(0.25 + 0.25 * (tan * tan))
                     sin = cos * tan
                 rk[k] = cos * rk[k] + sin * sdiag[k]
@@ -331,7 +341,7 @@ def _lmpar(r, ipvt, diag, qtb, delta: float, par: float):
     for iteration in range(1, 11):
         if par == 0.0:
             par = _fmax(_DWARF, 0.001 * paru)
-        sq = math.sqrt(par)
+        sq = _sqrt(par)
         x, sdiag = _qrsolv(r, ipvt, [sq * d for d in diag], qtb)
         dx = _scaled(diag, x)
         dxnorm = _norm(dx)
@@ -409,7 +419,7 @@ def _predicted(fac: _Factor, step, par: float, pnorm: float, fnorm: float) -> tu
         for i in range(j + 1):
             wa3[i] += fac.r[j][i] * temp
     temp1 = _div(_norm(wa3), fnorm)
-    temp2 = _div(math.sqrt(par) * pnorm, fnorm)
+    temp2 = _div(_sqrt(par) * pnorm, fnorm)
     return temp1 * temp1 + temp2 * temp2 / 0.5, -(temp1 * temp1 + temp2 * temp2)
 
 
@@ -446,8 +456,9 @@ def lmder(fun, jac, x0, *, ftol: float = 1.49012e-8, xtol: float = 1.49012e-8, g
     Parameters
     ----------
     fun : callable
-        ``fun(x)``: the residual vector (length ``m >= n``).  A trial point
-        whose residuals are not finite is a rejected step, as in MINPACK.
+        ``fun(x)``: the residual vector (length ``m >= n``, the same at every
+        point).  A trial point whose residuals are not finite is a rejected
+        step, as in MINPACK (a difference point's make the Jacobian non-finite).
     jac : callable or None
         ``jac(x)``: the Jacobian as rows, one per parameter (shape ``(n, m)``,
         scipy's ``col_deriv=True``); ``None``: MINPACK's forward differences
@@ -458,8 +469,8 @@ def lmder(fun, jac, x0, *, ftol: float = 1.49012e-8, xtol: float = 1.49012e-8, g
         MINPACK's tolerances on the relative reduction, the relative step and
         the gradient's cosine.
     maxfev : int
-        Most residual vectors; ``0``: MINPACK's ``100 (n + 1)`` with ``jac``,
-        ``200 (n + 1)`` without.
+        Most residual vectors; ``0`` (or less): MINPACK's ``100 (n + 1)`` with
+        ``jac``, ``200 (n + 1)`` without.
     factor : float
         The first trust region, ``factor |D x0|``; scaling ``D`` is MINPACK's
         ``mode=1`` (the columns' norms).
@@ -469,13 +480,15 @@ def lmder(fun, jac, x0, *, ftol: float = 1.49012e-8, xtol: float = 1.49012e-8, g
     Returns
     -------
     MinpackResult
-        ``info`` 0 for improper input (``m < n``, a negative tolerance).
+        ``info`` 0 for improper input (no parameters, ``m < n``, a negative
+        tolerance, ``factor <= 0``), after the one evaluation at ``x0``.
 
     Raises
     ------
     ValueError
-        A start or its residuals not finite, a Jacobian of another shape or
-        not finite.  Exceptions raised by ``fun`` or ``jac`` propagate.
+        A start or its residuals not finite; residuals whose length changes;
+        a Jacobian of another shape or not finite (where MINPACK would go on
+        with NaN).  Exceptions raised by ``fun`` or ``jac`` propagate.
 
     Examples
     --------
