@@ -92,16 +92,21 @@ def _complex_step_rows(fun):
     return rows
 
 
+@pytest.fixture
+def recomputed(monkeypatch):
+    """The sizes of the column norms qrfac recomputes, in order (a spy)."""
+    sizes, real = [], _minpack._recomputed_norm
+    monkeypatch.setattr(_minpack, "_recomputed_norm", lambda rest: sizes.append(rest.size) or real(rest))
+    return sizes
+
+
 @pytest.mark.parametrize("name", PROBLEMS)
 @pytest.mark.parametrize("with_jacobian", [True, False], ids=["lmder", "lmdif"])
-def test_lmder_takes_minpacks_path_to_the_published_minimum(name, with_jacobian, monkeypatch):
+def test_lmder_takes_minpacks_path_to_the_published_minimum(name, with_jacobian, recomputed):
     """The published minimum, and scipy's run bit for bit (exit code, counts, point) wherever no column norm
     was recomputed: where one was, scipy's result depends on the memory past the column it over-reads."""
     fun, x0, minimum = PROBLEMS[name]
     jac = _complex_step_rows(fun) if with_jacobian else None
-    recomputed = []
-    real = _minpack._recomputed_norm
-    monkeypatch.setattr(_minpack, "_recomputed_norm", lambda rest: recomputed.append(rest.size) or real(rest))
     ours = lmder(fun, jac, x0)
     assert ours.fvec @ ours.fvec == pytest.approx(minimum, rel=2e-5, abs=1e-20)
     np.testing.assert_array_equal(ours.fvec, fun(ours.x))
@@ -165,13 +170,10 @@ _OVERFLOWING = [_linear([[-0.0, -0.0], [-1.7768718048124447e+154, -0.0]],
 ], ids=["enorm constants-lmder", "enorm constants-lmdif", "squares as products-lmder",
         "squares as products-lmdif", "every trial rejected", "NaN over a zero", "root of a negative"])
 @pytest.mark.skipif(platform.machine() not in ("x86_64", "AMD64"), reason="scipy's x86-64 arithmetic")
-def test_lmder_rounds_as_scipys_minpack(fun, jac, x0, monkeypatch):
+def test_lmder_rounds_as_scipys_minpack(fun, jac, x0, recomputed):
     """Cases where the C translation's constants, its squares as products (not libm's pow), C's division
     and C's square root (a step underflowing to zero, a damping overflowing) decide the bits, or whether
     the run ends at all: scipy's run, with no column norm recomputed."""
-    recomputed = []
-    real = _minpack._recomputed_norm
-    monkeypatch.setattr(_minpack, "_recomputed_norm", lambda rest: recomputed.append(rest.size) or real(rest))
     with np.errstate(all="ignore"):
         ours = lmder(fun, jac, x0)
         x, _, info, _, ier = scipy.optimize.leastsq(fun, np.array(x0, dtype=float), Dfun=jac, col_deriv=True,
@@ -189,13 +191,10 @@ def test_each_negative_tolerance_is_improper_input():
     assert lmder(lambda x: x - 1.0, None, [2.0], factor=0.0).info == 0
 
 
-def test_qrfac_pivots_and_factors_as_lapack(monkeypatch):
+def test_qrfac_pivots_and_factors_as_lapack(recomputed):
     """The pivoted QR (MINPACK's qrfac) against LAPACK's dgeqp3: the same pivots, the same |R| diagonal,
     on random columns and on nearly dependent ones, where two column norms are recomputed (a norm over
     one element too many there, scipy 1.15-1.17's over-read, gives other pivots: checked by hand)."""
-    recomputed = []
-    real = _minpack._recomputed_norm
-    monkeypatch.setattr(_minpack, "_recomputed_norm", lambda rest: recomputed.append(rest.size) or real(rest))
     rng = np.random.default_rng(4)
     base = rng.standard_normal((301, 5))
     near = np.column_stack([base[:, :3], base[:, 0] + 1e-9 * rng.standard_normal(301),
