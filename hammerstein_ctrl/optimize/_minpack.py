@@ -371,6 +371,7 @@ def _forward_jacobian(fun, x, fvec, epsfcn: float):
 
 
 def _residual(fun, x, m: int | None = None) -> np.ndarray:
+    """``fun(x)`` as a copy the caller cannot touch (MINPACK copies into its own arrays), of length ``m``."""
     f = np.array(fun(x.copy()), dtype=float).ravel()
     if m is not None and f.size != m:
         raise ValueError(f"the residual function returned {f.size} values, not {m} as at the start")
@@ -378,7 +379,7 @@ def _residual(fun, x, m: int | None = None) -> np.ndarray:
 
 
 class _Factor(NamedTuple):
-    r: list              # r[j][i]: R's element (i, j), i <= j
+    r: list              # r[j][i]: R's element (i, j), i <= j; i > j is qrsolv's scratch, as fjac's is in C
     ipvt: list
     acnorm: np.ndarray
     qtf: list
@@ -556,7 +557,7 @@ class _Run:
         """Trial steps from one factor until one is accepted (0), the ratio is NaN (0, as C's loop
         leaves), or a test ends the run (its code)."""
         while True:
-            self.par, p = _lmpar([col[:] for col in fac.r], fac.ipvt, self.diag, fac.qtf, self.delta, self.par)
+            self.par, p = _lmpar(fac.r, fac.ipvt, self.diag, fac.qtf, self.delta, self.par)
             step = [-v for v in p]
             trial = self.x + np.array(step)
             pnorm = _norm(_scaled(self.diag, step))
