@@ -51,6 +51,8 @@ class MinpackResult(NamedTuple):
     --------
     >>> MinpackResult(np.zeros(1), np.zeros(2), 2, 3, 1).converged
     True
+    >>> MinpackResult(np.zeros(1), np.zeros(2), 5, 300, 1).converged   # maxfev reached
+    False
     """
 
     x: np.ndarray
