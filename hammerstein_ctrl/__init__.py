@@ -25,8 +25,8 @@ import importlib
 import sys
 import types
 
-from .exceptions import (CacheWarning, DataError, HammersteinError, IdentificationWarning, ParameterError,
-                         SimulationWarning, UnknownNameError)
+from .exceptions import (CacheWarning, DataError, HammersteinError, IdentificationWarning, NativeBuildError,
+                         ParameterError, SimulationWarning, UnknownNameError)
 
 __version__ = "0.1.0"
 
@@ -76,7 +76,7 @@ __all__ = [
     "minimize", "HammersteinCost", "fit_percent", "fit_report", "nrmse", "rmse", "sse",
     "load_model", "save_model", "load_result", "save_result",
     "DataError", "HammersteinError", "ParameterError", "UnknownNameError", "IdentificationWarning",
-    "SimulationWarning", "CacheWarning", "__version__",
+    "SimulationWarning", "CacheWarning", "NativeBuildError", "__version__",
 ]
 
 

@@ -1,4 +1,4 @@
-"""Small dense linear algebra in compiled code, without BLAS.
+"""Small dense linear algebra, in the package's C library, for Python and compiled callers alike.
 
 The simulator needs one matrix exponential of a tiny matrix (``n + 2`` rows,
 ``n`` the order of the linear block) per candidate.  ``scipy.linalg.expm``
@@ -8,6 +8,13 @@ microseconds of call overhead.  :func:`expm_batch` is Higham's (2005)
 scaling-and-squaring algorithm with the degree-13 Pade approximant, written as
 plain loops: single-threaded, accurate to a few units of roundoff, and a few
 microseconds for a 4x4 matrix.
+
+These functions live in the C library of :mod:`~hammerstein_ctrl._native`
+(built once per machine in a fraction of a second, where numba compiled them
+for about ten seconds on a machine's first fit).  Each is one definition
+with two doors: called from Python it goes through the library's Python
+module, and called from compiled code numba calls the C function directly
+(an overload of the same name), so both give the same bits.
 
 Examples
 --------
@@ -23,41 +30,67 @@ import contextlib
 import functools
 import threading
 
+import numba.extending
 import numpy as np
 
-from ._attributes import never_inline
 from ._jit import cached_njit
+from ._native import c_call, library
 
-__all__ = ["copy_vector", "fill_coefficients", "expm_batch", "expm_into", "tf_augmented", "tf_discrete",
-           "tf_discrete_into", "single_threaded_blas", "solve_in_place", "symmetric_eigenvalues", "PADE13_THETA",
-           "JACOBI_MAX_SWEEPS"]
+__all__ = ["copy_vector", "fill_coefficients", "expm_batch", "expm_into", "one_norm", "tf_augmented", "tf_discrete",
+           "tf_discrete_into", "single_threaded_blas", "solve_in_place", "symmetric_eigenvalues"]
 
-#: Largest 1-norm for which the degree-13 Pade approximant is accurate to unit
-#: roundoff without scaling (Higham 2005, Table 2.3).
-PADE13_THETA = 5.371920351148152
-
-#: Coefficients b_0 .. b_13 of the degree-13 Pade approximant (Higham 2005).
-_B13 = np.array([
-    64764752532480000.0, 32382376266240000.0, 7771770303897600.0, 1187353796428800.0,
-    129060195264000.0, 10559470521600.0, 670442572800.0, 33522128640.0, 1323241920.0,
-    40840800.0, 960960.0, 16380.0, 182.0, 1.0,
-])
+_LIBRARY = library()          # loaded (built on a machine's first use) before compiled code that calls it loads
 
 
-@cached_njit()
-def _matmul(X, Y, out):  # pragma: no cover - compiled
-    never_inline()                      # six calls in the exponential: one copy of its loops, not six
-    n = X.shape[0]
-    for i in range(n):
-        for j in range(n):
-            s = 0.0
-            for k in range(n):
-                s += X[i, k] * Y[k, j]
-            out[i, j] = s
+def _input(array, dtype=np.float64) -> np.ndarray:
+    """``array`` as a C-ordered array of ``dtype`` the library reads (a copy only if need be)."""
+    return np.ascontiguousarray(array, dtype=dtype)
 
 
-@cached_njit()
-def solve_in_place(A, B):  # pragma: no cover - compiled
+@numba.extending.intrinsic
+def _c_one_norm(typingctx, M, n):
+    return c_call("hc_one_norm", (M, n))
+
+
+@numba.extending.intrinsic
+def _c_expm(typingctx, M, n, out):
+    return c_call("hc_expm", (M, n, out))
+
+
+@numba.extending.intrinsic
+def _c_augmented(typingctx, num, den, batch, nnum, nden, dt, M, C, D):
+    return c_call("hc_tf_augmented", (num, den, batch, nnum, nden, dt, M, C, D))
+
+
+@numba.extending.intrinsic
+def _c_discrete(typingctx, num, den, batch, nnum, nden, dt, max_norm, E, C, D, ok, big):
+    return c_call("hc_tf_discrete", (num, den, batch, nnum, nden, dt, max_norm, E, C, D, ok, big))
+
+
+@numba.extending.intrinsic
+def _c_fill(typingctx, theta, batch, stride, num0, nnum, den0, nden, num_pos, k, den_pos, kd, num, den):
+    return c_call("hc_fill_coefficients",
+                  (theta, batch, stride, num0, nnum, den0, nden, num_pos, k, den_pos, kd, num, den))
+
+
+def one_norm(M) -> float:
+    """Largest absolute column sum of the square ``M`` (a NaN column is passed over, as Python's ``max`` does).
+
+    Examples
+    --------
+    >>> one_norm(np.array([[1.0, -2.0], [3.0, 4.0]]))
+    6.0
+    """
+    M = _input(M)
+    return _LIBRARY.hc_one_norm(M, M.shape[0])
+
+
+@numba.extending.overload(one_norm)
+def _one_norm_compiled(M):
+    return lambda M: _c_one_norm(M, M.shape[0])
+
+
+def solve_in_place(A, B) -> None:
     """Overwrite ``B`` (``n x m``) with ``A^-1 B``: Gaussian elimination with partial pivoting, ``A`` destroyed.
 
     A singular ``A`` leaves non-finite entries in ``B`` (no exception): NaN when
@@ -65,78 +98,17 @@ def solve_in_place(A, B):  # pragma: no cover - compiled
 
     Examples
     --------
-    >>> import numpy as np
     >>> B = np.array([[1.0], [2.0]])
     >>> solve_in_place(np.array([[2.0, 0.0], [0.0, 4.0]]), B)
     >>> B.ravel().tolist()
     [0.5, 0.5]
     """
-    n, m = A.shape[0], B.shape[1]
-    for col in range(n):
-        piv = col
-        best = abs(A[col, col])
-        for r in range(col + 1, n):
-            if abs(A[r, col]) > best:
-                best, piv = abs(A[r, col]), r
-        if piv != col:
-            for c in range(n):
-                A[col, c], A[piv, c] = A[piv, c], A[col, c]
-            for c in range(m):
-                B[col, c], B[piv, c] = B[piv, c], B[col, c]
-        d = A[col, col]
-        if d == 0.0:                    # a zero column below the diagonal: A is singular
-            for r in range(n):
-                for c in range(m):
-                    B[r, c] = np.nan
-            return
-        for r in range(col + 1, n):
-            f = A[r, col] / d
-            if f != 0.0:
-                for c in range(col, n):
-                    A[r, c] -= f * A[col, c]
-                for c in range(m):
-                    B[r, c] -= f * B[col, c]
-    for col in range(n - 1, -1, -1):
-        d = A[col, col]
-        for c in range(m):
-            s = B[col, c]
-            for k in range(col + 1, n):
-                s -= A[col, k] * B[k, c]
-            B[col, c] = s / d
+    _LIBRARY.hc_solve_in_place(A, A.shape[0], B, B.shape[1])
 
 
-#: Most sweeps of the Jacobi eigenvalue method (it converges quadratically: a few sweeps suffice).
-JACOBI_MAX_SWEEPS = 60
-
-
-@cached_njit()
-def _rotate(A, p, q):  # pragma: no cover - compiled
-    """One Jacobi rotation of the symmetric ``A`` zeroing ``A[p, q]``; False if it is already negligible."""
-    apq = A[p, q]
-    app, aqq = A[p, p], A[q, q]
-    if abs(apq) <= np.finfo(np.float64).eps * (np.sqrt(abs(app)) * np.sqrt(abs(aqq))) or apq == 0.0:
-        return False
-    theta = (aqq - app) / (2.0 * apq)
-    t = 1.0 / (abs(theta) + np.sqrt(theta * theta + 1.0))
-    if theta < 0.0:
-        t = -t
-    c = 1.0 / np.sqrt(t * t + 1.0)
-    s = t * c
-    n = A.shape[0]
-    for k in range(n):
-        akp, akq = A[k, p], A[k, q]
-        A[k, p] = c * akp - s * akq
-        A[k, q] = s * akp + c * akq
-    for k in range(n):
-        apk, aqk = A[p, k], A[q, k]
-        A[p, k] = c * apk - s * aqk
-        A[q, k] = s * apk + c * aqk
-    return True
-
-
-@cached_njit()
-def symmetric_eigenvalues(S):  # pragma: no cover - compiled
-    """Eigenvalues of the symmetric, finite ``S`` in ascending order (cyclic Jacobi; ``S`` unchanged).
+def symmetric_eigenvalues(S) -> np.ndarray:
+    """Eigenvalues of the symmetric, finite ``S`` in ascending order (cyclic Jacobi, at most 60 sweeps; ``S``
+    unchanged).
 
     Each rotation is skipped once ``|a_pq| <= eps sqrt(|a_pp a_qq|)``, the
     test that gives small eigenvalues of definite matrices to high relative
@@ -144,30 +116,12 @@ def symmetric_eigenvalues(S):  # pragma: no cover - compiled
 
     Examples
     --------
-    >>> import numpy as np
     >>> symmetric_eigenvalues(np.array([[2.0, 1.0], [1.0, 2.0]])).round(12).tolist()
     [1.0, 3.0]
     """
-    n = S.shape[0]
-    A = np.empty((n, n))
-    for i in range(n):
-        for j in range(n):
-            A[i, j] = S[i, j]
-    for _ in range(JACOBI_MAX_SWEEPS):
-        rotated = False
-        for p in range(n - 1):
-            for q in range(p + 1, n):
-                rotated = _rotate(A, p, q) or rotated
-        if not rotated:
-            break
-    w = np.empty(n)
-    for i in range(n):                  # insertion sort of the diagonal (n is small; np.sort compiles for seconds)
-        v = A[i, i]
-        j = i
-        while j > 0 and w[j - 1] > v:
-            w[j] = w[j - 1]
-            j -= 1
-        w[j] = v
+    A = np.array(S, dtype=np.float64, order="C")
+    w = np.empty(A.shape[0])
+    _LIBRARY.hc_symmetric_eigenvalues(A, A.shape[0], w)
     return w
 
 
@@ -179,37 +133,11 @@ def copy_vector(src, dst):  # pragma: no cover - compiled
 
     Examples
     --------
-    >>> import numpy as np
     >>> dst = np.zeros(2); copy_vector(np.array([1.0, 2.0]), dst); dst
     array([1., 2.])
     """
     for i in range(dst.shape[0]):
         dst[i] = src[i]
-
-
-@cached_njit()
-def _one_norm(M):  # pragma: no cover - compiled
-    """Largest absolute column sum of the square ``M``."""
-    n = M.shape[0]
-    norm = 0.0
-    for j in range(n):
-        s = 0.0
-        for i in range(n):
-            s += abs(M[i, j])
-        norm = max(norm, s)
-    return norm
-
-
-@cached_njit()
-def _combine3(X, cx, Y, cy, Z, cz, out, add):  # pragma: no cover - compiled
-    """``out = cx X + cy Y + cz Z``, or ``out + cx X + ...`` with ``add``, summed left to right as numpy would."""
-    n = X.shape[0]
-    for i in range(n):
-        for j in range(n):
-            s = cx * X[i, j]
-            if add:
-                s = out[i, j] + s
-            out[i, j] = (s + cy * Y[i, j]) + cz * Z[i, j]
 
 
 @cached_njit()
@@ -220,86 +148,26 @@ def _copy(src, dst):  # pragma: no cover - compiled
             dst[i, j] = src[i, j]
 
 
-#: Square work matrices of one exponential: A, A^2, A^4, A^6, W, T, U, V, Q.
-_EXPM_WORK = 9
-
-
-@cached_njit()
-def _expm_one(M, out, b):  # pragma: no cover - compiled
-    """``out = expm(M)``: degree-13 Pade with scaling and squaring, in one block of work memory.
-
-    Written as loops (no array expressions): the compiled code stays small,
-    which keeps loading it from the cache quick, and nothing is allocated but
-    the work block.
-    """
-    never_inline()                      # one copy per caller's module, however many times it calls
-    n = M.shape[0]
-    norm = _one_norm(M)
-    if not np.isfinite(norm):
-        for i in range(n):
-            for j in range(n):
-                out[i, j] = np.nan
-        return
-    s = 0
-    if norm > PADE13_THETA:
-        s = int(np.ceil(np.log2(norm / PADE13_THETA)))
-    work = np.empty((_EXPM_WORK, n, n))
-    A, A2, A4, A6, W, T, U, V, Q = (work[0], work[1], work[2], work[3], work[4], work[5], work[6], work[7],
-                                    work[8])
-    scale = 0.5 ** s
-    for i in range(n):
-        for j in range(n):
-            A[i, j] = M[i, j] * scale
-    _matmul(A, A, A2)
-    _matmul(A2, A2, A4)
-    _matmul(A4, A2, A6)
-    _combine3(A6, b[13], A4, b[11], A2, b[9], W, False)
-    _matmul(A6, W, T)
-    _combine3(A6, b[7], A4, b[5], A2, b[3], T, True)
-    for i in range(n):
-        T[i, i] += b[1]
-    _matmul(A, T, U)
-    _combine3(A6, b[12], A4, b[10], A2, b[8], W, False)
-    _matmul(A6, W, T)
-    _combine3(A6, b[6], A4, b[4], A2, b[2], T, True)
-    for i in range(n):
-        T[i, i] += b[0]
-    for i in range(n):                  # P = V + U (in T), Q = V - U
-        for j in range(n):
-            Q[i, j] = T[i, j] - U[i, j]
-            T[i, j] = T[i, j] + U[i, j]
-    solve_in_place(Q, T)
-    for _ in range(s):
-        _matmul(T, T, V)
-        _copy(V, T)
-    _copy(T, out)
-
-
-@cached_njit()
-def _expm_batch(M, b):  # pragma: no cover - compiled
-    E = np.empty_like(M)
-    for k in range(M.shape[0]):
-        _expm_one(M[k], E[k], b)
-    return E
-
-
-@cached_njit()
-def expm_into(M, out):  # pragma: no cover - compiled
-    """``out[:, :] = expm(M)`` for one square matrix, callable from compiled code (NaN if ``M`` is not finite).
+def expm_into(M, out) -> None:
+    """``out[:, :] = expm(M)`` for one square matrix (NaN if ``M`` is not finite); ``out`` may be ``M`` itself.
 
     Examples
     --------
-    >>> import numpy as np
     >>> out = np.empty((1, 1))
     >>> expm_into(np.array([[1.0]]), out)
     >>> bool(np.isclose(out[0, 0], np.e))
     True
     """
-    _expm_one(M, out, _B13)
+    M = _input(M)
+    _LIBRARY.hc_expm(M, M.shape[0], out)
 
 
-@cached_njit()
-def tf_augmented(num, den, dt):  # pragma: no cover - compiled
+@numba.extending.overload(expm_into)
+def _expm_into_compiled(M, out):
+    return lambda M, out: _c_expm(M, M.shape[0], out)
+
+
+def tf_augmented(num, den, dt):
     """Augmented matrices ``[[A dt, B dt, 0], [0, 0, 1], [0, 0, 0]]`` of the companion realisations of num/den rows.
 
     Parameters
@@ -316,7 +184,6 @@ def tf_augmented(num, den, dt):  # pragma: no cover - compiled
 
     Examples
     --------
-    >>> import numpy as np
     >>> M, C, D = tf_augmented(np.array([[1.0]]), np.array([[1.0, 2.0]]), 0.5)   # 1/(p + 2)
     >>> M[0]
     array([[-1. ,  0.5,  0. ],
@@ -325,43 +192,34 @@ def tf_augmented(num, den, dt):  # pragma: no cover - compiled
     >>> C[0], D[0]
     (array([1.]), np.float64(0.0))
     """
-    batch = den.shape[0]
-    n = den.shape[1] - 1
-    shift = n - (num.shape[1] - 1)
-    M = np.zeros((batch, n + 2, n + 2))
-    C = np.zeros((batch, n))
-    D = np.zeros(batch)
-    for b in range(batch):
-        lead = den[b, 0]
-        d = num[b, 0] / lead if shift == 0 else 0.0
-        D[b] = d
-        for r in range(n):
-            a = den[b, r + 1] / lead
-            M[b, 0, r] = -a * dt
-            if r > 0:
-                M[b, r, r - 1] = dt
-            j = r + 1 - shift
-            C[b, r] = (num[b, j] / lead if j >= 0 else 0.0) - d * a
-        if n > 0:
-            M[b, 0, n] = dt
-        M[b, n, n + 1] = 1.0
+    num, den = _input(num), _input(den)
+    batch, n = den.shape[0], den.shape[1] - 1
+    M, C, D = np.empty((batch, n + 2, n + 2)), np.empty((batch, n)), np.empty(batch)
+    _LIBRARY.hc_tf_augmented(num, den, batch, num.shape[1], den.shape[1], float(dt),
+                             M, C, D)
     return M, C, D
 
 
-@cached_njit()
-def tf_discrete_into(num, den, dt, max_norm, E, C, D, ok, big):  # pragma: no cover - compiled
+@numba.extending.overload(tf_augmented)
+def _tf_augmented_compiled(num, den, dt):
+    def impl(num, den, dt):
+        batch, n = den.shape[0], den.shape[1] - 1
+        M, C, D = np.empty((batch, n + 2, n + 2)), np.empty((batch, n)), np.empty(batch)
+        _c_augmented(num, den, batch, num.shape[1], den.shape[1], dt, M, C, D)
+        return M, C, D
+    return impl
+
+
+def tf_discrete_into(num, den, dt, max_norm, E, C, D, ok, big) -> bool:
     """:func:`tf_discrete` into the caller's arrays ``E`` (B, n+2, n+2), ``C`` (B, n), ``D``, ``ok`` and ``big`` (B,);
     returns ``clean``.
 
-    Compiled code calls it through its address
-    (:func:`hammerstein_ctrl.kernels.discretisation_address`), so its code is
-    compiled once, not again inside every compiled caller.  The arrays'
-    shapes are not checked (compiled code checks no index): the caller sizes
-    them, as :func:`tf_discrete` and :func:`hammerstein_ctrl.kernels.discretised` do.
+    The arrays' shapes are not checked (the C code checks no index): the
+    caller sizes them, as :func:`tf_discrete` and
+    :func:`hammerstein_ctrl.kernels.discretised` do.
 
     Examples
     --------
-    >>> import numpy as np
     >>> E, C, D = np.empty((1, 3, 3)), np.empty((1, 1)), np.empty(1)
     >>> ok, big = np.empty(1, dtype=bool), np.empty(1, dtype=bool)
     >>> tf_discrete_into(np.array([[1.0]]), np.array([[1.0, 2.0]]), 0.5, 64.0, E, C, D, ok, big)
@@ -369,33 +227,21 @@ def tf_discrete_into(num, den, dt, max_norm, E, C, D, ok, big):  # pragma: no co
     >>> bool(np.isclose(E[0, 0, 0], np.exp(-1.0))), C[0, 0], D[0]
     (True, np.float64(1.0), np.float64(0.0))
     """
-    batch = den.shape[0]
-    for b in range(batch):
-        good = den[b, 0] != 0
-        for j in range(num.shape[1]):
-            good = good and np.isfinite(num[b, j])
-        for j in range(den.shape[1]):
-            good = good and np.isfinite(den[b, j])
-        ok[b] = good
-    if not ok.all():
-        num, den = num.copy(), den.copy()
-        for b in range(batch):
-            if not ok[b]:
-                num[b, :] = 0.0
-                den[b, :] = 0.0
-                den[b, 0] = 1.0
-    M, C_new, D_new = tf_augmented(num, den, dt)
-    copy_vector(D_new, D)
-    for b in range(batch):
-        copy_vector(C_new[b], C[b])
-        big[b] = _one_norm(M[b]) > max_norm
-        if not big[b]:
-            _expm_one(M[b], E[b], _B13)  # not through expm_into: one level less to compile on a first fit
-    return ok.all() and not big.any()
+    num, den = _input(num), _input(den)
+    return _LIBRARY.hc_tf_discrete(num, den, den.shape[0], num.shape[1], den.shape[1],
+                                   float(dt), float(max_norm), E, C, D,
+                                   ok, big)
+
+
+@numba.extending.overload(tf_discrete_into)
+def _tf_discrete_into_compiled(num, den, dt, max_norm, E, C, D, ok, big):
+    def impl(num, den, dt, max_norm, E, C, D, ok, big):
+        return _c_discrete(num, den, den.shape[0], num.shape[1], den.shape[1], dt, max_norm, E, C, D, ok, big)
+    return impl
 
 
 def tf_discrete(num, den, dt, max_norm):
-    """:func:`tf_augmented` and the compiled exponential in one call.
+    """:func:`tf_augmented` and the exponential in one call.
 
     Returns ``(E, C, D, ok, big, clean)``: unusable rows (``~ok``) are
     replaced by ``1/p`` before the exponential; rows whose augmented matrix
@@ -404,7 +250,6 @@ def tf_discrete(num, den, dt, max_norm):
 
     Examples
     --------
-    >>> import numpy as np
     >>> E, C, D, ok, big, clean = tf_discrete(np.array([[1.0]]), np.array([[1.0, 2.0]]), 0.5, 64.0)
     >>> bool(np.isclose(E[0, 0, 0], np.exp(-1.0))), bool(clean)
     (True, True)
@@ -429,8 +274,12 @@ def expm_batch(M) -> np.ndarray:
     -------
     ndarray, shape (B, m, m)
     """
-    M = np.ascontiguousarray(M, dtype=float)
-    return _expm_batch(M, _B13)
+    M = _input(M)
+    E = np.empty_like(M)
+    m = M.shape[1]
+    for k in range(M.shape[0]):
+        _LIBRARY.hc_expm(M[k], m, E[k])
+    return E
 
 
 @functools.lru_cache(maxsize=1)
@@ -542,19 +391,34 @@ def _clear_controlling_thread():
 _SINGLE_THREADED_BLAS, _CONTROLLING_THIS_THREAD = _SingleThreadedBlas(), _ControllingThisThread()
 
 
-@cached_njit()
-def fill_coefficients(theta, num0, den0, num_pos, den_pos):  # pragma: no cover - compiled
-    """Rows of ``num0``/``den0`` with the free coefficients of each row of ``theta`` written in (one call per batch)."""
-    batch, k = theta.shape[0], num_pos.size
-    num = np.empty((batch, num0.size))
-    den = np.empty((batch, den0.size))
-    for b in range(batch):
-        for j in range(num0.size):      # element loops: a slice assignment pulls in numpy's shape-error machinery,
-            num[b, j] = num0[j]         # seconds of compilation on a machine's first fit
-        for j in range(den0.size):
-            den[b, j] = den0[j]
-        for j in range(k):
-            num[b, num_pos[j]] = theta[b, j]
-        for j in range(den_pos.size):
-            den[b, den_pos[j]] = theta[b, k + j]
+def fill_coefficients(theta, num0, den0, num_pos, den_pos):
+    """Rows of ``num0``/``den0`` with the free coefficients of each row of ``theta`` written in (one call per batch):
+    the first ``num_pos.size`` at ``num_pos``, the next ``den_pos.size`` at ``den_pos``.
+
+    Examples
+    --------
+    >>> num, den = fill_coefficients(np.array([[5.0, 7.0]]), np.array([0.0]), np.array([1.0, 0.0]),
+    ...                              np.array([0]), np.array([1]))
+    >>> num.tolist(), den.tolist()
+    ([[5.0]], [[1.0, 7.0]])
+    """
+    theta, num0, den0 = _input(theta), _input(num0), _input(den0)
+    num_pos, den_pos = _input(num_pos, np.int64), _input(den_pos, np.int64)
+    if theta.ndim != 2 or theta.shape[1] < num_pos.size + den_pos.size:
+        raise ValueError(f"theta must have rows of at least {num_pos.size + den_pos.size} values, not shape "
+                         f"{theta.shape}")
+    num, den = np.empty((theta.shape[0], num0.size)), np.empty((theta.shape[0], den0.size))
+    _LIBRARY.hc_fill_coefficients(theta, theta.shape[0], theta.shape[1], num0, num0.size,
+                                  den0, den0.size, num_pos, num_pos.size,
+                                  den_pos, den_pos.size, num, den)
     return num, den
+
+
+@numba.extending.overload(fill_coefficients)
+def _fill_coefficients_compiled(theta, num0, den0, num_pos, den_pos):
+    def impl(theta, num0, den0, num_pos, den_pos):
+        num, den = np.empty((theta.shape[0], num0.size)), np.empty((theta.shape[0], den0.size))
+        _c_fill(theta, theta.shape[0], theta.shape[1], num0, num0.size, den0, den0.size, num_pos, num_pos.size,
+                den_pos, den_pos.size, num, den)
+        return num, den
+    return impl

@@ -35,7 +35,7 @@ import numpy as np
 
 from ._attributes import never_inline
 from ._jit import cached_njit, function_address, kernel_signature, typed_call
-from ._linalg import _one_norm, copy_vector, expm_into, tf_augmented
+from ._linalg import copy_vector, expm_into, one_norm, tf_augmented
 
 __all__ = ["lure_setup", "lure_run", "lure_loop_run", "sample_address", "MAX_EVENTS", "FEEDBACK_CODES"]
 
@@ -149,7 +149,7 @@ def _propagate(Adt, Bdt, x, w0, s, delta, out, t1, t2):  # pragma: no cover - co
     """
     never_inline()                      # called at a dozen places of the event handling: one copy of it
     n = x.shape[0]
-    pieces = max(1, int(np.ceil(_one_norm(Adt) * delta / _TAYLOR_NORM)))
+    pieces = max(1, int(np.ceil(one_norm(Adt) * delta / _TAYLOR_NORM)))
     if pieces > _TAYLOR_MAX:
         _propagate_expm(Adt, Bdt, x, w0, s, delta, out)
         return

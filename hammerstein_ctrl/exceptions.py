@@ -6,7 +6,7 @@ who do not care about the distinction.
 """
 
 __all__ = ["HammersteinError", "DataError", "DataNotFoundError", "ParameterError", "UnknownNameError", "CacheWarning",
-           "IdentificationWarning", "SimulationWarning"]
+           "IdentificationWarning", "SimulationWarning", "NativeBuildError"]
 
 
 class HammersteinError(ValueError):
@@ -39,3 +39,8 @@ class IdentificationWarning(UserWarning):
 
 class SimulationWarning(UserWarning):
     """A simulation's output stopped being finite (an unstable model, or one whose state overflowed)."""
+
+
+class NativeBuildError(RuntimeError):
+    """The package's C library could not be built on this machine (no C compiler, or the compiler failed): the
+    message names the compiler and its first error line."""

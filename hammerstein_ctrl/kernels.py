@@ -74,8 +74,7 @@ from ._linalg import tf_discrete_into
 
 __all__ = ["get_kernel", "get_coefficient_kernel", "get_normal_kernel", "get_lane_kernel", "lane_source",
            "has_basis_kernels", "has_output_maps", "kernel_source", "normal_kernel_address", "call_normal_kernel",
-           "discretisation_address", "call_discretisation", "discretised",
-           "normal_source", "vector_normal_source", "cache_dir", "OUTPUT_TERMS",
+           "discretised", "normal_source", "vector_normal_source", "cache_dir", "OUTPUT_TERMS",
            "MAX_UNROLLED_STATES", "MAX_PASS_STATES", "MAX_VECTOR_STATES", "MAX_NORMAL_LANES", "LANE_WIDTHS", "LANE_MIN",
            "MAX_LANE_BASIS", "INTERLEAVE", "MODES", "HOLDS", "ENV_CACHE"]
 
@@ -264,65 +263,36 @@ def _call_basis_kernel(typingctx, address, E, C, D, X0, Y0, P, Phi, y, out):
     return typed_call("_call_basis_kernel", _BASIS_SSE_SIGNATURE, address, (E, C, D, X0, Y0, P, Phi, y, out))
 
 
-#: Argument types of :func:`~hammerstein_ctrl._linalg.tf_discrete_into`, as compiled for calls through its address.
-_DISCRETISATION_SIGNATURE = kernel_signature("w2 w2 f f w3 w2 w1 b1 b1")
-
-
-@functools.lru_cache(maxsize=1)
-def discretisation_address() -> int:
-    """Address of :func:`~hammerstein_ctrl._linalg.tf_discrete_into`'s machine code, for :func:`call_discretisation`.
-
-    Compiled callers that call it through its address share one compiled copy
-    (numba would otherwise compile its code, with the matrix exponential's,
-    again into each caller: about two seconds apiece on a first use).
-
-    Examples
-    --------
-    >>> discretisation_address() > 0
-    True
-    """
-    return function_address(tf_discrete_into, _DISCRETISATION_SIGNATURE, numba.types.boolean)
-
-
-@numba.extending.intrinsic
-def call_discretisation(typingctx, address, num, den, dt, max_norm, E, C, D, ok, big):
-    """Call :func:`~hammerstein_ctrl._linalg.tf_discrete_into` at ``address`` (:func:`discretisation_address`) from
-    compiled code; its result ``clean``."""
-    return typed_call("call_discretisation", _DISCRETISATION_SIGNATURE, address,
-                      (num, den, dt, max_norm, E, C, D, ok, big), numba.types.boolean)
-
-
 @cached_njit(inline="always")
-def discretised(address, num, den, dt, max_norm):  # pragma: no cover - compiled
-    """``(E, C, D, clean)`` of :func:`~hammerstein_ctrl._linalg.tf_discrete`, computed by the code at ``address``
-    (:func:`discretisation_address`): compiled callers' one way to discretise."""
+def discretised(num, den, dt, max_norm):  # pragma: no cover - compiled
+    """``(E, C, D, clean)`` of :func:`~hammerstein_ctrl._linalg.tf_discrete`, computed by the package's C library:
+    compiled callers' one way to discretise."""
     batch, m = den.shape[0], den.shape[1] + 1
     E, C, D = np.empty((batch, m, m)), np.empty((batch, m - 2)), np.empty(batch)
     ok, big = np.empty(batch, dtype=np.bool_), np.empty(batch, dtype=np.bool_)
-    clean = call_discretisation(address, num, den, dt, max_norm, E, C, D, ok, big)
+    clean = tf_discrete_into(num, den, dt, max_norm, E, C, D, ok, big)
     return E, C, D, clean
 
 
 @cached_njit(depends=("_linalg.py", "_kernel_source.py"))
-def _from_coefficients(address, discretise, num, den, dt, max_norm, X0, Y0, P, Phi, y,
-                       out):  # pragma: no cover - compiled
+def _from_coefficients(address, num, den, dt, max_norm, X0, Y0, P, Phi, y, out):  # pragma: no cover - compiled
     """Discretise the transfer functions and run the basis kernel at ``address``, in one call; False (nothing done)
     unless every row is clean.
 
-    One compiled function for every state dimension and basis: the kernel and
-    the discretisation (at ``discretise``) are called through their addresses,
-    so their code is not compiled again in here.
+    One compiled function for every state dimension and basis: the kernel is
+    called through its address and the discretisation is the C library's, so
+    neither is compiled again in here.
     """
-    E, C, D, clean = discretised(discretise, num, den, dt, max_norm)
+    E, C, D, clean = discretised(num, den, dt, max_norm)
     if clean:
         _call_basis_kernel(address, E, C, D, X0, Y0, P, Phi, y, out)
     return clean
 
 
-#: Argument types of :func:`_from_coefficients`: the kernel's and the discretisation's addresses, the transfer
+#: Argument types of :func:`_from_coefficients`: the kernel's address, the transfer
 #: functions' rows, the sample time and the largest 1-norm of the compiled exponential, then the basis kernel's
 #: arguments but ``E, C, D``.
-_COEFFICIENT_SIGNATURE = kernel_signature("i i w2 w2 f f") + _BASIS_SSE_SIGNATURE[3:]
+_COEFFICIENT_SIGNATURE = kernel_signature("i w2 w2 f f") + _BASIS_SSE_SIGNATURE[3:]
 
 
 #: Package modules whose compiled functions the generated kernels call.
@@ -411,8 +381,7 @@ def get_coefficient_kernel(n: int, hold: str, K: int):
     (True, array([3.5]))
     """
     address = function_address(get_kernel(n, "sse", hold, None, K), _BASIS_SSE_SIGNATURE)    # checks the arguments
-    return functools.partial(only_for(_from_coefficients, (_COEFFICIENT_SIGNATURE,)), address,
-                             discretisation_address())
+    return functools.partial(only_for(_from_coefficients, (_COEFFICIENT_SIGNATURE,)), address)
 
 
 def _module_name(n: int, mode: str, hold: str, outmap: str | None, K: int | None) -> str:

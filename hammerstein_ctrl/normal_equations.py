@@ -28,11 +28,13 @@ from __future__ import annotations
 
 from typing import NamedTuple
 
+import numba.extending
 import numpy as np
 
 from ._checks import as_real_array
 from ._jit import cached_njit
 from ._linalg import copy_vector
+from ._native import c_call, library
 from .exceptions import ParameterError
 
 __all__ = ["NormalEquations", "from_residuals", "from_difference_sums", "from_factor", "scored_inf", "forward_steps",
@@ -74,18 +76,57 @@ class NormalEquations(NamedTuple):
         return bool(_finite(self.fun, self.gradient, self.gram))
 
 
-@cached_njit()
-def _finite(fun, gradient, gram):  # pragma: no cover - compiled
-    return np.isfinite(fun) and np.isfinite(gradient).all() and np.isfinite(gram).all()
+@numba.extending.intrinsic
+def _c_finite(typingctx, fun, gradient, gram, p):
+    return c_call("hc_finite_sums", (fun, gradient, gram, p))
 
 
-@cached_njit()
-def _neighbour_values(fun, gradient, gram, steps):  # pragma: no cover - compiled
+@numba.extending.intrinsic
+def _c_neighbour_values(typingctx, fun, gradient, gram, steps, p, values):
+    return c_call("hc_neighbour_values", (fun, gradient, gram, steps, p, values))
+
+
+@numba.extending.intrinsic
+def _c_forward_steps(typingctx, x, n, upper, nu, lower, nl, rel_step, h):
+    return c_call("hc_forward_steps", (x, n, upper, nu, lower, nl, rel_step, h))
+
+
+@numba.extending.intrinsic
+def _c_neighbours(typingctx, x, n, steps, X):
+    return c_call("hc_neighbours", (x, n, steps, X))
+
+
+@numba.extending.intrinsic
+def _c_divide_by_steps(typingctx, sums, steps, p, gradient, gram):
+    return c_call("hc_divide_by_steps", (sums, steps, p, gradient, gram))
+
+
+def _finite(fun, gradient, gram) -> bool:
+    """Whether ``fun``, ``gradient`` and ``gram`` are all finite."""
+    gradient, gram = np.ascontiguousarray(gradient, dtype=float), np.ascontiguousarray(gram, dtype=float)
+    return library().hc_finite_sums(float(fun), gradient, gram, gradient.size)
+
+
+@numba.extending.overload(_finite)
+def _finite_compiled(fun, gradient, gram):
+    return lambda fun, gradient, gram: _c_finite(fun, gradient, gram, gradient.size)
+
+
+def _neighbour_values(fun, gradient, gram, steps) -> np.ndarray:
+    gradient, gram, steps = (np.ascontiguousarray(a, dtype=float) for a in (gradient, gram, steps))
     values = np.empty(steps.size)
-    for j in range(steps.size):
-        h = steps[j]
-        values[j] = fun + 2.0 * h * gradient[j] + h * h * gram[j, j]
+    library().hc_neighbour_values(float(fun), gradient, gram, steps, steps.size,
+                                  values)
     return values
+
+
+@numba.extending.overload(_neighbour_values)
+def _neighbour_values_compiled(fun, gradient, gram, steps):
+    def impl(fun, gradient, gram, steps):
+        values = np.empty(steps.size)
+        _c_neighbour_values(fun, gradient, gram, steps, steps.size, values)
+        return values
+    return impl
 
 
 def forward_steps(x, upper=None, lower=None) -> np.ndarray:
@@ -118,21 +159,23 @@ def _bound(value, x, default):
 _NO_UPPER, _NO_LOWER = np.array([np.inf]), np.array([-np.inf])
 
 
-@cached_njit()
-def _forward_steps(x, upper, lower):  # pragma: no cover - compiled
-    """:func:`forward_steps` of a flat ``x`` in ``[lower, upper]`` (one value each, or one for all), in one compiled
-    call."""
-    h = np.empty_like(x)
-    for i in range(x.size):
-        step = FD_REL_STEP * (1.0 if x[i] >= 0 else -1.0) * max(1.0, abs(x[i]))
-        up, lo = upper[i if upper.size > 1 else 0], lower[i if lower.size > 1 else 0]
-        if x[i] + step > up or x[i] + step < lo:
-            if abs(step) <= max(x[i] - lo, up - x[i]):
-                step = -step
-            else:
-                step = up - x[i] if up - x[i] >= x[i] - lo else lo - x[i]
-        h[i] = (x[i] + step) - x[i]
+def _forward_steps(x, upper, lower) -> np.ndarray:
+    """:func:`forward_steps` of a flat ``x`` in ``[lower, upper]`` (one value each, or one for all), in one call of
+    the C library."""
+    x, upper, lower = (np.ascontiguousarray(a, dtype=float) for a in (x, upper, lower))
+    h = np.empty(x.size)
+    library().hc_forward_steps(x, x.size, upper, upper.size, lower, lower.size,
+                               FD_REL_STEP, h)
     return h
+
+
+@numba.extending.overload(_forward_steps)
+def _forward_steps_compiled(x, upper, lower):
+    def impl(x, upper, lower):
+        h = np.empty(x.size)
+        _c_forward_steps(x, x.size, upper, upper.size, lower, lower.size, FD_REL_STEP, h)
+        return h
+    return impl
 
 
 def point_and_steps(structure, beta, steps=None, method: str = "normal_equations"):
@@ -163,13 +206,10 @@ def point_and_steps(structure, beta, steps=None, method: str = "normal_equations
     return b, h
 
 
-@cached_njit()
-def _usable_steps(h):  # pragma: no cover - compiled
-    """Whether every step is finite and non-zero."""
-    for v in h:
-        if not (np.isfinite(v) and v != 0.0):
-            return False
-    return True
+def _usable_steps(h) -> bool:
+    """Whether every step of the flat float array ``h`` is finite and non-zero."""
+    h = np.ascontiguousarray(h, dtype=float)
+    return library().hc_usable_steps(h, h.size)
 
 
 def neighbours(x, steps) -> np.ndarray:
@@ -189,15 +229,20 @@ def neighbours(x, steps) -> np.ndarray:
     return _neighbours(np.ascontiguousarray(x), np.ascontiguousarray(steps))
 
 
-@cached_njit()
-def _neighbours(x, steps):  # pragma: no cover - compiled
+def _neighbours(x, steps) -> np.ndarray:
+    x, steps = np.ascontiguousarray(x, dtype=float), np.ascontiguousarray(steps, dtype=float)
     X = np.empty((x.size + 1, x.size))
-    for i in range(x.size + 1):
-        for j in range(x.size):         # element loops: a row assignment compiles numpy's shape-error machinery
-            X[i, j] = x[j]
-    for j in range(x.size):
-        X[j + 1, j] += steps[j]
+    library().hc_neighbours(x, x.size, steps, X)
     return X
+
+
+@numba.extending.overload(_neighbours)
+def _neighbours_compiled(x, steps):
+    def impl(x, steps):
+        X = np.empty((x.size + 1, x.size))
+        _c_neighbours(x, x.size, steps, X)
+        return X
+    return impl
 
 
 @cached_njit()
@@ -263,16 +308,23 @@ def from_difference_sums(sums, steps) -> NormalEquations:
     return NormalEquations(float(sums[0]), gradient, gram, steps)
 
 
-@cached_njit(error_model="numpy")
-def _divide_by_steps(sums, steps):  # pragma: no cover - compiled
+def _divide_by_steps(sums, steps):
+    """``(gradient, gram)``: the pass's sums over the neighbours' differences divided by the steps."""
+    sums, steps = np.ascontiguousarray(sums, dtype=float), np.ascontiguousarray(steps, dtype=float)
     p = steps.size
-    gradient = np.empty(p)
-    gram = np.empty((p, p))
-    for j in range(p):
-        gradient[j] = sums[1 + j] / steps[j]
-        for k in range(p):
-            gram[j, k] = sums[1 + p + j * p + k] / (steps[j] * steps[k])
+    gradient, gram = np.empty(p), np.empty((p, p))
+    library().hc_divide_by_steps(sums, steps, p, gradient, gram)
     return gradient, gram
+
+
+@numba.extending.overload(_divide_by_steps)
+def _divide_by_steps_compiled(sums, steps):
+    def impl(sums, steps):
+        p = steps.size
+        gradient, gram = np.empty(p), np.empty((p, p))
+        _c_divide_by_steps(sums, steps, p, gradient, gram)
+        return gradient, gram
+    return impl
 
 
 def from_factor(R, steps) -> NormalEquations:

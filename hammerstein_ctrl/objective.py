@@ -41,8 +41,8 @@ from typing import NamedTuple
 
 import numpy as np
 
-from ._jit import cached_njit
 from ._linalg import single_threaded_blas, tf_discrete
+from ._native import library
 from .exceptions import ParameterError
 from .kernels import MAX_LANE_BASIS, MAX_NORMAL_LANES, get_coefficient_kernel, get_normal_kernel, has_basis_kernels
 from .normal_equations import (NONFINITE_RESIDUAL, NormalEquations, from_difference_sums, from_factor,
@@ -77,20 +77,18 @@ BASIS_BLOCK = 1 << 16
 EVAL_BLOCK = 1 << 13
 
 
-@cached_njit()
-def _combine(P, basis, out, start):  # pragma: no cover - compiled
-    """``out[:B, start:start + n] = P @ basis`` single-threaded (BLAS threads would compete with the simulation)."""
-    batch, p = P.shape
+def _combine(P, basis, out, start: int) -> None:
+    """``out[:B, start:start + n] = P @ basis`` single-threaded (BLAS threads would compete with the simulation), in
+    the C library: the products added term by term.  ``P``, ``basis`` and the writeable ``out`` are C-ordered float
+    arrays, ``out`` wide enough."""
+    B, p = P.shape
     n = basis.shape[1]
-    for b in range(batch):
-        row = out[b, start:start + n]  # slices, not offset indices: LLVM vectorises these loops
-        c, first = P[b, 0], basis[0]
-        for i in range(n):
-            row[i] = c * first[i]
-        for j in range(1, p):
-            c, bj = P[b, j], basis[j]
-            for i in range(n):
-                row[i] += c * bj[i]
+    if not (P.flags.c_contiguous and basis.flags.c_contiguous and out.flags.c_contiguous and out.flags.writeable
+            and P.dtype == basis.dtype == out.dtype == np.float64 and basis.shape[0] == p
+            and out.shape[0] >= B and out.shape[1] >= start + n):
+        raise TypeError(f"_combine takes C-ordered float arrays of fitting shapes, not {P.shape}, {basis.shape}, "
+                        f"{out.shape}")
+    library().hc_combine(P, B, p, basis, n, out, out.shape[1], start)
 
 
 #: Methods of :class:`HammersteinCost` that evaluate it: a subclass redefining one gets no compiled LM loop.

@@ -50,7 +50,7 @@ from typing import Callable, NamedTuple
 
 import numpy as np
 
-from ._jit import cached_njit
+from ._native import library
 from . import config
 from .exceptions import ParameterError
 
@@ -234,26 +234,21 @@ def fit_noise_model(r, n_params: int = 0, *, max_order: int | None = None, white
     return NoiseModel(best[1], best[2], float(best[3]) * scale)
 
 
-@cached_njit(fastmath=True)
-def _backward_filter(rows, ar, out, first):  # pragma: no cover - compiled
-    """``out[:, first + c] = H^T rows[c]``: ``w_t = rows_t - sum_i ar[i] w_{t+i}``, run from the end.
+def _backward_filter(rows, ar, out, first: int) -> None:
+    """``out[:, first + c] = H^T rows[c]``: ``w_t = rows_t - sum_i ar[i] w_{t+i}``, run from the end (the C library).
 
-    The rows are filtered side by side (independent recursions interleave);
-    the recursion runs in double precision whatever ``out`` holds.
-    ``fastmath``: the sum over ``i`` may be reordered (a statistic).
+    The recursion runs in double precision, the sum over ``i`` added in
+    order, whatever ``out`` holds (float64 or float32); ``rows`` (q x n),
+    ``ar`` and the writeable ``out`` (n x at least ``first + q``) are
+    C-ordered.
     """
+    rows, ar = np.ascontiguousarray(rows, dtype=float), np.ascontiguousarray(ar, dtype=float)
     q, n = rows.shape
-    order = ar.size - 1
-    w = np.zeros((q, n + order))
-    a = ar[1:]
-    for t in range(n - 1, -1, -1):
-        for c in range(q):
-            past = w[c, t + 1:t + 1 + order]
-            acc = 0.0
-            for i in range(order):
-                acc += a[i] * past[i]
-            w[c, t] = rows[c, t] - acc
-            out[t, first + c] = w[c, t]
+    if out.ndim != 2 or out.shape[0] != n or out.shape[1] < first + q or out.dtype not in (np.float64, np.float32):
+        raise TypeError(f"_backward_filter writes {n} x {first + q} floats, not {out.dtype} {out.shape}")
+    run = library().hc_backward_filter if out.dtype == np.float64 else library().hc_backward_filter_single
+    if run(rows, q, n, ar, ar.size - 1, out, out.shape[1], first) != 0:
+        raise MemoryError(f"no memory for the whitening filter of {q} x {n} values")
 
 
 def _whitening_transpose(J: np.ndarray, noise: NoiseModel) -> np.ndarray:

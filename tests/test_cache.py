@@ -94,8 +94,8 @@ with warnings.catch_warnings(record=True) as caught:
     warnings.simplefilter("always")
     try:
         from hammerstein_ctrl import CacheWarning
-        from hammerstein_ctrl.normal_equations import forward_steps
-        out["h"] = [float(v).hex() for v in forward_steps(np.array([1.0, -2.0, 0.0, 3e5]))]
+        from hammerstein_ctrl.normal_equations import compiled_neighbourhood
+        out["h"] = [float(v).hex() for v in compiled_neighbourhood(np.array([1.0, -2.0, 0.0, 3e5]))[0]]
     except Exception as exc:
         out["error"] = f"{type(exc).__name__}: {exc}"
     out["warnings"] = [str(w.message) for w in caught if w.category.__name__ == "CacheWarning"]
@@ -117,21 +117,21 @@ def test_a_damaged_cache_compiled_again_on_a_full_disk_does_not_raise(tmp_path):
     """The cache guard wrapped only numba's load: the version compiled again is then saved by
     numba's ``save_overload``, which raises OSError when the write fails -- the full disk (or a cache
     directory that turned read-only) the README names as the cause of the damage.  Reproduced: a
-    damaged (emptied) data file of ``normal_equations._forward_steps``, then a process whose writes
+    damaged (emptied) data file of ``normal_equations.compiled_neighbourhood``, then a process whose writes
     past 64 bytes fail (RLIMIT_FSIZE, as a full disk): the CacheWarning is given and then
-    ``forward_steps`` raises ``OSError: [Errno 27] File too large`` from numba's caching.py to the user
+    the call raised ``OSError: [Errno 27] File too large`` from numba's caching.py to the user
     (measured the same with the generated simulation kernel).  The compiled function works in
     memory; failing to save it must not fail the call (a CacheWarning, as for a failed load)."""
     healthy = _full_disk_child(tmp_path)
     assert healthy["error"] is None and healthy["warnings"] == []
-    data = sorted(tmp_path.rglob("normal_equations._forward_steps-*.nbc"))
+    data = sorted(tmp_path.rglob("normal_equations.compiled_neighbourhood-*.nbc"))
     assert data, sorted(p.name for p in tmp_path.rglob("*"))
     for f in data:
         f.write_bytes(b"")
     full = _full_disk_child(tmp_path, limit=64)
     assert full["error"] is None, full
     assert full["h"] == healthy["h"]
-    assert any("_forward_steps" in w for w in full["warnings"]), full["warnings"]
+    assert any("compiled_neighbourhood" in w for w in full["warnings"]), full["warnings"]
     after = _full_disk_child(tmp_path)                  # the disk has room again: saved, then read back
     assert after["error"] is None and after["h"] == healthy["h"]
     again = _full_disk_child(tmp_path)
@@ -248,9 +248,9 @@ def test_the_compiled_loop_is_not_loaded_from_numbas_cache_after_the_kernel_modu
 
 _MACHINE_CHILD = """
 import json, sys
-from hammerstein_ctrl.normal_equations import forward_steps
+from hammerstein_ctrl.normal_equations import compiled_neighbourhood
 import numpy as np
-forward_steps(np.array([1.0, 2.0]))
+compiled_neighbourhood(np.array([1.0, 2.0]))
 from numba.core.caching import CacheImpl
 print(json.dumps({"file": __import__("hammerstein_ctrl").__file__}))
 """
@@ -270,7 +270,7 @@ def test_the_compiled_code_is_kept_once_per_machine_and_shared_by_copies_of_the_
                               env={**env, "PYTHONPATH": str(root)}, timeout=600, cwd=tmp_path)
         assert proc.returncode == 0, proc.stderr[-3000:]
         assert json.loads(proc.stdout.splitlines()[-1])["file"].startswith(str(root))
-    index = sorted((tmp_path / "cache").rglob("normal_equations._forward_steps-*.nbi"))
+    index = sorted((tmp_path / "cache").rglob("normal_equations.compiled_neighbourhood-*.nbi"))
     assert len(index) == 1 and "numba-" in str(index[0])                  # one copy for both
     assert not list((copy / "hammerstein_ctrl").rglob("*.nbi"))            # nothing beside the sources
     (copy / "hammerstein_ctrl" / "normal_equations.py").write_text(
@@ -278,7 +278,7 @@ def test_the_compiled_code_is_kept_once_per_machine_and_shared_by_copies_of_the_
     proc = subprocess.run([sys.executable, "-c", _MACHINE_CHILD], capture_output=True, text=True,
                           env={**env, "PYTHONPATH": str(copy)}, timeout=600, cwd=tmp_path)
     assert proc.returncode == 0, proc.stderr[-3000:]
-    assert len(sorted((tmp_path / "cache").rglob("normal_equations._forward_steps-*.nbi"))) == 2
+    assert len(sorted((tmp_path / "cache").rglob("normal_equations.compiled_neighbourhood-*.nbi"))) == 2
 
 
 def test_an_address_is_refused_to_callers_that_would_misread_its_result():

@@ -193,24 +193,24 @@ def _transfer_rows(rng, rows: int, n: int):
     return np.ascontiguousarray(num), np.ascontiguousarray(den)
 
 
-def test_the_discretisation_through_its_address_gives_tf_discretes_bits_and_scipys_exponential():
-    """Compiled callers discretise through tf_discrete_into's address (kernels.discretised), so its code is
-    compiled once; the result must be tf_discrete's to the bit, row flags included, and the exponential
-    scipy's (independent oracle) for every usable row."""
+def test_compiled_callers_discretise_with_tf_discretes_bits_and_scipys_exponential():
+    """Compiled callers discretise through the C library directly (kernels.discretised, the overload of
+    tf_discrete_into); Python through ctypes: the two doors must give the same bits, row flags included, and the
+    exponential scipy's (independent oracle) for every usable row."""
     import numba
 
-    from hammerstein_ctrl._linalg import tf_augmented, tf_discrete
-    from hammerstein_ctrl.kernels import call_discretisation, discretisation_address, discretised
+    from hammerstein_ctrl._linalg import _c_discrete, tf_augmented, tf_discrete
+    from hammerstein_ctrl.kernels import discretised
 
     @numba.njit
-    def through(address, num, den, dt, max_norm):
-        return discretised(address, num, den, dt, max_norm)
+    def through(num, den, dt, max_norm):
+        return discretised(num, den, dt, max_norm)
 
-    rng, address = np.random.default_rng(5), discretisation_address()
+    rng = np.random.default_rng(5)
     for n in (1, 2, 4):
         num, den = _transfer_rows(rng, 6, n)
         E, C, D, ok, big, clean = tf_discrete(num, den, 0.05, 64.0)
-        E2, C2, D2, clean2 = through(address, num, den, 0.05, 64.0)
+        E2, C2, D2, clean2 = through(num, den, 0.05, 64.0)
         assert ok.tolist() == [True, False, False, True, True, True]
         assert big.tolist() == [False, False, False, True, False, False]
         assert not clean and not clean2
@@ -219,13 +219,13 @@ def test_the_discretisation_through_its_address_gives_tf_discretes_bits_and_scip
         np.testing.assert_array_equal(D2, D)
         M = tf_augmented(num[ok], den[ok], 0.05)[0]
         np.testing.assert_allclose(E[ok & ~big], scipy.linalg.expm(M[~big[ok]]), rtol=1e-12, atol=1e-14)
-        assert through(address, num[[0, 4]].copy(), den[[0, 4]].copy(), 0.05, 64.0)[3]      # usable rows: clean
+        assert through(num[[0, 4]].copy(), den[[0, 4]].copy(), 0.05, 64.0)[3]      # usable rows: clean
 
     @numba.njit
-    def wrong(address, num, den):
+    def wrong(num, den):
         E, C, D = np.empty((1, 3, 3)), np.empty((1, 1)), np.empty(1)
         ok, big = np.empty(1, dtype=np.bool_), np.empty(1, dtype=np.bool_)
-        return call_discretisation(address, num, den, 0.05, 64.0, E, C, D, ok, big)
+        return _c_discrete(num, den, 1, 1, 2, 0.05, 64.0, E, C, D, ok, big)
 
-    with pytest.raises(numba.core.errors.TypingError, match="call_discretisation takes"):
-        wrong(address, np.ones((1, 1), dtype=np.float32), np.ones((1, 2)))
+    with pytest.raises(numba.core.errors.TypingError, match="hc_tf_discrete takes arguments of kinds"):
+        wrong(np.ones((1, 1), dtype=np.float32), np.ones((1, 2)))

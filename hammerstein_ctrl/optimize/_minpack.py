@@ -30,7 +30,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from .._jit import cached_njit
+from .._native import library
 
 __all__ = ["lmder", "enorm", "MinpackResult", "CONVERGED"]
 
@@ -99,57 +99,20 @@ def _sqrt(v: float) -> float:
     return math.sqrt(v) if not v < 0.0 else math.nan
 
 
-@cached_njit(error_model="numpy")
-def reflect(v, w):  # pragma: no cover - compiled
+def reflect(v, w) -> None:
     """``w -= (sum(v * w) / v[0]) * v``: ``w`` through the Householder reflection of vector ``v`` (scaled so
-    that ``v[0]`` is its ``1 + |.|``), MINPACK's loops: the sum added left to right, then the update.
+    that ``v[0]`` is its ``1 + |.|``), MINPACK's loops in the C library: the sum added left to right, then the
+    update.  ``w`` is a writeable C-ordered float array of ``v``'s length (a row of the factored matrix).
 
     Examples
     --------
     >>> w = np.array([1.0, 2.0]); reflect(np.array([2.0, 1.0]), w); w
     array([-3.,  0.])
     """
-    s = 0.0
-    for i in range(v.shape[0]):
-        s += v[i] * w[i]
-    t = s / v[0]
-    for i in range(v.shape[0]):
-        w[i] -= t * v[i]
-
-
-@cached_njit(error_model="numpy")
-def _enorm(x, rdwarf, rgiant):  # pragma: no cover - compiled
-    """MINPACK's ``enorm`` loop as the C translation writes it (``pow(q, 2.0)`` as ``q * q``): compiled for
-    long vectors, and run as Python (``_enorm.py_func``) on short lists (see :func:`_norm`)."""
-    s1 = s2 = s3 = x1max = x3max = 0.0
-    agiant = rgiant / len(x)
-    for i in range(len(x)):
-        xabs = abs(x[i])
-        if xabs <= rdwarf or xabs >= agiant:
-            if xabs > rdwarf:
-                if xabs > x1max:
-                    q = x1max / xabs
-                    s1 = 1.0 + s1 * (q * q)
-                    x1max = xabs
-                else:
-                    q = xabs / x1max
-                    s1 += q * q
-            elif xabs > x3max:
-                q = x3max / xabs
-                s3 = 1.0 + s3 * (q * q)
-                x3max = xabs
-            elif xabs != 0.0:
-                q = xabs / x3max
-                s3 += q * q
-        else:
-            s2 += xabs * xabs
-    if s1 != 0.0:
-        return x1max * math.sqrt(s1 + (s2 / x1max) / x1max)
-    if s2 != 0.0:
-        if s2 >= x3max:
-            return math.sqrt(s2 * (1.0 + (x3max / s2) * (x3max * s3)))
-        return math.sqrt(x3max * ((s2 / x3max) + (x3max * s3)))
-    return x3max * math.sqrt(s3)
+    v = np.ascontiguousarray(v, dtype=float)
+    if not (w.dtype == np.float64 and w.flags.c_contiguous and w.flags.writeable and w.size == v.size):
+        raise TypeError(f"reflect writes into a C-ordered float array of {v.size} values, not {w.dtype} {w.shape}")
+    library().hc_reflect(v, w, v.size)
 
 
 def enorm(x) -> float:
@@ -164,16 +127,12 @@ def enorm(x) -> float:
     5.0
     """
     x = np.ascontiguousarray(x, dtype=float).ravel()
-    return float(_enorm(x, _RDWARF, _RGIANT)) if x.size else 0.0
+    return library().hc_enorm(x, x.size, _RDWARF, _RGIANT) if x.size else 0.0
 
 
 def _norm(v: list) -> float:
-    """:func:`enorm` of a short list of floats (an ``n``-vector), the same loop in Python's arithmetic (the
-    compiled loop where Python would raise on a zero divisor, after a NaN)."""
-    try:
-        return _enorm.py_func(v, _RDWARF, _RGIANT) if v else 0.0
-    except ZeroDivisionError:
-        return enorm(np.array(v, dtype=float))
+    """:func:`enorm` of a short list of floats (an ``n``-vector)."""
+    return enorm(np.array(v, dtype=float)) if v else 0.0
 
 
 def _series(terms) -> float:

@@ -32,12 +32,14 @@ import os
 import subprocess
 import sys
 
+import numba.extending
 import numpy as np
 
 from .. import config
 from .._jit import _digest, cached_njit, machine_cache_dir
-from .._linalg import _copy, copy_vector, fill_coefficients, solve_in_place, symmetric_eigenvalues
-from ..kernels import call_normal_kernel, discretisation_address, discretised, normal_kernel_address
+from .._linalg import _copy, copy_vector, fill_coefficients
+from .._native import c_call, library
+from ..kernels import call_normal_kernel, discretised, normal_kernel_address
 from ..normal_equations import (NormalEquations, compiled_neighbourhood, compiled_sums, forward_steps,
                                 from_residuals, neighbours)
 from ._common import BudgetExhausted
@@ -165,7 +167,7 @@ class _Passes:
         lam_nu = np.array([damping.lam, damping.nu])
         counts = np.array([self.steps, max_steps, rows * (p + 1), 0], dtype=np.int64)
         logs = np.empty((rows, p)), np.empty((rows, p)), np.empty((rows, p + 1))
-        code, fun = _compiled_loop(address, discretisation_address(), x, fun, gradient, gram, steps, scale, lam_nu,
+        code, fun = _compiled_loop(address, x, fun, gradient, gram, steps, scale, lam_nu,
                                   counts, np.array([*tolerances, ILL_CONDITIONED]), start, d.num0, d.den0, d.num_pos,
                                   d.den_pos, d.has_g, d.dt, d.max_norm, d.direct, d.basis, d.y, *logs)
         passes = int(counts[3])
@@ -183,98 +185,67 @@ class _Passes:
         return self._factor is not None
 
 
-@cached_njit()
-def _scaled(gram, scale):  # pragma: no cover - compiled
-    """``gram / outer(scale, scale)``."""
-    p = scale.size
-    A = np.empty((p, p))
-    for i in range(p):
-        for j in range(p):
-            A[i, j] = gram[i, j] / (scale[i] * scale[j])
-    return A
+@numba.extending.intrinsic
+def _c_iteration(typingctx, gram, gradient, p, fun, scale, lam, x, check, limit, xtol, work, delta, out):
+    return c_call("hc_lm_iteration", (gram, gradient, p, fun, scale, lam, x, check, limit, xtol, work, delta, out))
 
 
-@cached_njit()
-def _finite_matrix(A):  # pragma: no cover - compiled
-    for i in range(A.shape[0]):
-        for j in range(A.shape[1]):
-            if not np.isfinite(A[i, j]):
-                return False
-    return True
+@numba.extending.intrinsic
+def _c_norms(typingctx, gram, p, floor, norms):
+    return c_call("hc_lm_norms", (gram, p, floor, norms))
 
 
-@cached_njit()
-def _ill(A, limit):  # pragma: no cover - compiled
-    """Whether the symmetric ``A`` has a non-finite entry or a condition number of ``limit`` or more."""
-    if not _finite_matrix(A):
-        return True
-    w = symmetric_eigenvalues(A)
-    return not w[0] > w[-1] / limit
-
-
-@cached_njit()
-def _cosine(gram, gradient, fun):  # pragma: no cover - compiled
-    """Largest cosine between the residual vector and a Jacobian column (MINPACK's ``gtol`` measure)."""
-    best = 0.0
-    if not fun > 0:
-        return best
-    root = np.sqrt(fun)
-    for j in range(gradient.size):
-        norm = np.sqrt(max(gram[j, j], 0.0))
-        if norm > 0:
-            c = abs(gradient[j]) / (norm * root)
-            if np.isnan(c):  # as numpy's max: NaN wins, and never passes the gtol test
-                return c
-            best = max(best, c)
-    return best
-
-
-@cached_njit()
-def _iteration(gram, gradient, fun, scale, lam, x, check, limit, xtol):  # pragma: no cover - compiled
-    """One iteration's linear algebra: ``(cosine, ill, solved, delta, small, predicted)``.
+def _iteration(gram, gradient, fun, scale, lam, x, check, limit, xtol):
+    """One iteration's linear algebra: ``(cosine, ill, solved, delta, small, predicted)`` (the C library's).
 
     ``cosine`` is MINPACK's gtol measure; ``ill`` whether the scaled Gram
-    matrix is too ill-conditioned (only if ``check``); ``delta`` the damped
-    Gauss-Newton step ``-(G + mu diag(scale**2))^-1 g`` with ``mu`` relative to
-    the largest scaled curvature (``solved`` False if it cannot be formed);
+    matrix has a non-finite entry or a condition number of ``limit`` or more
+    (only if ``check``); ``delta`` the damped Gauss-Newton step
+    ``-(G + mu diag(scale**2))^-1 g`` with ``mu`` relative to the largest
+    scaled curvature (``solved`` False if it cannot be formed; a singular
+    damped matrix gives a non-finite step, and the caller raises the damping);
     ``small`` MINPACK's xtol test on it and ``predicted`` the reduction of
     the sum of squares its linear model predicts.
+
+    Examples
+    --------
+    >>> cosine, ill, solved, delta, small, predicted = _iteration(
+    ...     np.array([[4.0]]), np.array([2.0]), 1.0, np.array([2.0]), 0.0, np.array([0.0]), True, 1e10, 1e-8)
+    >>> float(cosine), ill, solved, delta.tolist(), small, float(predicted)
+    (1.0, False, True, [-0.5], False, 1.0)
     """
+    gram, gradient, scale, x = (np.ascontiguousarray(a, dtype=float) for a in (gram, gradient, scale, x))
     p = scale.size
-    A = _scaled(gram, scale)
-    ill = _ill(A, limit) if check else False
-    top = np.finfo(np.float64).tiny
-    for i in range(p):
-        top = max(top, A[i, i])
-    for i in range(p):
-        A[i, i] += lam * top
-    delta = np.zeros(p)
-    solved = False
-    if _finite_matrix(A):
-        z = np.empty((p, 1))
-        for i in range(p):
-            z[i, 0] = -gradient[i] / scale[i]
-        solve_in_place(A, z)        # a singular damped matrix gives a non-finite step: the caller raises the damping
-        solved = True
-        for i in range(p):
-            delta[i] = z[i, 0] / scale[i]
-            solved = solved and np.isfinite(delta[i])
-    small, predicted = _step_measures(gram, gradient, scale, delta, x, xtol)
-    return _cosine(gram, gradient, fun), ill, solved, delta, small, predicted
+    work, delta, out = np.empty(2 * p * p + 2 * p), np.empty(p), np.empty(5)
+    library().hc_lm_iteration(gram, gradient, p, float(fun), scale, float(lam),
+                              x, int(bool(check)), float(limit), float(xtol), work,
+                              delta, out)
+    return out[0], bool(out[1]), bool(out[2]), delta, bool(out[3]), out[4]
 
 
-@cached_njit()
-def _step_measures(gram, gradient, scale, delta, x, xtol):  # pragma: no cover - compiled
+@numba.extending.overload(_iteration)
+def _iteration_compiled(gram, gradient, fun, scale, lam, x, check, limit, xtol):
+    def impl(gram, gradient, fun, scale, lam, x, check, limit, xtol):
+        p = scale.size
+        work, delta, out = np.empty(2 * p * p + 2 * p), np.empty(p), np.empty(5)
+        _c_iteration(gram, gradient, p, fun, scale, lam, x, 1 if check else 0, limit, xtol, work, delta, out)
+        return out[0], out[1] != 0.0, out[2] != 0.0, delta, out[3] != 0.0, out[4]
+    return impl
+
+
+def _step_measures(gram, gradient, scale, delta, x, xtol):
     """MINPACK's xtol test on the step ``delta`` and the reduction of the sum of squares its linear model predicts."""
-    step, size, predicted = 0.0, 0.0, 0.0
-    for i in range(scale.size):
-        step += (scale[i] * delta[i]) ** 2
-        size += (scale[i] * x[i]) ** 2
-        curvature = 0.0
-        for j in range(scale.size):
-            curvature += gram[i, j] * delta[j]
-        predicted -= delta[i] * (2.0 * gradient[i] + curvature)
-    return np.sqrt(step) <= xtol * np.sqrt(size), predicted
+    gram, gradient, scale, delta, x = (np.ascontiguousarray(a, dtype=float) for a in (gram, gradient, scale, delta, x))
+    out = np.empty(2)
+    library().hc_lm_step_measures(gram, gradient, scale, delta,
+                                  x, scale.size, float(xtol), out)
+    return bool(out[0]), out[1]
+
+
+def _cosine(gram, gradient, fun):
+    """Largest cosine between the residual vector and a Jacobian column (MINPACK's ``gtol`` measure; NaN wins)."""
+    gram, gradient = np.ascontiguousarray(gram, dtype=float), np.ascontiguousarray(gradient, dtype=float)
+    return library().hc_lm_cosine(gram, gradient, gradient.size, float(fun))
 
 
 def _factor_iteration(ne, scale, lam, x, xtol):
@@ -303,13 +274,21 @@ def _column_norms(gram, previous=None):
     return _norms(gram, np.zeros(gram.shape[0]) if previous is None else previous)
 
 
-@cached_njit()
-def _norms(gram, floor):  # pragma: no cover - compiled
+def _norms(gram, floor):
+    """Column norms of J from the Gram matrix (1 for a zero or non-finite one), never below ``floor``."""
+    gram, floor = np.ascontiguousarray(gram, dtype=float), np.ascontiguousarray(floor, dtype=float)
     norms = np.empty(floor.size)
-    for j in range(floor.size):
-        v = np.sqrt(max(gram[j, j], 0.0))
-        norms[j] = max(v if v > 0 and np.isfinite(v) else 1.0, floor[j])
+    library().hc_lm_norms(gram, floor.size, floor, norms)
     return norms
+
+
+@numba.extending.overload(_norms)
+def _norms_compiled(gram, floor):
+    def impl(gram, floor):
+        norms = np.empty(floor.size)
+        _c_norms(gram, floor.size, floor, norms)
+        return norms
+    return impl
 
 
 class _Damping:
@@ -391,7 +370,7 @@ def compiled_loop_wanted() -> bool:
 
 
 @cached_njit(depends=LOOP_DEPENDS)
-def _compiled_loop(address, discretise, x, fun, gradient, gram, steps, scale, damping, counts, tolerances, start,
+def _compiled_loop(address, x, fun, gradient, gram, steps, scale, damping, counts, tolerances, start,
                   num0, den0, num_pos, den_pos, has_g, dt, max_norm, direct, Phi, y, log_x, log_steps,
                   log_values):  # pragma: no cover - compiled
     """The Levenberg-Marquardt loop of :func:`normal_equations_lm`, compiled around the pass of a plain cost.
@@ -399,8 +378,7 @@ def _compiled_loop(address, discretise, x, fun, gradient, gram, steps, scale, da
     For a cost's :meth:`~hammerstein_ctrl.objective.HammersteinCost.direct_pass`
     (no offset, initial state or output map; the signal ``P @ Phi`` with ``P``
     the parameters of ``g``), whose pass kernel is at ``address``
-    (:func:`~hammerstein_ctrl.kernels.normal_kernel_address`), the discretisation's at ``discretise``
-    (:func:`~hammerstein_ctrl.kernels.discretisation_address`).  The loop takes
+    (:func:`~hammerstein_ctrl.kernels.normal_kernel_address`).  The loop takes
     the steps of the Python loop one after another while each trial point is
     accepted, with the same compiled helpers in the same order (so the same
     bits), and returns where the Python loop must take the next iteration: a
@@ -422,7 +400,7 @@ def _compiled_loop(address, discretise, x, fun, gradient, gram, steps, scale, da
     while True:
         code, trial, small, predicted, h, E, C, D, P = _loop_prepare(
             x, fun, gradient, gram, scale, damping, counts, tolerances, start, num0, den0, num_pos, den_pos, has_g,
-            dt, max_norm, direct, discretise)
+            dt, max_norm, direct)
         if code != GO_ON:
             return code, fun
         sums = np.zeros(1 + x.size * lanes)
@@ -437,7 +415,7 @@ def _compiled_loop(address, discretise, x, fun, gradient, gram, steps, scale, da
 
 @cached_njit(inline="always")
 def _loop_prepare(x, fun, gradient, gram, scale, damping, counts, tolerances, start, num0, den0, num_pos, den_pos,
-                 has_g, dt, max_norm, direct, discretise):  # pragma: no cover - compiled
+                 has_g, dt, max_norm, direct):  # pragma: no cover - compiled
     """Before a pass of the compiled loop: ``(code, trial, small, predicted, h, E, C, D, P)``.
 
     With ``start`` the pass is at ``x`` itself, else at the step of
@@ -452,8 +430,7 @@ def _loop_prepare(x, fun, gradient, gram, scale, damping, counts, tolerances, st
     if code != GO_ON:
         return code, trial, small, predicted, np.empty(0), np.empty((0, 0, 0)), np.empty((0, 0)), np.empty(0), \
             np.empty((0, 0))
-    ok, h, E, C, D, P = _loop_pass_inputs(trial, num0, den0, num_pos, den_pos, has_g, dt, max_norm, direct,
-                                          discretise)
+    ok, h, E, C, D, P = _loop_pass_inputs(trial, num0, den0, num_pos, den_pos, has_g, dt, max_norm, direct)
     return GO_ON if ok else HAND_BACK, trial, small, predicted, h, E, C, D, P
 
 
@@ -511,8 +488,8 @@ def _loop_trial(gram, gradient, fun, scale, damping, x, counts, tolerances):  # 
 
 
 @cached_njit(inline="always")
-def _loop_pass_inputs(trial, num0, den0, num_pos, den_pos, has_g, dt, max_norm, direct,
-                      discretise):  # pragma: no cover - compiled
+def _loop_pass_inputs(trial, num0, den0, num_pos, den_pos, has_g, dt, max_norm,
+                      direct):  # pragma: no cover - compiled
     """What the pass at ``trial`` needs: ``(ok, h, E, C, D, P)``, as ``HammersteinCost.normal_equations`` forms them.
 
     Not ``ok`` where the general pass must take the point: a row for scipy's
@@ -521,7 +498,7 @@ def _loop_pass_inputs(trial, num0, den0, num_pos, den_pos, has_g, dt, max_norm, 
     h, X = compiled_neighbourhood(trial)
     n_linear = num_pos.size + den_pos.size
     num, den = fill_coefficients(X[:1 + n_linear, :n_linear].copy(), num0, den0, num_pos, den_pos)
-    E, C, D, clean = discretised(discretise, num, den, dt, max_norm)
+    E, C, D, clean = discretised(num, den, dt, max_norm)
     P = X[:, n_linear:].copy() if has_g else np.ones((X.shape[0], 1))
     return clean and (num.shape[1] == den.shape[1] and D.any()) == direct, h, E, C, D, P
 

@@ -1,0 +1,373 @@
+"""The package's C library: compiled once per machine with the system's C compiler, called from Python and numba.
+
+Code that every fit runs once per candidate or step but that is not a hot
+loop (the matrix exponential of the discretisation, a linear solve,
+eigenvalues of a small symmetric matrix, the linear algebra of a
+Levenberg-Marquardt step) is written in C (:data:`SOURCES`).  numba would compile it again in every new environment, for
+seconds on a first fit; a C compiler builds it in a fraction of a second, and
+the library is kept under :func:`~hammerstein_ctrl._jit.machine_cache_dir`
+in a folder named after a digest of the sources, the compiler, its flags and
+the processor (it is built for this processor, ``-march=native``), so every
+process of the machine loads it, an edited source is never served stale code,
+and a cache shared by machines never serves one another's instructions.
+The library is built with ``-ffp-contract=off``: no fused multiply-add, so
+its results are those of the source's arithmetic, the same bits at any
+optimisation level.
+
+The library is also a Python extension module (:func:`library`), whose
+functions take numpy arrays where the C functions take pointers: each checks
+that an array is C-ordered, of the C type and, where the C function writes
+it, writeable (else a ``TypeError`` naming the function and the argument),
+and runs the C function without the GIL.  Their wrappers are generated from
+the C prototypes (:data:`SIGNATURES`, read off the sources), as are the
+argument checks of compiled callers: compiled (numba) code calls a function
+of the library by its symbol, which this module registers with LLVM when it
+loads the library, so numba's cached machine code calls it directly
+(:func:`c_call`).
+
+The compiler is ``$CC``, else the one Python was built with, else ``cc``.
+
+Examples
+--------
+>>> import numpy as np
+>>> library().hc_one_norm(np.array([[1.0, -2.0], [3.0, 4.0]]), 2)
+6.0
+>>> SIGNATURES["hc_one_norm"]
+('di', 'f')
+"""
+
+from __future__ import annotations
+
+import ctypes
+import functools
+import hashlib
+import importlib.util
+import os
+import platform
+import re
+import shlex
+import shutil
+import subprocess
+import sysconfig
+import tempfile
+from pathlib import Path
+
+import llvmlite.binding
+import numba.core.cgutils
+import numba.core.errors
+from llvmlite import ir
+from numba import types
+
+from ._jit import machine_cache_dir
+from .exceptions import NativeBuildError
+
+__all__ = ["library", "c_call", "SOURCES", "BUILD_FLAGS", "SIGNATURES", "prototypes", "wrapper_source"]
+
+#: The C sources of the library: the small dense linear algebra, forward-difference steps and normal equations,
+#: loops over a record's samples, the Levenberg-Marquardt step, and MINPACK's loops over a residual vector.
+SOURCES = tuple(Path(__file__).resolve().parent / name for name in ("_native_linalg.c", "_native_normal.c",
+                                                                       "_native_signal.c", "optimize/_native_lm.c",
+                                                                       "optimize/_native_minpack.c"))
+#: Flags of the build (a change builds a new library).
+BUILD_FLAGS = ("-O3", "-march=native", "-std=c99", "-fPIC", "-shared", "-ffp-contract=off", "-fno-strict-aliasing")
+#: The module's name (its file is ``_hc_native`` with Python's extension suffix).
+_MODULE = "_hc_native"
+
+#: C parameter types and their kinds: an array of float64, int64, bool or float32 passed as its data pointer (lower
+#: case: read; upper case: written), or a double or int64 passed by value.
+_KINDS = {"const double *": "d", "double *": "D", "const int64_t *": "l", "int64_t *": "L", "const bool *": "b",
+          "bool *": "B", "float *": "S", "double": "f", "int64_t": "i"}
+#: C result types and their kinds.
+_RESULTS = {"void": "", "double": "f", "bool": "b", "int": "i"}
+#: Per array kind: (C element type, item size, buffer formats accepted, writeable).
+_ARRAYS = {"d": ("double", 8, "d", False), "D": ("double", 8, "d", True), "l": ("int64_t", 8, "lq", False),
+           "L": ("int64_t", 8, "lq", True), "b": ("bool", 1, "?", False), "B": ("bool", 1, "?", True),
+           "S": ("float", 4, "f", True)}
+_DEFINITION = re.compile(r"^(void|double|bool|int)\s+(hc_\w+)\(([^)]*)\)\s*\{", re.M)
+
+
+def prototypes(text: str) -> dict:
+    """``{name: (argument kinds, result kind)}`` of the exported (``hc_``, not static) functions defined in the C
+    ``text``.
+
+    Examples
+    --------
+    >>> prototypes("double hc_f(const double *x, int64_t n, bool *ok)\\n{")
+    {'hc_f': ('diB', 'f')}
+    """
+    found = {}
+    for result, name, params in _DEFINITION.findall(text):
+        ctypes_ = [" ".join(param.replace("*", " * ").split()).rsplit(" ", 1)[0] for param in params.split(",")]
+        unknown = [c for c in ctypes_ if c not in _KINDS]
+        if unknown:
+            raise NativeBuildError(f"{name} takes C types the package's bindings do not know: {unknown}")
+        found[name] = ("".join(_KINDS[c] for c in ctypes_), _RESULTS[result])
+    return found
+
+
+#: The library's functions: name, then the kinds of its arguments and of its result (``""`` none, ``f`` a double,
+#: ``b`` a bool, ``i`` an int), read off the C sources: one table for the Python and the compiled door.
+SIGNATURES = prototypes("".join(source.read_text() for source in SOURCES))
+
+
+def _compiler() -> list[str]:
+    """The C compiler's command: ``$CC`` (as given), else Python's build compiler if it is here, else ``cc``."""
+    given = shlex.split(os.environ.get("CC", ""))
+    if given:
+        return given
+    words = shlex.split(sysconfig.get_config_var("CC") or "")
+    return words if words and shutil.which(words[0]) else ["cc"]
+
+
+def _digest(compiler: list[str]) -> str:
+    """Key of a build: the sources, this module (it writes the wrappers), the compiler, its flags, the processor
+    and Python's version (the module's ABI)."""
+    text = b"".join(source.read_bytes() for source in SOURCES) + Path(__file__).read_bytes()
+    cpu = llvmlite.binding
+    host = (platform.machine(), cpu.get_host_cpu_name(), cpu.get_host_cpu_features().flatten(),
+            sysconfig.get_config_var("EXT_SUFFIX"))
+    text += repr((compiler, BUILD_FLAGS, host)).encode()
+    return hashlib.sha256(text).hexdigest()[:16]
+
+
+def _folder(digest: str) -> Path:
+    """The folder of this build: in the machine cache if it is writable (not a link out of it), else a temporary
+    one of this process."""
+    root = machine_cache_dir()
+    if root is not None:
+        folder = root / f"native-{digest}"
+        try:
+            folder.mkdir(exist_ok=True)
+            if not folder.is_symlink() and folder.is_dir() and os.access(folder, os.W_OK):
+                return folder
+        except OSError:
+            pass
+    return Path(tempfile.mkdtemp(prefix="hammerstein_ctrl-native-"))
+
+
+_WRAPPER_HEAD = """#define PY_SSIZE_T_CLEAN
+#include <Python.h>
+#include <stdbool.h>
+#include <stdint.h>
+#include <string.h>
+
+/* A C-ordered buffer of the given item size and format (one of formats), writeable if asked; else a TypeError. */
+static int take(PyObject *o, Py_buffer *view, Py_ssize_t itemsize, const char *formats, int writeable,
+                const char *function, int index)
+{
+    int flags = PyBUF_C_CONTIGUOUS | PyBUF_FORMAT | (writeable ? PyBUF_WRITABLE : 0);
+    if (PyObject_GetBuffer(o, view, flags) < 0) {
+        PyErr_Clear();
+        PyErr_Format(PyExc_TypeError, "%s: argument %d must be a C-ordered%s array", function, index,
+                     writeable ? ", writeable" : "");
+        return -1;
+    }
+    const char *format = view->format ? view->format : "B";
+    while (*format == '@' || *format == '=' || *format == '<')
+        format++;
+    if (view->itemsize != itemsize || strlen(format) != 1 || strchr(formats, *format) == NULL) {
+        PyBuffer_Release(view);
+        PyErr_Format(PyExc_TypeError, "%s: argument %d has items of format '%s', not '%s'", function, index,
+                     format, formats);
+        return -1;
+    }
+    return 0;
+}
+"""
+
+
+def _wrapper(name: str, kinds: str, result: str) -> str:
+    """The C of the Python wrapper of ``name``: its arguments checked and converted, the call without the GIL."""
+    arrays = sum(kind in _ARRAYS for kind in kinds)
+    lines = [f"static PyObject *w_{name}(PyObject *self, PyObject *const *args, Py_ssize_t nargs)", "{",
+             f"    Py_buffer views[{max(arrays, 1)}];", "    int taken = 0;",
+             f"    if (nargs != {len(kinds)})",
+             f"        return PyErr_Format(PyExc_TypeError, \"{name} takes {len(kinds)} arguments, not %zd\", nargs);"]
+    values, view = [], 0
+    for i, kind in enumerate(kinds):
+        if kind in _ARRAYS:
+            ctype, size, formats, writeable = _ARRAYS[kind]
+            take = f"take(args[{i}], &views[{view}], {size}, \"{formats}\", {int(writeable)}, \"{name}\", {i})"
+            lines += [f"    if ({take} < 0)", "        goto fail;", "    taken++;"]
+            values.append(f"({'' if writeable else 'const '}{ctype} *)views[{view}].buf")
+            view += 1
+        elif kind == "f":
+            lines += [f"    double a{i} = PyFloat_AsDouble(args[{i}]);",
+                      f"    if (a{i} == -1.0 && PyErr_Occurred())", "        goto fail;"]
+            values.append(f"a{i}")
+        else:
+            lines += [f"    long long a{i} = PyLong_AsLongLong(args[{i}]);",
+                      f"    if (a{i} == -1 && PyErr_Occurred())", "        goto fail;"]
+            values.append(f"(int64_t)a{i}")
+    call = f"{name}({', '.join(values)})"
+    store = {"": "", "f": "double r = 0.0;", "b": "bool r = false;", "i": "int r = 0;"}[result]
+    lines += [f"    {store}" if store else "", "    Py_BEGIN_ALLOW_THREADS",
+              f"    {'r = ' if result else ''}{call};", "    Py_END_ALLOW_THREADS",
+              "    for (int k = 0; k < taken; k++)", "        PyBuffer_Release(&views[k]);",
+              "    " + {"": "Py_RETURN_NONE;", "f": "return PyFloat_FromDouble(r);", "b": "return PyBool_FromLong(r);",
+                        "i": "return PyLong_FromLong(r);"}[result],
+              "fail:", "    for (int k = 0; k < taken; k++)", "        PyBuffer_Release(&views[k]);",
+              "    return NULL;", "}", ""]
+    return "\n".join(line for line in lines if line != "")
+
+
+def wrapper_source(text: str, module: str = _MODULE) -> str:
+    """The C of an extension module ``module`` wrapping every exported function of the C ``text`` (their
+    prototypes are copied from it)."""
+    heads = re.findall(r"^((?:void|double|bool|int)\s+hc_\w+\([^)]*\))\s*\{", text, re.M)
+    parts = [_WRAPPER_HEAD] + [" ".join(head.split()) + ";" for head in heads] + [""]
+    table = []
+    for name, (kinds, result) in prototypes(text).items():
+        parts.append(_wrapper(name, kinds, result))
+        table.append(f"    {{\"{name}\", (PyCFunction)(void (*)(void))w_{name}, METH_FASTCALL, NULL}},")
+    parts += ["static PyMethodDef methods[] = {", *table, "    {NULL, NULL, 0, NULL}", "};",
+              f"static struct PyModuleDef definition = {{PyModuleDef_HEAD_INIT, \"{module}\", NULL, -1, methods}};",
+              f"PyMODINIT_FUNC PyInit_{module}(void) {{ return PyModule_Create(&definition); }}", ""]
+    return "\n".join(parts)
+
+
+def _build(compiler: list[str], target: Path) -> None:
+    """Compile :data:`SOURCES` and their wrappers into ``target`` (written whole or not at all);
+    :class:`NativeBuildError` on failure."""
+    fd, tmp = tempfile.mkstemp(dir=target.parent, suffix=".so.tmp")
+    os.close(fd)
+    wrappers = Path(tmp[:-len(".so.tmp")] + "-wrappers.c")
+    try:
+        wrappers.write_text(wrapper_source("".join(source.read_text() for source in SOURCES)))
+        command = [*compiler, *BUILD_FLAGS, f"-I{sysconfig.get_paths()['include']}", "-o", tmp,
+                   *map(str, SOURCES), str(wrappers), "-lm"]
+        done = subprocess.run(command, capture_output=True, text=True, check=False)
+    except OSError as exc:
+        os.unlink(tmp)
+        raise NativeBuildError(f"hammerstein_ctrl builds its C library once per machine, and no C compiler ran "
+                               f"({compiler[0]}: {exc.strerror}): install one (gcc) or name it in $CC") from None
+    finally:
+        wrappers.unlink(missing_ok=True)
+    if done.returncode != 0:
+        os.unlink(tmp)
+        first = (done.stderr.strip().splitlines() or ["no message"])[0]
+        raise NativeBuildError(f"building hammerstein_ctrl's C library with {compiler[0]} failed: {first}")
+    os.replace(tmp, target)
+
+
+def _load(path: Path):
+    """The module at ``path`` with the addresses of its functions; ``None`` if the file is missing, a link or
+    does not load."""
+    if path.is_symlink() or not path.is_file():
+        return None
+    try:
+        spec = importlib.util.spec_from_file_location(f"hammerstein_ctrl.{_MODULE}", path)
+        module = importlib.util.module_from_spec(spec)
+        spec.loader.exec_module(module)
+        handle = ctypes.CDLL(str(path))
+        addresses = {name: ctypes.cast(getattr(handle, name), ctypes.c_void_p).value for name in SIGNATURES}
+    except (ImportError, OSError, AttributeError):
+        return None
+    if any(not hasattr(module, name) for name in SIGNATURES):
+        return None
+    return module, addresses
+
+
+@functools.lru_cache(maxsize=1)
+def library():
+    """The C library as a Python module, built on this machine's first use; its symbols registered for compiled
+    callers.
+
+    A library that cannot be written into the machine cache (a full disk)
+    is built in a temporary folder of this process instead.
+
+    Raises
+    ------
+    NativeBuildError
+        If it is not built yet and no C compiler can build it.
+    """
+    compiler = _compiler()
+    digest = _digest(compiler)
+    name = _MODULE + sysconfig.get_config_var("EXT_SUFFIX")
+    loaded = _load(_folder(digest) / name)
+    if loaded is None:                  # not built yet, or a damaged file: built (again)
+        loaded = _built(compiler, _folder(digest) / name)
+    module, addresses = loaded
+    for symbol, address in addresses.items():
+        llvmlite.binding.add_symbol(symbol, address)
+    return module
+
+
+def _built(compiler: list[str], target: Path):
+    """The library built at ``target``, or else in a temporary folder; the first error if neither loads."""
+    try:
+        _build(compiler, target)
+        loaded = _load(target)
+        if loaded is not None:
+            return loaded
+        error = NativeBuildError(f"hammerstein_ctrl's C library at {target} was built but does not load")
+    except (NativeBuildError, OSError) as exc:
+        error = exc if isinstance(exc, NativeBuildError) else NativeBuildError(
+            f"hammerstein_ctrl's C library could not be written to {target.parent}: {exc}")
+    fallback = Path(tempfile.mkdtemp(prefix="hammerstein_ctrl-native-")) / target.name
+    try:
+        _build(compiler, fallback)
+    except (NativeBuildError, OSError):
+        raise error from None
+    loaded = _load(fallback)
+    if loaded is None:
+        raise error
+    return loaded
+
+
+_C_TYPES = {"d": types.float64, "l": types.int64, "b": types.boolean, "s": types.float32}
+
+
+def _argument(given, kind: str) -> bool:
+    """Whether the numba type ``given`` passes as an argument of ``kind`` (:data:`SIGNATURES`): a C-ordered array
+    of the element type (writeable if the C function writes it), a float, or an integer."""
+    if kind.lower() in _C_TYPES:
+        return (isinstance(given, types.Array) and given.dtype == _C_TYPES[kind.lower()] and given.layout == "C"
+                and (kind.islower() or given.mutable))
+    return isinstance(given, types.Float if kind == "f" else types.Integer)
+
+
+def c_call(name: str, args: tuple):
+    """The typing of an intrinsic calling the library's function ``name`` (a key of :data:`SIGNATURES`) with
+    ``args`` (numba types): ``(signature, codegen)``; arguments of other kinds raise a ``TypingError``.
+
+    The arrays are passed as their data pointers, alive for the call; the
+    library must be loaded (:func:`library`) before code calling it runs.
+
+    Examples
+    --------
+    >>> import numba, numba.extending, numpy as np
+    >>> @numba.extending.intrinsic
+    ... def one_norm(typingctx, M, n):
+    ...     return c_call("hc_one_norm", (M, n))
+    >>> @numba.njit
+    ... def norm(M):
+    ...     return one_norm(M, M.shape[0])
+    >>> _ = library(); norm(np.eye(3))
+    1.0
+    """
+    codes, result = SIGNATURES[name]
+    if len(args) != len(codes) or not all(map(_argument, args, codes)):
+        raise numba.core.errors.TypingError(f"{name} takes arguments of kinds {codes!r}, got {args}")
+    restype = {"": types.none, "f": types.float64, "b": types.boolean, "i": types.int32}[result]
+
+    def codegen(context, builder, signature, llargs):
+        values = [_c_value(context, builder, ty, value, code)
+                  for ty, value, code in zip(signature.args, llargs, codes)]
+        returned = {"": ir.VoidType(), "f": ir.DoubleType(), "b": ir.IntType(8), "i": ir.IntType(32)}[result]
+        function = numba.core.cgutils.get_or_insert_function(
+            builder.module, ir.FunctionType(returned, [v.type for v in values]), name)
+        value = builder.call(function, values)
+        if result == "":
+            return context.get_dummy_value()
+        return builder.icmp_unsigned("!=", value, ir.Constant(value.type, 0)) if result == "b" else value
+    return restype(*args), codegen
+
+
+def _c_value(context, builder, ty, value, code):
+    """The C argument of ``value`` (numba type ``ty``): an array's data pointer, a double, or an int64."""
+    if code.lower() in _C_TYPES:
+        return builder.bitcast(context.make_array(ty)(context, builder, value).data, ir.IntType(8).as_pointer())
+    if code == "f":
+        return context.cast(builder, value, ty, types.float64)
+    return context.cast(builder, value, ty, types.int64)

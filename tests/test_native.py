@@ -1,0 +1,112 @@
+"""The package's C library (hammerstein_ctrl._native): its table against the C source, its build and load."""
+
+import os
+import re
+import subprocess
+import sys
+import sysconfig
+
+import numpy as np
+import pytest
+
+from hammerstein_ctrl import _native
+from hammerstein_ctrl.exceptions import NativeBuildError
+
+def test_the_bindings_are_read_off_the_c_prototypes_and_refuse_unknown_types():
+    """Both doors pass arguments by the kinds read off the C definitions: a const pointer is read, a plain one
+    written; a C type the bindings do not know stops the build with its name, rather than passing it wrongly."""
+    assert _native.SIGNATURES["hc_tf_discrete"] == ("ddiiiffDDDBB", "b")
+    assert _native.SIGNATURES["hc_fill_coefficients"] == ("diididililiDD", "")
+    text = "".join(source.read_text() for source in _native.SOURCES)
+    assert set(_native.SIGNATURES) == set(re.findall(r"^\w+\s+(hc_\w+)\(", text, re.M))
+    assert all(hasattr(_native.library(), name) for name in _native.SIGNATURES)
+    with pytest.raises(NativeBuildError, match="hc_g takes C types .*'char \\*'"):
+        _native.prototypes("void hc_g(char *x, int64_t n)\n{")
+
+
+def test_the_python_door_refuses_arrays_the_c_function_cannot_take():
+    """Every array is checked in C before the call: C order, element type, and writeable where written."""
+    lib = _native.library()
+    out = np.empty((2, 2))
+    lib.hc_expm(np.eye(2), 2, out)
+    np.testing.assert_allclose(out, np.e * np.eye(2), rtol=1e-15)
+    with pytest.raises(TypeError, match="hc_expm: argument 0 must be a C-ordered array"):
+        lib.hc_expm(np.eye(4)[::2, ::2], 2, out)
+    with pytest.raises(TypeError, match="hc_expm: argument 0 has items of format 'f'"):
+        lib.hc_expm(np.eye(2, dtype=np.float32), 2, out)
+    frozen = np.empty((2, 2))
+    frozen.flags.writeable = False
+    with pytest.raises(TypeError, match="hc_expm: argument 2 must be a C-ordered, writeable array"):
+        lib.hc_expm(np.eye(2), 2, frozen)
+    with pytest.raises(TypeError, match="hc_expm takes 3 arguments, not 2"):
+        lib.hc_expm(np.eye(2), 2)
+    with pytest.raises(TypeError, match="hc_tf_discrete: argument 10 has items of format 'd'"):
+        lib.hc_tf_discrete(np.ones((1, 1)), np.ones((1, 2)), 1, 1, 2, 0.1, 64.0, np.empty((1, 3, 3)),
+                           np.empty((1, 1)), np.empty(1), np.empty(1), np.empty(1, dtype=bool))
+
+
+def test_a_missing_compiler_is_one_error_naming_it(tmp_path, monkeypatch):
+    monkeypatch.setenv("CC", "no-such-compiler-hc")
+    with pytest.raises(NativeBuildError, match="no C compiler ran \\(no-such-compiler-hc"):
+        _native._build(_native._compiler(), tmp_path / "lib.so")
+    assert list(tmp_path.iterdir()) == []           # nothing half-written left behind
+
+
+def test_a_failing_compiler_is_one_error_with_its_first_line(tmp_path):
+    with pytest.raises(NativeBuildError, match="failed: "):
+        _native._build(["cc", "-DHC_NO_SUCH_FLAG", "--no-such-option-hc"], tmp_path / "lib.so")
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_a_damaged_or_linked_library_is_not_loaded(tmp_path):
+    name = "_hc_native" + sysconfig.get_config_var("EXT_SUFFIX")
+    (tmp_path / "damaged").mkdir()
+    (tmp_path / "damaged" / name).write_bytes(b"\x7fELF not really")
+    assert _native._load(tmp_path / "damaged" / name) is None
+    (tmp_path / "built").mkdir()
+    _native._build(_native._compiler(), tmp_path / "built" / name)
+    assert _native._load(tmp_path / "built" / name) is not None
+    (tmp_path / "link").mkdir()
+    (tmp_path / "link" / name).symlink_to(tmp_path / "built" / name)
+    assert _native._load(tmp_path / "link" / name) is None
+
+
+def test_a_build_folder_that_is_a_link_out_of_the_cache_is_not_written(tmp_path, monkeypatch):
+    outside = tmp_path / "outside"
+    outside.mkdir()
+    cache = tmp_path / "cache"
+    cache.mkdir()
+    digest = _native._digest(_native._compiler())
+    (cache / f"native-{digest}").symlink_to(outside, target_is_directory=True)
+    monkeypatch.setattr(_native, "machine_cache_dir", lambda: cache)
+    folder = _native._folder(digest)
+    assert folder.parent != cache and not str(folder).startswith(str(outside))
+    assert list(outside.iterdir()) == []
+
+
+def test_the_build_key_follows_the_source_compiler_and_flags(monkeypatch):
+    base = _native._digest(["cc"])
+    assert _native._digest(["gcc"]) != base
+    monkeypatch.setattr(_native, "BUILD_FLAGS", _native.BUILD_FLAGS + ("-O3",))
+    assert _native._digest(["cc"]) != base
+
+
+def test_a_fresh_cache_builds_once_and_later_processes_load_it(tmp_path):
+    """The first process builds the library into the machine cache; the next one loads that file (not rebuilt:
+    same inode and time) and gets the same bits from its exponential."""
+    code = ("import numpy as np; from hammerstein_ctrl._linalg import expm_batch; "
+            "print(expm_batch(np.array([[[0.0, 1.0], [-2.0, -3.0]]])).tobytes().hex())")
+    env = {**os.environ, "HAMMERSTEIN_CTRL_CACHE": str(tmp_path)}
+    first = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True)
+    built = list(tmp_path.glob("native-*/*"))
+    assert [p.name for p in built] == ["_hc_native" + sysconfig.get_config_var("EXT_SUFFIX")]
+    before = built[0].stat()
+    second = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True)
+    assert first.stdout == second.stdout and first.stdout.strip()
+    after = built[0].stat()
+    assert (after.st_ino, after.st_mtime_ns) == (before.st_ino, before.st_mtime_ns)
+    assert list(tmp_path.glob("native-*/*")) == built           # no second build, no temporary left
+    import scipy.linalg
+    expected = scipy.linalg.expm(np.array([[0.0, 1.0], [-2.0, -3.0]]))
+    got = np.frombuffer(bytes.fromhex(first.stdout.strip()), dtype=float).reshape(2, 2)
+    np.testing.assert_allclose(got, expected, rtol=1e-14, atol=1e-15)
