@@ -121,3 +121,16 @@ void hc_lm_iteration(const double *gram, const double *gradient, int64_t p, doub
     out[3] = measures[0];
     out[4] = measures[1];
 }
+
+/* Nielsen's rule: the damping lam after an accepted step of gain ratio rho, lowered by the factor limit at most. */
+double hc_lm_lowered_damping(double lam, double rho, double limit)
+{
+    return lam * PYMAX(limit, 1.0 - pow(2.0 * rho - 1.0, 3.0));
+}
+
+/* MINPACK's code after an accepted step: 1 (ftol), 2 (xtol: small), 3 (both), or 0 (go on). */
+int hc_lm_accepted_code(double actual, double predicted, double f_old, double ftol, int64_t small)
+{
+    bool converged_f = actual <= ftol * f_old && predicted <= ftol * f_old;
+    return converged_f ? (small ? 3 : 1) : (small ? 2 : 0);
+}

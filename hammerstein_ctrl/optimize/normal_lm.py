@@ -312,17 +312,48 @@ class _Damping:
         self.nu *= 2.0
 
 
-@cached_njit(inline="always")
-def _lowered_damping(lam, rho):  # pragma: no cover - compiled
-    """Nielsen's rule: the damping ``lam`` after an accepted step of gain ratio ``rho`` (both loops use it)."""
-    return lam * max(DAMPING_DECREASE_LIMIT, 1.0 - math.pow(2.0 * rho - 1.0, 3.0))
+@numba.extending.intrinsic
+def _c_lowered_damping(typingctx, lam, rho, limit):
+    return c_call("hc_lm_lowered_damping", (lam, rho, limit))
 
 
-@cached_njit(inline="always")
-def _accepted_code(actual, predicted, f_old, ftol, small):  # pragma: no cover - compiled
-    """MINPACK's code after an accepted step: 1 (``ftol``), 2 (``xtol``: ``small``), 3 (both), or 0 (go on)."""
-    converged_f = actual <= ftol * f_old and predicted <= ftol * f_old
-    return (3 if small else 1) if converged_f else (2 if small else 0)
+@numba.extending.intrinsic
+def _c_accepted_code(typingctx, actual, predicted, f_old, ftol, small):
+    return c_call("hc_lm_accepted_code", (actual, predicted, f_old, ftol, small))
+
+
+def _lowered_damping(lam, rho) -> float:
+    """Nielsen's rule: the damping ``lam`` after an accepted step of gain ratio ``rho`` (both loops use it):
+    ``lam max(1/3, 1 - (2 rho - 1)^3)``.
+
+    Examples
+    --------
+    >>> _lowered_damping(1.0, 1.0), _lowered_damping(1.0, 0.5)
+    (0.3333333333333333, 1.0)
+    """
+    return library().hc_lm_lowered_damping(lam, rho, DAMPING_DECREASE_LIMIT)
+
+
+@numba.extending.overload(_lowered_damping)
+def _lowered_damping_compiled(lam, rho):
+    return lambda lam, rho: _c_lowered_damping(lam, rho, DAMPING_DECREASE_LIMIT)
+
+
+def _accepted_code(actual, predicted, f_old, ftol, small) -> int:
+    """MINPACK's code after an accepted step: 1 (``ftol``), 2 (``xtol``: ``small``), 3 (both), or 0 (go on).
+
+    Examples
+    --------
+    >>> _accepted_code(1e-9, 1e-9, 1.0, 1e-8, False), _accepted_code(0.5, 0.5, 1.0, 1e-8, True)
+    (1, 2)
+    """
+    return library().hc_lm_accepted_code(actual, predicted, f_old, ftol, bool(small))
+
+
+@numba.extending.overload(_accepted_code)
+def _accepted_code_compiled(actual, predicted, f_old, ftol, small):
+    return lambda actual, predicted, f_old, ftol, small: _c_accepted_code(actual, predicted, f_old, ftol,
+                                                                        1 if small else 0)
 
 
 #: Package files holding compiled code that :func:`_compiled_loop` calls or inlines (the pass kernel's signature
