@@ -39,12 +39,37 @@ from ._native import c_call, library
 __all__ = ["copy_vector", "fill_coefficients", "expm_batch", "expm_into", "one_norm", "tf_augmented", "tf_discrete",
            "tf_discrete_into", "single_threaded_blas", "solve_in_place", "symmetric_eigenvalues"]
 
-_LIBRARY = library()          # loaded (built on a machine's first use) before compiled code that calls it loads
+_LIBRARY = library()
 
 
 def _input(array, dtype=np.float64) -> np.ndarray:
     """``array`` as a C-ordered array of ``dtype`` the library reads (a copy only if need be)."""
     return np.ascontiguousarray(array, dtype=dtype)
+
+
+def _square(M, what: str) -> np.ndarray:
+    """``M`` as a C-ordered float square matrix, else a ``ValueError`` (the C code reads ``n x n`` values)."""
+    M = _input(M)
+    if M.ndim != 2 or M.shape[0] != M.shape[1]:
+        raise ValueError(f"{what} must be a square matrix, not an array of shape {M.shape}")
+    return M
+
+
+def _rows(num, den):
+    """``num``, ``den`` as C-ordered float rows, as many of each, ``den`` with a leading coefficient and no fewer
+    than ``num``'s; else a ``ValueError``."""
+    num, den = _input(num), _input(den)
+    if num.ndim != 2 or den.ndim != 2 or num.shape[0] != den.shape[0] or not 1 <= num.shape[1] <= den.shape[1]:
+        raise ValueError(f"num and den must be rows of coefficients, as many of each, den no shorter: shapes "
+                         f"{num.shape} and {den.shape}")
+    return num, den
+
+
+def _shaped(array, shape: tuple, what: str):
+    """``array`` itself if it has ``shape`` (the C code writes that many values), else a ``ValueError``."""
+    if getattr(array, "shape", None) != shape:
+        raise ValueError(f"{what} must have shape {shape}, not {getattr(array, 'shape', type(array).__name__)}")
+    return array
 
 
 @numba.extending.intrinsic
@@ -81,7 +106,7 @@ def one_norm(M) -> float:
     >>> one_norm(np.array([[1.0, -2.0], [3.0, 4.0]]))
     6.0
     """
-    M = _input(M)
+    M = _square(M, "M")
     return _LIBRARY.hc_one_norm(M, M.shape[0])
 
 
@@ -103,7 +128,12 @@ def solve_in_place(A, B) -> None:
     >>> B.ravel().tolist()
     [0.5, 0.5]
     """
-    _LIBRARY.hc_solve_in_place(A, A.shape[0], B, B.shape[1])
+    if getattr(A, "ndim", 0) != 2 or A.shape[0] != A.shape[1]:
+        raise ValueError(f"A must be a square matrix, not {getattr(A, 'shape', type(A).__name__)}")
+    n = A.shape[0]
+    if getattr(B, "ndim", 0) != 2 or B.shape[0] != n:
+        raise ValueError(f"B must be a matrix of {n} rows, not {getattr(B, 'shape', type(B).__name__)}")
+    _LIBRARY.hc_solve_in_place(A, n, B, B.shape[1])
 
 
 def symmetric_eigenvalues(S) -> np.ndarray:
@@ -119,7 +149,7 @@ def symmetric_eigenvalues(S) -> np.ndarray:
     >>> symmetric_eigenvalues(np.array([[2.0, 1.0], [1.0, 2.0]])).round(12).tolist()
     [1.0, 3.0]
     """
-    A = np.array(S, dtype=np.float64, order="C")
+    A = np.array(_square(S, "S"), order="C")
     w = np.empty(A.shape[0])
     _LIBRARY.hc_symmetric_eigenvalues(A, A.shape[0], w)
     return w
@@ -158,8 +188,8 @@ def expm_into(M, out) -> None:
     >>> bool(np.isclose(out[0, 0], np.e))
     True
     """
-    M = _input(M)
-    _LIBRARY.hc_expm(M, M.shape[0], out)
+    M = _square(M, "M")
+    _LIBRARY.hc_expm(M, M.shape[0], _shaped(out, M.shape, "out"))
 
 
 @numba.extending.overload(expm_into)
@@ -192,7 +222,7 @@ def tf_augmented(num, den, dt):
     >>> C[0], D[0]
     (array([1.]), np.float64(0.0))
     """
-    num, den = _input(num), _input(den)
+    num, den = _rows(num, den)
     batch, n = den.shape[0], den.shape[1] - 1
     M, C, D = np.empty((batch, n + 2, n + 2)), np.empty((batch, n)), np.empty(batch)
     _LIBRARY.hc_tf_augmented(num, den, batch, num.shape[1], den.shape[1], float(dt),
@@ -227,7 +257,11 @@ def tf_discrete_into(num, den, dt, max_norm, E, C, D, ok, big) -> bool:
     >>> bool(np.isclose(E[0, 0, 0], np.exp(-1.0))), C[0, 0], D[0]
     (True, np.float64(1.0), np.float64(0.0))
     """
-    num, den = _input(num), _input(den)
+    num, den = _rows(num, den)
+    batch, n = den.shape[0], den.shape[1] - 1
+    for array, shape, what in ((E, (batch, n + 2, n + 2), "E"), (C, (batch, n), "C"), (D, (batch,), "D"),
+                               (ok, (batch,), "ok"), (big, (batch,), "big")):
+        _shaped(array, shape, what)
     return _LIBRARY.hc_tf_discrete(num, den, den.shape[0], num.shape[1], den.shape[1],
                                    float(dt), float(max_norm), E, C, D,
                                    ok, big)
@@ -275,6 +309,8 @@ def expm_batch(M) -> np.ndarray:
     ndarray, shape (B, m, m)
     """
     M = _input(M)
+    if M.ndim != 3 or M.shape[1] != M.shape[2]:
+        raise ValueError(f"M must be a stack of square matrices, not an array of shape {M.shape}")
     E = np.empty_like(M)
     m = M.shape[1]
     for k in range(M.shape[0]):
@@ -407,6 +443,9 @@ def fill_coefficients(theta, num0, den0, num_pos, den_pos):
     if theta.ndim != 2 or theta.shape[1] < num_pos.size + den_pos.size:
         raise ValueError(f"theta must have rows of at least {num_pos.size + den_pos.size} values, not shape "
                          f"{theta.shape}")
+    if not (np.all((0 <= num_pos) & (num_pos < num0.size)) and np.all((0 <= den_pos) & (den_pos < den0.size))):
+        raise ValueError(f"positions {num_pos.tolist()} and {den_pos.tolist()} must index num0 ({num0.size} values) "
+                         f"and den0 ({den0.size})")
     num, den = np.empty((theta.shape[0], num0.size)), np.empty((theta.shape[0], den0.size))
     _LIBRARY.hc_fill_coefficients(theta, theta.shape[0], theta.shape[1], num0, num0.size,
                                   den0, den0.size, num_pos, num_pos.size,

@@ -36,11 +36,12 @@ import numpy as np
 from ._attributes import never_inline
 from ._jit import cached_njit, function_address, kernel_signature, typed_call
 from ._linalg import copy_vector, expm_into, one_norm, tf_augmented
+from ._native import DEPENDS as NATIVE_DEPENDS
 
 __all__ = ["lure_setup", "lure_run", "lure_loop_run", "sample_address", "MAX_EVENTS", "FEEDBACK_CODES"]
 
 #: Files whose compiled code these functions call (the matrix exponential, the 1-norm): an edit compiles them again.
-_DEPENDS = ("_linalg.py",)
+_DEPENDS = ("_linalg.py",) + NATIVE_DEPENDS
 #: Most mode switches resolved within one sample.
 MAX_EVENTS = 16
 #: Code of each feedback signal in the compiled setup.

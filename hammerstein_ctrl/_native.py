@@ -3,8 +3,9 @@
 Code that every fit runs once per candidate or step but that is not a hot
 loop (the matrix exponential of the discretisation, a linear solve,
 eigenvalues of a small symmetric matrix, the linear algebra of a
-Levenberg-Marquardt step) is written in C (:data:`SOURCES`).  numba would compile it again in every new environment, for
-seconds on a first fit; a C compiler builds it in a fraction of a second, and
+Levenberg-Marquardt step) is written in C (:data:`SOURCES`).  numba compiled
+it for about 15 s of CPU on a machine's first fit; a C compiler builds it in
+about 2 s, and
 the library is kept under :func:`~hammerstein_ctrl._jit.machine_cache_dir`
 in a folder named after a digest of the sources, the compiler, its flags and
 the processor (it is built for this processor, ``-march=native``), so every
@@ -38,7 +39,10 @@ Examples
 
 from __future__ import annotations
 
+import atexit
+import contextlib
 import ctypes
+import fcntl
 import functools
 import hashlib
 import importlib.util
@@ -48,6 +52,7 @@ import re
 import shlex
 import shutil
 import subprocess
+import sys
 import sysconfig
 import tempfile
 from pathlib import Path
@@ -59,17 +64,23 @@ from llvmlite import ir
 from numba import types
 
 from ._jit import machine_cache_dir
-from .exceptions import NativeBuildError
+from .exceptions import HammersteinError, NativeBuildError
+from .safe_io import open_lock
 
-__all__ = ["library", "c_call", "SOURCES", "BUILD_FLAGS", "SIGNATURES", "prototypes", "wrapper_source"]
+__all__ = ["library", "c_call", "SOURCES", "BUILD_FLAGS", "SIGNATURES", "DEPENDS", "prototypes", "wrapper_source"]
 
 #: The C sources of the library: the small dense linear algebra, forward-difference steps and normal equations,
 #: loops over a record's samples, the Levenberg-Marquardt step, and MINPACK's loops over a residual vector.
 SOURCES = tuple(Path(__file__).resolve().parent / name for name in ("_native_linalg.c", "_native_normal.c",
                                                                        "_native_signal.c", "optimize/_native_lm.c",
                                                                        "optimize/_native_minpack.c"))
+#: The files that define the library's interface (package-relative): the cache key of every compiled function
+#: that calls the library (``cached_njit(depends=...)``), so an edited prototype compiles its callers again.
+DEPENDS = ("_native.py",) + tuple(str(source.relative_to(Path(__file__).resolve().parent)) for source in SOURCES)
 #: Flags of the build (a change builds a new library).
 BUILD_FLAGS = ("-O3", "-march=native", "-std=c99", "-fPIC", "-shared", "-ffp-contract=off", "-fno-strict-aliasing")
+#: Flags this platform's linker needs for an extension module (macOS resolves Python's symbols at load time).
+_PLATFORM_FLAGS = ("-undefined", "dynamic_lookup") if sys.platform == "darwin" else ()
 #: The module's name (its file is ``_hc_native`` with Python's extension suffix).
 _MODULE = "_hc_native"
 
@@ -130,19 +141,28 @@ def _digest(compiler: list[str]) -> str:
     return hashlib.sha256(text).hexdigest()[:16]
 
 
-def _folder(digest: str) -> Path:
-    """The folder of this build: in the machine cache if it is writable (not a link out of it), else a temporary
-    one of this process."""
+def _cache_folder(digest: str) -> Path | None:
+    """The folder of this build in the machine cache (created if need be), or ``None`` without a cache, or where
+    the name is a link (never followed out of the cache) or cannot be made."""
     root = machine_cache_dir()
-    if root is not None:
-        folder = root / f"native-{digest}"
-        try:
-            folder.mkdir(exist_ok=True)
-            if not folder.is_symlink() and folder.is_dir() and os.access(folder, os.W_OK):
-                return folder
-        except OSError:
-            pass
-    return Path(tempfile.mkdtemp(prefix="hammerstein_ctrl-native-"))
+    if root is None:
+        return None
+    folder = root / f"native-{digest}"
+    try:
+        folder.mkdir(exist_ok=True)
+    except OSError:
+        return None
+    return None if folder.is_symlink() or not folder.is_dir() else folder
+
+
+def _temporary_folder() -> Path:
+    """A folder of this process for a build the machine cache cannot keep, removed when the process ends."""
+    try:
+        folder = Path(tempfile.mkdtemp(prefix="hammerstein_ctrl-native-"))
+    except OSError as exc:
+        raise NativeBuildError(f"no folder to build hammerstein_ctrl's C library in: {exc}") from None
+    atexit.register(shutil.rmtree, folder, ignore_errors=True)
+    return folder
 
 
 _WRAPPER_HEAD = """#define PY_SSIZE_T_CLEAN
@@ -166,9 +186,24 @@ static int take(PyObject *o, Py_buffer *view, Py_ssize_t itemsize, const char *f
     while (*format == '@' || *format == '=' || *format == '<')
         format++;
     if (view->itemsize != itemsize || strlen(format) != 1 || strchr(formats, *format) == NULL) {
+        char given[8] = {0};
+        strncpy(given, format, sizeof given - 1);   /* the exporter may free its format on release */
         PyBuffer_Release(view);
         PyErr_Format(PyExc_TypeError, "%s: argument %d has items of format '%s', not '%s'", function, index,
-                     format, formats);
+                     given, formats);
+        return -1;
+    }
+    return 0;
+}
+
+/* A size, count or flag: a non-negative integer; else a ValueError (or TypeError) naming it. */
+static int size(PyObject *o, long long *value, const char *function, int index)
+{
+    *value = PyLong_AsLongLong(o);
+    if (*value == -1 && PyErr_Occurred())
+        return -1;
+    if (*value < 0) {
+        PyErr_Format(PyExc_ValueError, "%s: argument %d must be a size (>= 0), not %lld", function, index, *value);
         return -1;
     }
     return 0;
@@ -196,8 +231,8 @@ def _wrapper(name: str, kinds: str, result: str) -> str:
                       f"    if (a{i} == -1.0 && PyErr_Occurred())", "        goto fail;"]
             values.append(f"a{i}")
         else:
-            lines += [f"    long long a{i} = PyLong_AsLongLong(args[{i}]);",
-                      f"    if (a{i} == -1 && PyErr_Occurred())", "        goto fail;"]
+            lines += [f"    long long a{i};", f"    if (size(args[{i}], &a{i}, \"{name}\", {i}) < 0)",
+                      "        goto fail;"]
             values.append(f"(int64_t)a{i}")
     call = f"{name}({', '.join(values)})"
     store = {"": "", "f": "double r = 0.0;", "b": "bool r = false;", "i": "int r = 0;"}[result]
@@ -227,41 +262,78 @@ def wrapper_source(text: str, module: str = _MODULE) -> str:
 
 
 def _build(compiler: list[str], target: Path) -> None:
-    """Compile :data:`SOURCES` and their wrappers into ``target`` (written whole or not at all);
-    :class:`NativeBuildError` on failure."""
-    fd, tmp = tempfile.mkstemp(dir=target.parent, suffix=".so.tmp")
-    os.close(fd)
-    wrappers = Path(tmp[:-len(".so.tmp")] + "-wrappers.c")
+    """Compile :data:`SOURCES` and their wrappers into ``target``, then its digest beside it (so a file cut short
+    is never loaded); :class:`NativeBuildError` on failure."""
+    folder = target.parent
     try:
-        wrappers.write_text(wrapper_source("".join(source.read_text() for source in SOURCES)))
-        command = [*compiler, *BUILD_FLAGS, f"-I{sysconfig.get_paths()['include']}", "-o", tmp,
-                   *map(str, SOURCES), str(wrappers), "-lm"]
+        fd, tmp = tempfile.mkstemp(dir=folder, suffix=".so.tmp")
+        os.close(fd)
+        fd, wrappers = tempfile.mkstemp(dir=folder, suffix="-wrappers.c")
+        with os.fdopen(fd, "w") as fh:
+            fh.write(wrapper_source("".join(source.read_text() for source in SOURCES)))
+    except OSError as exc:
+        raise NativeBuildError(f"hammerstein_ctrl's C library cannot be written to {folder}: {exc}") from None
+    command = [*compiler, *BUILD_FLAGS, *_PLATFORM_FLAGS, f"-I{sysconfig.get_paths()['include']}", "-o", tmp,
+               *map(str, SOURCES), wrappers, "-lm"]
+    try:
         done = subprocess.run(command, capture_output=True, text=True, check=False)
     except OSError as exc:
-        os.unlink(tmp)
+        _remove(tmp, wrappers)
         raise NativeBuildError(f"hammerstein_ctrl builds its C library once per machine, and no C compiler ran "
                                f"({compiler[0]}: {exc.strerror}): install one (gcc) or name it in $CC") from None
-    finally:
-        wrappers.unlink(missing_ok=True)
     if done.returncode != 0:
-        os.unlink(tmp)
+        _remove(tmp, wrappers)
         first = (done.stderr.strip().splitlines() or ["no message"])[0]
         raise NativeBuildError(f"building hammerstein_ctrl's C library with {compiler[0]} failed: {first}")
-    os.replace(tmp, target)
+    try:
+        os.chmod(tmp, 0o755 & ~_umask())
+        os.replace(tmp, target)
+        _write_digest(target)
+    except OSError as exc:
+        raise NativeBuildError(f"hammerstein_ctrl's C library cannot be written to {folder}: {exc}") from None
+    finally:
+        _remove(tmp, wrappers)
+
+
+def _remove(*paths) -> None:
+    for path in paths:
+        with contextlib.suppress(OSError):
+            os.unlink(path)
+
+
+def _umask() -> int:
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
+
+
+def _file_digest(path: Path) -> str:
+    return hashlib.sha256(path.read_bytes()).hexdigest()
+
+
+def _write_digest(target: Path) -> None:
+    """Write ``target``'s digest beside it, whole or not at all."""
+    fd, tmp = tempfile.mkstemp(dir=target.parent, suffix=".sha256.tmp")
+    with os.fdopen(fd, "w") as fh:
+        fh.write(_file_digest(target))
+    os.replace(tmp, target.with_name(target.name + ".sha256"))
 
 
 def _load(path: Path):
-    """The module at ``path`` with the addresses of its functions; ``None`` if the file is missing, a link or
-    does not load."""
-    if path.is_symlink() or not path.is_file():
-        return None
+    """The module at ``path`` with the addresses of its functions; ``None`` if the file is missing, a link, not
+    the file its digest was written for (cut short, damaged) or does not load."""
+    record = path.with_name(path.name + ".sha256")
     try:
+        if path.is_symlink() or record.is_symlink() or not path.is_file():
+            return None
+        if record.read_text().strip() != _file_digest(path):
+            return None
         spec = importlib.util.spec_from_file_location(f"hammerstein_ctrl.{_MODULE}", path)
         module = importlib.util.module_from_spec(spec)
         spec.loader.exec_module(module)
         handle = ctypes.CDLL(str(path))
         addresses = {name: ctypes.cast(getattr(handle, name), ctypes.c_void_p).value for name in SIGNATURES}
-    except (ImportError, OSError, AttributeError):
+    except (ImportError, OSError, AttributeError, ValueError):
         return None
     if any(not hasattr(module, name) for name in SIGNATURES):
         return None
@@ -270,11 +342,13 @@ def _load(path: Path):
 
 @functools.lru_cache(maxsize=1)
 def library():
-    """The C library as a Python module, built on this machine's first use; its symbols registered for compiled
-    callers.
+    """The C library as a Python module, built on this machine's first use (about 2 s of the compiler's CPU); its
+    symbols registered for compiled callers.
 
-    A library that cannot be written into the machine cache (a full disk)
-    is built in a temporary folder of this process instead.
+    Processes that find it missing at once build it one at a time (a lock
+    file beside it): the first builds, the others load its build.  A library
+    that cannot be written into the machine cache (a full disk, a read-only
+    folder) is built in a temporary folder of this process instead.
 
     Raises
     ------
@@ -282,36 +356,46 @@ def library():
         If it is not built yet and no C compiler can build it.
     """
     compiler = _compiler()
-    digest = _digest(compiler)
     name = _MODULE + sysconfig.get_config_var("EXT_SUFFIX")
-    loaded = _load(_folder(digest) / name)
-    if loaded is None:                  # not built yet, or a damaged file: built (again)
-        loaded = _built(compiler, _folder(digest) / name)
+    folder = _cache_folder(_digest(compiler))
+    loaded = None if folder is None else _load(folder / name)
+    if loaded is None and folder is not None:
+        loaded = _locked_build(compiler, folder / name)
+    if loaded is None:
+        loaded = _built(compiler, _temporary_folder() / name)
     module, addresses = loaded
     for symbol, address in addresses.items():
         llvmlite.binding.add_symbol(symbol, address)
     return module
 
 
-def _built(compiler: list[str], target: Path):
-    """The library built at ``target``, or else in a temporary folder; the first error if neither loads."""
+def _locked_build(compiler: list[str], target: Path):
+    """The library at ``target``, built under the folder's lock unless another process built it meanwhile;
+    ``None`` if the folder cannot take it (then built elsewhere), :class:`NativeBuildError` if no compiler can."""
     try:
-        _build(compiler, target)
+        lock = open_lock(target.with_name(".lock"))
+    except (OSError, HammersteinError):
+        return None
+    with lock:
+        fcntl.flock(lock.fileno(), fcntl.LOCK_EX)
         loaded = _load(target)
         if loaded is not None:
             return loaded
-        error = NativeBuildError(f"hammerstein_ctrl's C library at {target} was built but does not load")
-    except (NativeBuildError, OSError) as exc:
-        error = exc if isinstance(exc, NativeBuildError) else NativeBuildError(
-            f"hammerstein_ctrl's C library could not be written to {target.parent}: {exc}")
-    fallback = Path(tempfile.mkdtemp(prefix="hammerstein_ctrl-native-")) / target.name
-    try:
-        _build(compiler, fallback)
-    except (NativeBuildError, OSError):
-        raise error from None
-    loaded = _load(fallback)
+        try:
+            _build(compiler, target)
+        except NativeBuildError:
+            if not os.access(target.parent, os.W_OK):
+                return None
+            raise
+        return _load(target)
+
+
+def _built(compiler: list[str], target: Path):
+    """The library built and loaded at ``target``; :class:`NativeBuildError` if it cannot be."""
+    _build(compiler, target)
+    loaded = _load(target)
     if loaded is None:
-        raise error
+        raise NativeBuildError(f"hammerstein_ctrl's C library at {target} was built but does not load")
     return loaded
 
 
@@ -371,3 +455,6 @@ def _c_value(context, builder, ty, value, code):
     if code == "f":
         return context.cast(builder, value, ty, types.float64)
     return context.cast(builder, value, ty, types.int64)
+
+
+library()   # built (on a machine's first use) and its symbols registered before any compiled caller loads

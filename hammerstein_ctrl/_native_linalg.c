@@ -119,8 +119,9 @@ void hc_solve_in_place(double *A, int64_t n, double *B, int64_t m)
     }
 }
 
-/* Largest order whose exponential keeps its work memory on the stack (9 n^2 doubles: 72 KiB); larger ones allocate. */
-#define EXPM_STACK_ORDER 32
+/* Largest order whose exponential keeps its work memory on the stack (9 n^2 doubles: 18 KiB); larger ones allocate.
+ * The simulator's augmented matrices have at most MAX_ORDER + 2 = 12 rows. */
+#define EXPM_STACK_ORDER 16
 
 static void expm_work(const double *M, int64_t n, double *out, double norm, double *work)
 {

@@ -71,6 +71,7 @@ from ._kernel_source import (_CHECK_MASK, _OVERFLOW, _terms, HOLDS, INTERLEAVE, 
                              MAX_VECTOR_STATES, MODES, OUTPUT_TERMS, kernel_signature_codes, kernel_source, lane_source,
                              normal_signature_codes, normal_source, vector_chunks, vector_normal_source)
 from ._linalg import tf_discrete_into
+from ._native import DEPENDS as NATIVE_DEPENDS
 
 __all__ = ["get_kernel", "get_coefficient_kernel", "get_normal_kernel", "get_lane_kernel", "lane_source",
            "has_basis_kernels", "has_output_maps", "kernel_source", "normal_kernel_address", "call_normal_kernel",
@@ -274,7 +275,7 @@ def discretised(num, den, dt, max_norm):  # pragma: no cover - compiled
     return E, C, D, clean
 
 
-@cached_njit(depends=("_linalg.py", "_kernel_source.py"))
+@cached_njit(depends=("_linalg.py", "_kernel_source.py") + NATIVE_DEPENDS)
 def _from_coefficients(address, num, den, dt, max_norm, X0, Y0, P, Phi, y, out):  # pragma: no cover - compiled
     """Discretise the transfer functions and run the basis kernel at ``address``, in one call; False (nothing done)
     unless every row is clean.

@@ -34,11 +34,11 @@ import numpy as np
 from ._checks import as_real_array
 from ._jit import cached_njit
 from ._linalg import copy_vector
-from ._native import c_call, library
+from ._native import DEPENDS as NATIVE_DEPENDS, c_call, library
 from .exceptions import ParameterError
 
 __all__ = ["NormalEquations", "from_residuals", "from_difference_sums", "from_factor", "scored_inf", "forward_steps",
-           "point_and_steps", "neighbours", "compiled_neighbourhood", "compiled_sums", "FD_REL_STEP",
+           "point_and_steps", "neighbours", "compiled_neighbourhood", "compiled_sums", "normal_arrays", "FD_REL_STEP",
            "NONFINITE_RESIDUAL"]
 
 #: Relative step of the forward-difference Jacobian (scipy's "2-point" default, sqrt(eps)).
@@ -101,9 +101,26 @@ def _c_divide_by_steps(typingctx, sums, steps, p, gradient, gram):
     return c_call("hc_divide_by_steps", (sums, steps, p, gradient, gram))
 
 
+def normal_arrays(gradient, gram, *vectors):
+    """``gradient``, ``gram`` and ``vectors`` as C-ordered float arrays of ``p``, ``p x p`` and ``p`` values (the C code
+    reads that many), else a ``ValueError``.
+
+    Examples
+    --------
+    >>> [a.shape for a in normal_arrays([1.0, 2.0], np.eye(2), [0.5, 0.5])]
+    [(2,), (2, 2), (2,)]
+    """
+    arrays = [np.ascontiguousarray(a, dtype=float) for a in (gradient, gram, *vectors)]
+    p = arrays[0].size
+    if arrays[0].ndim != 1 or arrays[1].shape != (p, p) or any(a.shape != (p,) for a in arrays[2:]):
+        raise ValueError(f"normal equations of {p} parameters need a {p} x {p} Gram matrix and {p}-vectors, "
+                         f"not shapes {[a.shape for a in arrays]}")
+    return arrays
+
+
 def _finite(fun, gradient, gram) -> bool:
     """Whether ``fun``, ``gradient`` and ``gram`` are all finite."""
-    gradient, gram = np.ascontiguousarray(gradient, dtype=float), np.ascontiguousarray(gram, dtype=float)
+    gradient, gram = normal_arrays(gradient, gram)
     return library().hc_finite_sums(float(fun), gradient, gram, gradient.size)
 
 
@@ -113,7 +130,7 @@ def _finite_compiled(fun, gradient, gram):
 
 
 def _neighbour_values(fun, gradient, gram, steps) -> np.ndarray:
-    gradient, gram, steps = (np.ascontiguousarray(a, dtype=float) for a in (gradient, gram, steps))
+    gradient, gram, steps = normal_arrays(gradient, gram, steps)
     values = np.empty(steps.size)
     library().hc_neighbour_values(float(fun), gradient, gram, steps, steps.size,
                                   values)
@@ -162,7 +179,10 @@ _NO_UPPER, _NO_LOWER = np.array([np.inf]), np.array([-np.inf])
 def _forward_steps(x, upper, lower) -> np.ndarray:
     """:func:`forward_steps` of a flat ``x`` in ``[lower, upper]`` (one value each, or one for all), in one call of
     the C library."""
-    x, upper, lower = (np.ascontiguousarray(a, dtype=float) for a in (x, upper, lower))
+    x, upper, lower = (np.ascontiguousarray(a, dtype=float).ravel() for a in (x, upper, lower))
+    if upper.size not in (1, x.size) or lower.size not in (1, x.size):
+        raise ValueError(f"bounds must hold one value or one per entry of x ({x.size}), not {upper.size} and "
+                         f"{lower.size}")
     h = np.empty(x.size)
     library().hc_forward_steps(x, x.size, upper, upper.size, lower, lower.size,
                                FD_REL_STEP, h)
@@ -230,7 +250,9 @@ def neighbours(x, steps) -> np.ndarray:
 
 
 def _neighbours(x, steps) -> np.ndarray:
-    x, steps = np.ascontiguousarray(x, dtype=float), np.ascontiguousarray(steps, dtype=float)
+    x, steps = np.ascontiguousarray(x, dtype=float).ravel(), np.ascontiguousarray(steps, dtype=float).ravel()
+    if steps.size != x.size:
+        raise ValueError(f"neighbours need one step per entry of x ({x.size}), not {steps.size}")
     X = np.empty((x.size + 1, x.size))
     library().hc_neighbours(x, x.size, steps, X)
     return X
@@ -245,14 +267,14 @@ def _neighbours_compiled(x, steps):
     return impl
 
 
-@cached_njit()
+@cached_njit(depends=NATIVE_DEPENDS)
 def compiled_neighbourhood(x):  # pragma: no cover - compiled
     """``(h, X)``: :func:`forward_steps` (no bounds) and :func:`neighbours` of a flat ``x``, for compiled callers."""
     h = _forward_steps(x, np.full(1, np.inf), np.full(1, -np.inf))
     return h, _neighbours(x, h)
 
 
-@cached_njit(depends=("_linalg.py",))
+@cached_njit(depends=("_linalg.py",) + NATIVE_DEPENDS)
 def compiled_sums(sums, steps):  # pragma: no cover - compiled
     """:func:`from_difference_sums` for compiled callers: ``(finite, fun, gradient, gram, values)``.
 
@@ -310,8 +332,10 @@ def from_difference_sums(sums, steps) -> NormalEquations:
 
 def _divide_by_steps(sums, steps):
     """``(gradient, gram)``: the pass's sums over the neighbours' differences divided by the steps."""
-    sums, steps = np.ascontiguousarray(sums, dtype=float), np.ascontiguousarray(steps, dtype=float)
+    sums, steps = np.ascontiguousarray(sums, dtype=float).ravel(), np.ascontiguousarray(steps, dtype=float).ravel()
     p = steps.size
+    if sums.size != 1 + p + p * p:
+        raise ValueError(f"sums of {sums.size} values do not fit {p} steps (1 + p + p*p values expected)")
     gradient, gram = np.empty(p), np.empty((p, p))
     library().hc_divide_by_steps(sums, steps, p, gradient, gram)
     return gradient, gram

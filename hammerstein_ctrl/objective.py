@@ -85,9 +85,10 @@ def _combine(P, basis, out, start: int) -> None:
     n = basis.shape[1]
     if not (P.flags.c_contiguous and basis.flags.c_contiguous and out.flags.c_contiguous and out.flags.writeable
             and P.dtype == basis.dtype == out.dtype == np.float64 and basis.shape[0] == p
-            and out.shape[0] >= B and out.shape[1] >= start + n):
-        raise TypeError(f"_combine takes C-ordered float arrays of fitting shapes, not {P.shape}, {basis.shape}, "
-                        f"{out.shape}")
+            and out.shape[0] >= B and out.shape[1] >= start + n and start >= 0
+            and not np.may_share_memory(out, P) and not np.may_share_memory(out, basis)):
+        raise TypeError(f"_combine takes C-ordered float arrays of fitting shapes, out apart from the others, not "
+                        f"{P.shape}, {basis.shape}, {out.shape}")
     library().hc_combine(P, B, p, basis, n, out, out.shape[1], start)
 
 

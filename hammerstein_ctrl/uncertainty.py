@@ -244,6 +244,9 @@ def _backward_filter(rows, ar, out, first: int) -> None:
     """
     rows, ar = np.ascontiguousarray(rows, dtype=float), np.ascontiguousarray(ar, dtype=float)
     q, n = rows.shape
+    if ar.size < 1 or first < 0:
+        raise ValueError(f"the whitening filter needs an AR polynomial [1, a1, ...] and a first column >= 0, not "
+                         f"{ar.size} coefficients and column {first}")
     if out.ndim != 2 or out.shape[0] != n or out.shape[1] < first + q or out.dtype not in (np.float64, np.float32):
         raise TypeError(f"_backward_filter writes {n} x {first + q} floats, not {out.dtype} {out.shape}")
     run = library().hc_backward_filter if out.dtype == np.float64 else library().hc_backward_filter_single

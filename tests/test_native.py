@@ -40,6 +40,8 @@ def test_the_python_door_refuses_arrays_the_c_function_cannot_take():
         lib.hc_expm(np.eye(2), 2, frozen)
     with pytest.raises(TypeError, match="hc_expm takes 3 arguments, not 2"):
         lib.hc_expm(np.eye(2), 2)
+    with pytest.raises(ValueError, match="hc_expm: argument 1 must be a size \\(>= 0\\), not -1"):
+        lib.hc_expm(np.empty(0), -1, np.empty(0))
     with pytest.raises(TypeError, match="hc_tf_discrete: argument 10 has items of format 'd'"):
         lib.hc_tf_discrete(np.ones((1, 1)), np.ones((1, 2)), 1, 1, 2, 0.1, 64.0, np.empty((1, 3, 3)),
                            np.empty((1, 1)), np.empty(1), np.empty(1), np.empty(1, dtype=bool))
@@ -58,17 +60,26 @@ def test_a_failing_compiler_is_one_error_with_its_first_line(tmp_path):
     assert list(tmp_path.iterdir()) == []
 
 
-def test_a_damaged_or_linked_library_is_not_loaded(tmp_path):
+def test_a_damaged_cut_short_or_linked_library_is_not_loaded(tmp_path):
+    """A library cut short (a killed write) would crash the process with SIGBUS when loaded: its digest, written
+    after it, must not match, and a link (in or out of the cache) is never followed."""
     name = "_hc_native" + sysconfig.get_config_var("EXT_SUFFIX")
-    (tmp_path / "damaged").mkdir()
-    (tmp_path / "damaged" / name).write_bytes(b"\x7fELF not really")
-    assert _native._load(tmp_path / "damaged" / name) is None
     (tmp_path / "built").mkdir()
-    _native._build(_native._compiler(), tmp_path / "built" / name)
-    assert _native._load(tmp_path / "built" / name) is not None
+    built = tmp_path / "built" / name
+    _native._build(_native._compiler(), built)
+    assert _native._load(built) is not None
+    data = built.read_bytes()
+    for folder, content in (("short", data[:len(data) // 2]), ("damaged", b"\x7fELF not really")):
+        (tmp_path / folder).mkdir()
+        (tmp_path / folder / name).write_bytes(content)
+        (tmp_path / folder / (name + ".sha256")).write_text((tmp_path / "built" / (name + ".sha256")).read_text())
+        assert _native._load(tmp_path / folder / name) is None
     (tmp_path / "link").mkdir()
-    (tmp_path / "link" / name).symlink_to(tmp_path / "built" / name)
+    (tmp_path / "link" / name).symlink_to(built)
+    (tmp_path / "link" / (name + ".sha256")).write_text((tmp_path / "built" / (name + ".sha256")).read_text())
     assert _native._load(tmp_path / "link" / name) is None
+    (tmp_path / "built" / (name + ".sha256")).unlink()
+    assert _native._load(built) is None                  # no digest: not trusted
 
 
 def test_a_build_folder_that_is_a_link_out_of_the_cache_is_not_written(tmp_path, monkeypatch):
@@ -79,8 +90,7 @@ def test_a_build_folder_that_is_a_link_out_of_the_cache_is_not_written(tmp_path,
     digest = _native._digest(_native._compiler())
     (cache / f"native-{digest}").symlink_to(outside, target_is_directory=True)
     monkeypatch.setattr(_native, "machine_cache_dir", lambda: cache)
-    folder = _native._folder(digest)
-    assert folder.parent != cache and not str(folder).startswith(str(outside))
+    assert _native._cache_folder(digest) is None          # the library is then built in a temporary folder
     assert list(outside.iterdir()) == []
 
 
@@ -98,15 +108,34 @@ def test_a_fresh_cache_builds_once_and_later_processes_load_it(tmp_path):
             "print(expm_batch(np.array([[[0.0, 1.0], [-2.0, -3.0]]])).tobytes().hex())")
     env = {**os.environ, "HAMMERSTEIN_CTRL_CACHE": str(tmp_path)}
     first = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True)
-    built = list(tmp_path.glob("native-*/*"))
-    assert [p.name for p in built] == ["_hc_native" + sysconfig.get_config_var("EXT_SUFFIX")]
+    name = "_hc_native" + sysconfig.get_config_var("EXT_SUFFIX")
+    built = sorted(tmp_path.glob("native-*/*"))
+    assert sorted(p.name for p in built) == sorted([".lock", name, name + ".sha256"])
+    built = [p for p in built if p.name == name]
     before = built[0].stat()
     second = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True)
     assert first.stdout == second.stdout and first.stdout.strip()
     after = built[0].stat()
     assert (after.st_ino, after.st_mtime_ns) == (before.st_ino, before.st_mtime_ns)
-    assert list(tmp_path.glob("native-*/*")) == built           # no second build, no temporary left
+    assert len(list(tmp_path.glob("native-*/*"))) == 3           # no second build, no temporary left
     import scipy.linalg
     expected = scipy.linalg.expm(np.array([[0.0, 1.0], [-2.0, -3.0]]))
     got = np.frombuffer(bytes.fromhex(first.stdout.strip()), dtype=float).reshape(2, 2)
     np.testing.assert_allclose(got, expected, rtol=1e-14, atol=1e-15)
+
+
+def test_processes_finding_no_library_build_it_once(tmp_path):
+    """Two processes starting on an empty cache at once: one builds (under the folder's lock), the other loads
+    that build; the compiler runs once (a wrapper logs each run)."""
+    log = tmp_path / "runs.log"
+    wrapper = tmp_path / "cc-logged"
+    wrapper.write_text(f"#!/bin/sh\necho run >> {log}\nexec {' '.join(_native._compiler())} \"$@\"\n")
+    wrapper.chmod(0o755)
+    env = {**os.environ, "HAMMERSTEIN_CTRL_CACHE": str(tmp_path / "cache"), "CC": str(wrapper)}
+    code = "import hammerstein_ctrl._native as n; print(n.library().hc_one_norm(__import__('numpy').eye(2), 2))"
+    procs = [subprocess.Popen([sys.executable, "-c", code], env=env, stdout=subprocess.PIPE, text=True)
+             for _ in range(2)]
+    outputs = [p.communicate(timeout=300)[0] for p in procs]
+    assert [p.returncode for p in procs] == [0, 0] and outputs == ["1.0\n", "1.0\n"]
+    assert log.read_text().split() == ["run"]
+    assert not list((tmp_path / "cache").glob("native-*/*.tmp"))

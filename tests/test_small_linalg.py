@@ -229,3 +229,25 @@ def test_compiled_callers_discretise_with_tf_discretes_bits_and_scipys_exponenti
 
     with pytest.raises(numba.core.errors.TypingError, match="hc_tf_discrete takes arguments of kinds"):
         wrong(np.ones((1, 1), dtype=np.float32), np.ones((1, 2)))
+
+
+def test_the_python_doors_refuse_shapes_the_c_code_would_read_past():
+    """The C functions take sizes beside pointers: each Python door checks the shapes it passes, so a wrong one is
+    a ValueError naming the argument, never a read or write past an array."""
+    from hammerstein_ctrl._linalg import expm_into, fill_coefficients, one_norm, tf_augmented
+
+    A = np.eye(3)
+    with pytest.raises(ValueError, match="B must be a matrix of 3 rows"):
+        solve_in_place(A, np.ones((2, 1)))
+    with pytest.raises(ValueError, match="out must have shape \\(2, 2\\)"):
+        expm_into(np.eye(2), np.empty((1, 1)))
+    with pytest.raises(ValueError, match="S must be a square matrix"):
+        symmetric_eigenvalues(np.ones(4))
+    with pytest.raises(ValueError, match="M must be a square matrix"):
+        one_norm(np.ones((2, 3)))
+    with pytest.raises(ValueError, match="M must be a stack of square matrices"):
+        expm_batch(np.ones((2, 3)))
+    with pytest.raises(ValueError, match="num and den must be rows"):
+        tf_augmented(np.ones((2, 1)), np.ones((1, 2)), 0.1)
+    with pytest.raises(ValueError, match="positions \\[-1\\]"):
+        fill_coefficients(np.ones((1, 2)), np.zeros(1), np.ones(2), np.array([-1]), np.array([1]))

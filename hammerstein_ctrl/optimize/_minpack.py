@@ -110,7 +110,7 @@ def reflect(v, w) -> None:
     array([-3.,  0.])
     """
     v = np.ascontiguousarray(v, dtype=float)
-    if not (w.dtype == np.float64 and w.flags.c_contiguous and w.flags.writeable and w.size == v.size):
+    if not (v.size and w.dtype == np.float64 and w.flags.c_contiguous and w.flags.writeable and w.size == v.size):
         raise TypeError(f"reflect writes into a C-ordered float array of {v.size} values, not {w.dtype} {w.shape}")
     library().hc_reflect(v, w, v.size)
 

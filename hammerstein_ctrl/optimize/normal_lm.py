@@ -38,10 +38,10 @@ import numpy as np
 from .. import config
 from .._jit import _digest, cached_njit, machine_cache_dir
 from .._linalg import _copy, copy_vector, fill_coefficients
-from .._native import c_call, library
+from .._native import DEPENDS as NATIVE_DEPENDS, c_call, library
 from ..kernels import call_normal_kernel, discretised, normal_kernel_address
 from ..normal_equations import (NormalEquations, compiled_neighbourhood, compiled_sums, forward_steps,
-                                from_residuals, neighbours)
+                                from_residuals, neighbours, normal_arrays)
 from ._common import BudgetExhausted
 
 __all__ = ["normal_equations_lm", "INITIAL_DAMPING", "MAX_DAMPING", "ILL_CONDITIONED", "MESSAGES",
@@ -214,7 +214,7 @@ def _iteration(gram, gradient, fun, scale, lam, x, check, limit, xtol):
     >>> float(cosine), ill, solved, delta.tolist(), small, float(predicted)
     (1.0, False, True, [-0.5], False, 1.0)
     """
-    gram, gradient, scale, x = (np.ascontiguousarray(a, dtype=float) for a in (gram, gradient, scale, x))
+    gradient, gram, scale, x = normal_arrays(gradient, gram, scale, x)
     p = scale.size
     work, delta, out = np.empty(2 * p * p + 2 * p), np.empty(p), np.empty(5)
     library().hc_lm_iteration(gram, gradient, p, float(fun), scale, float(lam),
@@ -235,7 +235,7 @@ def _iteration_compiled(gram, gradient, fun, scale, lam, x, check, limit, xtol):
 
 def _step_measures(gram, gradient, scale, delta, x, xtol):
     """MINPACK's xtol test on the step ``delta`` and the reduction of the sum of squares its linear model predicts."""
-    gram, gradient, scale, delta, x = (np.ascontiguousarray(a, dtype=float) for a in (gram, gradient, scale, delta, x))
+    gradient, gram, scale, delta, x = normal_arrays(gradient, gram, scale, delta, x)
     out = np.empty(2)
     library().hc_lm_step_measures(gram, gradient, scale, delta,
                                   x, scale.size, float(xtol), out)
@@ -244,7 +244,7 @@ def _step_measures(gram, gradient, scale, delta, x, xtol):
 
 def _cosine(gram, gradient, fun):
     """Largest cosine between the residual vector and a Jacobian column (MINPACK's ``gtol`` measure; NaN wins)."""
-    gram, gradient = np.ascontiguousarray(gram, dtype=float), np.ascontiguousarray(gradient, dtype=float)
+    gradient, gram = normal_arrays(gradient, gram)
     return library().hc_lm_cosine(gram, gradient, gradient.size, float(fun))
 
 
@@ -276,7 +276,7 @@ def _column_norms(gram, previous=None):
 
 def _norms(gram, floor):
     """Column norms of J from the Gram matrix (1 for a zero or non-finite one), never below ``floor``."""
-    gram, floor = np.ascontiguousarray(gram, dtype=float), np.ascontiguousarray(floor, dtype=float)
+    floor, gram = normal_arrays(floor, gram)
     norms = np.empty(floor.size)
     library().hc_lm_norms(gram, floor.size, floor, norms)
     return norms
@@ -358,7 +358,8 @@ def _accepted_code_compiled(actual, predicted, f_old, ftol, small):
 
 #: Package files holding compiled code that :func:`_compiled_loop` calls or inlines (the pass kernel's signature
 #: among them): numba's cache of it is keyed on them too (a stale copy would call the kernel unchecked).
-LOOP_DEPENDS = ("kernels.py", "_kernel_source.py", "normal_equations.py", "structure.py", "_linalg.py", "_simd.py")
+LOOP_DEPENDS = ("kernels.py", "_kernel_source.py", "normal_equations.py", "structure.py", "_linalg.py",
+                "_simd.py") + NATIVE_DEPENDS
 _WARMING: list = []              # the background process compiling the loop, once per process
 
 
