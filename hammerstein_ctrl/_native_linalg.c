@@ -123,6 +123,17 @@ void hc_solve_in_place(double *A, int64_t n, double *B, int64_t m)
  * The simulator's augmented matrices have at most MAX_ORDER + 2 = 12 rows. */
 #define EXPM_STACK_ORDER 16
 
+/* T = A6 (b[k+12] A6 + b[k+10] A4 + b[k+8] A2) + b[k+6] A6 + b[k+4] A4 + b[k+2] A2 + b[k] I: with k = 0 the even
+ * part V of the Pade numerator, with k = 1 the odd part before its product with A (U = A T); W is work. */
+static void pade_part(const double *A2, const double *A4, const double *A6, int k, double *W, double *T, int64_t n)
+{
+    combine3(A6, B13[k + 12], A4, B13[k + 10], A2, B13[k + 8], W, false, n);
+    matmul(A6, W, T, n);
+    combine3(A6, B13[k + 6], A4, B13[k + 4], A2, B13[k + 2], T, true, n);
+    for (int64_t i = 0; i < n; i++)
+        T[i * n + i] += B13[k];
+}
+
 static void expm_work(const double *M, int64_t n, double *out, double norm, double *work)
 {
     int64_t s = norm > PADE13_THETA ? (int64_t)ceil(log2(norm / PADE13_THETA)) : 0;
@@ -135,17 +146,9 @@ static void expm_work(const double *M, int64_t n, double *out, double norm, doub
     matmul(A, A, A2, n);
     matmul(A2, A2, A4, n);
     matmul(A4, A2, A6, n);
-    combine3(A6, B13[13], A4, B13[11], A2, B13[9], W, false, n);
-    matmul(A6, W, T, n);
-    combine3(A6, B13[7], A4, B13[5], A2, B13[3], T, true, n);
-    for (int64_t i = 0; i < n; i++)
-        T[i * n + i] += B13[1];
+    pade_part(A2, A4, A6, 1, W, T, n);
     matmul(A, T, U, n);
-    combine3(A6, B13[12], A4, B13[10], A2, B13[8], W, false, n);
-    matmul(A6, W, T, n);
-    combine3(A6, B13[6], A4, B13[4], A2, B13[2], T, true, n);
-    for (int64_t i = 0; i < n; i++)
-        T[i * n + i] += B13[0];
+    pade_part(A2, A4, A6, 0, W, T, n);
     for (int64_t i = 0; i < nn; i++) {  /* P = V + U (in T), Q = V - U */
         Q[i] = T[i] - U[i];
         T[i] = T[i] + U[i];
