@@ -18,7 +18,7 @@ import traceback
 import warnings
 from pathlib import Path
 
-from .exceptions import HammersteinError, IdentificationWarning
+from .exceptions import HammersteinError, IdentificationWarning, NativeBuildError
 
 __all__ = ["main", "build_parser", "EXIT_ERROR", "PROG"]
 
@@ -544,7 +544,7 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
 def _one_line(exc: BaseException) -> str:
     """The error message of ``exc`` on one line; the exception type for anything unexpected."""
     text = " ".join(line.strip() for line in str(exc).strip().splitlines() if line.strip())
-    if isinstance(exc, (HammersteinError, OSError)):
+    if isinstance(exc, (HammersteinError, OSError, NativeBuildError)):
         return text or type(exc).__name__
     return f"{type(exc).__name__}: {text} (an unexpected failure: rerun with --debug for the traceback)"
 

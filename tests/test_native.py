@@ -139,3 +139,18 @@ def test_processes_finding_no_library_build_it_once(tmp_path):
     assert [p.returncode for p in procs] == [0, 0] and outputs == ["1.0\n", "1.0\n"]
     assert log.read_text().split() == ["run"]
     assert not list((tmp_path / "cache").glob("native-*/*.tmp"))
+
+
+def test_the_command_line_without_a_compiler_says_so_in_one_line(tmp_path):
+    """On a machine whose library is not built and that has no C compiler, the CLI exits 2 with one line naming
+    the compiler it tried, no traceback."""
+    env = {**os.environ, "HAMMERSTEIN_CTRL_CACHE": str(tmp_path), "CC": "no-such-compiler-hc"}
+    data = tmp_path / "record.csv"
+    t = np.arange(200) * 0.01
+    np.savetxt(data, np.column_stack([t, np.sin(t), np.cos(t)]), delimiter=",", header="t,u,y", comments="")
+    done = subprocess.run([sys.executable, "-m", "hammerstein_ctrl.cli", "identify", "--data", str(data)],
+                          env=env, capture_output=True, text=True, timeout=300)
+    assert done.returncode == 2
+    lines = done.stderr.strip().splitlines()
+    assert len(lines) == 1 and "no C compiler ran (no-such-compiler-hc" in lines[0], done.stderr
+    assert "unexpected" not in lines[0] and "Traceback" not in done.stderr
