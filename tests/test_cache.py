@@ -176,7 +176,7 @@ def test_a_damaged_data_file_costs_no_healthy_signature_of_the_same_function(tmp
     one signature's data file is damaged and the index itself reads fine.  The version compiled again
     is then saved under a fresh index as data file 1 -- overwriting the healthy data file of another
     signature -- so the next process, with no warning, misses that healthy signature and compiles it
-    again (seconds per generated kernel on a cold compile; the package's ``_linalg._combine3`` has two
+    again (seconds per generated kernel on a cold compile; a function of the package with two
     signatures).  Reproduced with a cached_njit function called with int64 and float64: empty the
     float64 data file (``.2.nbc``); the damaged run warns and compiles float64 (right), and the next
     process reports a cache miss for int64, whose file the previous run overwrote with float64's code
