@@ -43,6 +43,7 @@ from ._cache_load import fast_load_possible, load_cached, rebuild_cached
 from .exceptions import CacheWarning
 
 __all__ = ["cached_njit", "kernel_signature", "only_for", "tolerate_damaged_cache", "machine_cache_dir",
+           "machine_cache_root",
            "function_address", "typed_call", "ENV_CACHE"]
 
 #: Environment variable overriding the per-machine cache root (also of the generated kernels).
@@ -50,12 +51,18 @@ ENV_CACHE = "HAMMERSTEIN_CTRL_CACHE"
 _PACKAGE = Path(__file__).resolve().parent
 
 
+def machine_cache_root() -> Path:
+    """Where the per-machine root of the package's compiled code is, writable or not: ``$HAMMERSTEIN_CTRL_CACHE``,
+    else ``$XDG_CACHE_HOME/hammerstein_ctrl`` (``~/.cache/hammerstein_ctrl``)."""
+    return Path(os.environ.get(ENV_CACHE) or os.path.join(
+        os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache"), "hammerstein_ctrl"))
+
+
 @functools.lru_cache(maxsize=1)
 def machine_cache_dir() -> Path | None:
-    """The per-machine root of the package's compiled code: ``$HAMMERSTEIN_CTRL_CACHE``, else
-    ``$XDG_CACHE_HOME/hammerstein_ctrl`` (``~/.cache/hammerstein_ctrl``); ``None`` if not writable."""
-    root = os.environ.get(ENV_CACHE) or os.path.join(
-        os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache"), "hammerstein_ctrl")
+    """The per-machine root of the package's compiled code (:func:`machine_cache_root`), created if need be;
+    ``None`` if not writable."""
+    root = machine_cache_root()
     try:
         Path(root).mkdir(parents=True, exist_ok=True)
     except OSError:

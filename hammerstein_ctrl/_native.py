@@ -5,15 +5,15 @@ loop (the matrix exponential of the discretisation, a linear solve,
 eigenvalues of a small symmetric matrix, the linear algebra of a
 Levenberg-Marquardt step) is written in C (:data:`SOURCES`).  numba compiled
 it for about 15 s of CPU on a machine's first fit; a C compiler builds it in
-about 2 s, and
-the library is kept under :func:`~hammerstein_ctrl._jit.machine_cache_dir`
-in a folder named after a digest of the sources, the compiler, its flags and
-the processor (it is built for this processor, ``-march=native``), so every
-process of the machine loads it, an edited source is never served stale code,
-and a cache shared by machines never serves one another's instructions.
-The library is built with ``-ffp-contract=off``: no fused multiply-add, so
-its results are those of the source's arithmetic, the same bits at any
-optimisation level.
+about 1.2 s.  The library is kept under
+:func:`~hammerstein_ctrl._jit.machine_cache_root` in a folder named after a
+digest of the sources, the flags and the processor (it is built for this
+processor, ``-march=native``), so every process of the machine loads it, an
+edited source is never served stale code, and a cache shared by machines
+never serves one another's instructions.  It is built with
+``-ffp-contract=off`` and no fast-math: no fused multiply-add, so its results
+are those of the source's arithmetic, the same bits at every optimisation
+level (:data:`LEVELS`).
 
 The library is also a Python extension module (:func:`library`), whose
 functions take numpy arrays where the C functions take pointers: each checks
@@ -63,11 +63,11 @@ import numba.core.errors
 from llvmlite import ir
 from numba import types
 
-from ._jit import machine_cache_dir
-from .exceptions import HammersteinError, NativeBuildError
-from .safe_io import open_lock
+from ._jit import machine_cache_dir, machine_cache_root
+from .exceptions import NativeBuildError
 
-__all__ = ["library", "c_call", "SOURCES", "BUILD_FLAGS", "SIGNATURES", "DEPENDS", "prototypes", "wrapper_source"]
+__all__ = ["library", "c_call", "SOURCES", "BUILD_FLAGS", "LEVELS", "SIGNATURES", "DEPENDS", "prototypes",
+           "wrapper_source"]
 
 #: The C sources of the library: the small dense linear algebra, forward-difference steps and normal equations,
 #: loops over a record's samples, the Levenberg-Marquardt step, and MINPACK's loops over a residual vector.
@@ -77,8 +77,12 @@ SOURCES = tuple(Path(__file__).resolve().parent / name for name in ("_native_lin
 #: The files that define the library's interface (package-relative): the cache key of every compiled function
 #: that calls the library (``cached_njit(depends=...)``), so an edited prototype compiles its callers again.
 DEPENDS = ("_native.py",) + tuple(str(source.relative_to(Path(__file__).resolve().parent)) for source in SOURCES)
-#: Flags of the build (a change builds a new library).
-BUILD_FLAGS = ("-O3", "-march=native", "-std=c99", "-fPIC", "-shared", "-ffp-contract=off", "-fno-strict-aliasing")
+#: Flags of every compile of the build (a change builds a new library).
+BUILD_FLAGS = ("-march=native", "-std=c99", "-fPIC", "-ffp-contract=off", "-fno-strict-aliasing")
+#: Optimisation level of each source: the loops over a record's samples and over a residual vector are vectorised
+#: at -O3; the rest runs as fast at -O2 and compiles in about half the time; the generated wrappers (glue around
+#: one call) at -O1.  No level changes a result: there is no fast-math and no contraction.
+LEVELS = {"_native_signal.c": "-O3", "optimize/_native_minpack.c": "-O3", "wrappers": "-O1"}
 #: Flags this platform's linker needs for an extension module (macOS resolves Python's symbols at load time).
 _PLATFORM_FLAGS = ("-undefined", "dynamic_lookup") if sys.platform == "darwin" else ()
 #: The module's name (its file is ``_hc_native`` with Python's extension suffix).
@@ -130,28 +134,25 @@ def _compiler() -> list[str]:
     return words if words and shutil.which(words[0]) else ["cc"]
 
 
-def _digest(compiler: list[str]) -> str:
-    """Key of a build: the sources, this module (it writes the wrappers), the compiler, its flags, the processor
-    and Python's version (the module's ABI)."""
+def _digest() -> str:
+    """Key of a build: the sources, this module (it writes the wrappers), the flags, the processor and Python's
+    version (the module's ABI).  Not the compiler: a library stays usable after the compiler that built it is
+    gone (or another one is named in ``$CC``)."""
     text = b"".join(source.read_bytes() for source in SOURCES) + Path(__file__).read_bytes()
     cpu = llvmlite.binding
     host = (platform.machine(), cpu.get_host_cpu_name(), cpu.get_host_cpu_features().flatten(),
             sysconfig.get_config_var("EXT_SUFFIX"))
-    text += repr((compiler, BUILD_FLAGS, host)).encode()
+    text += repr((BUILD_FLAGS, sorted(LEVELS.items()), host)).encode()
     return hashlib.sha256(text).hexdigest()[:16]
 
 
 def _cache_folder(digest: str) -> Path | None:
-    """The folder of this build in the machine cache (created if need be), or ``None`` without a cache, or where
-    the name is a link (never followed out of the cache) or cannot be made."""
-    root = machine_cache_dir()
-    if root is None:
-        return None
-    folder = root / f"native-{digest}"
-    try:
-        folder.mkdir(exist_ok=True)
-    except OSError:
-        return None
+    """The folder of this build in the machine cache: there already (writable or not), else made if the cache can
+    take it; ``None`` where the name is a link (never followed out of the cache) or there is no folder."""
+    folder = machine_cache_root() / f"native-{digest}"
+    if not folder.is_dir() and machine_cache_dir() is not None:
+        with contextlib.suppress(OSError):
+            folder.mkdir(exist_ok=True)
     return None if folder.is_symlink() or not folder.is_dir() else folder
 
 
@@ -261,38 +262,66 @@ def wrapper_source(text: str, module: str = _MODULE) -> str:
     return "\n".join(parts)
 
 
+class _WriteError(NativeBuildError):
+    """The library was compiled, or could be, but not written where asked (a full disk, a read-only folder)."""
+
+
 def _build(compiler: list[str], target: Path) -> None:
     """Compile :data:`SOURCES` and their wrappers into ``target``, then its digest beside it (so a file cut short
-    is never loaded); :class:`NativeBuildError` on failure."""
-    folder = target.parent
+    is never loaded); :class:`NativeBuildError` on failure (:class:`_WriteError` if only the writing failed).
+    No temporary file is left behind, whatever stops the build."""
+    folder, made = target.parent, []
     try:
-        fd, tmp = tempfile.mkstemp(dir=folder, suffix=".so.tmp")
-        os.close(fd)
-        fd, wrappers = tempfile.mkstemp(dir=folder, suffix="-wrappers.c")
-        with os.fdopen(fd, "w") as fh:
-            fh.write(wrapper_source("".join(source.read_text() for source in SOURCES)))
-    except OSError as exc:
-        raise NativeBuildError(f"hammerstein_ctrl's C library cannot be written to {folder}: {exc}") from None
-    command = [*compiler, *BUILD_FLAGS, *_PLATFORM_FLAGS, f"-I{sysconfig.get_paths()['include']}", "-o", tmp,
-               *map(str, SOURCES), wrappers, "-lm"]
+        try:
+            for suffix in (".so.tmp", "-wrappers.c"):
+                fd, path = tempfile.mkstemp(dir=folder, suffix=suffix)
+                os.close(fd)
+                made.append(path)
+            Path(made[1]).write_text(wrapper_source("".join(source.read_text() for source in SOURCES)))
+        except OSError as exc:
+            raise _WriteError(f"hammerstein_ctrl's C library cannot be written to {folder}: {exc}") from None
+        _compile(compiler, made[0], made[1])
+        try:
+            os.chmod(made[0], 0o755 & ~_UMASK)
+            os.replace(made[0], target)
+            _write_digest(target)
+        except OSError as exc:
+            raise _WriteError(f"hammerstein_ctrl's C library cannot be written to {folder}: {exc}") from None
+    finally:
+        _remove(*made)
+
+
+def _compile(compiler: list[str], output: str, wrappers: str) -> None:
+    """Compile :data:`SOURCES` and ``wrappers``, each at its level (:data:`LEVELS`, else -O2), and link them into
+    ``output``; :class:`NativeBuildError` if the compiler does not run or fails."""
+    root = Path(__file__).resolve().parent
+    groups: dict = {}
+    for source in SOURCES:
+        groups.setdefault(LEVELS.get(str(source.relative_to(root)), "-O2"), []).append(str(source))
+    groups.setdefault(LEVELS["wrappers"], []).append(wrappers)
+    include = f"-I{sysconfig.get_paths()['include']}"
     try:
-        done = subprocess.run(command, capture_output=True, text=True, check=False)
+        scratch = tempfile.TemporaryDirectory(prefix="hammerstein_ctrl-objects-")
     except OSError as exc:
-        _remove(tmp, wrappers)
+        raise _WriteError(f"no folder for hammerstein_ctrl's C library's objects: {exc}") from None
+    with scratch as objects:
+        for level, files in groups.items():
+            _run(compiler, [*compiler, *BUILD_FLAGS, level, include, "-c", *files], cwd=objects)
+        _run(compiler, [*compiler, "-shared", *_PLATFORM_FLAGS, "-o", output,
+                        *sorted(str(p) for p in Path(objects).glob("*.o")), "-lm"], cwd=objects)
+
+
+def _run(compiler: list[str], command: list[str], cwd: str) -> None:
+    try:
+        done = subprocess.run(command, capture_output=True, text=True, check=False, cwd=cwd)
+    except OSError as exc:
         raise NativeBuildError(f"hammerstein_ctrl builds its C library once per machine, and no C compiler ran "
                                f"({compiler[0]}: {exc.strerror}): install one (gcc) or name it in $CC") from None
     if done.returncode != 0:
-        _remove(tmp, wrappers)
         first = (done.stderr.strip().splitlines() or ["no message"])[0]
+        if "No space left" in done.stderr or "File too large" in done.stderr:
+            raise _WriteError(f"building hammerstein_ctrl's C library with {compiler[0]} failed: {first}")
         raise NativeBuildError(f"building hammerstein_ctrl's C library with {compiler[0]} failed: {first}")
-    try:
-        os.chmod(tmp, 0o755 & ~_umask())
-        os.replace(tmp, target)
-        _write_digest(target)
-    except OSError as exc:
-        raise NativeBuildError(f"hammerstein_ctrl's C library cannot be written to {folder}: {exc}") from None
-    finally:
-        _remove(tmp, wrappers)
 
 
 def _remove(*paths) -> None:
@@ -307,16 +336,24 @@ def _umask() -> int:
     return mask
 
 
+#: The process's umask, read once at import (reading it sets it, for an instant).
+_UMASK = _umask()
+
+
 def _file_digest(path: Path) -> str:
     return hashlib.sha256(path.read_bytes()).hexdigest()
 
 
 def _write_digest(target: Path) -> None:
-    """Write ``target``'s digest beside it, whole or not at all."""
+    """Write ``target``'s digest beside it, whole or not at all, readable as the library is."""
     fd, tmp = tempfile.mkstemp(dir=target.parent, suffix=".sha256.tmp")
-    with os.fdopen(fd, "w") as fh:
-        fh.write(_file_digest(target))
-    os.replace(tmp, target.with_name(target.name + ".sha256"))
+    try:
+        with os.fdopen(fd, "w") as fh:
+            fh.write(_file_digest(target))
+        os.chmod(tmp, 0o644 & ~_UMASK)
+        os.replace(tmp, target.with_name(target.name + ".sha256"))
+    finally:
+        _remove(tmp)
 
 
 def _load(path: Path):
@@ -342,7 +379,7 @@ def _load(path: Path):
 
 @functools.lru_cache(maxsize=1)
 def library():
-    """The C library as a Python module, built on this machine's first use (about 2 s of the compiler's CPU); its
+    """The C library as a Python module, built on this machine's first use (about 1.2 s of the compiler's CPU); its
     symbols registered for compiled callers.
 
     Processes that find it missing at once build it one at a time (a lock
@@ -357,7 +394,7 @@ def library():
     """
     compiler = _compiler()
     name = _MODULE + sysconfig.get_config_var("EXT_SUFFIX")
-    folder = _cache_folder(_digest(compiler))
+    folder = _cache_folder(_digest())
     loaded = None if folder is None else _load(folder / name)
     if loaded is None and folder is not None:
         loaded = _locked_build(compiler, folder / name)
@@ -371,23 +408,33 @@ def library():
 
 def _locked_build(compiler: list[str], target: Path):
     """The library at ``target``, built under the folder's lock unless another process built it meanwhile;
-    ``None`` if the folder cannot take it (then built elsewhere), :class:`NativeBuildError` if no compiler can."""
+    ``None`` if the folder cannot take it (a full disk, no locks: then built elsewhere); :class:`NativeBuildError`
+    if no compiler can build it."""
     try:
-        lock = open_lock(target.with_name(".lock"))
-    except (OSError, HammersteinError):
+        lock = _open_lock(target.with_name(".lock"))
+        fcntl.flock(lock, fcntl.LOCK_EX)
+    except OSError:
         return None
-    with lock:
-        fcntl.flock(lock.fileno(), fcntl.LOCK_EX)
+    try:
         loaded = _load(target)
         if loaded is not None:
             return loaded
         try:
             _build(compiler, target)
-        except NativeBuildError:
-            if not os.access(target.parent, os.W_OK):
-                return None
-            raise
+        except _WriteError:
+            return None
         return _load(target)
+    finally:
+        os.close(lock)
+
+
+def _open_lock(path: Path) -> int:
+    """A descriptor of the lock file ``path`` (created if missing; read-only is enough for ``flock``), never
+    through a link."""
+    if path.is_symlink():
+        raise OSError(f"{path} is a link")
+    return os.open(path, os.O_RDONLY | os.O_CREAT | getattr(os, "O_NOFOLLOW", 0) | getattr(os, "O_CLOEXEC", 0),
+                   0o644 & ~_UMASK)
 
 
 def _built(compiler: list[str], target: Path):

@@ -14,9 +14,9 @@ void hc_combine(const double *P, int64_t batch, int64_t p, const double *basis, 
     for (int64_t b = 0; b < batch; b++) {
         double *restrict row = out + b * columns + start;
         const double *coef = P + b * p;
-        double c = coef[0];
+        double c = p > 0 ? coef[0] : 0.0;
         for (int64_t i = 0; i < n; i++)
-            row[i] = c * basis[i];
+            row[i] = p > 0 ? c * basis[i] : 0.0;     /* no basis rows: the empty sum */
         for (int64_t j = 1; j < p; j++) {
             const double *restrict bj = basis + j * n;
             c = coef[j];

@@ -74,6 +74,8 @@ static bool finite_matrix(const double *A, int64_t count)
 /* Whether the symmetric A (p x p) has a non-finite entry or a condition number of limit or more (w: p + p*p work). */
 static bool ill(const double *A, int64_t p, double limit, double *work)
 {
+    if (p < 1)
+        return false;
     if (!finite_matrix(A, p * p))
         return true;
     double *w = work, *copy = work + p;
