@@ -412,10 +412,13 @@ def _locked_build(compiler: list[str], target: Path):
     if no compiler can build it."""
     try:
         lock = _open_lock(target.with_name(".lock"))
-        fcntl.flock(lock, fcntl.LOCK_EX)
     except OSError:
         return None
     try:
+        try:
+            fcntl.flock(lock, fcntl.LOCK_EX)
+        except OSError:
+            return None
         loaded = _load(target)
         if loaded is not None:
             return loaded
