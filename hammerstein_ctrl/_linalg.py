@@ -10,8 +10,8 @@ plain loops: single-threaded, accurate to a few units of roundoff, and a few
 microseconds for a 4x4 matrix.
 
 These functions live in the C library of :mod:`~hammerstein_ctrl._native`
-(built once per machine in a fraction of a second, where numba compiled them
-for about ten seconds on a machine's first fit).  Each is one definition
+(built once per machine in about a second of compiler CPU, where numba compiled
+them for about ten seconds on a machine's first fit).  Each is one definition
 with two doors: called from Python it goes through the library's Python
 module, and called from compiled code numba calls the C function directly
 (an overload of the same name), so both give the same bits.
@@ -244,9 +244,9 @@ def tf_discrete_into(num, den, dt, max_norm, E, C, D, ok, big) -> bool:
     """:func:`tf_discrete` into the caller's arrays ``E`` (B, n+2, n+2), ``C`` (B, n), ``D``, ``ok`` and ``big`` (B,);
     returns ``clean``.
 
-    The arrays' shapes are not checked (the C code checks no index): the
-    caller sizes them, as :func:`tf_discrete` and
-    :func:`hammerstein_ctrl.kernels.discretised` do.
+    The C code checks no index, so this door checks every shape it passes
+    (a ``ValueError`` naming the array); compiled callers size the arrays
+    themselves, as :func:`hammerstein_ctrl.kernels.discretised` does.
 
     Examples
     --------

@@ -65,6 +65,7 @@ from numba import types
 
 from ._jit import machine_cache_dir, machine_cache_root
 from .exceptions import NativeBuildError
+from .safe_io import open_lock
 
 __all__ = ["library", "c_call", "SOURCES", "BUILD_FLAGS", "LEVELS", "SIGNATURES", "DEPENDS", "prototypes",
            "wrapper_source"]
@@ -120,9 +121,11 @@ def prototypes(text: str) -> dict:
     return found
 
 
+#: The sources' text, read once: the signatures, the build's key and its wrappers come from it.
+_SOURCE_TEXT = "".join(source.read_text() for source in SOURCES)
 #: The library's functions: name, then the kinds of its arguments and of its result (``""`` none, ``f`` a double,
 #: ``b`` a bool, ``i`` an int), read off the C sources: one table for the Python and the compiled door.
-SIGNATURES = prototypes("".join(source.read_text() for source in SOURCES))
+SIGNATURES = prototypes(_SOURCE_TEXT)
 
 
 def _compiler() -> list[str]:
@@ -138,7 +141,7 @@ def _digest() -> str:
     """Key of a build: the sources, this module (it writes the wrappers), the flags, the processor and Python's
     version (the module's ABI).  Not the compiler: a library stays usable after the compiler that built it is
     gone (or another one is named in ``$CC``)."""
-    text = b"".join(source.read_bytes() for source in SOURCES) + Path(__file__).read_bytes()
+    text = _SOURCE_TEXT.encode() + Path(__file__).read_bytes()
     cpu = llvmlite.binding
     host = (platform.machine(), cpu.get_host_cpu_name(), cpu.get_host_cpu_features().flatten(),
             sysconfig.get_config_var("EXT_SUFFIX"))
@@ -277,7 +280,7 @@ def _build(compiler: list[str], target: Path) -> None:
                 fd, path = tempfile.mkstemp(dir=folder, suffix=suffix)
                 os.close(fd)
                 made.append(path)
-            Path(made[1]).write_text(wrapper_source("".join(source.read_text() for source in SOURCES)))
+            Path(made[1]).write_text(wrapper_source(_SOURCE_TEXT))
         except OSError as exc:
             raise _WriteError(f"hammerstein_ctrl's C library cannot be written to {folder}: {exc}") from None
         _compile(compiler, made[0], made[1])
@@ -411,10 +414,10 @@ def _locked_build(compiler: list[str], target: Path):
     ``None`` if the folder cannot take it (a full disk, no locks: then built elsewhere); :class:`NativeBuildError`
     if no compiler can build it."""
     try:
-        lock = _open_lock(target.with_name(".lock"))
+        lock = open_lock(target.with_name(".lock"), readonly=True)      # an UnsafePathError is an OSError too
     except OSError:
         return None
-    try:
+    with lock:
         try:
             fcntl.flock(lock, fcntl.LOCK_EX)
         except OSError:
@@ -427,17 +430,6 @@ def _locked_build(compiler: list[str], target: Path):
         except _WriteError:
             return None
         return _load(target)
-    finally:
-        os.close(lock)
-
-
-def _open_lock(path: Path) -> int:
-    """A descriptor of the lock file ``path`` (created if missing; read-only is enough for ``flock``), never
-    through a link."""
-    if path.is_symlink():
-        raise OSError(f"{path} is a link")
-    return os.open(path, os.O_RDONLY | os.O_CREAT | getattr(os, "O_NOFOLLOW", 0) | getattr(os, "O_CLOEXEC", 0),
-                   0o644 & ~_UMASK)
 
 
 def _built(compiler: list[str], target: Path):

@@ -80,14 +80,12 @@ EVAL_BLOCK = 1 << 13
 def _combine(P, basis, out, start: int) -> None:
     """``out[:B, start:start + n] = P @ basis`` single-threaded (BLAS threads would compete with the simulation), in
     the C library: the products added term by term.  ``P``, ``basis`` and the writeable ``out`` are C-ordered float
-    arrays, ``out`` wide enough."""
+    arrays (the library's wrapper checks that), ``out`` wide enough and apart from the others (checked here)."""
     B, p = P.shape
     n = basis.shape[1]
-    if not (P.flags.c_contiguous and basis.flags.c_contiguous and out.flags.c_contiguous and out.flags.writeable
-            and P.dtype == basis.dtype == out.dtype == np.float64 and basis.shape[0] == p
-            and out.shape[0] >= B and out.shape[1] >= start + n and start >= 0
+    if not (basis.shape[0] == p and out.ndim == 2 and out.shape[0] >= B and out.shape[1] >= start + n and start >= 0
             and not np.may_share_memory(out, P) and not np.may_share_memory(out, basis)):
-        raise TypeError(f"_combine takes C-ordered float arrays of fitting shapes, out apart from the others, not "
+        raise TypeError(f"_combine takes arrays of fitting shapes, out apart from the others, not "
                         f"{P.shape}, {basis.shape}, {out.shape}")
     library().hc_combine(P, B, p, basis, n, out, out.shape[1], start)
 

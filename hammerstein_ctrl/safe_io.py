@@ -157,9 +157,12 @@ def open_append(path, *, root=None, binary: bool = False):
     return os.fdopen(fd, "ab") if binary else os.fdopen(fd, "a", encoding="utf-8")
 
 
-def open_lock(path, *, root=None):
-    """A lock file opened for reading and writing (created if missing, not truncated), never through a link."""
+def open_lock(path, *, root=None, readonly: bool = False):
+    """A lock file opened for reading and writing (created if missing, not truncated), never through a link;
+    ``readonly``: for reading alone, which is all ``flock`` needs (a lock file another user created)."""
     p = check_output(path, root=root)
+    if readonly:
+        return os.fdopen(_open_nofollow(p, os.O_RDONLY | os.O_CREAT, "lock"), "r")
     return os.fdopen(_open_nofollow(p, os.O_RDWR | os.O_CREAT, "lock"), "r+")
 
 

@@ -110,8 +110,8 @@ def reflect(v, w) -> None:
     array([-3.,  0.])
     """
     v = np.ascontiguousarray(v, dtype=float)
-    if not (v.size and w.dtype == np.float64 and w.flags.c_contiguous and w.flags.writeable and w.size == v.size):
-        raise TypeError(f"reflect writes into a C-ordered float array of {v.size} values, not {w.dtype} {w.shape}")
+    if not (v.size and getattr(w, "size", None) == v.size):       # its type, order and writeability: the wrapper's
+        raise TypeError(f"reflect writes into an array of {v.size} values, not {getattr(w, 'shape', type(w))}")
     library().hc_reflect(v, w, v.size)
 
 
