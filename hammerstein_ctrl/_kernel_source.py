@@ -384,7 +384,7 @@ from hammerstein_ctrl._attributes import align_stack
 from hammerstein_ctrl._jit import cached_njit, kernel_signature
 {imports}
 
-@cached_njit(fastmath={{"contract"}}, signatures=(kernel_signature("{signature}"),))
+@cached_njit(signatures=(kernel_signature("{signature}"),))
 def kernel(E, C, D, X, Y0, VP, P, Phi, HP, HX, y, begin, acc):
     align_stack()
     N = Phi.shape[1]
@@ -425,9 +425,12 @@ def _normal_rows(n: int, hold: str, K: int, terms: tuple) -> _LaneRows:
     return _LaneRows(n, hold, K, terms, extra=("yh",))
 
 
-def _normal_setup(n: int, hold: str, K: int, lanes: int, z: _LaneRows, ind: str, outputs: bool = False) -> list:
-    """Every lane's coefficients, state and previous signal (padding lanes repeat lane 0), and the sums."""
-    lines = [f"{ind}for w in range(W):", f"{ind}    b = w if w < {lanes} else 0",
+def _normal_setup(n: int, hold: str, K: int, lanes: int, z: _LaneRows, ind: str, outputs: bool = False,
+                  outmap=None) -> list:
+    """The arrays' sizes checked; every lane's coefficients, state and previous signal (padding lanes repeat lane
+    0), and the sums."""
+    lines = _indent(ind, _pass_checks(K, lanes, lanes, z.terms, outputs, outmap))
+    lines += [f"{ind}for w in range(W):", f"{ind}    b = w if w < {lanes} else 0",
              f"{ind}    e = b if b < E.shape[0] else 0"]
     lines += _lane_coefficients(n, hold, K, z, ind + "    ", "X", "e")
     lines.append(f"{ind}    {z['vp']} = VP[b]")
@@ -482,7 +485,7 @@ from hammerstein_ctrl._jit import cached_njit, kernel_signature
 from hammerstein_ctrl._simd import lane, load, rotate, splat, store
 
 
-@cached_njit(fastmath={{"contract"}}, signatures=(kernel_signature("{signature}"),))
+@cached_njit(signatures=(kernel_signature("{signature}"),))
 def kernel(E, C, D, X, Y0, VP, P, Phi, HP, HX, y, begin, acc):
     align_stack()
     N = Phi.shape[1]
@@ -527,16 +530,25 @@ def _if_lane(g: int, chunks: int, lines: list) -> list:
     return [f"if {g} < lanes:"] + _indent(_INDENT, lines)
 
 
-def _vector_checks(K: int, chunks: int, terms: tuple) -> list:
-    """Lines refusing arrays too small for the lanes counted at run time (compiled code checks no index)."""
-    fewest, most = _fewest_lanes(chunks), _most_lanes(chunks)
+def _pass_checks(K: int, fewest: int, most: int, terms: tuple, outputs: bool = False, outmap=None) -> list:
+    """Lines refusing arrays too small for a normal-equation pass of ``fewest`` to ``most`` lanes, counted at run
+    time by the length of ``VP`` (``lanes``, with ``p = lanes - 1``; compiled code checks no index)."""
     small = ["X.shape[0] < lanes", "P.shape[0] < lanes", f"P.shape[1] < {K}", f"Phi.shape[0] < {K}",
-             "y.shape[0] < N", "acc.shape[0] < 1 + p * lanes", "E.shape[0] < 1", "C.shape[0] < E.shape[0]"]
+             "y.shape[0] < N", "E.shape[0] < 1", "C.shape[0] < E.shape[0]"]
+    small += ["acc.shape[0] < N", "acc.shape[1] < lanes"] if outputs else ["acc.shape[0] < 1 + p * lanes"]
     small += ["D.shape[0] < E.shape[0]"] if "d" in terms else []
     small += ["Y0.shape[0] < lanes"] if "o" in terms else []
-    return [f"if not {fewest} <= lanes <= {most} or {' or '.join(small)}:",
-            f"    raise ValueError('this pass takes {fewest} to {most} lanes (the length of VP), and X, P (and Y0) "
-            f"with a row for each, {K} basis rows, y as long as the basis, sums for them all and a linear block')"]
+    small += ["HP.shape[0] < lanes"] if outmap else []
+    takes = f"{fewest} to {most} lanes" if fewest < most else f"{fewest} lanes"
+    return ["lanes = VP.shape[0]", "p = lanes - 1", f"if not {fewest} <= lanes <= {most} or {' or '.join(small)}:",
+            f"    raise ValueError('this pass takes {takes} (the length of VP), and X, P (and Y0) "
+            f"with a row for each, {K} basis rows, y as long as the basis, "
+            f"{'an output row' if outputs else 'sums'} for them all and a linear block')"]
+
+
+def _vector_checks(K: int, chunks: int, terms: tuple) -> list:
+    """:func:`_pass_checks` of a vector pass of ``chunks`` neighbour vectors."""
+    return _pass_checks(K, _fewest_lanes(chunks), _most_lanes(chunks), terms)
 
 
 def _vector_setup(n: int, hold: str, K: int, chunks: int, terms: tuple) -> list:
@@ -548,7 +560,7 @@ def _vector_setup(n: int, hold: str, K: int, chunks: int, terms: tuple) -> list:
     and so every sum, are those of loading each lane in its own statements,
     in a fraction of the code to compile.
     """
-    lines = ["lanes = VP.shape[0]", "p = lanes - 1"] + _vector_checks(K, chunks, terms)
+    lines = _vector_checks(K, chunks, terms)
     lines += ["b0 = 0", "e0 = b0 if b0 < E.shape[0] else 0"]
     lines += _coefficient_loads(n, hold, _scalar_names(0), "b0", "X", K, terms, "e0") + ["vp_0 = VP[b0]"]
     names, width = _lane_names(n, hold, K, terms), chunks * WIDTH
@@ -695,7 +707,7 @@ def normal_source(n: int, hold: str, lanes: int, K: int, direct: bool = True, of
         n=n, hold=hold, lanes=lanes, K=K, width=width, rows=len(z), outmap=outmap,
         signature=normal_signature_codes(outputs),
         imports=f"from hammerstein_ctrl.compiled_maps import {outmap} as h\n" if outmap else "",
-        setup="\n".join(_normal_setup(n, hold, K, lanes, z, ind1, outputs)), first="\n".join(first),
+        setup="\n".join(_normal_setup(n, hold, K, lanes, z, ind1, outputs, outmap)), first="\n".join(first),
         fetch="\n".join(fetch), step="\n".join(step), sums="\n".join(sums),
         store="\n".join(_normal_store(n, lanes, z, ind1, outputs)),
     )

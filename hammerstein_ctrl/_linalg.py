@@ -170,14 +170,6 @@ def copy_vector(src, dst):  # pragma: no cover - compiled
         dst[i] = src[i]
 
 
-@cached_njit()
-def _copy(src, dst):  # pragma: no cover - compiled
-    n = src.shape[0]
-    for i in range(n):
-        for j in range(n):
-            dst[i, j] = src[i, j]
-
-
 def expm_into(M, out) -> None:
     """``out[:, :] = expm(M)`` for one square matrix (NaN if ``M`` is not finite); ``out`` may be ``M`` itself.
 

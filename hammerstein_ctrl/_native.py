@@ -67,23 +67,32 @@ from ._jit import machine_cache_dir, machine_cache_root
 from .exceptions import NativeBuildError
 from .safe_io import open_lock
 
-__all__ = ["library", "c_call", "SOURCES", "BUILD_FLAGS", "LEVELS", "SIGNATURES", "DEPENDS", "prototypes",
-           "wrapper_source"]
+__all__ = ["library", "c_call", "kernel_address", "kernel_call", "KERNEL_LEVEL", "KERNEL_HEADER", "SOURCES",
+           "BUILD_FLAGS", "LEVELS", "SIGNATURES", "DEPENDS", "prototypes", "wrapper_source"]
 
 #: The C sources of the library: the small dense linear algebra, forward-difference steps and normal equations,
 #: loops over a record's samples, the Levenberg-Marquardt step, and MINPACK's loops over a residual vector.
 SOURCES = tuple(Path(__file__).resolve().parent / name for name in ("_native_linalg.c", "_native_normal.c",
                                                                        "_native_signal.c", "optimize/_native_lm.c",
+                                                                       "optimize/_native_lm_loop.c",
                                                                        "optimize/_native_minpack.c"))
+#: The header of the arguments of a generated kernel built in C (included by the library and by every kernel).
+KERNEL_HEADER = Path(__file__).resolve().parent / "_native_kernel.h"
+#: The C of the extension module's ``call``, the Python door of the kernels built in C (:func:`kernel_address`).
+_CALL_SOURCE = Path(__file__).resolve().parent / "_native_call.c"
 #: The files that define the library's interface (package-relative): the cache key of every compiled function
 #: that calls the library (``cached_njit(depends=...)``), so an edited prototype compiles its callers again.
-DEPENDS = ("_native.py",) + tuple(str(source.relative_to(Path(__file__).resolve().parent)) for source in SOURCES)
+DEPENDS = ("_native.py", "_native_call.c", "_native_kernel.h") + tuple(
+    str(source.relative_to(Path(__file__).resolve().parent)) for source in SOURCES)
 #: Flags of every compile of the build (a change builds a new library).
 BUILD_FLAGS = ("-march=native", "-std=c99", "-fPIC", "-ffp-contract=off", "-fno-strict-aliasing")
 #: Optimisation level of each source: the loops over a record's samples and over a residual vector are vectorised
 #: at -O3; the rest runs as fast at -O2 and compiles in about half the time; the generated wrappers (glue around
 #: one call) at -O1.  No level changes a result: there is no fast-math and no contraction.
 LEVELS = {"_native_signal.c": "-O3", "optimize/_native_minpack.c": "-O3", "wrappers": "-O1"}
+#: Optimisation of a generated kernel (:func:`kernel_address`): its loops over candidates' columns are vectorised
+#: at -O3, and its loop over samples unrolled (a single candidate's recursion ran 10 % slower without).
+KERNEL_LEVEL = ("-O3", "-funroll-loops")
 #: Flags this platform's linker needs for an extension module (macOS resolves Python's symbols at load time).
 _PLATFORM_FLAGS = ("-undefined", "dynamic_lookup") if sys.platform == "darwin" else ()
 #: The module's name (its file is ``_hc_native`` with Python's extension suffix).
@@ -123,6 +132,8 @@ def prototypes(text: str) -> dict:
 
 #: The sources' text, read once: the signatures, the build's key and its wrappers come from it.
 _SOURCE_TEXT = "".join(source.read_text() for source in SOURCES)
+_CALL_TEXT = _CALL_SOURCE.read_text()
+_HEADER_TEXT = KERNEL_HEADER.read_text()
 #: The library's functions: name, then the kinds of its arguments and of its result (``""`` none, ``f`` a double,
 #: ``b`` a bool, ``i`` an int), read off the C sources: one table for the Python and the compiled door.
 SIGNATURES = prototypes(_SOURCE_TEXT)
@@ -137,22 +148,32 @@ def _compiler() -> list[str]:
     return words if words and shutil.which(words[0]) else ["cc"]
 
 
-def _digest() -> str:
-    """Key of a build: the sources, this module (it writes the wrappers), the flags, the processor and Python's
+@functools.lru_cache(maxsize=1)
+def _host() -> tuple:
+    """The processor (its name and features) and Python's extension suffix (the module's ABI)."""
+    cpu = llvmlite.binding
+    return (platform.machine(), cpu.get_host_cpu_name(), cpu.get_host_cpu_features().flatten(),
+            sysconfig.get_config_var("EXT_SUFFIX"))
+
+
+def _host_digest() -> str:
+    """Key of what a build's machine code depends on besides its source: the flags, the processor and Python's
     version (the module's ABI).  Not the compiler: a library stays usable after the compiler that built it is
     gone (or another one is named in ``$CC``)."""
-    text = _SOURCE_TEXT.encode() + Path(__file__).read_bytes()
-    cpu = llvmlite.binding
-    host = (platform.machine(), cpu.get_host_cpu_name(), cpu.get_host_cpu_features().flatten(),
-            sysconfig.get_config_var("EXT_SUFFIX"))
-    text += repr((BUILD_FLAGS, sorted(LEVELS.items()), host)).encode()
+    text = repr((BUILD_FLAGS, sorted(LEVELS.items()), KERNEL_LEVEL, _host())).encode()
     return hashlib.sha256(text).hexdigest()[:16]
 
 
-def _cache_folder(digest: str) -> Path | None:
-    """The folder of this build in the machine cache: there already (writable or not), else made if the cache can
-    take it; ``None`` where the name is a link (never followed out of the cache) or there is no folder."""
-    folder = machine_cache_root() / f"native-{digest}"
+def _digest() -> str:
+    """Key of a build of the library: the sources, this module (it writes the wrappers) and :func:`_host_digest`."""
+    text = _SOURCE_TEXT.encode() + _CALL_TEXT.encode() + _HEADER_TEXT.encode() + Path(__file__).read_bytes()
+    return hashlib.sha256(text + _host_digest().encode()).hexdigest()[:16]
+
+
+def _cache_folder(key: str) -> Path | None:
+    """The folder of the builds of ``key`` in the machine cache: there already (writable or not), else made if the
+    cache can take it; ``None`` where the name is a link (never followed out of the cache) or there is no folder."""
+    folder = machine_cache_root() / key
     if not folder.is_dir() and machine_cache_dir() is not None:
         with contextlib.suppress(OSError):
             folder.mkdir(exist_ok=True)
@@ -254,8 +275,8 @@ def wrapper_source(text: str, module: str = _MODULE) -> str:
     """The C of an extension module ``module`` wrapping every exported function of the C ``text`` (their
     prototypes are copied from it)."""
     heads = re.findall(r"^((?:void|double|bool|int)\s+hc_\w+\([^)]*\))\s*\{", text, re.M)
-    parts = [_WRAPPER_HEAD] + [" ".join(head.split()) + ";" for head in heads] + [""]
-    table = []
+    parts = [_WRAPPER_HEAD, _CALL_TEXT] + [" ".join(head.split()) + ";" for head in heads] + [""]
+    table = ["    {\"call\", (PyCFunction)(void (*)(void))call_kernel, METH_FASTCALL, NULL},"]
     for name, (kinds, result) in prototypes(text).items():
         parts.append(_wrapper(name, kinds, result))
         table.append(f"    {{\"{name}\", (PyCFunction)(void (*)(void))w_{name}, METH_FASTCALL, NULL}},")
@@ -269,21 +290,26 @@ class _WriteError(NativeBuildError):
     """The library was compiled, or could be, but not written where asked (a full disk, a read-only folder)."""
 
 
-def _build(compiler: list[str], target: Path) -> None:
-    """Compile :data:`SOURCES` and their wrappers into ``target``, then its digest beside it (so a file cut short
-    is never loaded); :class:`NativeBuildError` on failure (:class:`_WriteError` if only the writing failed).
-    No temporary file is left behind, whatever stops the build."""
+def _build(compiler: list[str], target: Path, kernel: str | None = None) -> None:
+    """Compile :data:`SOURCES` and their wrappers (or the C of one ``kernel``, :func:`kernel_address`) into
+    ``target``, then its digest beside it (so a file cut short is never loaded); :class:`NativeBuildError` on
+    failure (:class:`_WriteError` if only the writing failed).  No temporary file is left behind, whatever stops
+    the build."""
     folder, made = target.parent, []
     try:
         try:
-            for suffix in (".so.tmp", "-wrappers.c"):
+            for suffix in (".so.tmp", "-wrappers.c" if kernel is None else "-kernel.c"):
                 fd, path = tempfile.mkstemp(dir=folder, suffix=suffix)
                 os.close(fd)
                 made.append(path)
-            Path(made[1]).write_text(wrapper_source(_SOURCE_TEXT))
+            Path(made[1]).write_text(wrapper_source(_SOURCE_TEXT) if kernel is None else kernel)
         except OSError as exc:
             raise _WriteError(f"hammerstein_ctrl's C library cannot be written to {folder}: {exc}") from None
-        _compile(compiler, made[0], made[1])
+        if kernel is None:
+            _compile(compiler, made[0], made[1])
+        else:
+            _run(compiler, [*compiler, *BUILD_FLAGS, *KERNEL_LEVEL, "-shared", *_PLATFORM_FLAGS, "-o", made[0],
+                            made[1], "-lm"], cwd=str(folder))
         try:
             os.chmod(made[0], 0o755 & ~_UMASK)
             os.replace(made[0], target)
@@ -303,13 +329,14 @@ def _compile(compiler: list[str], output: str, wrappers: str) -> None:
         groups.setdefault(LEVELS.get(str(source.relative_to(root)), "-O2"), []).append(str(source))
     groups.setdefault(LEVELS["wrappers"], []).append(wrappers)
     include = f"-I{sysconfig.get_paths()['include']}"
+    package = f"-I{root}"
     try:
         scratch = tempfile.TemporaryDirectory(prefix="hammerstein_ctrl-objects-")
     except OSError as exc:
         raise _WriteError(f"no folder for hammerstein_ctrl's C library's objects: {exc}") from None
     with scratch as objects:
         for level, files in groups.items():
-            _run(compiler, [*compiler, *BUILD_FLAGS, level, include, "-c", *files], cwd=objects)
+            _run(compiler, [*compiler, *BUILD_FLAGS, level, include, package, "-c", *files], cwd=objects)
         _run(compiler, [*compiler, "-shared", *_PLATFORM_FLAGS, "-o", output,
                         *sorted(str(p) for p in Path(objects).glob("*.o")), "-lm"], cwd=objects)
 
@@ -359,15 +386,19 @@ def _write_digest(target: Path) -> None:
         _remove(tmp)
 
 
-def _load(path: Path):
-    """The module at ``path`` with the addresses of its functions; ``None`` if the file is missing, a link, not
-    the file its digest was written for (cut short, damaged) or does not load."""
+def _load(path: Path, kernel: bool = False):
+    """The module at ``path`` with the addresses of its functions (a ``kernel``'s: its handle and the address of
+    its function ``kernel``); ``None`` if the file is missing, a link, not the file its digest was written for
+    (cut short, damaged) or does not load."""
     record = path.with_name(path.name + ".sha256")
     try:
         if path.is_symlink() or record.is_symlink() or not path.is_file():
             return None
         if record.read_text().strip() != _file_digest(path):
             return None
+        if kernel:
+            handle = ctypes.CDLL(str(path))
+            return handle, ctypes.cast(handle.kernel, ctypes.c_void_p).value
         spec = importlib.util.spec_from_file_location(f"hammerstein_ctrl.{_MODULE}", path)
         module = importlib.util.module_from_spec(spec)
         spec.loader.exec_module(module)
@@ -375,7 +406,7 @@ def _load(path: Path):
         addresses = {name: ctypes.cast(getattr(handle, name), ctypes.c_void_p).value for name in SIGNATURES}
     except (ImportError, OSError, AttributeError, ValueError):
         return None
-    if any(not hasattr(module, name) for name in SIGNATURES):
+    if any(not hasattr(module, name) for name in (*SIGNATURES, "call")):
         return None
     return module, addresses
 
@@ -395,24 +426,17 @@ def library():
     NativeBuildError
         If it is not built yet and no C compiler can build it.
     """
-    compiler = _compiler()
-    name = _MODULE + sysconfig.get_config_var("EXT_SUFFIX")
-    folder = _cache_folder(_digest())
-    loaded = None if folder is None else _load(folder / name)
-    if loaded is None and folder is not None:
-        loaded = _locked_build(compiler, folder / name)
-    if loaded is None:
-        loaded = _built(compiler, _temporary_folder() / name)
+    loaded = _loaded(_MODULE + sysconfig.get_config_var("EXT_SUFFIX"), "native-" + _digest())
     module, addresses = loaded
     for symbol, address in addresses.items():
         llvmlite.binding.add_symbol(symbol, address)
     return module
 
 
-def _locked_build(compiler: list[str], target: Path):
-    """The library at ``target``, built under the folder's lock unless another process built it meanwhile;
-    ``None`` if the folder cannot take it (a full disk, no locks: then built elsewhere); :class:`NativeBuildError`
-    if no compiler can build it."""
+def _locked_build(compiler: list[str], target: Path, kernel: str | None = None):
+    """The library (or ``kernel``'s object, :func:`kernel_address`) at ``target``, built under the folder's lock
+    unless another process built it meanwhile; ``None`` if the folder cannot take it (a full disk, no locks: then
+    built elsewhere); :class:`NativeBuildError` if no compiler can build it."""
     try:
         lock = open_lock(target.with_name(".lock"), readonly=True)      # an UnsafePathError is an OSError too
     except OSError:
@@ -422,23 +446,59 @@ def _locked_build(compiler: list[str], target: Path):
             fcntl.flock(lock, fcntl.LOCK_EX)
         except OSError:
             return None
-        loaded = _load(target)
+        loaded = _load(target, kernel is not None)
         if loaded is not None:
             return loaded
         try:
-            _build(compiler, target)
+            _build(compiler, target, kernel)
         except _WriteError:
             return None
-        return _load(target)
+        return _load(target, kernel is not None)
 
 
-def _built(compiler: list[str], target: Path):
-    """The library built and loaded at ``target``; :class:`NativeBuildError` if it cannot be."""
-    _build(compiler, target)
-    loaded = _load(target)
+def _built(compiler: list[str], target: Path, kernel: str | None = None):
+    """The library (or ``kernel``'s object) built and loaded at ``target``; :class:`NativeBuildError` if it cannot
+    be."""
+    _build(compiler, target, kernel)
+    loaded = _load(target, kernel is not None)
     if loaded is None:
         raise NativeBuildError(f"hammerstein_ctrl's C library at {target} was built but does not load")
     return loaded
+
+
+def _loaded(file: str, digest: str, kernel: str | None = None):
+    """The library (or ``kernel``'s object) of build key ``digest`` from the machine cache, built there first if
+    need be (else in a temporary folder)."""
+    compiler = _compiler()
+    folder = _cache_folder(digest)
+    loaded = None if folder is None else _load(folder / file, kernel is not None)
+    if loaded is None and folder is not None:
+        loaded = _locked_build(compiler, folder / file, kernel)
+    if loaded is None:
+        loaded = _built(compiler, _temporary_folder() / file, kernel)
+    return loaded
+
+
+#: The kernels' objects loaded in this process (kept, so that their code stays mapped).
+_KERNELS: list = []
+
+
+@functools.lru_cache(maxsize=None)
+def kernel_address(name: str, text: str) -> int:
+    """Address of the function ``int64_t kernel(const hc_arg *args)`` of the C ``text``
+    (:func:`~hammerstein_ctrl._kernel_c.translate`), built once per machine (about 0.1-0.2 s of the compiler's
+    CPU) into the machine cache, in a file named after ``name`` and a digest of ``text``; valid for the life of
+    the process.  Python calls it through the library's ``call``, compiled code through :func:`kernel_call`.
+
+    Raises
+    ------
+    NativeBuildError
+        If it is not built yet and no C compiler can build it.
+    """
+    file = f"{name}-{hashlib.sha256(text.encode()).hexdigest()[:16]}.so"
+    handle, address = _loaded(file, "ckernels-" + _host_digest(), text)
+    _KERNELS.append(handle)
+    return address
 
 
 _C_TYPES = {"d": types.float64, "l": types.int64, "b": types.boolean, "s": types.float32}
@@ -488,6 +548,54 @@ def c_call(name: str, args: tuple):
             return context.get_dummy_value()
         return builder.icmp_unsigned("!=", value, ir.Constant(value.type, 0)) if result == "b" else value
     return restype(*args), codegen
+
+
+#: One argument of a kernel built in C (:data:`~hammerstein_ctrl._kernel_c.ARG_STRUCT`): data pointer, shape.
+_KERNEL_ARG = ir.LiteralStructType([ir.IntType(8).as_pointer(), ir.ArrayType(ir.IntType(64), 3)])
+
+
+def kernel_call(name: str, argtypes: tuple, address, args: tuple):
+    """The typing of an intrinsic calling the kernel built in C at ``address`` (:func:`kernel_address`) with
+    ``args`` passed as ``argtypes`` (numba types: C-ordered float64 arrays and int64): ``(signature, codegen)``;
+    the kernel's status (int64) is the result.
+
+    Arguments of other types are refused with a ``TypingError`` when the caller
+    is compiled (a writeable array passes where a read-only one is expected,
+    never the other way); shapes are not checked: compiled callers pass the
+    arrays the kernel was generated for.
+    """
+    def fits(given, expected):
+        if isinstance(expected, types.Array):
+            return (isinstance(given, types.Array) and given.dtype == expected.dtype and given.ndim == expected.ndim
+                    and given.layout == "C" and (given.mutable or not expected.mutable))
+        return isinstance(given, types.Integer)
+    if not isinstance(address, types.Integer) or len(args) != len(argtypes) or not all(map(fits, args, argtypes)):
+        raise numba.core.errors.TypingError(f"{name} takes an int64 address and {argtypes}, got {(address, *args)}")
+
+    def codegen(context, builder, signature, llargs):
+        i64 = ir.IntType(64)
+        block = numba.core.cgutils.alloca_once(builder, _KERNEL_ARG, size=len(args))
+        for k, (ty, value) in enumerate(zip(signature.args[1:], llargs[1:])):
+            slot = builder.gep(block, [ir.Constant(i64, k)])
+            data = builder.gep(slot, [ir.Constant(ir.IntType(32), 0), ir.Constant(ir.IntType(32), 0)])
+            shape = [builder.gep(slot, [ir.Constant(ir.IntType(32), 0), ir.Constant(ir.IntType(32), 1),
+                                        ir.Constant(ir.IntType(32), d)]) for d in range(3)]
+            if isinstance(ty, types.Array):
+                array = context.make_array(ty)(context, builder, value)
+                builder.store(builder.bitcast(array.data, ir.IntType(8).as_pointer()), data)
+                dims = numba.core.cgutils.unpack_tuple(builder, array.shape, ty.ndim)
+                for d in range(3):
+                    builder.store(dims[d] if d < ty.ndim else ir.Constant(i64, 0), shape[d])
+            else:
+                builder.store(ir.Constant(ir.IntType(8).as_pointer(), None), data)
+                builder.store(context.cast(builder, value, ty, types.int64), shape[0])
+                for d in (1, 2):
+                    builder.store(ir.Constant(i64, 0), shape[d])
+        function = ir.FunctionType(i64, [_KERNEL_ARG.as_pointer()])
+        pointer = builder.inttoptr(context.cast(builder, llargs[0], signature.args[0], types.int64),
+                                   function.as_pointer())
+        return builder.call(pointer, [block])
+    return types.int64(address, *args), codegen
 
 
 def _c_value(context, builder, ty, value, code):

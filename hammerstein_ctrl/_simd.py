@@ -5,8 +5,9 @@ array in memory, so a recursion carried from one sample to the next goes
 through a store and a load every step; tuples of scalars are not
 vectorised at all.  The type here is a numba value whose machine form is one
 256-bit vector: a loop-carried ``Lanes4`` is a register, and ``+``, ``-``,
-``*`` on two of them are single vector instructions (allowed to fuse into
-FMAs, like the ``fastmath={"contract"}`` scalar code of the kernels).  Four
+``*`` on two of them are single vector instructions, each rounded as IEEE
+arithmetic rounds it (no fused multiply-add, as in the scalar code of the
+kernels, so that a lane gives the bits of the same steps in scalars).  Four
 lanes is the width a 256-bit unit (AVX2, or AVX-512 run on two 256-bit
 halves) executes at full rate.
 
@@ -51,8 +52,8 @@ __all__ = ["Lanes4", "lanes4", "WIDTH", "pack", "splat", "lane", "rotate", "load
 
 #: Lanes of one vector.
 WIDTH = 4
-#: Floating-point flags of the vector arithmetic: a product feeding a sum may become one FMA.
-_FLAGS = ("contract",)
+#: Floating-point flags of the vector arithmetic: none (IEEE arithmetic, no contraction into FMAs).
+_FLAGS = ()
 _VECTOR = ir.VectorType(ir.DoubleType(), WIDTH)
 _I32 = ir.IntType(32)
 

@@ -32,10 +32,20 @@ arithmetic (so a candidate's operations, and its rounding, are the same in each)
 * :func:`get_normal_kernel`: a point and its forward-difference neighbours
   across SIMD lanes, accumulating the normal equations of least squares.
 
-The generated source is written to a per-version cache directory
-(:func:`cache_dir`) and compiled by numba with ``cache=True``, so a new
-process loads the machine code instead of compiling again.  Larger
-dimensions use one generic compiled loop.
+The generated source is Python.  Every kernel without an output map is
+translated to C (:mod:`~hammerstein_ctrl._kernel_c`) and built once per
+machine by the system's C compiler (about 0.1-0.2 s a kernel, where numba
+took 0.6-3 s), into the machine cache (:func:`~hammerstein_ctrl._native.kernel_address`):
+a :class:`CKernel`, called from Python through the package's C library,
+which checks its arrays' types and shapes, and from compiled code through
+its address (:func:`normal_kernel_address`).  The translation is operation for
+operation, without contraction into fused multiply-adds, so a kernel gives
+the bits numba gives for the same source.  Kernels with an output map call
+compiled functions of :mod:`~hammerstein_ctrl.compiled_maps`: their source
+is written to a per-version cache directory (:func:`cache_dir`) and
+compiled by numba with ``cache=True``, so a new process loads the machine
+code instead of compiling again.  Larger dimensions use one generic
+compiled loop.
 
 Examples
 --------
@@ -64,17 +74,17 @@ import numba
 import numba.extending
 import numpy as np
 
-from ._jit import (ENV_CACHE as _jit_ENV_CACHE, cached_njit, function_address, kernel_signature, machine_cache_dir,
-                   only_for, typed_call)
+from ._jit import (ENV_CACHE as _jit_ENV_CACHE, cached_njit, kernel_signature, machine_cache_dir, only_for)
 from ._kernel_source import (_CHECK_MASK, _OVERFLOW, _terms, HOLDS, INTERLEAVE, LANE_MIN, LANE_WIDTHS,
                              MAX_LANE_BASIS, MAX_NORMAL_LANES, MAX_PASS_STATES, MAX_UNROLLED_STATES,
                              MAX_VECTOR_STATES, MODES, OUTPUT_TERMS, kernel_signature_codes, kernel_source, lane_source,
-                             normal_signature_codes, normal_source, vector_chunks, vector_normal_source)
+                             normal_source, vector_chunks, vector_normal_source)
+from ._kernel_c import translate
 from ._linalg import tf_discrete_into
-from ._native import DEPENDS as NATIVE_DEPENDS
+from ._native import DEPENDS as NATIVE_DEPENDS, kernel_address, kernel_call, library
 
 __all__ = ["get_kernel", "get_coefficient_kernel", "get_normal_kernel", "get_lane_kernel", "lane_source",
-           "has_basis_kernels", "has_output_maps", "kernel_source", "normal_kernel_address", "call_normal_kernel",
+           "has_basis_kernels", "has_output_maps", "kernel_source", "normal_kernel_address",
            "discretised", "normal_source", "vector_normal_source", "cache_dir", "OUTPUT_TERMS",
            "MAX_UNROLLED_STATES", "MAX_PASS_STATES", "MAX_VECTOR_STATES", "MAX_NORMAL_LANES", "LANE_WIDTHS", "LANE_MIN",
            "MAX_LANE_BASIS", "INTERLEAVE", "MODES", "HOLDS", "ENV_CACHE"]
@@ -130,7 +140,8 @@ def get_lane_kernel(n: int, hold: str, K: int, direct: bool = True, offset: bool
         raise ValueError(f"unknown hold {hold!r}")
     _check_sizes(n, K)
     name = f"hc_lanes_n{n}_{hold}_k{K}" + "".join(f"_{t}" for t in _terms(direct, offset))
-    return _load_source(lane_source(int(n), hold, int(K), bool(direct), bool(offset)), name)
+    src = lane_source(int(n), hold, int(K), bool(direct), bool(offset))
+    return _c_kernel(src, name, _basis_shapes(n, hold, "sse", K))
 
 
 @functools.lru_cache(maxsize=None)
@@ -213,44 +224,25 @@ def get_normal_kernel(n: int, hold: str, lanes: int, K: int, direct: bool = True
     terms = "".join(f"_{t}" for t in _terms(direct, offset))
     if outmap is None and not outputs and n <= MAX_VECTOR_STATES:   # one pass per number of neighbour vectors
         src = vector_normal_source(int(n), hold, int(lanes), int(K), bool(direct), bool(offset))
-        return _load_source(src, f"hc_normal_n{n}_{hold}_c{vector_chunks(lanes)}_k{K}{terms}")
+        name = f"hc_normal_n{n}_{hold}_c{vector_chunks(lanes)}_k{K}{terms}"
+        return _c_kernel(src, name, _pass_shapes(n, hold, outputs))
     name = f"hc_normal_n{n}_{hold}_l{lanes}_k{K}{terms}" + (f"_{outmap}" if outmap else "") + (
         "_outputs" if outputs else "")
     src = normal_source(int(n), hold, int(lanes), int(K), bool(direct), bool(offset), outmap, bool(outputs))
-    return _load_source(src, name)
-
-
-#: Argument types of a summing normal-equation pass (:func:`get_normal_kernel`), as compiled.
-_NORMAL_SIGNATURE = kernel_signature(normal_signature_codes())
+    return _load_source(src, name) if outmap else _c_kernel(src, name, _pass_shapes(n, hold, outputs))
 
 
 @functools.lru_cache(maxsize=None)
 def normal_kernel_address(n: int, hold: str, lanes: int, K: int, direct: bool) -> int:
-    """Address of :func:`get_normal_kernel`'s summing kernel (no offset, map or outputs), for
-    :func:`call_normal_kernel`.
-
-    Compiled code that calls the kernel through its address is compiled once
-    for every kernel (numba would otherwise compile the caller again for
-    each kernel it calls, and could not cache it).  The address is valid for
-    the life of the process.
+    """Address of :func:`get_normal_kernel`'s summing kernel (no offset, map or outputs), for the C library's
+    Levenberg-Marquardt loop (:mod:`~hammerstein_ctrl.optimize.normal_lm`), valid for the life of the process.
 
     Examples
     --------
     >>> normal_kernel_address(1, "zoh", 2, 1, False) > 0
     True
     """
-    return function_address(get_normal_kernel(n, hold, lanes, K, direct, False), _NORMAL_SIGNATURE)
-
-
-@numba.extending.intrinsic
-def call_normal_kernel(typingctx, address, E, C, D, X, Y0, VP, P, Phi, HP, HX, y, begin, acc):
-    """Call the kernel at ``address`` (:func:`normal_kernel_address`) from compiled code, as ``kernel(E, ..., acc)``.
-
-    The arguments' types are checked against the kernel's when the caller is
-    compiled: the same types give the same machine code, called through the pointer.
-    """
-    return typed_call("call_normal_kernel", _NORMAL_SIGNATURE, address, (E, C, D, X, Y0, VP, P, Phi, HP, HX, y,
-                                                                         begin, acc))
+    return get_normal_kernel(n, hold, lanes, K, direct, False).address
 
 
 #: Argument types of every ``"sse"`` kernel with a basis signal (:func:`get_kernel` with ``K``).
@@ -261,7 +253,68 @@ _BASIS_SSE_SIGNATURE = kernel_signature(kernel_signature_codes("sse", None, 1))
 def _call_basis_kernel(typingctx, address, E, C, D, X0, Y0, P, Phi, y, out):
     """Call the ``"sse"`` basis kernel at ``address`` (as :func:`get_coefficient_kernel` finds it) from compiled
     code."""
-    return typed_call("_call_basis_kernel", _BASIS_SSE_SIGNATURE, address, (E, C, D, X0, Y0, P, Phi, y, out))
+    return kernel_call("_call_basis_kernel", _BASIS_SSE_SIGNATURE, address, (E, C, D, X0, Y0, P, Phi, y, out))
+
+
+class CKernel:
+    """A generated kernel built in C (:func:`~hammerstein_ctrl._native.kernel_address`): called from Python as
+    ``kernel(E, C, ...)``, its arrays checked against the shapes it takes (a ``ValueError`` or ``TypeError``
+    naming the argument); :attr:`address` for compiled callers.
+
+    Parameters
+    ----------
+    address : int
+        The kernel's machine code.
+    spec : str
+        Its name and arguments, as the library's ``call`` reads them.
+    messages : tuple of str
+        The message of each refusal the kernel can return (its source's ``raise`` statements).
+    """
+
+    __slots__ = ("address", "spec", "messages", "_call")
+
+    def __init__(self, address: int, spec: str, messages: tuple):
+        self.address, self.spec, self.messages = address, spec, messages
+        self._call = library().call
+
+    def __call__(self, *args):
+        status = self._call(self.address, self.spec, *args)
+        if status:
+            raise ValueError(self.messages[status - 1])
+
+    def __repr__(self):
+        return f"<CKernel {self.spec.split('|')[0]}>"
+
+
+@functools.lru_cache(maxsize=None)
+def _c_kernel(src: str, name: str, shapes: tuple) -> CKernel:
+    """The generated kernel ``src`` translated to C and built (once per machine), its arguments of ``shapes``
+    (``(name, dimensions)`` pairs, as the library's ``call`` reads them)."""
+    c = translate(src)
+    dims = dict(shapes)
+    words = [f"{a}:i" if code == "i" else f"{a}:{code[0]}:{dims[a]}" for a, code in zip(c.names, c.codes)]
+    return CKernel(kernel_address(name, c.text), name + "|" + " ".join(words), c.messages)
+
+
+def _block_shape(n: int, hold: str) -> str:
+    """The trailing dimensions of ``E`` a kernel reads: ``n`` rows, ``n + 2`` columns (zoh: ``n + 1``), or more."""
+    return f"{n}+,{n + (2 if hold == 'foh' else 1)}+"
+
+
+def _basis_shapes(n: int, hold: str, mode: str, K: int | None) -> tuple:
+    """The shapes a kernel of :func:`kernel_source` or :func:`lane_source` takes: ``B`` candidates, ``N`` samples."""
+    signal = (("V", "B,N+"),) if K is None else (("P", f"B,{K}+"), ("Phi", f"{K}+,N+"))
+    out = (("y", "N"), ("out", "B")) if mode == "sse" else (("out", "B,N+"),)
+    return (("E", f"B,{_block_shape(n, hold)}"), ("C", f"B,{n}+"), ("D", "B"), ("X0", f"B,{n}+"),
+            ("Y0", "B")) + signal + out
+
+
+def _pass_shapes(n: int, hold: str, outputs: bool) -> tuple:
+    """The shapes a normal-equation pass takes: the linear block's trailing dimensions; the pass checks the rest."""
+    return (("E", f"R,{_block_shape(n, hold)}"), ("C", f"S,{n}+"), ("D", "T*"), ("X", f"A,{n}+"), ("Y0", "Q*"),
+            ("VP", "L*"),
+            ("P", "G*,H*"), ("Phi", "F*,U*"), ("HP", "V*,W*"), ("HX", "I*"), ("y", "M*"),
+            ("acc", "Z*,Y*" if outputs else "Z*"))
 
 
 @cached_njit(inline="always")
@@ -346,7 +399,8 @@ def _write_once(path: Path, text: str):
 
 
 def _load_generated(n: int, mode: str, hold: str, outmap: str | None = None, K: int | None = None):
-    return _load_source(kernel_source(n, mode, hold, outmap, K), _module_name(n, mode, hold, outmap, K))
+    src, name = kernel_source(n, mode, hold, outmap, K), _module_name(n, mode, hold, outmap, K)
+    return _load_source(src, name) if outmap else _c_kernel(src, name, _basis_shapes(n, hold, mode, K))
 
 
 @functools.lru_cache(maxsize=None)
@@ -381,7 +435,7 @@ def get_coefficient_kernel(n: int, hold: str, K: int):
     ...   np.ones((1, 1)), np.ones((1, 4)), np.zeros(4), J), J        # an integrator: y = (0, 0.5, 1, 1.5)
     (True, array([3.5]))
     """
-    address = function_address(get_kernel(n, "sse", hold, None, K), _BASIS_SSE_SIGNATURE)    # checks the arguments
+    address = get_kernel(n, "sse", hold, None, K).address
     return functools.partial(only_for(_from_coefficients, (_COEFFICIENT_SIGNATURE,)), address)
 
 

@@ -28,17 +28,14 @@ from __future__ import annotations
 
 from typing import NamedTuple
 
-import numba.extending
 import numpy as np
 
 from ._checks import as_real_array
-from ._jit import cached_njit
-from ._linalg import copy_vector
-from ._native import DEPENDS as NATIVE_DEPENDS, c_call, library
+from ._native import library
 from .exceptions import ParameterError
 
 __all__ = ["NormalEquations", "from_residuals", "from_difference_sums", "from_factor", "scored_inf", "forward_steps",
-           "point_and_steps", "neighbours", "compiled_neighbourhood", "compiled_sums", "normal_arrays", "FD_REL_STEP",
+           "point_and_steps", "neighbours", "normal_arrays", "FD_REL_STEP",
            "NONFINITE_RESIDUAL"]
 
 #: Relative step of the forward-difference Jacobian (scipy's "2-point" default, sqrt(eps)).
@@ -76,31 +73,6 @@ class NormalEquations(NamedTuple):
         return bool(_finite(self.fun, self.gradient, self.gram))
 
 
-@numba.extending.intrinsic
-def _c_finite(typingctx, fun, gradient, gram, p):
-    return c_call("hc_finite_sums", (fun, gradient, gram, p))
-
-
-@numba.extending.intrinsic
-def _c_neighbour_values(typingctx, fun, gradient, gram, steps, p, values):
-    return c_call("hc_neighbour_values", (fun, gradient, gram, steps, p, values))
-
-
-@numba.extending.intrinsic
-def _c_forward_steps(typingctx, x, n, upper, nu, lower, nl, rel_step, h):
-    return c_call("hc_forward_steps", (x, n, upper, nu, lower, nl, rel_step, h))
-
-
-@numba.extending.intrinsic
-def _c_neighbours(typingctx, x, n, steps, X):
-    return c_call("hc_neighbours", (x, n, steps, X))
-
-
-@numba.extending.intrinsic
-def _c_divide_by_steps(typingctx, sums, steps, p, gradient, gram):
-    return c_call("hc_divide_by_steps", (sums, steps, p, gradient, gram))
-
-
 def normal_arrays(gradient, gram, *vectors):
     """``gradient``, ``gram`` and ``vectors`` as C-ordered float arrays of ``p``, ``p x p`` and ``p`` values (the C code
     reads that many), else a ``ValueError``.
@@ -124,26 +96,12 @@ def _finite(fun, gradient, gram) -> bool:
     return library().hc_finite_sums(float(fun), gradient, gram, gradient.size)
 
 
-@numba.extending.overload(_finite)
-def _finite_compiled(fun, gradient, gram):
-    return lambda fun, gradient, gram: _c_finite(fun, gradient, gram, gradient.size)
-
-
 def _neighbour_values(fun, gradient, gram, steps) -> np.ndarray:
     gradient, gram, steps = normal_arrays(gradient, gram, steps)
     values = np.empty(steps.size)
     library().hc_neighbour_values(float(fun), gradient, gram, steps, steps.size,
                                   values)
     return values
-
-
-@numba.extending.overload(_neighbour_values)
-def _neighbour_values_compiled(fun, gradient, gram, steps):
-    def impl(fun, gradient, gram, steps):
-        values = np.empty(steps.size)
-        _c_neighbour_values(fun, gradient, gram, steps, steps.size, values)
-        return values
-    return impl
 
 
 def forward_steps(x, upper=None, lower=None) -> np.ndarray:
@@ -187,15 +145,6 @@ def _forward_steps(x, upper, lower) -> np.ndarray:
     library().hc_forward_steps(x, x.size, upper, upper.size, lower, lower.size,
                                FD_REL_STEP, h)
     return h
-
-
-@numba.extending.overload(_forward_steps)
-def _forward_steps_compiled(x, upper, lower):
-    def impl(x, upper, lower):
-        h = np.empty(x.size)
-        _c_forward_steps(x, x.size, upper, upper.size, lower, lower.size, FD_REL_STEP, h)
-        return h
-    return impl
 
 
 def point_and_steps(structure, beta, steps=None, method: str = "normal_equations"):
@@ -258,41 +207,6 @@ def _neighbours(x, steps) -> np.ndarray:
     return X
 
 
-@numba.extending.overload(_neighbours)
-def _neighbours_compiled(x, steps):
-    def impl(x, steps):
-        X = np.empty((x.size + 1, x.size))
-        _c_neighbours(x, x.size, steps, X)
-        return X
-    return impl
-
-
-@cached_njit(depends=NATIVE_DEPENDS)
-def compiled_neighbourhood(x):  # pragma: no cover - compiled
-    """``(h, X)``: :func:`forward_steps` (no bounds) and :func:`neighbours` of a flat ``x``, for compiled callers."""
-    h = _forward_steps(x, np.full(1, np.inf), np.full(1, -np.inf))
-    return h, _neighbours(x, h)
-
-
-@cached_njit(depends=("_linalg.py",) + NATIVE_DEPENDS)
-def compiled_sums(sums, steps):  # pragma: no cover - compiled
-    """:func:`from_difference_sums` for compiled callers: ``(finite, fun, gradient, gram, values)``.
-
-    ``finite`` as :attr:`NormalEquations.finite`; ``values`` are the point's
-    and its neighbours' sums of squares (:meth:`NormalEquations.neighbour_values`),
-    each non-finite one as ``inf``.
-    """
-    gradient, gram = _divide_by_steps(sums, steps)
-    fun = sums[0]
-    values = np.empty(steps.size + 1)
-    values[0] = fun
-    copy_vector(_neighbour_values(fun, gradient, gram, steps), values[1:])
-    for j in range(values.size):
-        if not np.isfinite(values[j]):
-            values[j] = np.inf
-    return _finite(fun, gradient, gram), fun, gradient, gram, values
-
-
 def from_difference_sums(sums, steps) -> NormalEquations:
     """Normal equations from ``[r @ r, D.T @ r, D.T @ D]`` (flattened), ``D[:, j] = h_j J[:, j]`` the neighbours'
     differences.
@@ -339,16 +253,6 @@ def _divide_by_steps(sums, steps):
     gradient, gram = np.empty(p), np.empty((p, p))
     library().hc_divide_by_steps(sums, steps, p, gradient, gram)
     return gradient, gram
-
-
-@numba.extending.overload(_divide_by_steps)
-def _divide_by_steps_compiled(sums, steps):
-    def impl(sums, steps):
-        p = steps.size
-        gradient, gram = np.empty(p), np.empty((p, p))
-        _c_divide_by_steps(sums, steps, p, gradient, gram)
-        return gradient, gram
-    return impl
 
 
 def from_factor(R, steps) -> NormalEquations:

@@ -155,11 +155,9 @@ def _run(job: WarmupJob) -> tuple:
     offset estimated, then single evaluations of J (the paths of a cost called directly)."""
     import warnings
 
-    from . import config
     from .exceptions import CacheWarning
 
-    started, loop = time.process_time(), config.defaults["lm.compiled_loop"]
-    config.defaults["lm.compiled_loop"] = "always"       # LM's compiled loop too, here and now
+    started = time.process_time()
     try:
         with warnings.catch_warnings(record=True) as seen:
             warnings.simplefilter("always")
@@ -168,8 +166,6 @@ def _run(job: WarmupJob) -> tuple:
         error = f"CacheWarning: {' '.join(unsaved[0].split())}" if unsaved else None
     except Exception as exc:          # noqa: BLE001 - report it and go on with the other structures
         error = f"{type(exc).__name__}: {' '.join(str(exc).split())}"
-    finally:
-        config.defaults["lm.compiled_loop"] = loop
     return time.process_time() - started, error
 
 

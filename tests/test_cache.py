@@ -14,7 +14,6 @@ from pathlib import Path
 
 import pytest
 
-import hammerstein_ctrl as hc
 from hammerstein_ctrl import kernels
 
 REPO = Path(__file__).resolve().parents[1]
@@ -23,13 +22,13 @@ CHILD = """
 import json, warnings
 import numpy as np
 from hammerstein_ctrl import CacheWarning
-from hammerstein_ctrl.normal_equations import compiled_neighbourhood
+from hammerstein_ctrl.residual_analysis import _lagged_sums
 from hammerstein_ctrl.simulate import simulate_batch
 with warnings.catch_warnings(record=True) as caught:
     warnings.simplefilter("always")
     u = np.sin(np.linspace(0.0, 6.0, 200))[None, :]
     y = simulate_batch([[0.0, 1.0]], [[1.0, 0.7, 2.0]], u, 0.03)
-    h = compiled_neighbourhood(np.array([1.0, -2.0]))[0]        # a function of the package's own
+    h = _lagged_sums(np.array([1.0, -2.0, 0.5]), np.array([0.5, 1.0, -1.0]), -1, 1)  # the package's own
 print(json.dumps({"y": y[0, ::40].tolist() + h.tolist(),
                   "warnings": [str(w.message) for w in caught if issubclass(w.category, CacheWarning)]}))
 """
@@ -54,7 +53,7 @@ def test_damaged_cache_files_are_compiled_again_with_a_warning(tmp_path):
     assert first["warnings"] == []
     files = sorted(tmp_path.rglob("*.nb[ic]"))           # the package's own in the machine cache, kernels' in numba's
     kernel_data = [f for f in files if f.name.startswith("hc_") and f.suffix == ".nbc"]
-    package_index = [f for f in files if "normal_equations" in f.name and f.suffix == ".nbi"]
+    package_index = [f for f in files if "residual_analysis" in f.name and f.suffix == ".nbi"]
     assert kernel_data and package_index, [f.name for f in files]
     for f in kernel_data + package_index:        # a generated kernel's data and the package's own index files
         _cut_short(f)
@@ -62,7 +61,7 @@ def test_damaged_cache_files_are_compiled_again_with_a_warning(tmp_path):
     damaged = _run(tmp_path)
     assert damaged["y"] == first["y"]
     assert damaged["warnings"], "no CacheWarning for the damaged files"
-    assert any("hc_" in w for w in damaged["warnings"]) and any("normal_equations" in w for w in damaged["warnings"])
+    assert any("hc_" in w for w in damaged["warnings"]) and any("residual_analysis" in w for w in damaged["warnings"])
     assert all("compiled again" in w for w in damaged["warnings"])
 
     again = _run(tmp_path)                       # the cache was saved afresh and reads back
@@ -96,8 +95,9 @@ with warnings.catch_warnings(record=True) as caught:
     warnings.simplefilter("always")
     try:
         from hammerstein_ctrl import CacheWarning
-        from hammerstein_ctrl.normal_equations import compiled_neighbourhood
-        out["h"] = [float(v).hex() for v in compiled_neighbourhood(np.array([1.0, -2.0, 0.0, 3e5]))[0]]
+        from hammerstein_ctrl.residual_analysis import _lagged_sums
+        sums = _lagged_sums(np.array([1.0, -2.0, 0.0, 3e5]), np.array([2.0, 1.0, -1.0, 0.5]), -1, 1)
+        out["h"] = [float(v).hex() for v in sums]
     except Exception as exc:
         out["error"] = f"{type(exc).__name__}: {exc}"
     out["warnings"] = [str(w.message) for w in caught if w.category.__name__ == "CacheWarning"]
@@ -119,21 +119,21 @@ def test_a_damaged_cache_compiled_again_on_a_full_disk_does_not_raise(tmp_path):
     """The cache guard wrapped only numba's load: the version compiled again is then saved by
     numba's ``save_overload``, which raises OSError when the write fails -- the full disk (or a cache
     directory that turned read-only) the README names as the cause of the damage.  Reproduced: a
-    damaged (emptied) data file of ``normal_equations.compiled_neighbourhood``, then a process whose writes
+    damaged (emptied) data file of ``residual_analysis._lagged_sums``, then a process whose writes
     past 64 bytes fail (RLIMIT_FSIZE, as a full disk): the CacheWarning is given and then
     the call raised ``OSError: [Errno 27] File too large`` from numba's caching.py to the user
     (measured the same with the generated simulation kernel).  The compiled function works in
     memory; failing to save it must not fail the call (a CacheWarning, as for a failed load)."""
     healthy = _full_disk_child(tmp_path)
     assert healthy["error"] is None and healthy["warnings"] == []
-    data = sorted(tmp_path.rglob("normal_equations.compiled_neighbourhood-*.nbc"))
+    data = sorted(tmp_path.rglob("residual_analysis._lagged_sums-*.nbc"))
     assert data, sorted(p.name for p in tmp_path.rglob("*"))
     for f in data:
         f.write_bytes(b"")
     full = _full_disk_child(tmp_path, limit=64)
     assert full["error"] is None, full
     assert full["h"] == healthy["h"]
-    assert any("compiled_neighbourhood" in w for w in full["warnings"]), full["warnings"]
+    assert any("_lagged_sums" in w for w in full["warnings"]), full["warnings"]
     after = _full_disk_child(tmp_path)                  # the disk has room again: saved, then read back
     assert after["error"] is None and after["h"] == healthy["h"]
     again = _full_disk_child(tmp_path)
@@ -200,59 +200,11 @@ def test_a_damaged_data_file_costs_no_healthy_signature_of_the_same_function(tmp
     assert after["misses"] == [], "a healthy signature was compiled again after the damaged one was repaired"
 
 
-_RUN_LM = """
-import numpy as np
-import hammerstein_ctrl as hc
-from hammerstein_ctrl.objective import HammersteinCost
-from hammerstein_ctrl.optimize import levenberg_marquardt, normal_lm
-rng = np.random.default_rng(0)
-u = np.repeat(rng.uniform(-2.0, 2.0, 20), 20)
-data = hc.IOData(u, np.sin(np.arange(400) * 0.01), dt=0.01, name="syn")
-cost = HammersteinCost(data, hc.HammersteinStructure(hc.LinearStructure(1, 2), hc.Polynomial(2)))
-try:
-    levenberg_marquardt(cost, [0.5, 2.0, 3.0, 0.3, 1.2])
-    outcome = "ran"
-except Exception as exc:
-    outcome = type(exc).__name__
-print(outcome, len(normal_lm._compiled_loop.stats.cache_hits))
-"""
-
-
-@pytest.mark.slow
-def test_the_compiled_loop_is_not_loaded_from_numbas_cache_after_the_kernel_module_changes(tmp_path):
-    """_compiled_loop calls the pass kernel through a pointer, its argument types checked by
-    kernels.call_normal_kernel only when _compiled_loop is compiled.  numba's disk cache of _compiled_loop
-    is keyed on normal_lm.py alone (its bytecode and the file's stamp), so after an edit of kernels.py
-    (here: the check made to refuse every call, as a changed kernel signature would) a fresh process
-    loaded the stale machine code and called the kernel unchecked; the generated kernels themselves
-    are keyed on kernels.py's source (kernels.cache_dir).  Oracle: numba's own cache statistics."""
-    package = Path(hc.__file__).parent
-    root = tmp_path / "copy"
-    shutil.copytree(package, root / "hammerstein_ctrl")        # copy2: the stamps numba's cache checks are kept
-    env = {**os.environ, "PYTHONPATH": str(root), "HAMMERSTEIN_CTRL_CACHE": str(tmp_path / "kernels")}
-
-    def run():
-        out = subprocess.run([sys.executable, "-c", _RUN_LM], env=env, cwd=tmp_path, capture_output=True, text=True,
-                             timeout=600)     # cwd: "-c" puts it first on sys.path
-        assert out.returncode == 0, out.stderr[-2000:]
-        outcome, hits = out.stdout.split()
-        return outcome, int(hits)
-
-    run()
-    assert run() == ("ran", 1)          # the control: the second process loads _compiled_loop from the cache
-    kernels = root / "hammerstein_ctrl" / "kernels.py"
-    text = kernels.read_text()
-    check = 'typed_call("call_normal_kernel", _NORMAL_SIGNATURE,'       # the pass's check alone, not the others'
-    assert check in text
-    kernels.write_text(text.replace(check, 'typed_call("call_normal_kernel", (numba.types.float32,) * 13,'))
-    assert run() == ("TypingError", 0)
-
-
 _MACHINE_CHILD = """
 import json, sys
-from hammerstein_ctrl.normal_equations import compiled_neighbourhood
+from hammerstein_ctrl.residual_analysis import _lagged_sums
 import numpy as np
-compiled_neighbourhood(np.array([1.0, 2.0]))
+_lagged_sums(np.array([1.0, 2.0]), np.array([2.0, 1.0]), 0, 1)
 from numba.core.caching import CacheImpl
 print(json.dumps({"file": __import__("hammerstein_ctrl").__file__}))
 """
@@ -272,15 +224,15 @@ def test_the_compiled_code_is_kept_once_per_machine_and_shared_by_copies_of_the_
                               env={**env, "PYTHONPATH": str(root)}, timeout=600, cwd=tmp_path)
         assert proc.returncode == 0, proc.stderr[-3000:]
         assert json.loads(proc.stdout.splitlines()[-1])["file"].startswith(str(root))
-    index = sorted((tmp_path / "cache").rglob("normal_equations.compiled_neighbourhood-*.nbi"))
+    index = sorted((tmp_path / "cache").rglob("residual_analysis._lagged_sums-*.nbi"))
     assert len(index) == 1 and "numba-" in str(index[0])                  # one copy for both
     assert not list((copy / "hammerstein_ctrl").rglob("*.nbi"))            # nothing beside the sources
-    (copy / "hammerstein_ctrl" / "normal_equations.py").write_text(
-        (copy / "hammerstein_ctrl" / "normal_equations.py").read_text() + "\n# edited\n")
+    (copy / "hammerstein_ctrl" / "residual_analysis.py").write_text(
+        (copy / "hammerstein_ctrl" / "residual_analysis.py").read_text() + "\n# edited\n")
     proc = subprocess.run([sys.executable, "-c", _MACHINE_CHILD], capture_output=True, text=True,
                           env={**env, "PYTHONPATH": str(copy)}, timeout=600, cwd=tmp_path)
     assert proc.returncode == 0, proc.stderr[-3000:]
-    assert len(sorted((tmp_path / "cache").rglob("normal_equations.compiled_neighbourhood-*.nbi"))) == 2
+    assert len(sorted((tmp_path / "cache").rglob("residual_analysis._lagged_sums-*.nbi"))) == 2
 
 
 def test_an_address_is_refused_to_callers_that_would_misread_its_result():

@@ -90,8 +90,8 @@ def test_a_build_folder_that_is_a_link_out_of_the_cache_is_not_written(tmp_path,
     outside.mkdir()
     cache = tmp_path / "cache"
     cache.mkdir()
-    digest = _native._digest()
-    (cache / f"native-{digest}").symlink_to(outside, target_is_directory=True)
+    digest = "native-" + _native._digest()
+    (cache / digest).symlink_to(outside, target_is_directory=True)
     monkeypatch.setenv("HAMMERSTEIN_CTRL_CACHE", str(cache))
     monkeypatch.setattr(_native, "machine_cache_dir", lambda: cache)
     assert _native._cache_folder(digest) is None          # the library is then built in a temporary folder

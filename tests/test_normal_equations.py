@@ -680,43 +680,6 @@ def test_the_compiled_lm_loop_gives_the_python_loops_bits(name, emps_case, monke
     assert normal_lm.HAND_BACK_ALONE in codes or name == "fast pole, scipy's expm", codes
 
 
-def test_a_kernel_called_through_its_address_gives_its_sums_and_takes_only_its_own_types():
-    """kernels.call_normal_kernel calls the compiled kernel through its pointer (the LM loop is compiled
-    once, not once per kernel): the sums of the kernel's docstring example; arguments of other types
-    (a strided array, a float32 record) are refused when the caller is compiled, never passed on."""
-    import numba
-
-    from hammerstein_ctrl.kernels import call_normal_kernel, normal_kernel_address
-
-    E = np.array([[[0.5, 1.0, 0.0], [0.0, 1.0, 1.0], [0.0, 0.0, 1.0]]] * 2)        # x+ = x/2 + 2 theta u
-    P, Phi, y = np.array([[2.0], [2.5]]), np.ones((1, 3)), np.zeros(3)
-
-    @numba.njit
-    def through(address, E, P, Phi, y):
-        acc, begin = np.zeros(3), y.size - y.size
-        call_normal_kernel(address, E, np.ones((2, 1)), np.zeros(2), np.zeros((2, 1)), np.zeros(2), np.zeros(2), P,
-                           Phi, np.zeros((2, 0)), np.zeros(0), y, begin, acc)
-        return acc
-
-    address = normal_kernel_address(1, "zoh", 2, 1, False)
-    np.testing.assert_array_equal(through(address, E, P, Phi, y), [13.0, 3.25, 0.8125])
-    for bad in ({"E": E.transpose(0, 2, 1)}, {"y": y.astype(np.float32)}, {"P": np.ones((4, 1))[::2]}):
-        args = {"E": E, "P": P, "Phi": Phi, "y": y, **bad}
-        with pytest.raises(numba.core.errors.TypingError, match="call_normal_kernel takes"):
-            through(address, **args)
-
-    @numba.njit
-    def into(address, acc):                   # the caller's sums: the kernel writes them
-        X, VP = np.zeros((2, 1)), np.zeros(2)
-        call_normal_kernel(address, E, np.ones((2, 1)), np.zeros(2), X, np.zeros(2), VP, P, Phi, np.zeros((2, 0)),
-                           np.zeros(0), y, 0, acc)
-
-    frozen = np.zeros(3)
-    frozen.flags.writeable = False            # read-only arrays pass where the kernel reads, never where it writes
-    with pytest.raises(numba.core.errors.TypingError, match="call_normal_kernel takes"):
-        into(address, frozen)
-
-
 def test_a_subclass_that_redefines_its_evaluation_gets_no_compiled_lm_loop(emps_case):
     """The compiled LM loop runs the pass itself: for a subclass that redefines how the cost is
     evaluated (here the normal equations, counted) it would bypass the override, so the subclass
@@ -1027,43 +990,36 @@ def test_lm_refuses_a_start_of_the_wrong_length_in_the_compiled_and_the_python_l
         levenberg_marquardt(cost, x0, gtol=1.0)
 
 
-def test_the_compiled_loop_runs_once_compiled_on_the_machine_and_is_compiled_in_the_background_first(
-        tmp_path, monkeypatch):
-    """lm.compiled_loop = "auto": without the machine's marker the Python loop runs and one background process
-    is started to compile the loop; with the marker the loop runs. "never"/"always" decide alone."""
+def test_the_compiled_loop_is_the_c_librarys_and_never_compiles(tmp_path):
+    """lm.compiled_loop = "auto" runs the compiled loop from the first fit on a machine: it is C in the package's
+    library, so a fresh cache holds no numba cache file of it (nor of any LM helper) after an EMPS-like fit, and
+    no background process is started. "never" runs the Python loop; another value is refused."""
+    import subprocess
+    import sys
+
     from hammerstein_ctrl import config
     from hammerstein_ctrl.optimize import normal_lm
 
-    started = []
-    monkeypatch.setattr(normal_lm.subprocess, "Popen", lambda *a, **k: started.append(a[0]) or object())
-    monkeypatch.setattr(normal_lm, "_WARMING", [])
-    marker = tmp_path / "lm-loop.ready"
-    monkeypatch.setattr(normal_lm, "loop_marker", lambda: marker)
+    code = ("import numpy as np, hammerstein_ctrl as hc; from hammerstein_ctrl.optimize import normal_lm as lm\n"
+            "from hammerstein_ctrl.objective import HammersteinCost\n"
+            "t = np.arange(600) * 0.01; u = np.sin(1.3 * t) + 0.5 * np.sign(np.sin(0.4 * t))\n"
+            "y = np.convolve(u ** 3, np.exp(-t[:80]), mode='full')[:t.size] * 0.01\n"
+            "cost = HammersteinCost(hc.IOData(u, y, dt=0.01), hc.HammersteinStructure(hc.LinearStructure(0, 2), "
+            "hc.Polynomial(3)))\n"
+            "passes = lm._Passes(cost, None); print(passes.direct is not None)\n"
+            "print(hc.optimize.levenberg_marquardt(cost, [2.0, 3.0, 1.0, 0.5, 0.2]).success)\n")
+    env = {**os.environ, "HAMMERSTEIN_CTRL_CACHE": str(tmp_path), "HAMMERSTEIN_CTRL_COMPILED_LOOP": "auto"}
+    done = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=600)
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert done.stdout.split() == ["True", "True"]
+    cached = [f.name for f in tmp_path.rglob("*.nbi")]
+    assert not [f for f in cached if "normal_lm" in f or "normal_equations" in f], cached
     try:
         config.set_defaults("lm", compiled_loop="auto")
-        assert not normal_lm.compiled_loop_wanted() and not normal_lm.compiled_loop_wanted()
-        assert started == [[normal_lm.sys.executable, "-m", "hammerstein_ctrl._warm"]]      # once per process
-        marker.write_text("compiled\n")
         assert normal_lm.compiled_loop_wanted()
         config.set_defaults("lm", compiled_loop="never")
         assert not normal_lm.compiled_loop_wanted()
-        marker.unlink()
-        config.set_defaults("lm", compiled_loop="always")
-        assert normal_lm.compiled_loop_wanted()
     finally:
         config.set_defaults("lm", compiled_loop="always")
     with pytest.raises(hc.ParameterError, match=r"lm.compiled_loop must be one of \['auto', 'always', 'never'\]"):
         config.set_defaults("lm", compiled_loop="sometimes")
-
-
-@pytest.mark.slow
-def test_the_background_compilation_writes_the_marker_only_after_the_loop_ran(tmp_path):
-    """``python -m hammerstein_ctrl._warm`` with an empty cache compiles the loop and then writes the marker."""
-    import subprocess
-    import sys
-
-    env = {**os.environ, "HAMMERSTEIN_CTRL_CACHE": str(tmp_path)}
-    proc = subprocess.run([sys.executable, "-m", "hammerstein_ctrl._warm"], env=env, capture_output=True, text=True,
-                          timeout=900)
-    assert proc.returncode == 0, proc.stderr[-2000:]
-    assert len(list(tmp_path.glob("lm-loop-*.ready"))) == 1

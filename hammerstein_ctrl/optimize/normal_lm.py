@@ -28,25 +28,20 @@ and a Jacobian column).
 from __future__ import annotations
 
 import math
-import os
-import subprocess
-import sys
 
-import numba.extending
 import numpy as np
 
 from .. import config
-from .._jit import _digest, cached_njit, machine_cache_dir
-from .._linalg import _copy, copy_vector, fill_coefficients
-from .._native import DEPENDS as NATIVE_DEPENDS, c_call, library
-from ..kernels import call_normal_kernel, discretised, normal_kernel_address
-from ..normal_equations import (NormalEquations, compiled_neighbourhood, compiled_sums, forward_steps,
+from .._native import library
+from ..kernels import normal_kernel_address
+from ..normal_equations import FD_REL_STEP
+from ..normal_equations import (NormalEquations, forward_steps,
                                 from_residuals, neighbours, normal_arrays)
 from ._common import BudgetExhausted
 
 __all__ = ["normal_equations_lm", "INITIAL_DAMPING", "MAX_DAMPING", "ILL_CONDITIONED", "MESSAGES",
            "CONVERGED", "ILL_CONDITIONED_CODE", "DAMPING_DECREASE_LIMIT", "HAND_BACK", "HAND_BACK_ALONE",
-           "LOOP_MAX_WORK", "LOOP_DEPENDS"]
+           "LOOP_MAX_WORK"]
 
 #: First damping, relative to the largest diagonal entry of the scaled Gram matrix (Nielsen's tau).
 INITIAL_DAMPING = 1e-3
@@ -73,11 +68,9 @@ MESSAGES = {
 CONVERGED = (1, 2, 3, 4)
 #: The code for a point too ill-conditioned for the normal equations.
 ILL_CONDITIONED_CODE = 8
-#: Codes of the compiled loop (:func:`_compiled_loop`) for the Python loop to take the next iteration: at the
+#: Codes of the compiled loop (:func:`_loop`) for the Python loop to take the next iteration: at the
 #: point returned, or alone (after a rejected step, the next trials are evaluated without their neighbours).
 HAND_BACK, HAND_BACK_ALONE = 0, -1
-#: The compiled loop's code for "go on".
-GO_ON = -2
 #: Work of one call of the compiled loop at most, in samples x lanes x states of its passes (about 0.1 s
 #: at 0.5-0.9 ns each): it then hands back, so a keyboard interrupt is seen within that time.
 LOOP_MAX_WORK = 10**8
@@ -144,7 +137,7 @@ class _Passes:
         return ne if values[0] == ne.fun else ne._replace(fun=values[0])
 
     def loop(self, x, ne, scale, damping, max_steps: int, tolerances):
-        """Steps of the compiled loop (:func:`_compiled_loop`) from ``x``: ``(x, ne, scale, code)``.
+        """Steps of the compiled loop (:func:`_loop`) from ``x``: ``(x, ne, scale, code)``.
 
         Without ``ne`` (and ``scale``) the loop begins with the pass at ``x``;
         ``ne`` is returned ``None`` if that pass is left to the general one.
@@ -164,35 +157,26 @@ class _Passes:
         else:
             fun = ne.fun
             gradient, gram, steps, scale = (np.array(a, dtype=float) for a in (ne.gradient, ne.gram, ne.steps, scale))
-        lam_nu = np.array([damping.lam, damping.nu])
+        state = np.array([fun, damping.lam, damping.nu])
         counts = np.array([self.steps, max_steps, rows * (p + 1), 0], dtype=np.int64)
         logs = np.empty((rows, p)), np.empty((rows, p)), np.empty((rows, p + 1))
-        code, fun = _compiled_loop(address, x, fun, gradient, gram, steps, scale, lam_nu,
-                                  counts, np.array([*tolerances, ILL_CONDITIONED]), start, d.num0, d.den0, d.num_pos,
-                                  d.den_pos, d.has_g, d.dt, d.max_norm, d.direct, d.basis, d.y, *logs)
+        settings = np.array([*tolerances, ILL_CONDITIONED, d.dt, d.max_norm, FD_REL_STEP, MAX_DAMPING,
+                             DAMPING_DECREASE_LIMIT])
+        code = _loop(address, x, state, gradient, gram, steps, scale, counts, settings, start, d, logs)
+        fun = state[0]
         passes = int(counts[3])
         if passes:
             self.counted.record_passes(*(log[:passes] for log in logs))
         elif start:
             return x, None, None, HAND_BACK
         self.steps = int(counts[0])
-        damping.lam, damping.nu = float(lam_nu[0]), float(lam_nu[1])
+        damping.lam, damping.nu = float(state[1]), float(state[2])
         return x, NormalEquations(float(fun), gradient, gram, steps), scale, int(code)
 
     @property
     def can_factor(self) -> bool:
         """Whether the objective gives the Jacobian's QR factor (``normal_factor``)."""
         return self._factor is not None
-
-
-@numba.extending.intrinsic
-def _c_iteration(typingctx, gram, gradient, p, fun, scale, lam, x, check, limit, xtol, work, delta, out):
-    return c_call("hc_lm_iteration", (gram, gradient, p, fun, scale, lam, x, check, limit, xtol, work, delta, out))
-
-
-@numba.extending.intrinsic
-def _c_norms(typingctx, gram, p, floor, norms):
-    return c_call("hc_lm_norms", (gram, p, floor, norms))
 
 
 def _iteration(gram, gradient, fun, scale, lam, x, check, limit, xtol):
@@ -221,16 +205,6 @@ def _iteration(gram, gradient, fun, scale, lam, x, check, limit, xtol):
                               x, int(bool(check)), float(limit), float(xtol), work,
                               delta, out)
     return out[0], bool(out[1]), bool(out[2]), delta, bool(out[3]), out[4]
-
-
-@numba.extending.overload(_iteration)
-def _iteration_compiled(gram, gradient, fun, scale, lam, x, check, limit, xtol):
-    def impl(gram, gradient, fun, scale, lam, x, check, limit, xtol):
-        p = scale.size
-        work, delta, out = np.empty(2 * p * p + 2 * p), np.empty(p), np.empty(5)
-        _c_iteration(gram, gradient, p, fun, scale, lam, x, 1 if check else 0, limit, xtol, work, delta, out)
-        return out[0], out[1] != 0.0, out[2] != 0.0, delta, out[3] != 0.0, out[4]
-    return impl
 
 
 def _step_measures(gram, gradient, scale, delta, x, xtol):
@@ -282,15 +256,6 @@ def _norms(gram, floor):
     return norms
 
 
-@numba.extending.overload(_norms)
-def _norms_compiled(gram, floor):
-    def impl(gram, floor):
-        norms = np.empty(floor.size)
-        _c_norms(gram, floor.size, floor, norms)
-        return norms
-    return impl
-
-
 class _Damping:
     """Nielsen's damping: lowered after a good step by the gain ratio, raised geometrically after a bad one.
 
@@ -312,16 +277,6 @@ class _Damping:
         self.nu *= 2.0
 
 
-@numba.extending.intrinsic
-def _c_lowered_damping(typingctx, lam, rho, limit):
-    return c_call("hc_lm_lowered_damping", (lam, rho, limit))
-
-
-@numba.extending.intrinsic
-def _c_accepted_code(typingctx, actual, predicted, f_old, ftol, small):
-    return c_call("hc_lm_accepted_code", (actual, predicted, f_old, ftol, small))
-
-
 def _lowered_damping(lam, rho) -> float:
     """Nielsen's rule: the damping ``lam`` after an accepted step of gain ratio ``rho`` (both loops use it):
     ``lam max(1/3, 1 - (2 rho - 1)^3)``.
@@ -332,11 +287,6 @@ def _lowered_damping(lam, rho) -> float:
     (0.3333333333333333, 1.0)
     """
     return library().hc_lm_lowered_damping(lam, rho, DAMPING_DECREASE_LIMIT)
-
-
-@numba.extending.overload(_lowered_damping)
-def _lowered_damping_compiled(lam, rho):
-    return lambda lam, rho: _c_lowered_damping(lam, rho, DAMPING_DECREASE_LIMIT)
 
 
 def _accepted_code(actual, predicted, f_old, ftol, small) -> int:
@@ -350,214 +300,52 @@ def _accepted_code(actual, predicted, f_old, ftol, small) -> int:
     return library().hc_lm_accepted_code(actual, predicted, f_old, ftol, bool(small))
 
 
-@numba.extending.overload(_accepted_code)
-def _accepted_code_compiled(actual, predicted, f_old, ftol, small):
-    return lambda actual, predicted, f_old, ftol, small: _c_accepted_code(actual, predicted, f_old, ftol,
-                                                                        1 if small else 0)
-
-
-#: Package files holding compiled code that :func:`_compiled_loop` calls or inlines (the pass kernel's signature
-#: among them): numba's cache of it is keyed on them too (a stale copy would call the kernel unchecked).
-LOOP_DEPENDS = ("kernels.py", "_kernel_source.py", "normal_equations.py", "structure.py", "_linalg.py",
-                "_simd.py") + NATIVE_DEPENDS
-_WARMING: list = []              # the background process compiling the loop, once per process
-
-
-def loop_marker():
-    """The file that says the compiled loop of these sources is in the machine's cache (``None``: no cache)."""
-    import numba
-
-    root = machine_cache_dir()
-    if root is None:
-        return None
-    digest = _digest(LOOP_DEPENDS + ("optimize/normal_lm.py",))[:16]
-    return root / f"lm-loop-{digest}-numba-{numba.__version__}.ready"
-
-
 def compiled_loop_wanted() -> bool:
-    """Whether :func:`normal_equations_lm` runs its compiled loop (``config.defaults["lm.compiled_loop"]``).
+    """Whether :func:`normal_equations_lm` runs its compiled loop (``config.defaults["lm.compiled_loop"]``):
+    ``"auto"`` and ``"always"`` run it, ``"never"`` runs the same steps in Python.
 
-    ``"auto"``: once the loop is compiled on this machine (:func:`loop_marker`);
-    until then the Python loop runs (the same steps, a few microseconds more
-    per iteration) while a background process compiles the loop, so a first
-    use does not wait about 5 s of CPU for it.
+    The loop is C in the package's library (:func:`_loop`), built with it: nothing is compiled on a first use.
     """
-    mode = config.get("lm.compiled_loop")
-    if mode != "auto":
-        return mode == "always"
-    marker = loop_marker()
-    if marker is None:
-        return False                     # nowhere to keep it: every process would compile it again
-    if marker.is_file():
-        return True
-    if not _WARMING and not marker.with_suffix(".failed").is_file():     # a failed attempt is not repeated
-        try:
-            _WARMING.append(subprocess.Popen([sys.executable, "-m", "hammerstein_ctrl._warm"],
-                                             stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
-                                             stderr=subprocess.DEVNULL, start_new_session=True,
-                                             env={**os.environ, "HAMMERSTEIN_CTRL_COMPILED_LOOP": "always"}))
-        except OSError:
-            _WARMING.append(None)
-    return False
+    return config.get("lm.compiled_loop") != "never"
 
 
-@cached_njit(depends=LOOP_DEPENDS)
-def _compiled_loop(address, x, fun, gradient, gram, steps, scale, damping, counts, tolerances, start,
-                  num0, den0, num_pos, den_pos, has_g, dt, max_norm, direct, Phi, y, log_x, log_steps,
-                  log_values):  # pragma: no cover - compiled
-    """The Levenberg-Marquardt loop of :func:`normal_equations_lm`, compiled around the pass of a plain cost.
+def _loop(address, x, state, gradient, gram, steps, scale, counts, settings, start, d, logs) -> int:
+    """The C library's Levenberg-Marquardt loop around the pass kernel at ``address`` (``hc_lm_loop``), for a
+    cost's :meth:`~hammerstein_ctrl.objective.HammersteinCost.direct_pass` ``d`` (no offset, initial state or
+    output map; the signal ``P @ Phi`` with ``P`` the parameters of ``g``).
 
-    For a cost's :meth:`~hammerstein_ctrl.objective.HammersteinCost.direct_pass`
-    (no offset, initial state or output map; the signal ``P @ Phi`` with ``P``
-    the parameters of ``g``), whose pass kernel is at ``address``
-    (:func:`~hammerstein_ctrl.kernels.normal_kernel_address`).  The loop takes
-    the steps of the Python loop one after another while each trial point is
-    accepted, with the same compiled helpers in the same order (so the same
-    bits), and returns where the Python loop must take the next iteration: a
-    rejected step, an ill-conditioned or unsolvable system, a pass that is not
-    finite or needs scipy's exponential, or a budget short of a whole pass.
-    In Python a step costs about 25 µs around the pass; here about 5.
+    The loop takes the steps of the Python loop one after another while each
+    trial point is accepted, with the same library functions in the same
+    order (so the same bits), and returns where the Python loop must take the
+    next iteration: a rejected step, an ill-conditioned or unsolvable system,
+    a pass that is not finite or needs scipy's exponential, or a budget short
+    of a whole pass.  In Python a step costs about 25 us around the pass;
+    here about 5.
 
     ``x``, ``gradient``, ``gram``, ``steps`` (the current point's normal
-    equations), ``scale``, ``damping = [lam, nu]`` and ``counts = [steps taken,
-    step limit, evaluations left, passes logged]`` are updated in place; with
-    ``start`` the loop begins with the pass at ``x`` and fills them (if that
-    pass is left to the general one, nothing is logged).  Row ``i`` of the
-    logs holds pass ``i``'s point, steps and the sums of squares of the point
-    and its neighbours.  Returns ``(code, fun)``, ``code`` a key of
-    :data:`MESSAGES`, :data:`HAND_BACK` or :data:`HAND_BACK_ALONE`.
+    equations), ``scale``, ``state = [fun, lam, nu]`` and ``counts = [steps
+    taken, step limit, evaluations left, passes logged]`` are updated in
+    place; with ``start`` the loop begins with the pass at ``x`` and fills
+    them (if that pass is left to the general one, nothing is logged).  Row
+    ``i`` of ``logs`` (point, steps, sums of squares of the point and its
+    neighbours) holds pass ``i``.  ``settings`` are ``[ftol, xtol, gtol,
+    ILL_CONDITIONED, dt, max_norm, FD_REL_STEP, MAX_DAMPING,
+    DAMPING_DECREASE_LIMIT]``.  Returns a key of :data:`MESSAGES`,
+    :data:`HAND_BACK` or :data:`HAND_BACK_ALONE`.
     """
-    lanes, n = x.size + 1, den0.size - 1
-    begin = counts[3] - counts[3]       # 0 at run time (the kernel's type for it is int64, not a literal)
-    while True:
-        code, trial, small, predicted, h, E, C, D, P = _loop_prepare(
-            x, fun, gradient, gram, scale, damping, counts, tolerances, start, num0, den0, num_pos, den_pos, has_g,
-            dt, max_norm, direct)
-        if code != GO_ON:
-            return code, fun
-        sums = np.zeros(1 + x.size * lanes)
-        call_normal_kernel(address, E, C, D, np.zeros((lanes, n)), np.zeros(lanes), np.zeros(lanes), P, Phi,
-                           np.zeros((lanes, 0)), np.zeros(0), y, begin, sums)
-        code, fun = _loop_absorb(x, trial, fun, sums, h, gradient, gram, steps, scale, damping, counts, small,
-                                predicted, tolerances, start, log_x, log_steps, log_values)
-        start = False
-        if code != GO_ON:
-            return code, fun
-
-
-@cached_njit(inline="always")
-def _loop_prepare(x, fun, gradient, gram, scale, damping, counts, tolerances, start, num0, den0, num_pos, den_pos,
-                 has_g, dt, max_norm, direct):  # pragma: no cover - compiled
-    """Before a pass of the compiled loop: ``(code, trial, small, predicted, h, E, C, D, P)``.
-
-    With ``start`` the pass is at ``x`` itself, else at the step of
-    :func:`_loop_trial`; ``code`` is :data:`GO_ON` with the pass's inputs
-    (:func:`_loop_pass_inputs`), a termination code, or :data:`HAND_BACK`
-    where the Python loop must take the iteration.
-    """
-    code, trial, small, predicted = GO_ON, x.copy(), False, 0.0
-    if not start:
-        code, delta, small, predicted = _loop_trial(gram, gradient, fun, scale, damping, x, counts, tolerances)
-        trial = x + delta
-    if code != GO_ON:
-        return code, trial, small, predicted, np.empty(0), np.empty((0, 0, 0)), np.empty((0, 0)), np.empty(0), \
-            np.empty((0, 0))
-    ok, h, E, C, D, P = _loop_pass_inputs(trial, num0, den0, num_pos, den_pos, has_g, dt, max_norm, direct)
-    return GO_ON if ok else HAND_BACK, trial, small, predicted, h, E, C, D, P
-
-
-@cached_njit(inline="always")
-def _loop_absorb(x, trial, fun, sums, h, gradient, gram, steps, scale, damping, counts, small, predicted, tolerances,
-                start, log_x, log_steps, log_values):  # pragma: no cover - compiled
-    """After a pass of the compiled loop: its sums logged and charged, the state updated in place; ``(code, fun)``.
-
-    The first pass (``start``) sets the point's normal equations and column
-    scales; a trial's is accepted or rejected (:func:`_loop_outcome`).  A pass
-    that is not finite is not logged: :data:`HAND_BACK`.
-    """
-    finite, new_fun, new_gradient, new_gram, values = compiled_sums(sums, h)
-    if not finite:
-        return HAND_BACK, fun
-    row = counts[3]
-    copy_vector(trial, log_x[row])
-    copy_vector(h, log_steps[row])
-    copy_vector(values, log_values[row])
-    counts[2] -= values.size
-    counts[3] += 1
-    if start:
-        copy_vector(new_gradient, gradient)
-        _copy(new_gram, gram)
-        copy_vector(h, steps)
-        copy_vector(_norms(gram, np.zeros(gram.shape[0])), scale)
-        return GO_ON, new_fun
-    counts[0] += 1
-    return _loop_outcome(x, trial, fun, new_fun, new_gradient, new_gram, h, gradient, gram, steps, scale, damping,
-                        small, predicted, tolerances)
-
-
-@cached_njit(inline="always")
-def _loop_trial(gram, gradient, fun, scale, damping, x, counts, tolerances):  # pragma: no cover - compiled
-    """The top of an iteration of the compiled loop: ``(code, delta, small, predicted)``.
-
-    ``code`` is a termination code, :data:`HAND_BACK` (an ill-conditioned or
-    unsolvable system, a budget short of a whole pass) or :data:`GO_ON` with
-    the step ``delta`` to try; ``tolerances`` are ``[ftol, xtol, gtol, ILL_CONDITIONED]``.
-    """
-    if fun == 0.0:
-        return 1, np.zeros(x.size), False, 0.0
-    check = tolerances[3] > 0       # True at run time: a literal True would have _iteration compiled again
-    cosine, ill, solved, delta, small, predicted = _iteration(gram, gradient, fun, scale, damping[0], x, check,
-                                                              tolerances[3], tolerances[1])
-    if cosine <= tolerances[2]:
-        return 4, delta, small, predicted
-    if ill or not solved:
-        return HAND_BACK, delta, small, predicted
-    if counts[0] >= counts[1]:
-        return 5, delta, small, predicted
-    if counts[2] < x.size + 1:
-        return HAND_BACK, delta, small, predicted
-    return GO_ON, delta, small, predicted
-
-
-@cached_njit(inline="always")
-def _loop_pass_inputs(trial, num0, den0, num_pos, den_pos, has_g, dt, max_norm,
-                      direct):  # pragma: no cover - compiled
-    """What the pass at ``trial`` needs: ``(ok, h, E, C, D, P)``, as ``HammersteinCost.normal_equations`` forms them.
-
-    Not ``ok`` where the general pass must take the point: a row for scipy's
-    exponential, or a direct term other than the kernel's (``direct``).
-    """
-    h, X = compiled_neighbourhood(trial)
-    n_linear = num_pos.size + den_pos.size
-    num, den = fill_coefficients(X[:1 + n_linear, :n_linear].copy(), num0, den0, num_pos, den_pos)
-    E, C, D, clean = discretised(num, den, dt, max_norm)
-    P = X[:, n_linear:].copy() if has_g else np.ones((X.shape[0], 1))
-    return clean and (num.shape[1] == den.shape[1] and D.any()) == direct, h, E, C, D, P
-
-
-@cached_njit(inline="always")
-def _loop_outcome(x, trial, fun, f_trial, new_gradient, new_gram, new_steps, gradient, gram, steps, scale, damping,
-                 small, predicted, tolerances):  # pragma: no cover - compiled
-    """The evaluated trial accepted or rejected as :func:`normal_equations_lm` does: ``(code, fun)``, the state updated
-    in place."""
-    if f_trial < fun and predicted > 0:
-        actual = fun - f_trial
-        damping[0] = _lowered_damping(damping[0], actual / predicted)
-        damping[1] = 2.0
-        copy_vector(trial, x)
-        copy_vector(new_gradient, gradient)
-        _copy(new_gram, gram)
-        copy_vector(new_steps, steps)
-        copy_vector(_norms(gram, scale), scale)
-        code = _accepted_code(actual, predicted, fun, tolerances[0], small)
-        return (code if code else GO_ON), f_trial
-    damping[0] *= damping[1]
-    damping[1] *= 2.0
-    if small:
-        return 2, fun
-    if damping[0] > MAX_DAMPING:
-        return 6, fun
-    return HAND_BACK_ALONE, fun
+    p = x.size
+    log_x, log_steps, log_values = logs
+    K, N = d.basis.shape
+    if not (gradient.size == steps.size == scale.size == p and gram.size == p * p and state.size == 3
+            and counts.size == 4 and settings.size == 9 and d.y.size >= N and log_x.shape[1:] == log_steps.shape[1:]
+            == (p,) and log_values.shape[1:] == (p + 1,) and min(log_x.shape[0], log_steps.shape[0],
+                                                                 log_values.shape[0]) * (p + 1) >= counts[2]
+            and (K == p - d.num_pos.size - d.den_pos.size if d.has_g else K == 1)):
+        raise ValueError("the compiled loop's arrays do not fit its point, its pass or its logs")
+    return library().hc_lm_loop(
+        address, x, p, state, gradient, gram, steps, scale, counts, settings, int(bool(start)), d.num0, d.num0.size,
+        d.den0, d.den0.size, d.num_pos, d.num_pos.size, d.den_pos, d.den_pos.size, int(bool(d.has_g)),
+        int(bool(d.direct)), d.basis, K, N, d.y, log_x, log_steps, log_values)
 
 
 def normal_equations_lm(fun, counted, x0, *, ftol, xtol, gtol, max_steps: int, factor: bool = False):

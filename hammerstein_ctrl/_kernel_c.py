@@ -1,0 +1,391 @@
+"""The C text of a generated kernel, translated from its Python source (:mod:`~hammerstein_ctrl._kernel_source`).
+
+The kernels are written once, as Python source that numba compiles; the
+same source is also valid input to this translator, which writes the C
+function a C compiler builds in a fraction of numba's time.  It takes the
+small subset of Python the generators write: assignments of scalars and of
+array entries, ``for ... in range``, ``while``, ``if``, ``break``,
+``raise``, arithmetic and comparisons, ``x if c else y``, ``np.isfinite``,
+``np.inf``/``np.nan``, ``min``, local arrays (``np.empty``/``np.zeros`` of
+literal size) and the four-lane vectors of :mod:`~hammerstein_ctrl._simd`
+(``splat``, ``load``, ``store``, ``lane``, ``rotate``).  Anything else is a
+``NotImplementedError`` naming it.
+
+Every operation is translated one for one, in the source's order and
+grouping, and the C is compiled without contraction or fast-math
+(``-ffp-contract=off``), so a kernel's results are the IEEE results of its
+source's arithmetic, the same bits on every machine and at every
+optimisation level.
+
+The function takes one argument, an array of :data:`ARG_STRUCT` (``data``:
+an array's first element, ``shape``: its dimensions; an integer argument is
+``shape[0]``), and returns 0, or ``k`` if it stopped at the ``k``-th
+``raise`` of its source (:attr:`CKernel.messages`).
+
+Examples
+--------
+>>> src = '''
+... @cached_njit(signatures=(kernel_signature("r1 w1"),))
+... def kernel(x, out):
+...     for i in range(x.shape[0]):
+...         out[i] = 2.0 * x[i] if np.isfinite(x[i]) else 0.0
+... '''
+>>> print(translate(src).text.split("kernel(const hc_arg *args)\\n{")[1].strip())   # doctest: +NORMALIZE_WHITESPACE
+const double *x = (const double *)args[0].data;
+const int64_t x_0 = args[0].shape[0];
+double *out = (double *)args[1].data;
+const int64_t out_0 = args[1].shape[0];
+int64_t i;
+for (i = 0; i < x_0; i++) {
+    out[i] = (isfinite(x[i]) ? (2.0 * x[i]) : 0.0);
+}
+return 0;
+}
+"""
+
+from __future__ import annotations
+
+import ast
+import re
+from dataclasses import dataclass
+from pathlib import Path
+
+__all__ = ["translate", "CSource", "ARG_STRUCT", "HEADER"]
+
+#: The C declaration of one argument of a translated kernel (the package's C library reads the same header).
+ARG_STRUCT = (Path(__file__).resolve().parent / "_native_kernel.h").read_text()
+#: What every translated kernel's C starts with.
+HEADER = f"""#include <math.h>
+#include <stdint.h>
+#include <string.h>
+
+{ARG_STRUCT}
+typedef double hc_v4 __attribute__((vector_size(32)));
+typedef int64_t hc_i4 __attribute__((vector_size(32)));
+
+static inline hc_v4 hc_load(const double *a) {{ hc_v4 v; memcpy(&v, a, sizeof v); return v; }}
+static inline void hc_store(hc_v4 v, double *a) {{ memcpy(a, &v, sizeof v); }}
+static inline hc_v4 hc_splat(double x) {{ return (hc_v4){{x, x, x, x}}; }}
+#if defined(__clang__)
+#define HC_ROTATE(v, k) __builtin_shufflevector(v, v, (k) % 4, (1 + (k)) % 4, (2 + (k)) % 4, (3 + (k)) % 4)
+#else
+#define HC_ROTATE(v, k) __builtin_shuffle(v, (hc_i4){{(k) % 4, (1 + (k)) % 4, (2 + (k)) % 4, (3 + (k)) % 4}})
+#endif
+"""
+
+_INT, _FLOAT, _VECTOR = "int64_t", "double", "hc_v4"
+_OPERATORS = {ast.Add: "+", ast.Sub: "-", ast.Mult: "*", ast.FloorDiv: "/", ast.Mod: "%", ast.BitAnd: "&"}
+_COMPARISONS = {ast.Lt: "<", ast.LtE: "<=", ast.Gt: ">", ast.GtE: ">=", ast.Eq: "==", ast.NotEq: "!="}
+_SIGNATURE = re.compile(r'kernel_signature\("([^"]*)"\)')
+
+
+@dataclass(frozen=True)
+class CSource:
+    """A translated kernel: its C ``text`` (a function named ``kernel``), its arguments' ``names`` and
+    :func:`~hammerstein_ctrl._jit.kernel_signature` ``codes``, and the ``messages`` of its ``raise`` statements."""
+
+    text: str
+    names: tuple
+    codes: tuple
+    messages: tuple
+
+
+class _Arrays:
+    """The arrays a kernel indexes: its arguments (dimensions read at run time) and its local arrays (literal)."""
+
+    def __init__(self):
+        self.dims: dict = {}
+
+    def index(self, name: str, indices: list) -> str:
+        dims = self.dims[name]
+        if len(indices) != len(dims):
+            raise NotImplementedError(f"{name} has {len(dims)} dimensions, indexed with {len(indices)}")
+        flat = indices[0]
+        for dim, i in zip(dims[1:], indices[1:]):
+            flat = f"({flat}) * {dim} + ({i})"
+        return f"{name}[{flat}]"
+
+
+class _Translator:
+    def __init__(self, function: ast.FunctionDef, codes: list):
+        self.arrays = _Arrays()
+        self.types: dict = {}
+        self.locals: dict = {}
+        self.messages: list = []
+        self.names = [a.arg for a in function.args.args]
+        self.codes = codes
+        if len(codes) != len(self.names):
+            raise NotImplementedError("the kernel's signature does not name every argument")
+        for name, code in zip(self.names, codes):
+            if code == "i":
+                self.types[name] = _INT
+            elif code[0] in "rw" and code[1:].isdigit():
+                self.arrays.dims[name] = [f"{name}_{k}" for k in range(int(code[1:]))]
+            else:
+                raise NotImplementedError(f"argument code {code!r}")
+        self.function = function
+        self._infer(function.body)
+
+    # -- types ---------------------------------------------------------------------------------------------------
+    def _infer(self, body):
+        """Type every assigned name: an integer unless some assignment gives it a float (or a vector)."""
+        for _ in range(8):
+            before = dict(self.types)
+            for node in ast.walk(ast.Module(body=body, type_ignores=[])):
+                if isinstance(node, ast.Assign):
+                    for target in node.targets:
+                        self._assign_type(target, node.value)
+                elif isinstance(node, ast.AugAssign) and isinstance(node.target, ast.Name):
+                    self._widen(node.target.id, self._type(node.value))
+                elif isinstance(node, ast.For):
+                    self._widen(node.target.id, _INT)
+            if self.types == before:
+                return
+        raise NotImplementedError("the kernel's types do not settle")
+
+    def _assign_type(self, target, value):
+        if isinstance(target, ast.Name):
+            if _call_name(value) in ("np.empty", "np.zeros"):
+                shape = value.args[0].elts if isinstance(value.args[0], ast.Tuple) else [value.args[0]]
+                self.arrays.dims[target.id] = [ast.unparse(d) for d in shape]
+                size = 1
+                for d in shape:
+                    size *= self._largest(d)
+                self.locals[target.id] = max(size, self.locals.get(target.id, 0))
+            else:
+                self._widen(target.id, self._type(value))
+        elif isinstance(target, ast.Tuple):
+            values = value.elts if isinstance(value, ast.Tuple) else [None] * len(target.elts)
+            for t, v in zip(target.elts, values):
+                self._widen(t.id, _INT if v is None else self._type(v))
+
+    def _largest(self, node) -> int:
+        """The largest value the literal size ``node`` takes: a literal, or a name only ever set to literals."""
+        if isinstance(node, ast.Constant) and isinstance(node.value, int):
+            return node.value
+        values = [n.value.value for n in ast.walk(self.function) if isinstance(n, ast.Assign)
+                  and any(isinstance(t, ast.Name) and t.id == getattr(node, "id", None) for t in n.targets)
+                  and isinstance(n.value, ast.Constant)]
+        if not values or len(values) != sum(1 for n in ast.walk(self.function) if isinstance(n, ast.Assign) and any(
+                isinstance(t, ast.Name) and t.id == getattr(node, "id", None) for t in n.targets)):
+            raise NotImplementedError(f"local array of size {ast.unparse(node)}, not a literal")
+        return max(values)
+
+    def _widen(self, name: str, kind: str):
+        order = (_INT, _FLOAT, _VECTOR)
+        current = self.types.get(name, _INT)
+        self.types[name] = max(current, kind, key=order.index)
+
+    def _type(self, node) -> str:
+        if isinstance(node, ast.Constant):
+            return _FLOAT if isinstance(node.value, float) else _INT
+        if isinstance(node, ast.Name):
+            return self.types.get(node.id, _INT)
+        if isinstance(node, ast.Subscript):
+            return _INT if _is_shape(node) else _FLOAT
+        if isinstance(node, ast.Attribute):
+            return _FLOAT
+        if isinstance(node, ast.BinOp):
+            kinds = {self._type(node.left), self._type(node.right)}
+            return _VECTOR if _VECTOR in kinds else _FLOAT if _FLOAT in kinds else _INT
+        if isinstance(node, ast.UnaryOp):
+            return _INT if isinstance(node.op, ast.Not) else self._type(node.operand)
+        if isinstance(node, ast.IfExp):
+            kinds = {self._type(node.body), self._type(node.orelse)}
+            return _FLOAT if _FLOAT in kinds else _INT
+        if isinstance(node, ast.Call):
+            name = _call_name(node)
+            if name in ("splat", "load", "rotate"):
+                return _VECTOR
+            if name == "lane":
+                return _FLOAT
+            if name == "min":
+                kinds = {self._type(a) for a in node.args}
+                return _FLOAT if _FLOAT in kinds else _INT
+            return _INT
+        return _INT
+
+    # -- statements ----------------------------------------------------------------------------------------------
+    def text(self) -> str:
+        head = ["int64_t kernel(const hc_arg *args)", "{"]
+        for k, (name, code) in enumerate(zip(self.names, self.codes)):
+            if code == "i":
+                head.append(f"    const int64_t {name} = args[{k}].shape[0];")
+                continue
+            const = "const " if code[0] == "r" else ""
+            head.append(f"    {const}double *{name} = ({const}double *)args[{k}].data;")
+            dims = ", ".join(f"{name}_{d} = args[{k}].shape[{d}]" for d in range(int(code[1:])))
+            head.append(f"    const int64_t {dims};")
+        for name, size in self.locals.items():
+            head.append(f"    double {name}[{size}] __attribute__((aligned(64)));")
+        for kind in (_INT, _FLOAT, _VECTOR):
+            names = sorted(n for n, t in self.types.items() if t == kind and n not in self.names)
+            for start in range(0, len(names), 12):
+                head.append(f"    {kind} {', '.join(names[start:start + 12])};")
+        body = self._block(self.function.body, 1)
+        return "\n".join(head + body + ["    return 0;", "}", ""])
+
+    def _block(self, statements, depth: int) -> list:
+        lines = []
+        for node in statements:
+            lines += self._statement(node, depth)
+        return lines
+
+    def _statement(self, node, depth: int) -> list:
+        pad = "    " * depth
+        if isinstance(node, ast.Expr):
+            name = _call_name(node.value)
+            if isinstance(node.value, ast.Constant) or name == "align_stack":
+                return []
+            if name == "store":
+                v, a, i = node.value.args
+                return [f"{pad}hc_store({self._expr(v)}, &{a.id}[{self._expr(i)}]);"]
+            raise NotImplementedError(f"statement {ast.unparse(node)}")
+        if isinstance(node, ast.Assign):
+            return self._assign(node, pad)
+        if isinstance(node, ast.AugAssign):
+            target = self._target(node.target)
+            return [f"{pad}{target} = {target} {_OPERATORS[type(node.op)]} {self._wrap(node.value)};"]
+        if isinstance(node, ast.For):
+            return self._for(node, depth)
+        if isinstance(node, ast.While):
+            return ([f"{pad}while ({self._expr(node.test)}) {{"] + self._block(node.body, depth + 1) + [f"{pad}}}"])
+        if isinstance(node, ast.If):
+            lines = [f"{pad}if ({self._expr(node.test)}) {{"] + self._block(node.body, depth + 1)
+            if node.orelse:
+                lines += [f"{pad}}} else {{"] + self._block(node.orelse, depth + 1)
+            return lines + [f"{pad}}}"]
+        if isinstance(node, ast.Break):
+            return [f"{pad}break;"]
+        if isinstance(node, ast.Raise):
+            self.messages.append(ast.literal_eval(node.exc.args[0]) if node.exc.args else "")
+            return [f"{pad}return {len(self.messages)};"]
+        raise NotImplementedError(f"statement {ast.unparse(node)}")
+
+    def _assign(self, node, pad: str) -> list:
+        value = node.value
+        if _call_name(value) in ("np.empty", "np.zeros"):
+            name = node.targets[0].id
+            return [f"{pad}memset({name}, 0, sizeof {name});"] if _call_name(value) == "np.zeros" else []
+        target = node.targets[0]
+        if isinstance(target, ast.Tuple):
+            values = value.elts if isinstance(value, ast.Tuple) else [
+                ast.Subscript(value=value, slice=ast.Constant(k)) for k in range(len(target.elts))]
+            return [f"{pad}{t.id} = {self._expr(v)};" for t, v in zip(target.elts, values)]
+        if len(node.targets) == 1:
+            return [f"{pad}{self._target(target)} = {self._expr(value)};"]
+        temp = [f"{pad}{{", f"{pad}    const double t = {self._expr(value)};"]
+        return temp + [f"{pad}    {self._target(t)} = t;" for t in node.targets] + [f"{pad}}}"]
+
+    def _for(self, node, depth: int) -> list:
+        pad, var = "    " * depth, node.target.id
+        if _call_name(node.iter) != "range" or node.orelse:
+            raise NotImplementedError(f"loop {ast.unparse(node.iter)}")
+        bounds = [self._expr(a) for a in node.iter.args]
+        start, stop = ("0", bounds[0]) if len(bounds) == 1 else bounds
+        head = f"{pad}for ({var} = {start}; {var} < {stop}; {var}++) {{"
+        return [head] + self._block(node.body, depth + 1) + [f"{pad}}}"]
+
+    def _target(self, node) -> str:
+        if isinstance(node, ast.Name):
+            return node.id
+        return self._expr(node)
+
+    # -- expressions ---------------------------------------------------------------------------------------------
+    def _wrap(self, node) -> str:
+        text = self._expr(node)
+        return text if isinstance(node, (ast.Name, ast.Constant, ast.Subscript, ast.Call)) else f"({text})"
+
+    def _expr(self, node) -> str:
+        if isinstance(node, ast.Constant):
+            if isinstance(node.value, bool):
+                return str(int(node.value))
+            return repr(node.value)
+        if isinstance(node, ast.Name):
+            return node.id
+        if isinstance(node, ast.Attribute):
+            constants = {"np.inf": "INFINITY", "np.nan": "NAN"}
+            name = ast.unparse(node)
+            if name not in constants:
+                raise NotImplementedError(f"name {name}")
+            return constants[name]
+        if isinstance(node, ast.Subscript):
+            return self._subscript(node)
+        if isinstance(node, ast.BinOp):
+            op = _OPERATORS.get(type(node.op))
+            if op is None:
+                raise NotImplementedError(f"operator {ast.unparse(node)}")
+            return f"{self._wrap(node.left)} {op} {self._wrap(node.right)}"
+        if isinstance(node, ast.UnaryOp):
+            op = {ast.Not: "!", ast.USub: "-"}.get(type(node.op))
+            if op is None:
+                raise NotImplementedError(f"operator {ast.unparse(node)}")
+            return f"{op}{self._wrap(node.operand)}"
+        if isinstance(node, ast.BoolOp):
+            op = " && " if isinstance(node.op, ast.And) else " || "
+            return "(" + op.join(self._wrap(v) for v in node.values) + ")"
+        if isinstance(node, ast.Compare):
+            parts, left = [], node.left
+            for op, right in zip(node.ops, node.comparators):
+                parts.append(f"{self._wrap(left)} {_COMPARISONS[type(op)]} {self._wrap(right)}")
+                left = right
+            return "(" + " && ".join(parts) + ")"
+        if isinstance(node, ast.IfExp):
+            return f"({self._expr(node.test)} ? {self._wrap(node.body)} : {self._wrap(node.orelse)})"
+        if isinstance(node, ast.Call):
+            return self._call(node)
+        raise NotImplementedError(f"expression {ast.unparse(node)}")
+
+    def _subscript(self, node) -> str:
+        if _is_shape(node):
+            return f"{node.value.value.id}_{node.slice.value}"
+        if not isinstance(node.value, ast.Name) or node.value.id not in self.arrays.dims:
+            raise NotImplementedError(f"indexing {ast.unparse(node)}")
+        indices = node.slice.elts if isinstance(node.slice, ast.Tuple) else [node.slice]
+        return self.arrays.index(node.value.id, [self._expr(i) for i in indices])
+
+    def _call(self, node) -> str:
+        name, args = _call_name(node), node.args
+        if name == "np.isfinite":
+            return f"isfinite({self._expr(args[0])})"
+        if name == "min":
+            a, b = (self._wrap(x) for x in args)
+            return f"({a} < {b} ? {a} : {b})"
+        if name == "splat":
+            return f"hc_splat({self._expr(args[0])})"
+        if name == "load":
+            return f"hc_load(&{args[0].id}[{self._expr(args[1])}])"
+        if name == "lane":
+            return f"{self._wrap(args[0])}[{args[1].value}]"
+        if name == "rotate":
+            return f"HC_ROTATE({self._expr(args[0])}, {args[1].value})"
+        raise NotImplementedError(f"call {ast.unparse(node)}")
+
+
+def _call_name(node) -> str | None:
+    return ast.unparse(node.func) if isinstance(node, ast.Call) else None
+
+
+def _is_shape(node) -> bool:
+    """Whether ``node`` is ``A.shape[k]``."""
+    return (isinstance(node, ast.Subscript) and isinstance(node.value, ast.Attribute) and node.value.attr == "shape"
+            and isinstance(node.slice, ast.Constant))
+
+
+def translate(source: str) -> CSource:
+    """The C of the generated kernel ``source`` (Python source defining ``kernel``, its argument types in the
+    decorator's ``kernel_signature("...")``); :data:`HEADER` comes before it in the file.
+
+    Raises
+    ------
+    NotImplementedError
+        For Python the translator does not take (an output map's call, for one).
+    """
+    tree = ast.parse(source)
+    function = next(node for node in tree.body if isinstance(node, ast.FunctionDef) and node.name == "kernel")
+    found = _SIGNATURE.search(source)
+    if found is None:
+        raise NotImplementedError("the kernel has no kernel_signature")
+    translator = _Translator(function, found.group(1).split())
+    text = translator.text()
+    return CSource(HEADER + "\n" + text, tuple(translator.names), tuple(translator.codes), tuple(translator.messages))
