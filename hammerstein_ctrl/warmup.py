@@ -2,8 +2,9 @@
 
 Compiled code is kept once per machine (``$HAMMERSTEIN_CTRL_CACHE``, default
 ``~/.cache/hammerstein_ctrl``) and reused by every later process, the command
-line and the test suite; what is missing is compiled on first use, which for
-a new structure takes seconds to tens of seconds of CPU.  :func:`warmup` pays
+line and the test suite; what is missing is built on first use, which for a
+new structure takes a fraction of a second of the C compiler's CPU (a few
+seconds of numba's for kernels with an output map).  :func:`warmup` pays
 that ahead of time: it identifies a short synthetic record with each structure
 of a grid (linear orders x input families x intersample holds, each the
 default ``identify(data, HammersteinStructure(LinearStructure(0, n), g))``),

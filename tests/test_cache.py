@@ -21,7 +21,7 @@ REPO = Path(__file__).resolve().parents[1]
 CHILD = """
 import json, warnings
 import numpy as np
-from hammerstein_ctrl import CacheWarning
+from hammerstein_ctrl import CacheWarning, kernels
 from hammerstein_ctrl.residual_analysis import _lagged_sums
 from hammerstein_ctrl.simulate import simulate_batch
 with warnings.catch_warnings(record=True) as caught:
@@ -29,7 +29,12 @@ with warnings.catch_warnings(record=True) as caught:
     u = np.sin(np.linspace(0.0, 6.0, 200))[None, :]
     y = simulate_batch([[0.0, 1.0]], [[1.0, 0.7, 2.0]], u, 0.03)
     h = _lagged_sums(np.array([1.0, -2.0, 0.5]), np.array([0.5, 1.0, -1.0]), -1, 1)  # the package's own
-print(json.dumps({"y": y[0, ::40].tolist() + h.tolist(),
+    E = np.array([[[0.9, 0.05, 0.01, 0.003], [-0.1, 0.95, 0.02, 0.001]]])
+    w = np.empty((1, 50))                           # a kernel with an output map: generated and compiled by numba
+    kernels.get_kernel(2, "outputs", "foh", "coulomb_map")(E, np.ones((1, 2)), np.zeros(1), np.zeros((1, 2)),
+                                                           np.zeros(1), u[:, :50].copy(), np.ones((1, 3)),
+                                                           np.zeros(0), w)
+print(json.dumps({"y": y[0, ::40].tolist() + h.tolist() + w[0, ::10].tolist(),
                   "warnings": [str(w.message) for w in caught if issubclass(w.category, CacheWarning)]}))
 """
 
@@ -506,7 +511,8 @@ print(hashlib.sha256(acc.tobytes()).hexdigest())
 
 
 def test_a_passs_bits_do_not_depend_on_which_kernel_compiled_its_output_map_first(tmp_path):
-    """The summing pass (contracting multiply-adds) and the scalar kernel (not) both call a compiled output map.
+    """The summing pass and the scalar kernel both call a compiled output map (the pass with contracting
+    multiply-adds when this was found).
     numba compiles a callee with its first caller's floating-point flags and then serves that one version (and
     its cached copy) to every caller, so the pass's bits depended on which kernel the machine had compiled first;
     the kernels inline the maps instead, so every kernel's map follows the kernel's own flags."""

@@ -1,4 +1,5 @@
-"""``warmup`` compiles ahead of time what identifying a structure needs, so a later process compiles nothing."""
+"""``warmup`` compiles ahead of time what identifying a structure needs, so a later process compiles nothing (numba)
+and builds nothing (the C compiler)."""
 
 import os
 import subprocess
@@ -14,12 +15,18 @@ from hammerstein_ctrl.warmup import warmup, warmup_plan
 from _processes import REPO
 
 #: A fresh process: identify a record other than warmup's (another seed, length and input) and count numba's
-#: compilations; prints the count and the names.
+#: compilations and the C compiler's builds of kernels; prints the count and the names.
 _IDENTIFY_COUNTING_COMPILES = textwrap.dedent("""
     import warnings
     import numba.core.event as ev
     import numpy as np
+    from hammerstein_ctrl import _native
     names = []
+    build = _native._build
+    def counting(compiler, target, kernel=None):
+        names.append(target.name)
+        return build(compiler, target, kernel)
+    _native._build = counting
     class Count(ev.Listener):
         def on_start(self, event):
             d = event.data.get("dispatcher")
@@ -52,7 +59,7 @@ def _python(code: str, cache) -> str:
 def test_after_warmup_a_fresh_process_identifies_the_structure_without_compiling(tmp_path):
     cache = tmp_path / "cache"
     before = _python(_IDENTIFY_COUNTING_COMPILES, tmp_path / "cold")
-    assert int(before.split()[0]) > 10                      # from empty caches it compiles (the control case)
+    assert int(before.split()[0]) >= 2                      # from empty caches it builds (the control case)
     report = _python("from hammerstein_ctrl.warmup import warmup\n"
                      "r = warmup(orders=[2], families=['polynomial'], executor='serial')\n"
                      "print(r.ok)\nprint(r.table())", cache)
