@@ -1,15 +1,21 @@
 """The C text of a generated kernel, translated from its Python source (:mod:`~hammerstein_ctrl._kernel_source`).
 
-The kernels are written once, as Python source that numba compiles; the
-same source is also valid input to this translator, which writes the C
+The kernels are written once, as Python source (numba compiles it where a
+kernel calls an output map, and in the tests as this translation's oracle);
+the same source is the input of this translator, which writes the C
 function a C compiler builds in a fraction of numba's time.  It takes the
 small subset of Python the generators write: assignments of scalars and of
 array entries, ``for ... in range``, ``while``, ``if``, ``break``,
 ``raise``, arithmetic and comparisons, ``x if c else y``, ``np.isfinite``,
 ``np.inf``/``np.nan``, ``min``, local arrays (``np.empty``/``np.zeros`` of
 literal size) and the four-lane vectors of :mod:`~hammerstein_ctrl._simd`
-(``splat``, ``load``, ``store``, ``lane``, ``rotate``).  Anything else is a
-``NotImplementedError`` naming it.
+(``splat``, ``load``, ``store``, ``lane``, ``rotate``).  Where C would mean
+something else it is refused: ``and``/``or`` of values that are not truth
+values, ``min`` of floats, negative or float indices, tuple assignments whose
+values read their targets, loops whose body assigns their variable or bounds;
+integer ``//`` and ``%`` round as Python's do.  Anything else is a
+``NotImplementedError`` naming it (indices are not checked against the
+arrays' sizes: the kernel's caller checks those).
 
 Every operation is translated one for one, in the source's order and
 grouping, and the C is compiled without contraction or fast-math
@@ -66,6 +72,15 @@ typedef int64_t hc_i4 __attribute__((vector_size(32)));
 static inline hc_v4 hc_load(const double *a) {{ hc_v4 v; memcpy(&v, a, sizeof v); return v; }}
 static inline void hc_store(hc_v4 v, double *a) {{ memcpy(a, &v, sizeof v); }}
 static inline hc_v4 hc_splat(double x) {{ return (hc_v4){{x, x, x, x}}; }}
+static inline int64_t hc_floordiv(int64_t a, int64_t b)
+{{
+    return a / b - ((a % b != 0) && ((a < 0) != (b < 0)));
+}}
+static inline int64_t hc_mod(int64_t a, int64_t b)
+{{
+    int64_t r = a % b;
+    return r + ((r != 0 && ((r < 0) != (b < 0))) ? b : 0);
+}}
 #if defined(__clang__)
 #define HC_ROTATE(v, k) __builtin_shufflevector(v, v, (k) % 4, (1 + (k)) % 4, (2 + (k)) % 4, (3 + (k)) % 4)
 #else
@@ -74,7 +89,9 @@ static inline hc_v4 hc_splat(double x) {{ return (hc_v4){{x, x, x, x}}; }}
 """
 
 _INT, _FLOAT, _VECTOR = "int64_t", "double", "hc_v4"
-_OPERATORS = {ast.Add: "+", ast.Sub: "-", ast.Mult: "*", ast.FloorDiv: "/", ast.Mod: "%", ast.BitAnd: "&"}
+_OPERATORS = {ast.Add: "+", ast.Sub: "-", ast.Mult: "*", ast.BitAnd: "&"}
+#: Integer operators with Python's rounding (towards minus infinity), as C functions.
+_INTEGER_FUNCTIONS = {ast.FloorDiv: "hc_floordiv", ast.Mod: "hc_mod"}
 _COMPARISONS = {ast.Lt: "<", ast.LtE: "<=", ast.Gt: ">", ast.GtE: ">=", ast.Eq: "==", ast.NotEq: "!="}
 _SIGNATURE = re.compile(r'kernel_signature\("([^"]*)"\)')
 
@@ -147,7 +164,10 @@ class _Translator:
         if isinstance(target, ast.Name):
             if _call_name(value) in ("np.empty", "np.zeros"):
                 shape = value.args[0].elts if isinstance(value.args[0], ast.Tuple) else [value.args[0]]
-                self.arrays.dims[target.id] = [ast.unparse(d) for d in shape]
+                dims = [ast.unparse(d) for d in shape]
+                if self.arrays.dims.setdefault(target.id, dims) != dims:
+                    raise NotImplementedError(f"local array {target.id} made with shapes {self.arrays.dims[target.id]} "
+                                              f"and {dims}")
                 size = 1
                 for d in shape:
                     size *= self._largest(d)
@@ -245,7 +265,8 @@ class _Translator:
             return self._assign(node, pad)
         if isinstance(node, ast.AugAssign):
             target = self._target(node.target)
-            return [f"{pad}{target} = {target} {_OPERATORS[type(node.op)]} {self._wrap(node.value)};"]
+            value = ast.BinOp(left=node.target, op=node.op, right=node.value)
+            return [f"{pad}{target} = {self._expr(value)};"]
         if isinstance(node, ast.For):
             return self._for(node, depth)
         if isinstance(node, ast.While):
@@ -269,18 +290,40 @@ class _Translator:
             return [f"{pad}memset({name}, 0, sizeof {name});"] if _call_name(value) == "np.zeros" else []
         target = node.targets[0]
         if isinstance(target, ast.Tuple):
-            values = value.elts if isinstance(value, ast.Tuple) else [
-                ast.Subscript(value=value, slice=ast.Constant(k)) for k in range(len(target.elts))]
-            return [f"{pad}{t.id} = {self._expr(v)};" for t, v in zip(target.elts, values)]
+            return self._unpack(target, value, pad)
         if len(node.targets) == 1:
             return [f"{pad}{self._target(target)} = {self._expr(value)};"]
-        temp = [f"{pad}{{", f"{pad}    const double t = {self._expr(value)};"]
-        return temp + [f"{pad}    {self._target(t)} = t;" for t in node.targets] + [f"{pad}}}"]
+        temp = [f"{pad}{{", f"{pad}    const {self._type(value)} hc_value = {self._expr(value)};"]
+        return temp + [f"{pad}    {self._target(t)} = hc_value;" for t in node.targets] + [f"{pad}}}"]
+
+    def _unpack(self, target, value, pad: str) -> list:
+        """``a, b = <shape>`` or ``a, b = x, y`` where no value reads a target (C assigns one after the other)."""
+        names = {t.id for t in target.elts if isinstance(t, ast.Name)}
+        if len(names) != len(target.elts):
+            raise NotImplementedError(f"assignment to {ast.unparse(target)}")
+        if isinstance(value, ast.Tuple) and len(value.elts) == len(target.elts):
+            if any(isinstance(n, ast.Name) and n.id in names for v in value.elts for n in ast.walk(v)):
+                raise NotImplementedError(f"assignment {ast.unparse(target)} = {ast.unparse(value)} (values read "
+                                          "the targets)")
+            values = value.elts
+        elif isinstance(value, ast.Attribute) and value.attr == "shape":
+            values = [ast.Subscript(value=value, slice=ast.Constant(k)) for k in range(len(target.elts))]
+        else:
+            raise NotImplementedError(f"assignment {ast.unparse(target)} = {ast.unparse(value)}")
+        return [f"{pad}{t.id} = {self._expr(v)};" for t, v in zip(target.elts, values)]
 
     def _for(self, node, depth: int) -> list:
         pad, var = "    " * depth, node.target.id
         if _call_name(node.iter) != "range" or node.orelse:
             raise NotImplementedError(f"loop {ast.unparse(node.iter)}")
+        if len(node.iter.args) not in (1, 2) or any(self._type(a) != _INT for a in node.iter.args):
+            raise NotImplementedError(f"loop over {ast.unparse(node.iter)}")
+        assigned = {t.id for n in ast.walk(ast.Module(body=node.body, type_ignores=[]))
+                    for t in (n.targets if isinstance(n, ast.Assign) else [getattr(n, "target", None)])
+                    if isinstance(t, ast.Name)}
+        if var in assigned or {n.id for n in ast.walk(node.iter) if isinstance(n, ast.Name)} & assigned:
+            raise NotImplementedError(f"loop {ast.unparse(node.target)} in {ast.unparse(node.iter)} whose variable "
+                                      "or bounds its body assigns")
         bounds = [self._expr(a) for a in node.iter.args]
         start, stop = ("0", bounds[0]) if len(bounds) == 1 else bounds
         head = f"{pad}for ({var} = {start}; {var} < {stop}; {var}++) {{"
@@ -312,6 +355,9 @@ class _Translator:
         if isinstance(node, ast.Subscript):
             return self._subscript(node)
         if isinstance(node, ast.BinOp):
+            function = _INTEGER_FUNCTIONS.get(type(node.op))
+            if function is not None and self._type(node) == _INT:
+                return f"{function}({self._expr(node.left)}, {self._expr(node.right)})"
             op = _OPERATORS.get(type(node.op))
             if op is None:
                 raise NotImplementedError(f"operator {ast.unparse(node)}")
@@ -322,11 +368,15 @@ class _Translator:
                 raise NotImplementedError(f"operator {ast.unparse(node)}")
             return f"{op}{self._wrap(node.operand)}"
         if isinstance(node, ast.BoolOp):
+            if any(self._type(v) != _INT for v in node.values):
+                raise NotImplementedError(f"{ast.unparse(node)} (and/or of values that are not truth values)")
             op = " && " if isinstance(node.op, ast.And) else " || "
             return "(" + op.join(self._wrap(v) for v in node.values) + ")"
         if isinstance(node, ast.Compare):
             parts, left = [], node.left
             for op, right in zip(node.ops, node.comparators):
+                if type(op) not in _COMPARISONS:
+                    raise NotImplementedError(f"comparison {ast.unparse(node)}")
                 parts.append(f"{self._wrap(left)} {_COMPARISONS[type(op)]} {self._wrap(right)}")
                 left = right
             return "(" + " && ".join(parts) + ")"
@@ -342,6 +392,9 @@ class _Translator:
         if not isinstance(node.value, ast.Name) or node.value.id not in self.arrays.dims:
             raise NotImplementedError(f"indexing {ast.unparse(node)}")
         indices = node.slice.elts if isinstance(node.slice, ast.Tuple) else [node.slice]
+        for i in indices:      # Python counts a negative index from the end; C would read before the array
+            if self._type(i) != _INT or isinstance(i, ast.UnaryOp) or (isinstance(i, ast.Constant) and i.value < 0):
+                raise NotImplementedError(f"indexing {ast.unparse(node)} (indices are non-negative integers)")
         return self.arrays.index(node.value.id, [self._expr(i) for i in indices])
 
     def _call(self, node) -> str:
@@ -349,6 +402,8 @@ class _Translator:
         if name == "np.isfinite":
             return f"isfinite({self._expr(args[0])})"
         if name == "min":
+            if len(args) != 2 or any(self._type(x) != _INT for x in args):
+                raise NotImplementedError(f"call {ast.unparse(node)} (min of two integers only)")
             a, b = (self._wrap(x) for x in args)
             return f"({a} < {b} ? {a} : {b})"
         if name == "splat":

@@ -22,11 +22,11 @@ __all__ = ["kernel_source", "lane_source", "normal_source", "vector_normal_sourc
 MAX_UNROLLED_STATES = 8
 #: State dimensions up to this get the normal-equation pass (and its outputs mode): every order a
 #: linear block may have, so that LM's Jacobian sums and the automatic starts' regressions stay
-#: bounded in memory on long records whatever the block (a 10-state pass compiles in ~6 s, once).
+#: bounded in memory on long records whatever the block.
 MAX_PASS_STATES = MAX_ORDER
 #: State dimensions up to this get the normal-equation pass with the neighbours in vectors
-#: (:func:`vector_normal_source`): 1.3-3x faster than the lanes in an array up to 4 states, no faster at
-#: 6, and its compile time grows faster with the order (10 states, 16 lanes: 56 s against 7 s).
+#: (:func:`vector_normal_source`): 1.3-3x faster than the lanes in an array up to 4 states and no faster at
+#: 6, as numba compiled them when this was chosen (its compile time grew faster with the order too).
 MAX_VECTOR_STATES = 4
 #: Candidates simulated side by side in one loop of a generated kernel.
 INTERLEAVE = 2

@@ -87,17 +87,6 @@ def _c_augmented(typingctx, num, den, batch, nnum, nden, dt, M, C, D):
     return c_call("hc_tf_augmented", (num, den, batch, nnum, nden, dt, M, C, D))
 
 
-@numba.extending.intrinsic
-def _c_discrete(typingctx, num, den, batch, nnum, nden, dt, max_norm, E, C, D, ok, big):
-    return c_call("hc_tf_discrete", (num, den, batch, nnum, nden, dt, max_norm, E, C, D, ok, big))
-
-
-@numba.extending.intrinsic
-def _c_fill(typingctx, theta, batch, stride, num0, nnum, den0, nden, num_pos, k, den_pos, kd, num, den):
-    return c_call("hc_fill_coefficients",
-                  (theta, batch, stride, num0, nnum, den0, nden, num_pos, k, den_pos, kd, num, den))
-
-
 def one_norm(M) -> float:
     """Largest absolute column sum of the square ``M`` (a NaN column is passed over, as Python's ``max`` does).
 
@@ -237,8 +226,7 @@ def tf_discrete_into(num, den, dt, max_norm, E, C, D, ok, big) -> bool:
     returns ``clean``.
 
     The C code checks no index, so this door checks every shape it passes
-    (a ``ValueError`` naming the array); compiled callers size the arrays
-    themselves, as :func:`hammerstein_ctrl.kernels.discretised` does.
+    (a ``ValueError`` naming the array).
 
     Examples
     --------
@@ -257,13 +245,6 @@ def tf_discrete_into(num, den, dt, max_norm, E, C, D, ok, big) -> bool:
     return _LIBRARY.hc_tf_discrete(num, den, den.shape[0], num.shape[1], den.shape[1],
                                    float(dt), float(max_norm), E, C, D,
                                    ok, big)
-
-
-@numba.extending.overload(tf_discrete_into)
-def _tf_discrete_into_compiled(num, den, dt, max_norm, E, C, D, ok, big):
-    def impl(num, den, dt, max_norm, E, C, D, ok, big):
-        return _c_discrete(num, den, den.shape[0], num.shape[1], den.shape[1], dt, max_norm, E, C, D, ok, big)
-    return impl
 
 
 def tf_discrete(num, den, dt, max_norm):
@@ -444,12 +425,3 @@ def fill_coefficients(theta, num0, den0, num_pos, den_pos):
                                   den_pos, den_pos.size, num, den)
     return num, den
 
-
-@numba.extending.overload(fill_coefficients)
-def _fill_coefficients_compiled(theta, num0, den0, num_pos, den_pos):
-    def impl(theta, num0, den0, num_pos, den_pos):
-        num, den = np.empty((theta.shape[0], num0.size)), np.empty((theta.shape[0], den0.size))
-        _c_fill(theta, theta.shape[0], theta.shape[1], num0, num0.size, den0, den0.size, num_pos, num_pos.size,
-                den_pos, den_pos.size, num, den)
-        return num, den
-    return impl

@@ -1,11 +1,14 @@
 """The package's C library: compiled once per machine with the system's C compiler, called from Python and numba.
 
-Code that every fit runs once per candidate or step but that is not a hot
-loop (the matrix exponential of the discretisation, a linear solve,
-eigenvalues of a small symmetric matrix, the linear algebra of a
-Levenberg-Marquardt step) is written in C (:data:`SOURCES`).  numba compiled
-it for about 15 s of CPU on a machine's first fit; a C compiler builds it in
-about 1.2 s.  The library is kept under
+Code that every fit runs once per candidate or step (the matrix exponential
+of the discretisation, a linear solve, eigenvalues of a small symmetric
+matrix, the linear algebra of a Levenberg-Marquardt step and its loop, a
+single evaluation from the coefficients) is written in C (:data:`SOURCES`).
+numba compiled it for about 15 s of CPU on a machine's first fit; a C
+compiler builds it in about a second.  The generated simulation kernels are
+built the same way, one shared object each (:func:`kernel_address`, in a
+``ckernels-`` folder of the machine cache keyed on the flags and the
+processor, each file named after a digest of its C).  The library is kept under
 :func:`~hammerstein_ctrl._jit.machine_cache_root` in a folder named after a
 digest of the sources, the flags and the processor (it is built for this
 processor, ``-march=native``), so every process of the machine loads it, an
@@ -19,7 +22,9 @@ The library is also a Python extension module (:func:`library`), whose
 functions take numpy arrays where the C functions take pointers: each checks
 that an array is C-ordered, of the C type and, where the C function writes
 it, writeable (else a ``TypeError`` naming the function and the argument),
-and runs the C function without the GIL.  Their wrappers are generated from
+and runs the C function without the GIL; its ``call`` runs a kernel (or a
+function of :data:`ENTRIES`) on arrays checked against a description of
+their shapes.  The wrappers are generated from
 the C prototypes (:data:`SIGNATURES`, read off the sources), as are the
 argument checks of compiled callers: compiled (numba) code calls a function
 of the library by its symbol, which this module registers with LLVM when it
@@ -67,15 +72,18 @@ from ._jit import machine_cache_dir, machine_cache_root
 from .exceptions import NativeBuildError
 from .safe_io import open_lock
 
-__all__ = ["library", "c_call", "kernel_address", "kernel_call", "KERNEL_LEVEL", "KERNEL_HEADER", "SOURCES",
-           "BUILD_FLAGS", "LEVELS", "SIGNATURES", "DEPENDS", "prototypes", "wrapper_source"]
+__all__ = ["library", "c_call", "kernel_address", "entry_address", "ENTRIES", "KERNEL_LEVEL", "KERNEL_HEADER",
+           "SOURCES", "BUILD_FLAGS", "LEVELS", "SIGNATURES", "DEPENDS", "prototypes", "wrapper_source"]
 
 #: The C sources of the library: the small dense linear algebra, forward-difference steps and normal equations,
 #: loops over a record's samples, the Levenberg-Marquardt step, and MINPACK's loops over a residual vector.
 SOURCES = tuple(Path(__file__).resolve().parent / name for name in ("_native_linalg.c", "_native_normal.c",
                                                                        "_native_signal.c", "optimize/_native_lm.c",
+                                                                       "_native_coefficients.c",
                                                                        "optimize/_native_lm_loop.c",
                                                                        "optimize/_native_minpack.c"))
+#: Functions of the library called through its ``call`` as a kernel is (``int64_t f(const hc_arg *args)``).
+ENTRIES = ("hc_coefficient_pass",)
 #: The header of the arguments of a generated kernel built in C (included by the library and by every kernel).
 KERNEL_HEADER = Path(__file__).resolve().parent / "_native_kernel.h"
 #: The C of the extension module's ``call``, the Python door of the kernels built in C (:func:`kernel_address`).
@@ -85,7 +93,7 @@ _CALL_SOURCE = Path(__file__).resolve().parent / "_native_call.c"
 DEPENDS = ("_native.py", "_native_call.c", "_native_kernel.h") + tuple(
     str(source.relative_to(Path(__file__).resolve().parent)) for source in SOURCES)
 #: Flags of every compile of the build (a change builds a new library).
-BUILD_FLAGS = ("-march=native", "-std=c99", "-fPIC", "-ffp-contract=off", "-fno-strict-aliasing")
+BUILD_FLAGS = ("-march=native", "-std=c99", "-fPIC", "-fno-fast-math", "-ffp-contract=off", "-fno-strict-aliasing")
 #: Optimisation level of each source: the loops over a record's samples and over a residual vector are vectorised
 #: at -O3; the rest runs as fast at -O2 and compiles in about half the time; the generated wrappers (glue around
 #: one call) at -O1.  No level changes a result: there is no fast-math and no contraction.
@@ -156,11 +164,23 @@ def _host() -> tuple:
             sysconfig.get_config_var("EXT_SUFFIX"))
 
 
+def _code_flags() -> tuple:
+    """The options among ``$CC``'s words that change machine code (``-f...``, ``-O...``, ``-m...``).
+
+    The build's own flags come after them (``-fno-fast-math`` and
+    ``-ffp-contract=off`` undo a ``-ffast-math`` there); the rest still keys
+    the build, so that code built with other options is never served to a
+    process that asked for none.
+    """
+    return tuple(word for word in _compiler()[1:] if word.startswith(("-f", "-O", "-m")))
+
+
 def _host_digest() -> str:
-    """Key of what a build's machine code depends on besides its source: the flags, the processor and Python's
-    version (the module's ABI).  Not the compiler: a library stays usable after the compiler that built it is
-    gone (or another one is named in ``$CC``)."""
-    text = repr((BUILD_FLAGS, sorted(LEVELS.items()), KERNEL_LEVEL, _host())).encode()
+    """Key of what a build's machine code depends on besides its source: the flags (the build's, the linker's and
+    those ``$CC`` adds), the processor and Python's version (the module's ABI).  Not the compiler itself: a
+    library stays usable after the compiler that built it is gone (or another one is named in ``$CC``)."""
+    text = repr((BUILD_FLAGS, sorted(LEVELS.items()), KERNEL_LEVEL, _PLATFORM_FLAGS, _code_flags(),
+                 _host())).encode()
     return hashlib.sha256(text).hexdigest()[:16]
 
 
@@ -348,7 +368,8 @@ def _run(compiler: list[str], command: list[str], cwd: str) -> None:
         raise NativeBuildError(f"hammerstein_ctrl builds its C library once per machine, and no C compiler ran "
                                f"({compiler[0]}: {exc.strerror}): install one (gcc) or name it in $CC") from None
     if done.returncode != 0:
-        first = (done.stderr.strip().splitlines() or ["no message"])[0]
+        lines = done.stderr.strip().splitlines() or ["no message"]
+        first = next((line for line in lines if "error" in line.lower()), lines[0])
         if "No space left" in done.stderr or "File too large" in done.stderr:
             raise _WriteError(f"building hammerstein_ctrl's C library with {compiler[0]} failed: {first}")
         raise NativeBuildError(f"building hammerstein_ctrl's C library with {compiler[0]} failed: {first}")
@@ -403,7 +424,8 @@ def _load(path: Path, kernel: bool = False):
         module = importlib.util.module_from_spec(spec)
         spec.loader.exec_module(module)
         handle = ctypes.CDLL(str(path))
-        addresses = {name: ctypes.cast(getattr(handle, name), ctypes.c_void_p).value for name in SIGNATURES}
+        addresses = {name: ctypes.cast(getattr(handle, name), ctypes.c_void_p).value
+                     for name in (*SIGNATURES, *ENTRIES)}
     except (ImportError, OSError, AttributeError, ValueError):
         return None
     if any(not hasattr(module, name) for name in (*SIGNATURES, "call")):
@@ -430,15 +452,27 @@ def library():
     module, addresses = loaded
     for symbol, address in addresses.items():
         llvmlite.binding.add_symbol(symbol, address)
+    _ENTRY_ADDRESSES.update((name, addresses[name]) for name in ENTRIES)
     return module
+
+
+#: Addresses of :data:`ENTRIES` in the loaded library.
+_ENTRY_ADDRESSES: dict = {}
+
+
+def entry_address(name: str) -> int:
+    """Address of the library's function ``name`` (one of :data:`ENTRIES`), for its ``call``."""
+    library()
+    return _ENTRY_ADDRESSES[name]
 
 
 def _locked_build(compiler: list[str], target: Path, kernel: str | None = None):
     """The library (or ``kernel``'s object, :func:`kernel_address`) at ``target``, built under the folder's lock
     unless another process built it meanwhile; ``None`` if the folder cannot take it (a full disk, no locks: then
     built elsewhere); :class:`NativeBuildError` if no compiler can build it."""
+    name = ".lock" if kernel is None else target.name + ".lock"        # a kernel's own: builds of others go on
     try:
-        lock = open_lock(target.with_name(".lock"), readonly=True)      # an UnsafePathError is an OSError too
+        lock = open_lock(target.with_name(name), readonly=True)         # an UnsafePathError is an OSError too
     except OSError:
         return None
     with lock:
@@ -481,6 +515,8 @@ def _loaded(file: str, digest: str, kernel: str | None = None):
 
 #: The kernels' objects loaded in this process (kept, so that their code stays mapped).
 _KERNELS: list = []
+#: The kernels whose build failed in this process, with the error.
+_FAILED: dict = {}
 
 
 @functools.lru_cache(maxsize=None)
@@ -488,7 +524,8 @@ def kernel_address(name: str, text: str) -> int:
     """Address of the function ``int64_t kernel(const hc_arg *args)`` of the C ``text``
     (:func:`~hammerstein_ctrl._kernel_c.translate`), built once per machine (about 0.1-0.2 s of the compiler's
     CPU) into the machine cache, in a file named after ``name`` and a digest of ``text``; valid for the life of
-    the process.  Python calls it through the library's ``call``, compiled code through :func:`kernel_call`.
+    the process.  Python calls it through the library's ``call``; the library's own C calls it by address (the
+    Levenberg-Marquardt loop, the single evaluation from coefficients).
 
     Raises
     ------
@@ -496,7 +533,13 @@ def kernel_address(name: str, text: str) -> int:
         If it is not built yet and no C compiler can build it.
     """
     file = f"{name}-{hashlib.sha256(text.encode()).hexdigest()[:16]}.so"
-    handle, address = _loaded(file, "ckernels-" + _host_digest(), text)
+    if file in _FAILED:                 # not tried again in this process: the same error at once
+        raise NativeBuildError(_FAILED[file])
+    try:
+        handle, address = _loaded(file, "ckernels-" + _host_digest(), text)
+    except NativeBuildError as exc:
+        _FAILED[file] = str(exc)
+        raise
     _KERNELS.append(handle)
     return address
 
@@ -548,54 +591,6 @@ def c_call(name: str, args: tuple):
             return context.get_dummy_value()
         return builder.icmp_unsigned("!=", value, ir.Constant(value.type, 0)) if result == "b" else value
     return restype(*args), codegen
-
-
-#: One argument of a kernel built in C (:data:`~hammerstein_ctrl._kernel_c.ARG_STRUCT`): data pointer, shape.
-_KERNEL_ARG = ir.LiteralStructType([ir.IntType(8).as_pointer(), ir.ArrayType(ir.IntType(64), 3)])
-
-
-def kernel_call(name: str, argtypes: tuple, address, args: tuple):
-    """The typing of an intrinsic calling the kernel built in C at ``address`` (:func:`kernel_address`) with
-    ``args`` passed as ``argtypes`` (numba types: C-ordered float64 arrays and int64): ``(signature, codegen)``;
-    the kernel's status (int64) is the result.
-
-    Arguments of other types are refused with a ``TypingError`` when the caller
-    is compiled (a writeable array passes where a read-only one is expected,
-    never the other way); shapes are not checked: compiled callers pass the
-    arrays the kernel was generated for.
-    """
-    def fits(given, expected):
-        if isinstance(expected, types.Array):
-            return (isinstance(given, types.Array) and given.dtype == expected.dtype and given.ndim == expected.ndim
-                    and given.layout == "C" and (given.mutable or not expected.mutable))
-        return isinstance(given, types.Integer)
-    if not isinstance(address, types.Integer) or len(args) != len(argtypes) or not all(map(fits, args, argtypes)):
-        raise numba.core.errors.TypingError(f"{name} takes an int64 address and {argtypes}, got {(address, *args)}")
-
-    def codegen(context, builder, signature, llargs):
-        i64 = ir.IntType(64)
-        block = numba.core.cgutils.alloca_once(builder, _KERNEL_ARG, size=len(args))
-        for k, (ty, value) in enumerate(zip(signature.args[1:], llargs[1:])):
-            slot = builder.gep(block, [ir.Constant(i64, k)])
-            data = builder.gep(slot, [ir.Constant(ir.IntType(32), 0), ir.Constant(ir.IntType(32), 0)])
-            shape = [builder.gep(slot, [ir.Constant(ir.IntType(32), 0), ir.Constant(ir.IntType(32), 1),
-                                        ir.Constant(ir.IntType(32), d)]) for d in range(3)]
-            if isinstance(ty, types.Array):
-                array = context.make_array(ty)(context, builder, value)
-                builder.store(builder.bitcast(array.data, ir.IntType(8).as_pointer()), data)
-                dims = numba.core.cgutils.unpack_tuple(builder, array.shape, ty.ndim)
-                for d in range(3):
-                    builder.store(dims[d] if d < ty.ndim else ir.Constant(i64, 0), shape[d])
-            else:
-                builder.store(ir.Constant(ir.IntType(8).as_pointer(), None), data)
-                builder.store(context.cast(builder, value, ty, types.int64), shape[0])
-                for d in (1, 2):
-                    builder.store(ir.Constant(i64, 0), shape[d])
-        function = ir.FunctionType(i64, [_KERNEL_ARG.as_pointer()])
-        pointer = builder.inttoptr(context.cast(builder, llargs[0], signature.args[0], types.int64),
-                                   function.as_pointer())
-        return builder.call(pointer, [block])
-    return types.int64(address, *args), codegen
 
 
 def _c_value(context, builder, ty, value, code):

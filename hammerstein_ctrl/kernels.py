@@ -71,21 +71,19 @@ import types
 from pathlib import Path
 
 import numba
-import numba.extending
 import numpy as np
 
-from ._jit import (ENV_CACHE as _jit_ENV_CACHE, cached_njit, kernel_signature, machine_cache_dir, only_for)
+from ._jit import (ENV_CACHE as _jit_ENV_CACHE, cached_njit, machine_cache_dir)
 from ._kernel_source import (_CHECK_MASK, _OVERFLOW, _terms, HOLDS, INTERLEAVE, LANE_MIN, LANE_WIDTHS,
                              MAX_LANE_BASIS, MAX_NORMAL_LANES, MAX_PASS_STATES, MAX_UNROLLED_STATES,
-                             MAX_VECTOR_STATES, MODES, OUTPUT_TERMS, kernel_signature_codes, kernel_source, lane_source,
+                             MAX_VECTOR_STATES, MODES, OUTPUT_TERMS, kernel_source, lane_source,
                              normal_source, vector_chunks, vector_normal_source)
 from ._kernel_c import translate
-from ._linalg import tf_discrete_into
-from ._native import DEPENDS as NATIVE_DEPENDS, kernel_address, kernel_call, library
+from ._native import entry_address, kernel_address, library
 
 __all__ = ["get_kernel", "get_coefficient_kernel", "get_normal_kernel", "get_lane_kernel", "lane_source",
            "has_basis_kernels", "has_output_maps", "kernel_source", "normal_kernel_address",
-           "discretised", "normal_source", "vector_normal_source", "cache_dir", "OUTPUT_TERMS",
+           "normal_source", "vector_normal_source", "cache_dir", "OUTPUT_TERMS",
            "MAX_UNROLLED_STATES", "MAX_PASS_STATES", "MAX_VECTOR_STATES", "MAX_NORMAL_LANES", "LANE_WIDTHS", "LANE_MIN",
            "MAX_LANE_BASIS", "INTERLEAVE", "MODES", "HOLDS", "ENV_CACHE"]
 
@@ -100,7 +98,7 @@ def get_lane_kernel(n: int, hold: str, K: int, direct: bool = True, offset: bool
     Candidate ``b``'s signal is ``P[b] @ Phi`` (a nonlinearity linear in its
     parameters, or ``Phi = u`` and ``P = 1``), formed sample by sample inside
     the kernel.  Candidates are taken in groups of :data:`LANE_WIDTHS` whose
-    quantities sit in the columns of one small array, so LLVM vectorises the
+    quantities sit in the columns of one small array, so the C compiler vectorises the
     step of the whole group; each candidate's arithmetic is that of
     :func:`get_kernel`'s ``"sse"`` kernel on ``P @ Phi``, operation for
     operation, so the sums are bit-identical to it.  A group that is not
@@ -163,7 +161,7 @@ def get_normal_kernel(n: int, hold: str, lanes: int, K: int, direct: bool = True
     the effect of its step; such a pass counts its lanes at run time (the
     length of ``VP``), so one compiled pass serves 2 to 5 lanes, one 6 to 9,
     and so on.  Otherwise the lanes step side by side in the
-    columns of one small array (as in :func:`get_lane_kernel`), so LLVM
+    columns of one small array (as in :func:`get_lane_kernel`), so the C compiler
     vectorises their recursion.
 
     Parameters
@@ -245,17 +243,6 @@ def normal_kernel_address(n: int, hold: str, lanes: int, K: int, direct: bool) -
     return get_normal_kernel(n, hold, lanes, K, direct, False).address
 
 
-#: Argument types of every ``"sse"`` kernel with a basis signal (:func:`get_kernel` with ``K``).
-_BASIS_SSE_SIGNATURE = kernel_signature(kernel_signature_codes("sse", None, 1))
-
-
-@numba.extending.intrinsic
-def _call_basis_kernel(typingctx, address, E, C, D, X0, Y0, P, Phi, y, out):
-    """Call the ``"sse"`` basis kernel at ``address`` (as :func:`get_coefficient_kernel` finds it) from compiled
-    code."""
-    return kernel_call("_call_basis_kernel", _BASIS_SSE_SIGNATURE, address, (E, C, D, X0, Y0, P, Phi, y, out))
-
-
 class CKernel:
     """A generated kernel built in C (:func:`~hammerstein_ctrl._native.kernel_address`): called from Python as
     ``kernel(E, C, ...)``, its arrays checked against the shapes it takes (a ``ValueError`` or ``TypeError``
@@ -315,38 +302,6 @@ def _pass_shapes(n: int, hold: str, outputs: bool) -> tuple:
             ("VP", "L*"),
             ("P", "G*,H*"), ("Phi", "F*,U*"), ("HP", "V*,W*"), ("HX", "I*"), ("y", "M*"),
             ("acc", "Z*,Y*" if outputs else "Z*"))
-
-
-@cached_njit(inline="always")
-def discretised(num, den, dt, max_norm):  # pragma: no cover - compiled
-    """``(E, C, D, clean)`` of :func:`~hammerstein_ctrl._linalg.tf_discrete`, computed by the package's C library:
-    compiled callers' one way to discretise."""
-    batch, m = den.shape[0], den.shape[1] + 1
-    E, C, D = np.empty((batch, m, m)), np.empty((batch, m - 2)), np.empty(batch)
-    ok, big = np.empty(batch, dtype=np.bool_), np.empty(batch, dtype=np.bool_)
-    clean = tf_discrete_into(num, den, dt, max_norm, E, C, D, ok, big)
-    return E, C, D, clean
-
-
-@cached_njit(depends=("_linalg.py", "_kernel_source.py") + NATIVE_DEPENDS)
-def _from_coefficients(address, num, den, dt, max_norm, X0, Y0, P, Phi, y, out):  # pragma: no cover - compiled
-    """Discretise the transfer functions and run the basis kernel at ``address``, in one call; False (nothing done)
-    unless every row is clean.
-
-    One compiled function for every state dimension and basis: the kernel is
-    called through its address and the discretisation is the C library's, so
-    neither is compiled again in here.
-    """
-    E, C, D, clean = discretised(num, den, dt, max_norm)
-    if clean:
-        _call_basis_kernel(address, E, C, D, X0, Y0, P, Phi, y, out)
-    return clean
-
-
-#: Argument types of :func:`_from_coefficients`: the kernel's address, the transfer
-#: functions' rows, the sample time and the largest 1-norm of the compiled exponential, then the basis kernel's
-#: arguments but ``E, C, D``.
-_COEFFICIENT_SIGNATURE = kernel_signature("i w2 w2 f f") + _BASIS_SSE_SIGNATURE[3:]
 
 
 #: Package modules whose compiled functions the generated kernels call.
@@ -436,7 +391,23 @@ def get_coefficient_kernel(n: int, hold: str, K: int):
     (True, array([3.5]))
     """
     address = get_kernel(n, "sse", hold, None, K).address
-    return functools.partial(only_for(_from_coefficients, (_COEFFICIENT_SIGNATURE,)), address)
+    shapes = (f"kernel:i num:r:B,L den:r:B,{n + 1} dt:f max_norm:f X0:r:B,{n}+ Y0:r:B P:r:B,{K}+ Phi:r:{K}+,N+ "
+              "y:r:N out:w:B")
+    return functools.partial(_coefficient_pass, f"hc_coefficient_pass_n{n}_k{K}|{shapes}", address)
+
+
+#: The C library's call and its single evaluation from coefficients (``hc_coefficient_pass``).
+_CALL, _COEFFICIENT_PASS = library().call, entry_address("hc_coefficient_pass")
+
+
+def _coefficient_pass(spec: str, address: int, *args) -> bool:
+    """:func:`get_coefficient_kernel`'s call: the C library's discretisation and the kernel at ``address``."""
+    status = _CALL(_COEFFICIENT_PASS, spec, address, *args)
+    if status > 1:
+        raise MemoryError("no memory for the discretised blocks") if status == 3 else ValueError(
+            f"{spec.split('|')[0]}: num has more coefficients than den" if status == 2 else
+            f"{spec.split('|')[0]}: the kernel refused its arrays")
+    return status == 0
 
 
 def _module_name(n: int, mode: str, hold: str, outmap: str | None, K: int | None) -> str:

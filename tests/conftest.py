@@ -10,8 +10,8 @@ absent those tests skip with a reason, unless ``HAMMERSTEIN_CTRL_REQUIRE_DATA=1`
 import os
 from pathlib import Path
 
-# the suite exercises Levenberg-Marquardt's compiled loop wherever it applies (a user's first fit runs the Python
-# loop while a background process compiles it: tests/test_normal_equations.py checks that path on its own)
+# the suite exercises Levenberg-Marquardt's compiled loop wherever it applies (the default, "auto", runs it too;
+# tests hide it where they compare it with the Python loop)
 os.environ.setdefault("HAMMERSTEIN_CTRL_COMPILED_LOOP", "always")
 
 import numpy as np

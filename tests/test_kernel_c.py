@@ -143,11 +143,49 @@ def test_the_translator_names_python_it_does_not_take():
     """Source outside the subset the generators write is refused by name, not translated wrongly."""
     head = '@cached_njit(signatures=(kernel_signature("r1 w1"),))\ndef kernel(x, out):\n'
     for body, what in (("    out[0] = np.sqrt(x[0])", "call np.sqrt"), ("    out[0] = x[0] / 2.0", "operator"),
-                       ("    for i in x:\n        out[0] = i", "loop x"), ("    out[0] = np.pi", "name np.pi")):
+                       ("    for i in x:\n        out[0] = i", "loop x"), ("    out[0] = np.pi", "name np.pi"),
+                       # where C would mean something else than Python
+                       ("    a, b = 1, 2\n    a, b = b, a", "values read the targets"),
+                       ("    out[0] = x[0] // 2.0", "operator"),
+                       ("    out[0] = min(x[0], x[1])", "min of two integers"),
+                       ("    n = 3\n    for i in range(n):\n        n = n - 1", "its body assigns"),
+                       ("    out[0] = x[0] or 2.0", "not truth values"), ("    out[0] = x[-1]", "non-negative"),
+                       ("    L = np.empty(4)\n    L = np.empty(8)", "made with shapes"),
+                       ("    out[0] = x[0] if x[0] is x[1] else 0.0", "comparison")):
         with pytest.raises(NotImplementedError, match=what):
             translate(head + body)
     with pytest.raises(NotImplementedError, match="HP has 2 dimensions, indexed with 1|call h"):   # an output map
         translate(kernel_source(2, "sse", "foh", "tanh_map"))
+
+
+def test_integer_floor_division_and_modulo_round_as_pythons():
+    """C's ``/`` and ``%`` truncate towards zero; the translation rounds integer ``//`` and ``%`` as Python does, for
+    every combination of signs."""
+    src = '@cached_njit(signatures=(kernel_signature("w1 i i"),))\ndef kernel(out, a, b):\n' \
+          '    out[0] = a // b\n    out[1] = a % b\n'
+    address = _native.kernel_address("hc_test_floor", translate(src).text)
+    for a in (-7, -8, 0, 7, 8):
+        for b in (-3, -2, 2, 3):
+            out = np.empty(2)
+            _native.library().call(address, "floor|out:w:2 a:i b:i", out, a, b)
+            assert out.tolist() == [a // b, a % b]
+
+
+def test_a_kernel_that_does_not_build_names_the_compilers_error_once_per_process(tmp_path, monkeypatch):
+    """A failed build is a NativeBuildError with the compiler's error line (not its "In function" preamble); asking
+    again in the process gives the same error at once, without running the compiler again."""
+    from hammerstein_ctrl._kernel_c import HEADER
+    from hammerstein_ctrl.exceptions import NativeBuildError
+
+    monkeypatch.setenv("HAMMERSTEIN_CTRL_CACHE", str(tmp_path))
+    text = HEADER + "int64_t kernel(const hc_arg *args)\n{\n    return no_such_name;\n}\n"
+    with pytest.raises(NativeBuildError, match="error.*no_such_name"):
+        _native.kernel_address("hc_test_broken", text)
+    runs = []
+    monkeypatch.setattr(_native, "_run", lambda *a, **k: runs.append(a))
+    with pytest.raises(NativeBuildError, match="no_such_name"):
+        _native.kernel_address("hc_test_broken", text)
+    assert runs == []
 
 
 def test_a_kernel_is_built_once_per_machine_and_a_damaged_build_is_rebuilt(tmp_path):
@@ -165,7 +203,7 @@ def test_a_kernel_is_built_once_per_machine_and_a_damaged_build_is_rebuilt(tmp_p
 
     assert run() == "[[0.0, 0.5, 1.0, 1.5]]\n"
     built = sorted(tmp_path.glob("ckernels-*/hc_kernel_n1_outputs_zoh-*.so"))
-    assert len(built) == 1
+    assert len(built) == 1 and built[0].with_name(built[0].name + ".lock").is_file()     # a lock of its own
     before = built[0].stat()
     assert run() == "[[0.0, 0.5, 1.0, 1.5]]\n"
     after = built[0].stat()
@@ -195,29 +233,25 @@ def test_compiled_code_calls_a_kernel_through_its_address_with_the_doors_bits():
     assert _native.kernel_address.cache_info().currsize >= 2
 
 
-def test_compiled_code_passes_a_kernel_only_its_own_types():
-    """A compiled caller hands its arrays to a C kernel's address (data pointers and shapes): the sums of the
-    kernel's docstring example; arrays of other types (not C-ordered, float32) or a read-only one where the kernel
-    writes are refused when the caller is compiled, never passed on."""
-    import numba
+def test_the_single_evaluation_from_coefficients_checks_what_the_kernel_reads():
+    """get_coefficient_kernel's call (the library's discretisation, then the kernel by address) checks every array
+    against the kernel's order and basis before it runs: a block of another order, a short output, too few basis
+    rows or an improper block are refused by name; a row the compiled path cannot take leaves out untouched."""
+    from hammerstein_ctrl.simulate import COMPILED_EXPM_MAX_NORM
 
-    from hammerstein_ctrl.kernels import _call_basis_kernel
+    f = kernels.get_coefficient_kernel(3, "foh", 1)
+    num, den = np.ones((1, 1)), np.array([[1.0, 3.0, 3.0, 1.0]])
+    args = [np.zeros((1, 3)), np.zeros(1), np.ones((1, 1)), np.ones((1, 40)), np.zeros(40), np.empty(1)]
+    assert f(num, den, 0.1, COMPILED_EXPM_MAX_NORM, *args) and np.isfinite(args[-1][0])
 
-    address = kernels.get_kernel(1, "sse", "zoh", None, 1).address
-    E = np.array([[[1.0, 0.5, 0.0], [0.0, 1.0, 1.0], [0.0, 0.0, 1.0]]])      # an integrator, dt = 0.5
-
-    @numba.njit
-    def through(address, E, P, y, out):
-        _call_basis_kernel(address, E, np.ones((1, 1)), np.zeros(1), np.zeros((1, 1)), np.zeros(1), P,
-                           np.ones((1, 4)), y, out)
-        return out
-
-    P, y = np.array([[2.0]]), np.zeros(4)
-    assert through(address, E, P, y, np.empty(1)).tolist() == [14.0]     # y = 0, yhat = 2 (0, 0.5, 1, 1.5)
-    frozen = np.empty(1)
-    frozen.flags.writeable = False
-    for bad in ({"E": E.transpose(0, 2, 1)}, {"y": y.astype(np.float32)}, {"P": P.astype(np.float32)},
-                {"out": frozen}):
-        args = {"E": E, "P": P, "y": y, "out": np.empty(1), **bad}
-        with pytest.raises(numba.core.errors.TypingError, match="_call_basis_kernel takes"):
-            through(address, **args)
+    def refused(error, match, num=num, den=den, **changed):
+        given = dict(zip(("X0", "Y0", "P", "Phi", "y", "out"), args), **changed)
+        with pytest.raises(error, match=match):
+            f(num, den, 0.1, COMPILED_EXPM_MAX_NORM, *given.values())
+    refused(ValueError, r"hc_coefficient_pass_n3_k1: den has shape \(1, 3\), not \(B,4\)", den=np.ones((1, 3)))
+    refused(ValueError, r"out has shape \(0\), not \(B\); B = 1", out=np.empty(0))
+    refused(ValueError, r"Phi has shape \(0, 40\)", Phi=np.ones((0, 40)))
+    refused(ValueError, "num has more coefficients than den", num=np.ones((1, 5)))
+    out = np.full(1, 7.0)
+    assert not f(num, np.array([[0.0, 3.0, 3.0, 1.0]]), 0.1, COMPILED_EXPM_MAX_NORM, *args[:-1], out)
+    assert out[0] == 7.0

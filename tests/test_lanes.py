@@ -251,7 +251,6 @@ def test_one_compiled_version_takes_read_only_and_writeable_arrays():
     assert get_coefficient_kernel(2, "foh", 2)(num[:1], den[:1], 0.01, COMPILED_EXPM_MAX_NORM, np.zeros((1, 2)),
                                                frozen(np.zeros(1)), P[:1], frozen(basis), frozen(y), J2)
     assert J2[0] == sse_basis_batch(num[:1], den[:1], P[:1], basis, 0.01, y)[0]
-    assert len(get_coefficient_kernel(2, "foh", 2).func.signatures) == 1
     with pytest.raises(TypeError, match="E must be a float64 array"):   # a wrong type is refused, never converted
         get_kernel(2, "outputs", "foh")(np.zeros((1, 4, 4), dtype=np.float32), *[np.zeros((1, 1))] * 6)
     with pytest.raises(TypeError, match="out must be a C-ordered, writeable"):
@@ -260,7 +259,7 @@ def test_one_compiled_version_takes_read_only_and_writeable_arrays():
 
 
 def test_one_compiled_discretisation_and_pass_serves_every_state_dimension_and_basis():
-    """Single evaluations discretise and run the pass in one compiled call, compiled once for every order and
+    """Single evaluations discretise and run the pass in one call of the C library, the same for every order and
     basis (the pass is called through its address), with the bits of the batch path."""
     from hammerstein_ctrl.kernels import get_coefficient_kernel
     from hammerstein_ctrl.simulate import COMPILED_EXPM_MAX_NORM
@@ -275,8 +274,8 @@ def test_one_compiled_discretisation_and_pass_serves_every_state_dimension_and_b
         f = get_coefficient_kernel(n, "zoh", K)
         assert f(num, den, 0.02, COMPILED_EXPM_MAX_NORM, np.zeros((1, n)), np.zeros(1), P, basis, y, J)
         assert J[0] == sse_basis_batch(num, den, P, basis, 0.02, y, intersample="zoh")[0]
-        functions.add(f.func)
-    assert len(functions) == 1 and len(functions.pop().signatures) == 1
+        functions.add((f.func, f.args[0].split("|")[0]))
+    assert len({func for func, _ in functions}) == 1 and len(functions) == 3      # one door, a kernel per order
     den = np.array([[0.0, 1.0, 2.0]])                   # not a transfer function: left for the general path
     J = np.full(1, 7.0)
     assert not get_coefficient_kernel(2, "zoh", 1)(np.ones((1, 1)), den, 0.02, COMPILED_EXPM_MAX_NORM,

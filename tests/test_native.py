@@ -18,7 +18,8 @@ def test_the_bindings_are_read_off_the_c_prototypes_and_refuse_unknown_types():
     assert _native.SIGNATURES["hc_tf_discrete"] == ("ddiiiffDDDBB", "b")
     assert _native.SIGNATURES["hc_fill_coefficients"] == ("diididililiDD", "")
     text = "".join(source.read_text() for source in _native.SOURCES)
-    assert set(_native.SIGNATURES) == set(re.findall(r"^\w+\s+(hc_\w+)\(", text, re.M))
+    assert set(_native.SIGNATURES) | set(_native.ENTRIES) == set(re.findall(r"^\w+\s+(hc_\w+)\(", text, re.M))
+    assert all(_native.entry_address(name) > 0 for name in _native.ENTRIES)     # functions taking hc_arg blocks
     assert all(hasattr(_native.library(), name) for name in _native.SIGNATURES)
     with pytest.raises(NativeBuildError, match="hc_g takes C types .*'char \\*'"):
         _native.prototypes("void hc_g(char *x, int64_t n)\n{")
@@ -104,6 +105,10 @@ def test_the_build_key_follows_the_sources_and_flags_not_the_compiler(monkeypatc
     base = _native._digest()
     monkeypatch.setenv("CC", "no-such-compiler-hc")
     assert _native._digest() == base
+    monkeypatch.setenv("CC", "gcc -ffast-math")          # options that change code key their own build
+    fast, kernels = _native._digest(), _native._host_digest()
+    monkeypatch.setenv("CC", "gcc")
+    assert fast != _native._digest() == base and kernels != _native._host_digest()
     monkeypatch.setattr(_native, "BUILD_FLAGS", _native.BUILD_FLAGS + ("-O1",))
     assert _native._digest() != base
 

@@ -970,6 +970,33 @@ def _polynomial_cost(hold="foh", N=400, seed=0):
     return HammersteinCost(data, hc.HammersteinStructure(hc.LinearStructure(1, 2), hc.Polynomial(2)))
 
 
+def test_the_compiled_loop_refuses_arrays_that_do_not_fit_before_the_c_code_reads_them():
+    """normal_lm._loop hands sizes to C: a point of another length, logs too short for the evaluations left, a log
+    already written, or a pass whose block does not match its kernel's order are a ValueError, never a read or
+    write past an array; the arrays _Passes.loop makes pass."""
+    from hammerstein_ctrl.kernels import normal_kernel_address
+    from hammerstein_ctrl.normal_equations import FD_REL_STEP
+
+    cost = _polynomial_cost()
+    d = cost.direct_pass()
+    p = d.n_params
+    address = normal_kernel_address(d.n, d.hold, p + 1, d.K, d.direct)
+
+    def run(x=None, counts=(0, 10, 3 * (p + 1), 0), rows=3, d=d):
+        x = np.array([0.5, 2.0, 3.0, 0.3, 1.2] if x is None else x)
+        logs = np.empty((rows, p)), np.empty((rows, p)), np.empty((rows, p + 1))
+        settings = np.array([1e-8, 1e-8, 0.0, normal_lm.ILL_CONDITIONED, d.dt, d.max_norm, FD_REL_STEP,
+                             normal_lm.MAX_DAMPING, normal_lm.DAMPING_DECREASE_LIMIT])
+        return normal_lm._loop(address, x, np.array([np.nan, 1e-3, 2.0]), np.empty(p), np.empty((p, p)),
+                               np.empty(p), np.empty(p), np.array(counts, dtype=np.int64), settings, True, d, logs)
+
+    assert run() in normal_lm.MESSAGES or run() in (normal_lm.HAND_BACK, normal_lm.HAND_BACK_ALONE)
+    for bad in ({"x": [0.5, 2.0, 3.0, 0.3]}, {"rows": 2}, {"counts": (0, 10, 3 * (p + 1), 1)},
+                {"counts": (0, 10, 0, 0)}, {"d": d._replace(n=d.n + 1)}):
+        with pytest.raises(ValueError, match="do not fit"):
+            run(**bad)
+
+
 def _python_loop(monkeypatch):
     """Hide the compiled loop: LM then runs its loop in Python around the same pass."""
     monkeypatch.setattr(HammersteinCost, "direct_pass", lambda self: None)

@@ -193,42 +193,33 @@ def _transfer_rows(rng, rows: int, n: int):
     return np.ascontiguousarray(num), np.ascontiguousarray(den)
 
 
-def test_compiled_callers_discretise_with_tf_discretes_bits_and_scipys_exponential():
-    """Compiled callers discretise through the C library directly (kernels.discretised, the overload of
-    tf_discrete_into); Python through ctypes: the two doors must give the same bits, row flags included, and the
-    exponential scipy's (independent oracle) for every usable row."""
+def test_the_discretisation_gives_scipys_exponential_and_flags_the_rows_it_cannot_take():
+    """The C library's discretisation: scipy's exponential (independent oracle) for every usable row, the unusable
+    rows (NaN, a zero leading coefficient) and those past the compiled Pade flagged; compiled callers that pass it
+    arrays of other kinds are refused when they are compiled."""
     import numba
 
-    from hammerstein_ctrl._linalg import _c_discrete, tf_augmented, tf_discrete
-    from hammerstein_ctrl.kernels import discretised
-
-    @numba.njit
-    def through(num, den, dt, max_norm):
-        return discretised(num, den, dt, max_norm)
+    from hammerstein_ctrl._linalg import _c_expm, tf_augmented, tf_discrete
 
     rng = np.random.default_rng(5)
     for n in (1, 2, 4):
         num, den = _transfer_rows(rng, 6, n)
         E, C, D, ok, big, clean = tf_discrete(num, den, 0.05, 64.0)
-        E2, C2, D2, clean2 = through(num, den, 0.05, 64.0)
         assert ok.tolist() == [True, False, False, True, True, True]
         assert big.tolist() == [False, False, False, True, False, False]
-        assert not clean and not clean2
-        np.testing.assert_array_equal(E2[~big], E[~big])
-        np.testing.assert_array_equal(C2, C)
-        np.testing.assert_array_equal(D2, D)
+        assert not clean
         M = tf_augmented(num[ok], den[ok], 0.05)[0]
         np.testing.assert_allclose(E[ok & ~big], scipy.linalg.expm(M[~big[ok]]), rtol=1e-12, atol=1e-14)
-        assert through(num[[0, 4]].copy(), den[[0, 4]].copy(), 0.05, 64.0)[3]      # usable rows: clean
+        assert tf_discrete(num[[0, 4]].copy(), den[[0, 4]].copy(), 0.05, 64.0)[5]      # usable rows: clean
 
     @numba.njit
-    def wrong(num, den):
-        E, C, D = np.empty((1, 3, 3)), np.empty((1, 1)), np.empty(1)
-        ok, big = np.empty(1, dtype=np.bool_), np.empty(1, dtype=np.bool_)
-        return _c_discrete(num, den, 1, 1, 2, 0.05, 64.0, E, C, D, ok, big)
+    def wrong(M):
+        out = np.empty((1, 1))
+        _c_expm(M, 1, out)
+        return out
 
-    with pytest.raises(numba.core.errors.TypingError, match="hc_tf_discrete takes arguments of kinds"):
-        wrong(np.ones((1, 1), dtype=np.float32), np.ones((1, 2)))
+    with pytest.raises(numba.core.errors.TypingError, match="hc_expm takes arguments of kinds"):
+        wrong(np.ones((1, 1), dtype=np.float32))
 
 
 def test_the_python_doors_refuse_shapes_the_c_code_would_read_past():

@@ -309,6 +309,21 @@ def compiled_loop_wanted() -> bool:
     return config.get("lm.compiled_loop") != "never"
 
 
+def _loop_fits(p, K, N, gradient, gram, steps, scale, state, counts, settings, d, logs) -> bool:
+    """Whether :func:`_loop`'s arrays fit one another: the point's, the pass's (its basis, record and linear
+    block) and the logs' (a row for every pass the evaluations left allow, none written yet)."""
+    n_linear = d.num_pos.size + d.den_pos.size
+    rows = min(log.shape[0] for log in logs)
+    return (p >= 1 and gradient.size == steps.size == scale.size == p and gram.size == p * p and state.size == 3
+            and counts.size == 4 and settings.size == 9 and d.y.size >= N
+            and all(log.ndim == 2 for log in logs) and logs[0].shape[1] == logs[1].shape[1] == p
+            and logs[2].shape[1] == p + 1 and counts[3] == 0 and p + 1 <= counts[2] <= rows * (p + 1)
+            and d.n == d.den0.size - 1 and n_linear <= p and d.num0.size <= d.den0.size
+            and np.all((0 <= d.num_pos) & (d.num_pos < d.num0.size))
+            and np.all((0 <= d.den_pos) & (d.den_pos < d.den0.size))
+            and K == (p - n_linear if d.has_g else 1) and K >= 1)
+
+
 def _loop(address, x, state, gradient, gram, steps, scale, counts, settings, start, d, logs) -> int:
     """The C library's Levenberg-Marquardt loop around the pass kernel at ``address`` (``hc_lm_loop``), for a
     cost's :meth:`~hammerstein_ctrl.objective.HammersteinCost.direct_pass` ``d`` (no offset, initial state or
@@ -333,15 +348,10 @@ def _loop(address, x, state, gradient, gram, steps, scale, counts, settings, sta
     DAMPING_DECREASE_LIMIT]``.  Returns a key of :data:`MESSAGES`,
     :data:`HAND_BACK` or :data:`HAND_BACK_ALONE`.
     """
-    p = x.size
-    log_x, log_steps, log_values = logs
-    K, N = d.basis.shape
-    if not (gradient.size == steps.size == scale.size == p and gram.size == p * p and state.size == 3
-            and counts.size == 4 and settings.size == 9 and d.y.size >= N and log_x.shape[1:] == log_steps.shape[1:]
-            == (p,) and log_values.shape[1:] == (p + 1,) and min(log_x.shape[0], log_steps.shape[0],
-                                                                 log_values.shape[0]) * (p + 1) >= counts[2]
-            and (K == p - d.num_pos.size - d.den_pos.size if d.has_g else K == 1)):
+    p, (K, N) = x.size, d.basis.shape
+    if not _loop_fits(p, K, N, gradient, gram, steps, scale, state, counts, settings, d, logs):
         raise ValueError("the compiled loop's arrays do not fit its point, its pass or its logs")
+    log_x, log_steps, log_values = logs
     return library().hc_lm_loop(
         address, x, p, state, gradient, gram, steps, scale, counts, settings, int(bool(start)), d.num0, d.num0.size,
         d.den0, d.den0.size, d.num_pos, d.num_pos.size, d.den_pos, d.den_pos.size, int(bool(d.has_g)),
