@@ -36,8 +36,9 @@ import numpy as np
 from ._jit import cached_njit
 from ._native import c_call, library
 
-__all__ = ["copy_vector", "fill_coefficients", "expm_batch", "expm_into", "one_norm", "tf_augmented", "tf_discrete",
-           "tf_discrete_into", "single_threaded_blas", "solve_in_place", "symmetric_eigenvalues"]
+__all__ = ["copy_vector", "fill_coefficients", "filled_coefficients", "expm_batch", "expm_into", "one_norm",
+           "tf_augmented", "tf_discrete", "tf_discrete_into", "single_threaded_blas", "solve_in_place",
+           "symmetric_eigenvalues"]
 
 _LIBRARY = library()
 
@@ -419,6 +420,12 @@ def fill_coefficients(theta, num0, den0, num_pos, den_pos):
     if not (np.all((0 <= num_pos) & (num_pos < num0.size)) and np.all((0 <= den_pos) & (den_pos < den0.size))):
         raise ValueError(f"positions {num_pos.tolist()} and {den_pos.tolist()} must index num0 ({num0.size} values) "
                          f"and den0 ({den0.size})")
+    return filled_coefficients(theta, num0, den0, num_pos, den_pos)
+
+
+def filled_coefficients(theta, num0, den0, num_pos, den_pos):
+    """:func:`fill_coefficients` for arrays a caller has checked once (C-ordered, of the library's types, positions
+    within ``num0``/``den0``, rows of ``theta`` long enough): a structure's template, on every evaluation."""
     num, den = np.empty((theta.shape[0], num0.size)), np.empty((theta.shape[0], den0.size))
     _LIBRARY.hc_fill_coefficients(theta, theta.shape[0], theta.shape[1], num0, num0.size,
                                   den0, den0.size, num_pos, num_pos.size,

@@ -27,7 +27,7 @@ from typing import Mapping
 import numpy as np
 
 from ._checks import ESTIMATE, MAX_ORDER, as_count, as_real_array, check_delay
-from ._linalg import fill_coefficients
+from ._linalg import fill_coefficients, filled_coefficients
 from .exceptions import ParameterError
 from .nonlinearities import Nonlinearity
 
@@ -130,8 +130,13 @@ class LinearStructure:
                 names.append(name)
                 den_pos.append(den_order - i)
         self.param_names: tuple[str, ...] = tuple(names)
-        self._num_pos = np.array(num_pos, dtype=int)
-        self._den_pos = np.array(den_pos, dtype=int)
+        self._num_pos = np.array(num_pos, dtype=np.int64)
+        self._den_pos = np.array(den_pos, dtype=np.int64)
+
+    @property
+    def _template(self) -> tuple:
+        """``(num0, den0, num_pos, den_pos)``, made and checked here once: what every evaluation fills in."""
+        return self._num0, self._den0, self._num_pos, self._den_pos
 
     @property
     def n_params(self) -> int:
@@ -169,11 +174,11 @@ class LinearStructure:
         >>> LinearStructure(0, 2, fixed={"a0": 0.0}).coefficient_template()
         (array([1.]), array([1., 0., 0.]), array([], dtype=int64), array([1]))
         """
-        return self._num0, self._den0, self._num_pos, self._den_pos
+        return self._template
 
     def _coefficients(self, theta: np.ndarray):
         """:meth:`coefficients` for a validated ``(B, n_params)`` float array."""
-        return fill_coefficients(np.ascontiguousarray(theta), self._num0, self._den0, self._num_pos, self._den_pos)
+        return filled_coefficients(np.ascontiguousarray(theta), *self._template)
 
     def free_parameters(self, num, den) -> np.ndarray:
         """The free coefficients of ``num/den`` (descending powers), fixed ones ignored.
