@@ -53,6 +53,7 @@ from __future__ import annotations
 
 import ast
 import re
+import textwrap
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -72,6 +73,9 @@ typedef int64_t hc_i4 __attribute__((vector_size(32)));
 static inline hc_v4 hc_load(const double *a) {{ hc_v4 v; memcpy(&v, a, sizeof v); return v; }}
 static inline void hc_store(hc_v4 v, double *a) {{ memcpy(a, &v, sizeof v); }}
 static inline hc_v4 hc_splat(double x) {{ return (hc_v4){{x, x, x, x}}; }}
+static inline double hc_sign(double x) {{ return x > 0 ? 1.0 : (x < 0 ? -1.0 : x); }}
+static inline double hc_minimum(double a, double b) {{ return isnan(a) ? a : (isnan(b) ? b : (b < a ? b : a)); }}
+static inline double hc_maximum(double a, double b) {{ return isnan(a) ? a : (isnan(b) ? b : (b > a ? b : a)); }}
 static inline int64_t hc_floordiv(int64_t a, int64_t b)
 {{
     return a / b - ((a % b != 0) && ((a < 0) != (b < 0)));
@@ -89,6 +93,12 @@ static inline int64_t hc_mod(int64_t a, int64_t b)
 """
 
 _INT, _FLOAT, _VECTOR = "int64_t", "double", "hc_v4"
+#: A row of a two-dimensional array (an output map's parameters), held as a pointer.
+_ROW = "const double *"
+#: numpy's scalar functions an output map's formula calls, as C (numba's semantics: NaN propagates through
+#: ``minimum``/``maximum``, which return their first argument between equals; ``sign`` of a zero or NaN is itself).
+_FLOAT_FUNCTIONS = {"np.tanh": "tanh", "np.exp": "exp", "np.abs": "fabs", "np.sign": "hc_sign",
+                    "np.minimum": "hc_minimum", "np.maximum": "hc_maximum", "h": "h"}
 _OPERATORS = {ast.Add: "+", ast.Sub: "-", ast.Mult: "*", ast.BitAnd: "&"}
 #: Integer operators with Python's rounding (towards minus infinity), as C functions.
 _INTEGER_FUNCTIONS = {ast.FloorDiv: "hc_floordiv", ast.Mod: "hc_mod"}
@@ -105,6 +115,8 @@ class CSource:
     names: tuple
     codes: tuple
     messages: tuple
+    #: The fewest parameters the output map reads (its largest literal index into them, plus one; 0: no map).
+    map_params: int = 0
 
 
 class _Arrays:
@@ -134,13 +146,16 @@ class _Translator:
         if len(codes) != len(self.names):
             raise NotImplementedError("the kernel's signature does not name every argument")
         for name, code in zip(self.names, codes):
-            if code == "i":
-                self.types[name] = _INT
+            if code in ("i", "f"):
+                self.types[name] = _INT if code == "i" else _FLOAT
             elif code[0] in "rw" and code[1:].isdigit():
                 self.arrays.dims[name] = [f"{name}_{k}" for k in range(int(code[1:]))]
             else:
                 raise NotImplementedError(f"argument code {code!r}")
         self.function = function
+        self.returns = False            # True for an output map's formula (a function of one sample)
+        self.map_source = None          # the C of the output map h, if the kernel calls one
+        self.rows: dict = {}            # names holding a row of a two-dimensional array, and that array
         self._infer(function.body)
 
     # -- types ---------------------------------------------------------------------------------------------------
@@ -161,6 +176,10 @@ class _Translator:
         raise NotImplementedError("the kernel's types do not settle")
 
     def _assign_type(self, target, value):
+        if isinstance(target, ast.Name) and self._row_of(value) is not None:
+            self.types[target.id] = _ROW
+            self.rows[target.id] = self._row_of(value)
+            return
         if isinstance(target, ast.Name):
             if _call_name(value) in ("np.empty", "np.zeros"):
                 shape = value.args[0].elts if isinstance(value.args[0], ast.Tuple) else [value.args[0]]
@@ -191,6 +210,13 @@ class _Translator:
             raise NotImplementedError(f"local array of size {ast.unparse(node)}, not a literal")
         return max(values)
 
+    def _row_of(self, node) -> str | None:
+        """The array ``A`` of a row ``A[i]`` of a two-dimensional array; else None."""
+        if (isinstance(node, ast.Subscript) and isinstance(node.value, ast.Name)
+                and not isinstance(node.slice, ast.Tuple) and len(self.arrays.dims.get(node.value.id, ())) == 2):
+            return node.value.id
+        return None
+
     def _widen(self, name: str, kind: str):
         order = (_INT, _FLOAT, _VECTOR)
         current = self.types.get(name, _INT)
@@ -204,9 +230,11 @@ class _Translator:
         if isinstance(node, ast.Subscript):
             return _INT if _is_shape(node) else _FLOAT
         if isinstance(node, ast.Attribute):
-            return _FLOAT
+            return _INT if self._size(node) is not None else _FLOAT
         if isinstance(node, ast.BinOp):
             kinds = {self._type(node.left), self._type(node.right)}
+            if isinstance(node.op, ast.Div):
+                kinds.add(_FLOAT)
             return _VECTOR if _VECTOR in kinds else _FLOAT if _FLOAT in kinds else _INT
         if isinstance(node, ast.UnaryOp):
             return _INT if isinstance(node.op, ast.Not) else self._type(node.operand)
@@ -217,7 +245,7 @@ class _Translator:
             name = _call_name(node)
             if name in ("splat", "load", "rotate"):
                 return _VECTOR
-            if name == "lane":
+            if name == "lane" or name in _FLOAT_FUNCTIONS:
                 return _FLOAT
             if name == "min":
                 kinds = {self._type(a) for a in node.args}
@@ -226,6 +254,26 @@ class _Translator:
         return _INT
 
     # -- statements ----------------------------------------------------------------------------------------------
+    def _declarations(self) -> list:
+        """The local arrays and scalars, declared at the top of the function."""
+        head = [f"    double {name}[{size}] __attribute__((aligned(64)));" for name, size in self.locals.items()]
+        for kind in (_INT, _FLOAT, _VECTOR, _ROW):
+            names = sorted(n for n, t in self.types.items() if t == kind and n not in self.names)
+            if kind == _ROW:
+                names = [f"*{n}" for n in names]
+                kind = "const double"
+            for start in range(0, len(names), 12):
+                head.append(f"    {kind} {', '.join(names[start:start + 12])};")
+        return head
+
+    def map_text(self) -> str:
+        """An output map's formula ``formula(z, p, extra)`` as ``static inline double h(z, p, p_0, extra,
+        extra_0)``."""
+        z, p, extra = self.names
+        head = [f"static inline double h(double {z}, const double *{p}, int64_t {p}_0, const double *{extra}, "
+                f"int64_t {extra}_0)", "{"]
+        return "\n".join(head + self._declarations() + self._block(self.function.body, 1) + ["}", ""])
+
     def text(self) -> str:
         head = ["int64_t kernel(const hc_arg *args)", "{"]
         for k, (name, code) in enumerate(zip(self.names, self.codes)):
@@ -236,12 +284,7 @@ class _Translator:
             head.append(f"    {const}double *{name} = ({const}double *)args[{k}].data;")
             dims = ", ".join(f"{name}_{d} = args[{k}].shape[{d}]" for d in range(int(code[1:])))
             head.append(f"    const int64_t {dims};")
-        for name, size in self.locals.items():
-            head.append(f"    double {name}[{size}] __attribute__((aligned(64)));")
-        for kind in (_INT, _FLOAT, _VECTOR):
-            names = sorted(n for n, t in self.types.items() if t == kind and n not in self.names)
-            for start in range(0, len(names), 12):
-                head.append(f"    {kind} {', '.join(names[start:start + 12])};")
+        head += self._declarations()
         body = self._block(self.function.body, 1)
         return "\n".join(head + body + ["    return 0;", "}", ""])
 
@@ -278,6 +321,8 @@ class _Translator:
             return lines + [f"{pad}}}"]
         if isinstance(node, ast.Break):
             return [f"{pad}break;"]
+        if isinstance(node, ast.Return) and self.returns:
+            return [f"{pad}return {self._expr(node.value)};"]
         if isinstance(node, ast.Raise):
             self.messages.append(ast.literal_eval(node.exc.args[0]) if node.exc.args else "")
             return [f"{pad}return {len(self.messages)};"]
@@ -291,6 +336,8 @@ class _Translator:
         target = node.targets[0]
         if isinstance(target, ast.Tuple):
             return self._unpack(target, value, pad)
+        if len(node.targets) == 1 and isinstance(target, ast.Name) and target.id in self.rows:
+            return [f"{pad}{target.id} = {_map_row(self, value)[0]};"]
         if len(node.targets) == 1:
             return [f"{pad}{self._target(target)} = {self._expr(value)};"]
         temp = [f"{pad}{{", f"{pad}    const {self._type(value)} hc_value = {self._expr(value)};"]
@@ -316,17 +363,25 @@ class _Translator:
         pad, var = "    " * depth, node.target.id
         if _call_name(node.iter) != "range" or node.orelse:
             raise NotImplementedError(f"loop {ast.unparse(node.iter)}")
-        if len(node.iter.args) not in (1, 2) or any(self._type(a) != _INT for a in node.iter.args):
+        if len(node.iter.args) not in (1, 2, 3) or any(self._type(a) != _INT for a in node.iter.args):
             raise NotImplementedError(f"loop over {ast.unparse(node.iter)}")
+        step = 1
+        if len(node.iter.args) == 3:
+            try:
+                step = int(ast.literal_eval(node.iter.args[2]))
+            except ValueError:
+                raise NotImplementedError(f"loop over {ast.unparse(node.iter)} (a literal step)") from None
+            if step == 0:
+                raise NotImplementedError(f"loop over {ast.unparse(node.iter)}")
         assigned = {t.id for n in ast.walk(ast.Module(body=node.body, type_ignores=[]))
                     for t in (n.targets if isinstance(n, ast.Assign) else [getattr(n, "target", None)])
                     if isinstance(t, ast.Name)}
         if var in assigned or {n.id for n in ast.walk(node.iter) if isinstance(n, ast.Name)} & assigned:
             raise NotImplementedError(f"loop {ast.unparse(node.target)} in {ast.unparse(node.iter)} whose variable "
                                       "or bounds its body assigns")
-        bounds = [self._expr(a) for a in node.iter.args]
+        bounds = [self._expr(a) for a in node.iter.args[:2]]
         start, stop = ("0", bounds[0]) if len(bounds) == 1 else bounds
-        head = f"{pad}for ({var} = {start}; {var} < {stop}; {var}++) {{"
+        head = f"{pad}for ({var} = {start}; {var} {'<' if step > 0 else '>'} {stop}; {var} += {step}) {{"
         return [head] + self._block(node.body, depth + 1) + [f"{pad}}}"]
 
     def _target(self, node) -> str:
@@ -346,6 +401,8 @@ class _Translator:
             return repr(node.value)
         if isinstance(node, ast.Name):
             return node.id
+        if isinstance(node, ast.Attribute) and self._size(node) is not None:
+            return self._size(node)
         if isinstance(node, ast.Attribute):
             constants = {"np.inf": "INFINITY", "np.nan": "NAN"}
             name = ast.unparse(node)
@@ -359,6 +416,8 @@ class _Translator:
             if function is not None and self._type(node) == _INT:
                 return f"{function}({self._expr(node.left)}, {self._expr(node.right)})"
             op = _OPERATORS.get(type(node.op))
+            if isinstance(node.op, ast.Div) and _FLOAT in (self._type(node.left), self._type(node.right)):
+                op = "/"                # a float quotient, as in Python (integers alone would truncate in C)
             if op is None:
                 raise NotImplementedError(f"operator {ast.unparse(node)}")
             return f"{self._wrap(node.left)} {op} {self._wrap(node.right)}"
@@ -386,6 +445,26 @@ class _Translator:
             return self._call(node)
         raise NotImplementedError(f"expression {ast.unparse(node)}")
 
+    def _map_call(self, node) -> str:
+        """``h(z, HP[row], HX)``: the output map (:func:`translate`'s ``output_map``) of one sample."""
+        if len(node.args) != 3 or not isinstance(node.args[2], ast.Name) or self.map_source is None:
+            raise NotImplementedError(f"call {ast.unparse(node)} (no output map given)")
+        given = node.args[1]
+        if isinstance(given, ast.Name) and given.id in self.rows:
+            row, width = given.id, self.arrays.dims[self.rows[given.id]][1]
+        else:
+            row, width = _map_row(self, given)
+        extra = node.args[2].id
+        return f"h({self._expr(node.args[0])}, {row}, {width}, {extra}, {self.arrays.dims[extra][0]})"
+
+    def _size(self, node) -> str | None:
+        """``len(a)`` or ``a.size`` of a one-dimensional array, as its dimension; else None."""
+        target = node.args[0] if _call_name(node) == "len" and len(node.args) == 1 else (
+            node.value if isinstance(node, ast.Attribute) and node.attr == "size" else None)
+        if isinstance(target, ast.Name) and len(self.arrays.dims.get(target.id, ())) == 1:
+            return self.arrays.dims[target.id][0]
+        return None
+
     def _subscript(self, node) -> str:
         if _is_shape(node):
             return f"{node.value.value.id}_{node.slice.value}"
@@ -399,6 +478,14 @@ class _Translator:
 
     def _call(self, node) -> str:
         name, args = _call_name(node), node.args
+        if name == "len" and self._size(node) is not None:
+            return self._size(node)
+        if name == "h":
+            return self._map_call(node)
+        if name in _FLOAT_FUNCTIONS:
+            if any(self._type(a) == _VECTOR for a in args):
+                raise NotImplementedError(f"call {ast.unparse(node)} on vectors")
+            return f"{_FLOAT_FUNCTIONS[name]}({', '.join(self._expr(a) for a in args)})"
         if name == "np.isfinite":
             return f"isfinite({self._expr(args[0])})"
         if name == "min":
@@ -417,6 +504,16 @@ class _Translator:
         raise NotImplementedError(f"call {ast.unparse(node)}")
 
 
+def _map_row(translator, node) -> tuple:
+    """``(pointer, length)`` of the row ``A[i]`` of a two-dimensional array (an output map's parameters)."""
+    if not (isinstance(node, ast.Subscript) and isinstance(node.value, ast.Name)
+            and len(translator.arrays.dims.get(node.value.id, ())) == 2 and not isinstance(node.slice, ast.Tuple)):
+        raise NotImplementedError(f"map parameters {ast.unparse(node)} (a row of a two-dimensional array)")
+    name = node.value.id
+    width = translator.arrays.dims[name][1]
+    return f"&{name}[({translator._expr(node.slice)}) * {width}]", width
+
+
 def _call_name(node) -> str | None:
     return ast.unparse(node.func) if isinstance(node, ast.Call) else None
 
@@ -427,14 +524,21 @@ def _is_shape(node) -> bool:
             and isinstance(node.slice, ast.Constant))
 
 
-def translate(source: str) -> CSource:
+def translate(source: str, output_map: str | None = None) -> CSource:
     """The C of the generated kernel ``source`` (Python source defining ``kernel``, its argument types in the
     decorator's ``kernel_signature("...")``); :data:`HEADER` comes before it in the file.
+
+    ``output_map`` is the Python source of the formula ``formula(z, p, extra)``
+    of the output map the kernel calls as ``h(z, HP[row], HX)``
+    (:attr:`~hammerstein_ctrl.nonlinearities.Nonlinearity.formula`): it is
+    translated too, into a function ``h`` of one sample.  A formula that reads
+    ``extra`` (fixed data whose size the map relates to its parameters') is
+    refused: the kernel's door could not check that relation.
 
     Raises
     ------
     NotImplementedError
-        For Python the translator does not take (an output map's call, for one).
+        For Python the translator does not take.
     """
     tree = ast.parse(source)
     function = next(node for node in tree.body if isinstance(node, ast.FunctionDef) and node.name == "kernel")
@@ -442,5 +546,24 @@ def translate(source: str) -> CSource:
     if found is None:
         raise NotImplementedError("the kernel has no kernel_signature")
     translator = _Translator(function, found.group(1).split())
+    map_text, map_params = ("", 0) if output_map is None else _map(output_map)
+    translator.map_source = map_text or None
     text = translator.text()
-    return CSource(HEADER + "\n" + text, tuple(translator.names), tuple(translator.codes), tuple(translator.messages))
+    return CSource(HEADER + "\n" + map_text + "\n" + text, tuple(translator.names), tuple(translator.codes),
+                   tuple(translator.messages), map_params)
+
+
+def _map(source: str) -> tuple:
+    """``(C, fewest parameters)`` of an output map's formula (the Python source of ``formula(z, p, extra)``)."""
+    function = next((node for node in ast.parse(textwrap.dedent(source)).body if isinstance(node, ast.FunctionDef)),
+                    None)
+    if function is None or len(function.args.args) != 3:
+        raise NotImplementedError("an output map is a function formula(z, p, extra)")
+    translator = _Translator(function, ["f", "r1", "r1"])
+    translator.returns = True
+    z, p, extra = translator.names
+    if any(isinstance(n, ast.Name) and n.id == extra for n in ast.walk(function)):
+        raise NotImplementedError(f"an output map that reads {extra} (its size relates to the parameters')")
+    indices = [n.slice.value for n in ast.walk(function) if isinstance(n, ast.Subscript)
+               and isinstance(n.value, ast.Name) and n.value.id == p and isinstance(n.slice, ast.Constant)]
+    return translator.map_text(), max(indices, default=-1) + 1

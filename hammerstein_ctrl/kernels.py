@@ -64,6 +64,7 @@ from __future__ import annotations
 import functools
 import hashlib
 import importlib.util
+import inspect
 import os
 import sys
 import tempfile
@@ -80,6 +81,7 @@ from ._kernel_source import (_CHECK_MASK, _OVERFLOW, _terms, HOLDS, INTERLEAVE, 
                              normal_source, vector_chunks, vector_normal_source)
 from ._kernel_c import translate
 from ._native import entry_address, kernel_address, library
+from .nonlinearities import NONLINEARITIES
 
 __all__ = ["get_kernel", "get_coefficient_kernel", "get_normal_kernel", "get_lane_kernel", "lane_source",
            "has_basis_kernels", "has_output_maps", "kernel_source", "normal_kernel_address",
@@ -227,7 +229,7 @@ def get_normal_kernel(n: int, hold: str, lanes: int, K: int, direct: bool = True
     name = f"hc_normal_n{n}_{hold}_l{lanes}_k{K}{terms}" + (f"_{outmap}" if outmap else "") + (
         "_outputs" if outputs else "")
     src = normal_source(int(n), hold, int(lanes), int(K), bool(direct), bool(offset), outmap, bool(outputs))
-    return _load_source(src, name) if outmap else _c_kernel(src, name, _pass_shapes(n, hold, outputs))
+    return _built(src, name, outmap, _pass_shapes(n, hold, outputs, outmap is not None))
 
 
 @functools.lru_cache(maxsize=None)
@@ -274,11 +276,12 @@ class CKernel:
 
 
 @functools.lru_cache(maxsize=None)
-def _c_kernel(src: str, name: str, shapes: tuple) -> CKernel:
+def _c_kernel(src: str, name: str, shapes: tuple, output_map: str | None = None) -> CKernel:
     """The generated kernel ``src`` translated to C and built (once per machine), its arguments of ``shapes``
-    (``(name, dimensions)`` pairs, as the library's ``call`` reads them)."""
-    c = translate(src)
-    dims = dict(shapes)
+    (``(name, dimensions)`` pairs, as the library's ``call`` reads them; ``{map}`` the fewest parameters of its
+    output map, whose formula's source is ``output_map``)."""
+    c = translate(src, output_map)
+    dims = {a: d.replace("{map}", str(max(c.map_params, 1))) for a, d in shapes}
     words = [f"{a}:i" if code == "i" else f"{a}:{code[0]}:{dims[a]}" for a, code in zip(c.names, c.codes)]
     return CKernel(kernel_address(name, c.text), name + "|" + " ".join(words), c.messages)
 
@@ -288,19 +291,22 @@ def _block_shape(n: int, hold: str) -> str:
     return f"{n}+,{n + (2 if hold == 'foh' else 1)}+"
 
 
-def _basis_shapes(n: int, hold: str, mode: str, K: int | None) -> tuple:
-    """The shapes a kernel of :func:`kernel_source` or :func:`lane_source` takes: ``B`` candidates, ``N`` samples."""
+def _basis_shapes(n: int, hold: str, mode: str, K: int | None, outmap: bool = False) -> tuple:
+    """The shapes a kernel of :func:`kernel_source` or :func:`lane_source` takes: ``B`` candidates, ``N`` samples
+    (with an output map, a row of its parameters per candidate, at least as many as it reads)."""
     signal = (("V", "B,N+"),) if K is None else (("P", f"B,{K}+"), ("Phi", f"{K}+,N+"))
     out = (("y", "N"), ("out", "B")) if mode == "sse" else (("out", "B,N+"),)
+    mapped = (("HP", "B,{map}+"), ("HX", "X*")) if outmap else ()
     return (("E", f"B,{_block_shape(n, hold)}"), ("C", f"B,{n}+"), ("D", "B"), ("X0", f"B,{n}+"),
-            ("Y0", "B")) + signal + out
+            ("Y0", "B")) + signal + mapped + out
 
 
-def _pass_shapes(n: int, hold: str, outputs: bool) -> tuple:
-    """The shapes a normal-equation pass takes: the linear block's trailing dimensions; the pass checks the rest."""
+def _pass_shapes(n: int, hold: str, outputs: bool, outmap: bool = False) -> tuple:
+    """The shapes a normal-equation pass takes: the linear block's trailing dimensions, the output map's parameters
+    (at least as many as it reads); the pass checks the rest."""
     return (("E", f"R,{_block_shape(n, hold)}"), ("C", f"S,{n}+"), ("D", "T*"), ("X", f"A,{n}+"), ("Y0", "Q*"),
             ("VP", "L*"),
-            ("P", "G*,H*"), ("Phi", "F*,U*"), ("HP", "V*,W*"), ("HX", "I*"), ("y", "M*"),
+            ("P", "G*,H*"), ("Phi", "F*,U*"), ("HP", "V*,{map}+" if outmap else "V*,W*"), ("HX", "I*"), ("y", "M*"),
             ("acc", "Z*,Y*" if outputs else "Z*"))
 
 
@@ -355,7 +361,26 @@ def _write_once(path: Path, text: str):
 
 def _load_generated(n: int, mode: str, hold: str, outmap: str | None = None, K: int | None = None):
     src, name = kernel_source(n, mode, hold, outmap, K), _module_name(n, mode, hold, outmap, K)
-    return _load_source(src, name) if outmap else _c_kernel(src, name, _basis_shapes(n, hold, mode, K))
+    return _built(src, name, outmap, _basis_shapes(n, hold, mode, K, outmap is not None))
+
+
+def _built(src: str, name: str, outmap: str | None, shapes: tuple):
+    """The kernel ``src`` built in C; with an output map whose formula C cannot take (one that reads fixed data
+    sized with its parameters), compiled by numba."""
+    if outmap is None:
+        return _c_kernel(src, name, shapes)
+    try:
+        return _c_kernel(src, name, shapes, _map_source(outmap))
+    except NotImplementedError:
+        return _load_source(src, name)
+
+
+def _map_source(outmap: str) -> str:
+    """The Python source of the formula of the output map ``outmap`` (``<family>_map``)."""
+    family = NONLINEARITIES.get(outmap.removesuffix("_map"))
+    if family is None or family.formula is None:
+        raise NotImplementedError(f"no formula for the output map {outmap!r}")
+    return inspect.getsource(family.formula)
 
 
 @functools.lru_cache(maxsize=None)

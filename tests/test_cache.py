@@ -30,10 +30,10 @@ with warnings.catch_warnings(record=True) as caught:
     y = simulate_batch([[0.0, 1.0]], [[1.0, 0.7, 2.0]], u, 0.03)
     h = _lagged_sums(np.array([1.0, -2.0, 0.5]), np.array([0.5, 1.0, -1.0]), -1, 1)  # the package's own
     E = np.array([[[0.9, 0.05, 0.01, 0.003], [-0.1, 0.95, 0.02, 0.001]]])
-    w = np.empty((1, 50))                           # a kernel with an output map: generated and compiled by numba
-    kernels.get_kernel(2, "outputs", "foh", "coulomb_map")(E, np.ones((1, 2)), np.zeros(1), np.zeros((1, 2)),
-                                                           np.zeros(1), u[:, :50].copy(), np.ones((1, 3)),
-                                                           np.zeros(0), w)
+    w = np.empty((1, 50))                 # a kernel whose output map C does not take: generated and compiled by numba
+    kernels.get_kernel(2, "outputs", "foh", "piecewise_linear_map")(
+        E, np.ones((1, 2)), np.zeros(1), np.zeros((1, 2)), np.zeros(1), u[:, :50].copy(), np.array([[-1.0, 0.0, 2.0]]),
+        np.array([-1.0, 0.0, 1.0]), w)
 print(json.dumps({"y": y[0, ::40].tolist() + h.tolist() + w[0, ::10].tolist(),
                   "warnings": [str(w.message) for w in caught if issubclass(w.category, CacheWarning)]}))
 """

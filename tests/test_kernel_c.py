@@ -142,7 +142,7 @@ def test_a_pass_refuses_too_few_lanes_as_its_source_says():
 def test_the_translator_names_python_it_does_not_take():
     """Source outside the subset the generators write is refused by name, not translated wrongly."""
     head = '@cached_njit(signatures=(kernel_signature("r1 w1"),))\ndef kernel(x, out):\n'
-    for body, what in (("    out[0] = np.sqrt(x[0])", "call np.sqrt"), ("    out[0] = x[0] / 2.0", "operator"),
+    for body, what in (("    out[0] = np.sqrt(x[0])", "call np.sqrt"), ("    out[0] = x.shape[0] / 2", "operator"),
                        ("    for i in x:\n        out[0] = i", "loop x"), ("    out[0] = np.pi", "name np.pi"),
                        # where C would mean something else than Python
                        ("    a, b = 1, 2\n    a, b = b, a", "values read the targets"),
@@ -154,8 +154,11 @@ def test_the_translator_names_python_it_does_not_take():
                        ("    out[0] = x[0] if x[0] is x[1] else 0.0", "comparison")):
         with pytest.raises(NotImplementedError, match=what):
             translate(head + body)
-    with pytest.raises(NotImplementedError, match="HP has 2 dimensions, indexed with 1|call h"):   # an output map
+    with pytest.raises(NotImplementedError, match="no output map given"):       # a map's call needs its formula
         translate(kernel_source(2, "sse", "foh", "tanh_map"))
+    with pytest.raises(NotImplementedError, match="reads extra"):       # fixed data sized with the parameters
+        translate(kernel_source(2, "sse", "foh", "piecewise_linear_map"),
+                  "def formula(z, p, extra):\n    return p[0] * extra[0] * z\n")
 
 
 def test_integer_floor_division_and_modulo_round_as_pythons():
@@ -255,3 +258,38 @@ def test_the_single_evaluation_from_coefficients_checks_what_the_kernel_reads():
     out = np.full(1, 7.0)
     assert not f(num, np.array([[0.0, 3.0, 3.0, 1.0]]), 0.1, COMPILED_EXPM_MAX_NORM, *args[:-1], out)
     assert out[0] == 7.0
+
+
+@pytest.mark.parametrize("family", ["tanh", "polynomial", "saturation", "coulomb"])
+def test_an_output_map_kernel_gives_numbas_bits_for_its_source(family):
+    """A kernel with an output map (the family's formula translated into it: tanh, a loop over the coefficients,
+    numpy's minimum and maximum, sign) against numba's compile of the same source: the same bits over 30 random
+    batches with non-finite, signed-zero and extreme entries, and a normal-equation pass through the map too."""
+    outmap = f"{family}_map"
+    kernel = kernels.get_kernel(2, "sse", "zoh", outmap)
+    assert isinstance(kernel, kernels.CKernel)
+    oracle = _numba_kernel(kernel_source(2, "sse", "zoh", outmap), f"map_{family}")
+    rng = np.random.default_rng(len(family))
+    for _ in range(30):
+        B, N = int(rng.integers(1, 6)), int(rng.integers(1, 1500))
+        args = [_array(rng, B, 4, 4, scale=0.2), _array(rng, B, 2), _array(rng, B), _array(rng, B, 2),
+                _array(rng, B), _array(rng, B, N), _array(rng, B, 3), np.zeros(0), _array(rng, N)]
+        got, expected = np.empty(B), np.empty(B)
+        kernel(*args, got)
+        oracle(*args, expected)
+        assert _same_bits(got, expected)
+    lanes = 4
+    normal = kernels.get_normal_kernel(2, "foh", lanes, 1, True, True, outmap)
+    oracle = _numba_kernel(normal_source(2, "foh", lanes, 1, True, True, outmap), f"map_pass_{family}")
+    N = 700
+    E, C, D, P, Phi, y = (_array(rng, lanes, 4, 4, scale=0.2), _array(rng, lanes, 2), _array(rng, lanes),
+                          _array(rng, lanes, 1), _array(rng, 1, N), _array(rng, N))
+    HP, Y0 = _array(rng, lanes, 3), _array(rng, lanes)
+    sums = []
+    for k in (normal, oracle):
+        acc = np.zeros(1 + (lanes - 1) * lanes)
+        k(E, C, D, np.zeros((lanes, 2)), Y0, np.zeros(lanes), P, Phi, HP, np.zeros(0), y, 0, acc)
+        sums.append(acc)
+    assert _same_bits(*sums)
+    with pytest.raises(ValueError, match="HP has shape"):      # fewer parameters than the map reads
+        kernel(*args[:6], np.ones((args[0].shape[0], 0)), np.zeros(0), args[8], np.empty(args[0].shape[0]))
