@@ -1,19 +1,25 @@
 """The C text of a generated kernel, translated from its Python source (:mod:`~hammerstein_ctrl._kernel_source`).
 
-The kernels are written once, as Python source (numba compiles it where a
-kernel calls an output map, and in the tests as this translation's oracle);
-the same source is the input of this translator, which writes the C
+The kernels are written once, as Python source (numba compiles it where C
+cannot take a kernel's output map, and in the tests as this translation's
+oracle); the same source is the input of this translator, which writes the C
 function a C compiler builds in a fraction of numba's time.  It takes the
-small subset of Python the generators write: assignments of scalars and of
-array entries, ``for ... in range``, ``while``, ``if``, ``break``,
-``raise``, arithmetic and comparisons, ``x if c else y``, ``np.isfinite``,
+small subset of Python the generators write: assignments of scalars, of
+array entries and of an array's row, ``for ... in range`` (a literal step),
+``while``, ``if``, ``break``, ``raise``, ``return`` (an output map's
+formula), arithmetic and comparisons, ``x if c else y``, ``np.isfinite``,
+``np.tanh``, ``np.exp``, ``np.abs``, ``np.sign``, ``np.minimum``,
+``np.maximum`` (numba's scalar semantics), ``len``/``.size`` of a vector,
 ``np.inf``/``np.nan``, ``min``, local arrays (``np.empty``/``np.zeros`` of
 literal size) and the four-lane vectors of :mod:`~hammerstein_ctrl._simd`
 (``splat``, ``load``, ``store``, ``lane``, ``rotate``).  Where C would mean
 something else it is refused: ``and``/``or`` of values that are not truth
-values, ``min`` of floats, negative or float indices, tuple assignments whose
-values read their targets, loops whose body assigns their variable or bounds;
-integer ``//`` and ``%`` round as Python's do.  Anything else is a
+values, ``min`` of floats, ``/``, ``//`` and ``%`` but by a positive literal
+(integers only; they round as Python's), negative or float indices, tuple
+assignments whose values read their targets, loops whose body assigns their
+variable or bounds, a map that does not end by returning.  A loop's
+variable is not read after its loop by the generators (C leaves it past
+the last value).  Anything else is a
 ``NotImplementedError`` naming it (indices are not checked against the
 arrays' sizes: the kernel's caller checks those).
 
@@ -42,7 +48,7 @@ const int64_t x_0 = args[0].shape[0];
 double *out = (double *)args[1].data;
 const int64_t out_0 = args[1].shape[0];
 int64_t i;
-for (i = 0; i < x_0; i++) {
+for (i = 0; i < x_0; i += 1) {
     out[i] = (isfinite(x[i]) ? (2.0 * x[i]) : 0.0);
 }
 return 0;
@@ -115,7 +121,8 @@ class CSource:
     names: tuple
     codes: tuple
     messages: tuple
-    #: The fewest parameters the output map reads (its largest literal index into them, plus one; 0: no map).
+    #: The fewest parameters the output map reads (its largest literal index into them, plus one; one at least
+    #: where it computes an index; 0: no map or none read).
     map_params: int = 0
 
 
@@ -217,9 +224,25 @@ class _Translator:
             return node.value.id
         return None
 
+    def _truth(self, node) -> bool:
+        """Whether ``node`` is a truth value (so that C's ``&&``/``||``, which give 0 or 1, give Python's value)."""
+        if isinstance(node, (ast.Compare, ast.BoolOp)) or _call_name(node) == "np.isfinite":
+            return True
+        if isinstance(node, ast.UnaryOp) and isinstance(node.op, ast.Not):
+            return True
+        if isinstance(node, ast.Constant):
+            return isinstance(node.value, bool)
+        if isinstance(node, ast.Name):
+            values = [n.value for n in ast.walk(self.function) if isinstance(n, ast.Assign)
+                      and any(isinstance(t, ast.Name) and t.id == node.id for t in n.targets)]
+            return bool(values) and all(self._truth(v) for v in values if v is not node)
+        return False
+
     def _widen(self, name: str, kind: str):
         order = (_INT, _FLOAT, _VECTOR)
         current = self.types.get(name, _INT)
+        if _ROW in (current, kind):
+            raise NotImplementedError(f"{name}: a row of an array and a value at once")
         self.types[name] = max(current, kind, key=order.index)
 
     def _type(self, node) -> str:
@@ -233,8 +256,6 @@ class _Translator:
             return _INT if self._size(node) is not None else _FLOAT
         if isinstance(node, ast.BinOp):
             kinds = {self._type(node.left), self._type(node.right)}
-            if isinstance(node.op, ast.Div):
-                kinds.add(_FLOAT)
             return _VECTOR if _VECTOR in kinds else _FLOAT if _FLOAT in kinds else _INT
         if isinstance(node, ast.UnaryOp):
             return _INT if isinstance(node.op, ast.Not) else self._type(node.operand)
@@ -275,6 +296,8 @@ class _Translator:
         return "\n".join(head + self._declarations() + self._block(self.function.body, 1) + ["}", ""])
 
     def text(self) -> str:
+        if "f" in self.codes:
+            raise NotImplementedError("a kernel's float argument (the library's call passes floats to its own entries)")
         head = ["int64_t kernel(const hc_arg *args)", "{"]
         for k, (name, code) in enumerate(zip(self.names, self.codes)):
             if code == "i":
@@ -321,7 +344,7 @@ class _Translator:
             return lines + [f"{pad}}}"]
         if isinstance(node, ast.Break):
             return [f"{pad}break;"]
-        if isinstance(node, ast.Return) and self.returns:
+        if isinstance(node, ast.Return) and self.returns and node.value is not None:
             return [f"{pad}return {self._expr(node.value)};"]
         if isinstance(node, ast.Raise):
             self.messages.append(ast.literal_eval(node.exc.args[0]) if node.exc.args else "")
@@ -374,7 +397,8 @@ class _Translator:
             if step == 0:
                 raise NotImplementedError(f"loop over {ast.unparse(node.iter)}")
         assigned = {t.id for n in ast.walk(ast.Module(body=node.body, type_ignores=[]))
-                    for t in (n.targets if isinstance(n, ast.Assign) else [getattr(n, "target", None)])
+                    for target in (n.targets if isinstance(n, ast.Assign) else [getattr(n, "target", None)])
+                    for t in (target.elts if isinstance(target, ast.Tuple) else [target])
                     if isinstance(t, ast.Name)}
         if var in assigned or {n.id for n in ast.walk(node.iter) if isinstance(n, ast.Name)} & assigned:
             raise NotImplementedError(f"loop {ast.unparse(node.target)} in {ast.unparse(node.iter)} whose variable "
@@ -414,10 +438,11 @@ class _Translator:
         if isinstance(node, ast.BinOp):
             function = _INTEGER_FUNCTIONS.get(type(node.op))
             if function is not None and self._type(node) == _INT:
+                if not (isinstance(node.right, ast.Constant) and isinstance(node.right.value, int)
+                        and node.right.value > 0):
+                    raise NotImplementedError(f"{ast.unparse(node)} (by a positive literal only)")
                 return f"{function}({self._expr(node.left)}, {self._expr(node.right)})"
             op = _OPERATORS.get(type(node.op))
-            if isinstance(node.op, ast.Div) and _FLOAT in (self._type(node.left), self._type(node.right)):
-                op = "/"                # a float quotient, as in Python (integers alone would truncate in C)
             if op is None:
                 raise NotImplementedError(f"operator {ast.unparse(node)}")
             return f"{self._wrap(node.left)} {op} {self._wrap(node.right)}"
@@ -427,7 +452,7 @@ class _Translator:
                 raise NotImplementedError(f"operator {ast.unparse(node)}")
             return f"{op}{self._wrap(node.operand)}"
         if isinstance(node, ast.BoolOp):
-            if any(self._type(v) != _INT for v in node.values):
+            if not all(self._truth(v) for v in node.values):
                 raise NotImplementedError(f"{ast.unparse(node)} (and/or of values that are not truth values)")
             op = " && " if isinstance(node.op, ast.And) else " || "
             return "(" + op.join(self._wrap(v) for v in node.values) + ")"
@@ -509,9 +534,12 @@ def _map_row(translator, node) -> tuple:
     if not (isinstance(node, ast.Subscript) and isinstance(node.value, ast.Name)
             and len(translator.arrays.dims.get(node.value.id, ())) == 2 and not isinstance(node.slice, ast.Tuple)):
         raise NotImplementedError(f"map parameters {ast.unparse(node)} (a row of a two-dimensional array)")
-    name = node.value.id
+    name, index = node.value.id, node.slice
+    if translator._type(index) != _INT or isinstance(index, ast.UnaryOp) or (
+            isinstance(index, ast.Constant) and index.value < 0):
+        raise NotImplementedError(f"map parameters {ast.unparse(node)} (a non-negative integer row)")
     width = translator.arrays.dims[name][1]
-    return f"&{name}[({translator._expr(node.slice)}) * {width}]", width
+    return f"&{name}[({translator._expr(index)}) * {width}]", width
 
 
 def _call_name(node) -> str | None:
@@ -564,6 +592,11 @@ def _map(source: str) -> tuple:
     z, p, extra = translator.names
     if any(isinstance(n, ast.Name) and n.id == extra for n in ast.walk(function)):
         raise NotImplementedError(f"an output map that reads {extra} (its size relates to the parameters')")
-    indices = [n.slice.value for n in ast.walk(function) if isinstance(n, ast.Subscript)
-               and isinstance(n.value, ast.Name) and n.value.id == p and isinstance(n.slice, ast.Constant)]
-    return translator.map_text(), max(indices, default=-1) + 1
+    if not isinstance(function.body[-1], ast.Return) or function.body[-1].value is None:
+        raise NotImplementedError("an output map that does not end by returning its value")
+    reads = [n.slice for n in ast.walk(function) if isinstance(n, ast.Subscript)
+             and isinstance(n.value, ast.Name) and n.value.id == p]
+    literal = [i.value for i in reads if isinstance(i, ast.Constant)]
+    # a computed index (polynomial: p[len(p) - 1], p[i]) is bounded by len(p) and needs one parameter at least
+    fewest = max(max(literal, default=-1) + 1, 1 if len(literal) < len(reads) else 0)
+    return translator.map_text(), fewest

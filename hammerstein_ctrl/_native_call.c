@@ -4,8 +4,9 @@
  * call(address, spec, *args) runs the kernel at address (int64_t kernel(const hc_arg *args)) on args and returns
  * its status.  spec is "name|arg arg ...", one word per argument: "X:r:B,4" (a C-ordered float64 array only
  * read, of two dimensions: B, bound by its first appearance and the same in every array naming it, and 4),
- * "out:w:B" (one that is written), "begin:i" (an integer), "dt:f" (a float: its bits in shape[0]).  A dimension is a number, a number followed by + (at
- * least that), a capital letter, a capital letter followed by + (bound, and at least 1) or * (any).  An argument that does not fit is a TypeError or a
+ * "out:w:B" (one that is written), "begin:i" (an integer), "dt:f" (a float: its bits in shape[0]).  A dimension
+ * is a number, a number followed by + (at least that), a capital letter, a capital letter followed by + (bound,
+ * and at least 1) or * (any).  An argument that does not fit is a TypeError or a
  * ValueError naming the kernel and the argument; the kernel runs without the GIL.
  */
 #include <stdio.h>

@@ -32,7 +32,9 @@ from .nonlinearities import NONLINEARITIES
 #: The compiled maps, in the order of the registry (the closed-loop simulator picks one by its position).
 #: numba compiles a callee with its first caller's floating-point flags unless the callee sets its own, then
 #: serves that one version (and its cached copy) to every caller: a kernel's bits would depend on what the
-#: machine had compiled first.  So the generated kernels inline the maps (``inline="always"``: a map follows
+#: machine had compiled first.  So the numba-compiled kernels (the generated kernels whose map C does not take,
+#: and the tests' oracles of the others, which translate the formulas into C) inline the maps
+#: (``inline="always"``: a map follows
 #: its kernel's own flags), and the version compiled on its own (for Python calls and the closed-loop
 #: simulator, which picks a map from this tuple and so links it) has its flags fixed, keyed on this file.
 MAPS = tuple(cached_njit(inline="always", fastmath=False, depends=("compiled_maps.py",))(family.formula)

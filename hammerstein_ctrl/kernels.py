@@ -32,20 +32,21 @@ arithmetic (so a candidate's operations, and its rounding, are the same in each)
 * :func:`get_normal_kernel`: a point and its forward-difference neighbours
   across SIMD lanes, accumulating the normal equations of least squares.
 
-The generated source is Python.  Every kernel without an output map is
-translated to C (:mod:`~hammerstein_ctrl._kernel_c`) and built once per
+The generated source is Python.  Every kernel is translated to C
+(:mod:`~hammerstein_ctrl._kernel_c`; an output map's formula with it) and built once per
 machine by the system's C compiler (about 0.1-0.2 s a kernel, where numba
 took 0.6-3 s), into the machine cache (:func:`~hammerstein_ctrl._native.kernel_address`):
 a :class:`CKernel`, called from Python through the package's C library,
 which checks its arrays' types and shapes, and from compiled code through
 its address (:func:`normal_kernel_address`).  The translation is operation for
 operation, without contraction into fused multiply-adds, so a kernel gives
-the bits numba gives for the same source.  Kernels with an output map call
-compiled functions of :mod:`~hammerstein_ctrl.compiled_maps`: their source
-is written to a per-version cache directory (:func:`cache_dir`) and
-compiled by numba with ``cache=True``, so a new process loads the machine
-code instead of compiling again.  Larger dimensions use one generic
-compiled loop.
+the bits numba gives for the same source.  A kernel whose output map C
+does not take (one reading fixed data sized with its parameters: the
+piecewise-linear map) calls the compiled function of
+:mod:`~hammerstein_ctrl.compiled_maps` instead: its source is written to a
+per-version cache directory (:func:`cache_dir`) and compiled by numba with
+``cache=True``, so a new process loads the machine code instead of compiling
+again.  Larger dimensions use one generic compiled loop.
 
 Examples
 --------
@@ -281,7 +282,7 @@ def _c_kernel(src: str, name: str, shapes: tuple, output_map: str | None = None)
     (``(name, dimensions)`` pairs, as the library's ``call`` reads them; ``{map}`` the fewest parameters of its
     output map, whose formula's source is ``output_map``)."""
     c = translate(src, output_map)
-    dims = {a: d.replace("{map}", str(max(c.map_params, 1))) for a, d in shapes}
+    dims = {a: d.replace("{map}", str(c.map_params)) for a, d in shapes}
     words = [f"{a}:i" if code == "i" else f"{a}:{code[0]}:{dims[a]}" for a, code in zip(c.names, c.codes)]
     return CKernel(kernel_address(name, c.text), name + "|" + " ".join(words), c.messages)
 
@@ -380,7 +381,10 @@ def _map_source(outmap: str) -> str:
     family = NONLINEARITIES.get(outmap.removesuffix("_map"))
     if family is None or family.formula is None:
         raise NotImplementedError(f"no formula for the output map {outmap!r}")
-    return inspect.getsource(family.formula)
+    try:
+        return inspect.getsource(family.formula)
+    except OSError:                     # no source installed: numba compiles the map from its bytecode
+        raise NotImplementedError(f"no source of the output map {outmap!r}") from None
 
 
 @functools.lru_cache(maxsize=None)

@@ -132,6 +132,8 @@ class LinearStructure:
         self.param_names: tuple[str, ...] = tuple(names)
         self._num_pos = np.array(num_pos, dtype=np.int64)
         self._den_pos = np.array(den_pos, dtype=np.int64)
+        for template in self._template:         # read by the C library unchecked on every evaluation
+            template.flags.writeable = False
 
     @property
     def _template(self) -> tuple:

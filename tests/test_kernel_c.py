@@ -150,6 +150,8 @@ def test_the_translator_names_python_it_does_not_take():
                        ("    out[0] = min(x[0], x[1])", "min of two integers"),
                        ("    n = 3\n    for i in range(n):\n        n = n - 1", "its body assigns"),
                        ("    out[0] = x[0] or 2.0", "not truth values"), ("    out[0] = x[-1]", "non-negative"),
+                       ("    a = 1\n    b = a or 3\n    out[0] = x[b]", "not truth values"),
+                       ("    m = 3\n    for i in range(m):\n        m, q = 0, 1", "its body assigns"),
                        ("    L = np.empty(4)\n    L = np.empty(8)", "made with shapes"),
                        ("    out[0] = x[0] if x[0] is x[1] else 0.0", "comparison")):
         with pytest.raises(NotImplementedError, match=what):
@@ -162,16 +164,17 @@ def test_the_translator_names_python_it_does_not_take():
 
 
 def test_integer_floor_division_and_modulo_round_as_pythons():
-    """C's ``/`` and ``%`` truncate towards zero; the translation rounds integer ``//`` and ``%`` as Python does, for
-    every combination of signs."""
-    src = '@cached_njit(signatures=(kernel_signature("w1 i i"),))\ndef kernel(out, a, b):\n' \
-          '    out[0] = a // b\n    out[1] = a % b\n'
+    """C's ``/`` and ``%`` truncate towards zero; the translation rounds integer ``//`` and ``%`` by a positive
+    literal as Python does, for dividends of either sign (a divisor that is not a positive literal is refused)."""
+    src = ('@cached_njit(signatures=(kernel_signature("w1 i"),))\ndef kernel(out, a):\n'
+           '    out[0] = a // 3\n    out[1] = a % 3\n    out[2] = (a - 7) // 4\n    out[3] = (a - 7) % 4\n')
     address = _native.kernel_address("hc_test_floor", translate(src).text)
-    for a in (-7, -8, 0, 7, 8):
-        for b in (-3, -2, 2, 3):
-            out = np.empty(2)
-            _native.library().call(address, "floor|out:w:2 a:i b:i", out, a, b)
-            assert out.tolist() == [a // b, a % b]
+    for a in (-8, -7, -1, 0, 1, 7, 8):
+        out = np.empty(4)
+        _native.library().call(address, "floor|out:w:4 a:i", out, a)
+        assert out.tolist() == [a // 3, a % 3, (a - 7) // 4, (a - 7) % 4]
+    with pytest.raises(NotImplementedError, match="by a positive literal only"):
+        translate(src.replace("a // 3", "a // a"))
 
 
 def test_a_kernel_that_does_not_build_names_the_compilers_error_once_per_process(tmp_path, monkeypatch):

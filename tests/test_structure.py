@@ -84,3 +84,12 @@ def test_linear_structure_refuses_what_is_not_an_order(args, kwargs, message):
 
     with pytest.raises(ParameterError, match=message):
         LinearStructure(*args, **kwargs)
+
+
+def test_the_coefficient_template_is_read_only():
+    """Every evaluation hands the template to the C library unchecked: it cannot be changed from outside (a
+    position written past the coefficients would be a write past an array)."""
+    num0, den0, num_pos, den_pos = LinearStructure(1, 2).coefficient_template()
+    for template in (num0, den0, num_pos, den_pos):
+        with pytest.raises(ValueError, match="read-only"):
+            template[...] = 0
