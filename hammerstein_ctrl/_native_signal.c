@@ -1,10 +1,94 @@
 /* Loops over the samples of a record, compiled with the package's C library (hammerstein_ctrl._native): the
- * signals of a batch of candidates from a basis (hammerstein_ctrl.objective), and the whitening filter of the
- * parameter covariance run backwards (hammerstein_ctrl.uncertainty).  No fused multiply-add (the build passes
- * -ffp-contract=off); arrays are C-ordered.
+ * signals of a batch of candidates from a basis (hammerstein_ctrl.objective), the whitening filter of the
+ * parameter covariance run backwards (hammerstein_ctrl.uncertainty), and the QR factorisation of a regression's
+ * columns (hammerstein_ctrl.streamed_lstsq).  No fused multiply-add (the build passes -ffp-contract=off); arrays
+ * are C-ordered.
  */
+#include <float.h>
+#include <math.h>
 #include <stdint.h>
 #include <stdlib.h>
+#include <string.h>
+
+typedef double lanes4 __attribute__((vector_size(32)));
+
+/* sum_i a[i] b[i] over i < n in a fixed order: eight running sums (two vectors of four lanes) over blocks of
+ * eight, added lane by lane, then the rest one by one. */
+static double lane_dot(const double *a, const double *b, int64_t n)
+{
+    lanes4 s0 = {0.0, 0.0, 0.0, 0.0}, s1 = {0.0, 0.0, 0.0, 0.0};
+    int64_t i = 0;
+    for (; i + 8 <= n; i += 8) {
+        lanes4 a0, a1, b0, b1;
+        memcpy(&a0, a + i, sizeof a0);
+        memcpy(&a1, a + i + 4, sizeof a1);
+        memcpy(&b0, b + i, sizeof b0);
+        memcpy(&b1, b + i + 4, sizeof b1);
+        s0 += a0 * b0;
+        s1 += a1 * b1;
+    }
+    lanes4 s = s0 + s1;
+    double r = (s[0] + s[1]) + (s[2] + s[3]);
+    for (; i < n; i++)
+        r += a[i] * b[i];
+    return r;
+}
+
+/* |a| (n values) without overflow or underflow: from the sum of squares, else (a sum past the double range, or
+ * below its normal numbers) from the values scaled by the largest. */
+static double vector_norm(const double *a, int64_t n)
+{
+    double s = lane_dot(a, a, n);
+    if (isnan(s) || (isfinite(s) && s >= DBL_MIN))
+        return sqrt(s);
+    double big = 0.0;
+    for (int64_t i = 0; i < n; i++)
+        big = fabs(a[i]) > big ? fabs(a[i]) : big;
+    if (big == 0.0 || !isfinite(big))
+        return big;
+    double t = 0.0;
+    for (int64_t i = 0; i < n; i++) {
+        double v = a[i] / big;
+        t += v * v;
+    }
+    return big * sqrt(t);
+}
+
+/* R (w x w, C order, upper triangular) of the Householder QR factorisation of the n x w matrix whose columns are
+ * the rows of A (w rows of n values, n >= w; overwritten by the reflectors), with LAPACK's reflectors (dlarfg:
+ * R's diagonal entry -sign(alpha) |x|).  A value that is not finite reaches R. */
+void hc_qr_rows(double *A, int64_t w, int64_t n, double *R)
+{
+    memset(R, 0, (size_t)(w * w) * sizeof(double));
+    for (int64_t j = 0; j < w && j < n; j++) {
+        double *a = A + j * n + j;
+        int64_t m = n - j;
+        double alpha = a[0], xnorm = vector_norm(a + 1, m - 1), tau = 0.0, beta = alpha;
+        if (xnorm != 0.0) {
+            beta = -copysign(hypot(alpha, xnorm), alpha);
+            tau = (beta - alpha) / beta;
+            double d = alpha - beta;
+            if (fabs(d) >= DBL_MIN) {          /* its reciprocal is finite */
+                double scale = 1.0 / d;
+                for (int64_t i = 1; i < m; i++)
+                    a[i] *= scale;
+            } else {
+                for (int64_t i = 1; i < m; i++)
+                    a[i] /= d;
+            }
+        }
+        a[0] = 1.0;
+        R[j * w + j] = beta;
+        for (int64_t k = j + 1; k < w; k++) {
+            double *b = A + k * n + j;
+            double f = tau * lane_dot(a, b, m);
+            for (int64_t i = 0; i < m; i++)
+                b[i] -= f * a[i];
+            R[j * w + k] = b[0];
+        }
+        a[0] = beta;
+    }
+}
 
 /* out[b, start:start + n] = P[b] @ basis for each of the batch rows of P (batch x p; basis p x n, out's rows of
  * width columns): the products added term by term, j = 0 first, as P[b, 0] basis[0] + P[b, 1] basis[1] + ... */

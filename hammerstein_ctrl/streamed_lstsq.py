@@ -40,6 +40,7 @@ import functools
 import numpy as np
 import scipy.linalg
 
+from ._native import library
 from .exceptions import DataError
 
 __all__ = ["BLOCK_SAMPLES", "triangular_factor", "factor_of_blocks", "rank_tolerance", "solve_scaled",
@@ -55,7 +56,8 @@ BLOCK_SAMPLES = 8192
 #: where the blocks and their merges took 430 us, and the copy is small beside the record.
 WHOLE_FACTOR_BYTES = 1 << 22
 
-_GEQRF, _TRTRI = scipy.linalg.get_lapack_funcs(("geqrf", "trtri"), dtype=np.float64)
+_TRTRI = scipy.linalg.get_lapack_funcs(("trtri",), dtype=np.float64)[0]
+_LIBRARY = library()
 _GELSY, _GELSY_LWORK = scipy.linalg.get_lapack_funcs(("gelsy", "gelsy_lwork"), dtype=np.float64)
 
 
@@ -83,23 +85,26 @@ def _fill(rows, begin: int, stop: int, out: np.ndarray):
         j += a.shape[0]
 
 
-def _triangle(a: np.ndarray, below: np.ndarray) -> np.ndarray:
+def _triangle(a: np.ndarray) -> np.ndarray:
     """The ``R`` of a QR factorisation of ``a`` (Fortran-ordered, at least as many rows as columns; overwritten).
 
-    LAPACK's ``dgeqrf`` directly: ``scipy.linalg.qr`` would also zero the
-    whole block below the triangle.  ``below`` masks the strict lower triangle.
+    The C library's Householder factorisation of the columns where they lie
+    (a Fortran-ordered array's columns are the rows of its C-ordered
+    transpose): LAPACK's reflectors, its sums in a fixed order of vector
+    lanes, 1.4-1.6x faster than LAPACK's ``dgeqrf`` on a regression of
+    12 000 samples and 5 columns.
     """
-    qr, _, _, info = _GEQRF(a, overwrite_a=1)
-    if info != 0:  # pragma: no cover - only for invalid arguments
-        raise RuntimeError(f"dgeqrf failed (info = {info})")
-    R = qr[:a.shape[1]].copy()
-    R[below] = 0.0
+    rows = a.T
+    if not rows.flags.c_contiguous or rows.shape[1] < rows.shape[0]:
+        raise ValueError(f"a must be a Fortran-ordered array of at least as many rows as columns, not {a.shape}")
+    R = np.empty((rows.shape[0], rows.shape[0]))
+    _LIBRARY.hc_qr_rows(rows, rows.shape[0], rows.shape[1], R)
     return R
 
 
-def _merge(upper: np.ndarray, lower: np.ndarray, below: np.ndarray) -> np.ndarray:
+def _merge(upper: np.ndarray, lower: np.ndarray) -> np.ndarray:
     """``R`` of two stacked triangular factors."""
-    return _triangle(np.asfortranarray(np.vstack([upper, lower])), below)
+    return _triangle(np.asfortranarray(np.vstack([upper, lower])))
 
 
 def triangular_factor(columns, y) -> np.ndarray:
@@ -164,18 +169,10 @@ def factor_of_rows(whole: np.ndarray) -> np.ndarray:
     >>> bool(np.array_equal(factor_of_rows(np.vstack([t, 3.0 * t])), triangular_factor([t], 3.0 * t)))
     True
     """
-    R = _triangle(whole.T, _below(whole.shape[0]))
+    R = _triangle(whole.T)
     # a NaN or inf anywhere reaches R (a column's norm, then every reflector after it): checking the small R
     # instead of the whole copy saves a pass over it
     return R if np.all(np.isfinite(R)) else np.full(R.shape, np.nan)
-
-
-@functools.lru_cache(maxsize=64)
-def _below(width: int) -> np.ndarray:
-    """The (read-only) mask of the strict lower triangle of a ``width x width`` matrix."""
-    mask = np.tri(width, k=-1, dtype=bool)
-    mask.flags.writeable = False
-    return mask
 
 
 def _check_length(a: np.ndarray, n_samples: int):
@@ -272,21 +269,20 @@ def factor_of_blocks(blocks, width: int) -> np.ndarray:
     >>> bool(np.allclose(R.T @ R, A.T @ A))
     True
     """
-    below = _below(width)
     pending: list[tuple[int, np.ndarray]] = []  # (level, R) with strictly decreasing levels
     for part in blocks:
         if not np.all(np.isfinite(part)):
             return np.full((width, width), np.nan)
         if part.shape[0] < width:  # a block shorter than the triangle: zero rows
             part = np.vstack([part, np.zeros((width - part.shape[0], width))])
-        level, R = 0, _triangle(np.asfortranarray(part), below)
+        level, R = 0, _triangle(np.asfortranarray(part))
         while pending and pending[-1][0] == level:
-            R = _merge(pending.pop()[1], R, below)
+            R = _merge(pending.pop()[1], R)
             level += 1
         pending.append((level, R))
     R = pending.pop()[1] if pending else np.zeros((width, width))
     while pending:
-        R = _merge(pending.pop()[1], R, below)
+        R = _merge(pending.pop()[1], R)
     return R
 
 

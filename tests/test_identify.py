@@ -110,13 +110,13 @@ def test_auto_called_directly_runs_its_start_search_in_one_blas_thread(coulomb_r
 
     if max(info["num_threads"] for info in threadpool_info() if info["user_api"] == "blas") < 2:
         pytest.skip("BLAS runs one thread here anyway")
-    threads, geqrf = [], streamed_lstsq._GEQRF
+    threads, rank_check = [], streamed_lstsq._clear_of_rank_loss      # LAPACK's SVD of each start's factor
 
     def spy(*args, **kwargs):
         if not threads:                             # threadpool_info is slow: look once
             threads.append(max(info["num_threads"] for info in threadpool_info() if info["user_api"] == "blas"))
-        return geqrf(*args, **kwargs)
-    monkeypatch.setattr(streamed_lstsq, "_GEQRF", spy)
+        return rank_check(*args, **kwargs)
+    monkeypatch.setattr(streamed_lstsq, "_clear_of_rank_loss", spy)
     res = auto_minimize(HammersteinCost(coulomb_record(1000), HammersteinStructure(LinearStructure(0, 2), Coulomb())),
                         seed=0)
     assert res.success and threads == [1]

@@ -872,7 +872,8 @@ def test_normal_pass_with_an_empty_basis_on_a_long_record_gives_no_index_error()
 
 def test_normal_factor_runs_its_small_qr_factorisations_in_one_blas_thread(monkeypatch):
     """The public ``normal_factor`` (any route; lane groups make it wider) reduces blocks of 8192 x (p + 1)
-    differences with LAPACK's geqrf, but only identify / minimize / levenberg_marquardt hold BLAS to one thread.
+    differences (with LAPACK's geqrf when this was found), but only identify / minimize / levenberg_marquardt held
+    BLAS to one thread.
     Called directly (as its own docstring does), OpenBLAS threaded each small QR: measured on this 2-core
     machine at 1e6 samples, 17 lanes, 2 to 12 s instead of 0.2 to 0.26 s (the project's rule: small dense
     linear algebra in single-threaded BLAS, threadpool_limits(1) around the entry points)."""
@@ -883,13 +884,13 @@ def test_normal_factor_runs_its_small_qr_factorisations_in_one_blas_thread(monke
     structure = _pwl_structure()
     cost = HammersteinCost(_long_enough(structure.n_params + 1), structure)
     threads = []
-    geqrf = streamed_lstsq._GEQRF
+    triangle = streamed_lstsq._triangle         # the QR of each block (the C library's now), inside the limit
 
     def spy(*args, **kwargs):
         if not threads:                             # threadpool_info is slow: look once
             threads.append(max(info["num_threads"] for info in threadpool_info() if info["user_api"] == "blas"))
-        return geqrf(*args, **kwargs)
-    monkeypatch.setattr(streamed_lstsq, "_GEQRF", spy)
+        return triangle(*args, **kwargs)
+    monkeypatch.setattr(streamed_lstsq, "_triangle", spy)
     qr = cost.normal_factor(_stable_pwl_point(structure))
     assert np.isfinite(qr.fun)
     assert threads == [1]

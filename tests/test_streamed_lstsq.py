@@ -710,3 +710,22 @@ def test_kaufman_jacobian_of_a_cancelling_polynomial_basis_equals_the_dense_form
         D[j] = (up - down) / (2 * h[j])
     ref = -(D.T - X @ np.linalg.lstsq(X, D.T, rcond=None)[0]).T
     np.testing.assert_allclose(J, ref, rtol=0, atol=1e-4 * np.abs(ref).max())
+
+
+@pytest.mark.parametrize("scales", [(1.0,) * 6, (1e200,) * 6, (1e-200,) * 6, (1e-310,) * 6,
+                                    (1e150, 1e-150, 1.0, 1e100, 1e-100, 1.0), (0.0, 1.0, 1.0, 1.0, 1.0, 1.0)])
+def test_the_factor_is_lapacks_to_rounding_at_every_scale(scales):
+    """The C library's Householder factorisation against LAPACK's dgeqrf (scipy, an independent oracle): the same
+    R (LAPACK's reflectors, so the same signs) to a few units of rounding of each column, for columns huge, tiny,
+    subnormal, of mixed scales or zero; a value that is not finite makes R all NaN."""
+    from scipy.linalg import lapack
+
+    from hammerstein_ctrl.streamed_lstsq import factor_of_rows
+
+    rows = np.random.default_rng(len(set(scales))).normal(size=(6, 3000)) * np.array(scales)[:, None]
+    R = factor_of_rows(rows.copy())
+    expected = np.triu(lapack.dgeqrf(rows.T.copy(order="F"))[0][:6])
+    column = np.maximum(np.abs(expected).max(axis=0), 1e-320)
+    assert np.max(np.abs(R - expected) / column) < 1e-13
+    rows[2, 7] = np.nan
+    assert np.isnan(factor_of_rows(rows)).all()
