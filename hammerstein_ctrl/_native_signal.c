@@ -39,7 +39,9 @@ static double lane_dot(const double *a, const double *b, int64_t n)
 static double vector_norm(const double *a, int64_t n)
 {
     double s = lane_dot(a, a, n);
-    if (isnan(s) || (isfinite(s) && s >= DBL_MIN))
+    /* past n DBL_MIN the largest square is a normal number, and the squares that are not add at most n
+     * subnormal roundings: 1e-16 of the sum */
+    if (isnan(s) || (isfinite(s) && s >= (double)n * DBL_MIN))
         return sqrt(s);
     double big = 0.0;
     for (int64_t i = 0; i < n; i++)

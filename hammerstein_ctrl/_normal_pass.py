@@ -119,14 +119,14 @@ def normal_factor(num, den, dt: float, y, P, blocks, steps, *, x0=None, offset=N
         :func:`normal_pass` gives ``None``, and NaN sums if a simulation
         overflows.
     """
-    from .streamed_lstsq import factor_of_blocks     # scipy.linalg's LAPACK: imported on first use
+    from .streamed_lstsq import factor_of_blocks     # imports scipy.linalg (its LAPACK): on first use
 
     steps = _pass_steps(steps, P, den)
     lane_pass = _lane_pass(num, den, dt, y, P, x0, offset, intersample, output_map, outputs=True)
     if lane_pass is None:
         return None
     p = lane_pass.lanes - 1
-    with single_threaded_blas():        # a small QR of each block: threads would only spin
+    with single_threaded_blas():        # the blocks' products (the QR is the C library's): threads would only spin
         R = factor_of_blocks(lane_pass.difference_blocks(blocks), p + 1)
     if not lane_pass.signals_finite():   # a signal sample that reached no output
         R[:] = np.nan

@@ -40,6 +40,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .nonlinearities import constant_level
 from .uncertainty import ParameterUncertainty, linear_roots, scaled_eigen, t_factor
 
 __all__ = ["Verdict", "identifiability_verdicts", "linear_verdicts", "row_pole_verdicts", "offset_verdict",
@@ -113,11 +114,13 @@ def variance_inflation(gram) -> np.ndarray:
     return vif
 
 
-def _collinear_groups(gram, undetermined: np.ndarray) -> list[list[int]]:
+def _collinear_groups(gram, undetermined: np.ndarray, linked=()) -> list[list[int]]:
     """The undetermined parameters in groups that trade off against each other.
 
     Each near-null direction of the column-scaled Gram matrix links the
-    parameters that load on it; directions sharing a parameter are merged.
+    parameters that load on it; directions sharing a parameter are merged,
+    and so are the parameters of each list in ``linked`` (a static block
+    that sees a constant signal).
     """
     eig = scaled_eigen(gram)
     if eig is None:
@@ -131,8 +134,9 @@ def _collinear_groups(gram, undetermined: np.ndarray) -> list[list[int]]:
             i = parent[i]
         return i
 
-    for k in np.flatnonzero(w <= max(w[-1], 0.0) / UNDETERMINED_VIF):
-        members = [int(i) for i in np.flatnonzero((np.abs(V[:, k]) > 0.1) & undetermined)]
+    directions = [[int(i) for i in np.flatnonzero((np.abs(V[:, k]) > 0.1) & undetermined)]
+                  for k in np.flatnonzero(w <= max(w[-1], 0.0) / UNDETERMINED_VIF)]
+    for members in directions + [list(group) for group in linked]:
         for i in members[1:]:
             parent[root(i)] = root(members[0])
     groups: dict = {}
@@ -141,26 +145,42 @@ def _collinear_groups(gram, undetermined: np.ndarray) -> list[list[int]]:
     return list(groups.values())
 
 
-def _block_hints(structure, x, model, data) -> dict:
-    """Parameter name -> why the record does not excite it, from the static blocks' own knowledge."""
-    hints = {}
+def _static_blocks(structure, model, data) -> list:
+    """``(nonlinearity, its parameters, its signal (a function), label, its beta names)`` of each static block."""
     if model is None or data is None:
-        return hints
+        return []
     blocks = []
     if structure.input_nonlinearity is not None:
         blocks.append((structure.input_nonlinearity, model.input_params, lambda: np.asarray(data.u, dtype=float),
-                       "input u", 0 if structure._fixed_gain is None else 1))
+                       "input u"))
     if structure.output_nonlinearity is not None:
         blocks.append((structure.output_nonlinearity, model.output_params, lambda: model.linear_output(data),
-                       "output of H", 2))
-    names = _block_names(structure)
-    for (nl, params, signal, label, _), block_names in zip(blocks, names):
+                       "output of H"))
+    return [block + (names,) for block, names in zip(blocks, _block_names(structure))]
+
+
+def _block_hints(blocks) -> dict:
+    """Parameter name -> why the record does not excite it, from the static blocks' own knowledge."""
+    hints = {}
+    for nl, params, signal, label, block_names in blocks:
         with np.errstate(all="ignore"):
             reasons = nl.unexcited(params, signal())
         for i, why in reasons.items():
             if i < len(block_names) and block_names[i] is not None:
                 hints[block_names[i]] = f"{why} ({label})"
     return hints
+
+
+def _unseen(blocks) -> set:
+    """The names of the parameters of the static blocks driven by a constant signal: one value of the map is
+    seen, so none of them is determined, whatever the covariance at the fitted point says (it tells which
+    combinations the point's curvature happens to fix, which on such a record depends on where the fit ended)."""
+    names = set()
+    for _, _, signal, _, block_names in blocks:
+        with np.errstate(all="ignore"):
+            if constant_level(signal()) is not None:
+                names |= {n for n in block_names if n is not None}
+    return names
 
 
 def _block_names(structure) -> list[list]:
@@ -199,13 +219,17 @@ def identifiability_verdicts(structure, x, unc: ParameterUncertainty, *, model=N
     names = structure.param_names
     vif = variance_inflation(unc.gram)
     se = unc.stderr
-    undetermined = ~np.isfinite(se) | (vif > UNDETERMINED_VIF)
+    blocks = _static_blocks(structure, model, data)
+    unseen = _unseen(blocks)
+    undetermined = ~np.isfinite(se) | (vif > UNDETERMINED_VIF) | np.isin(np.asarray(names, dtype=object),
+                                                                         list(unseen))
     verdicts = []
     nuisance = {i for i in range(structure.n_core, len(names))} | {
         i for i, n in enumerate(names) if n in _state_partners(structure)}
-    hints = _block_hints(structure, x, model, data) if undetermined.any() else {}
+    hints = _block_hints(blocks) if undetermined.any() else {}
     zero = ~(np.diag(unc.gram) > 0)
-    for group in _collinear_groups(unc.gram, undetermined):
+    linked = [[names.index(n) for n in block[4] if n in unseen] for block in blocks]
+    for group in _collinear_groups(unc.gram, undetermined, linked):
         verdicts.append(_undetermined([names[i] for i in group], set(group) <= nuisance, hints,
                                       bool(zero[group].all())))
     poor = [i for i in np.flatnonzero(~undetermined)

@@ -435,7 +435,7 @@ class _Regression:
 
     def factor_at(self, theta, drives: _Drives) -> np.ndarray:
         """:meth:`factor` of :meth:`columns` at ``theta``, the same bits; a factor held whole has its responses
-        simulated straight into the matrix LAPACK factors (no copy of the columns)."""
+        simulated straight into the matrix that is factored (no copy of the columns)."""
         drives = drives if isinstance(drives, _Drives) else _Drives.rows(drives)
         width = self.evaluations(drives) + self.constant         # the columns of columns(), in its order
         if drives.array is None or not held_whole(width, self.y.size):

@@ -29,6 +29,7 @@ from ._checks import as_real_array
 from .exceptions import ParameterError, UnknownNameError
 
 __all__ = [
+    "constant_level",
     "Nonlinearity",
     "Tanh",
     "Coulomb",
@@ -256,9 +257,9 @@ class Nonlinearity:
         u = u[np.isfinite(u)]
         if u.size == 0:
             return {}
-        lo, hi = float(u.min()), float(u.max())
-        if hi - lo <= 1e-12 * max(1.0, abs(hi)):
-            why = f"the signal is constant ({hi:.4g}): only the value g({hi:.4g}) is seen"
+        level = constant_level(u)
+        if level is not None:
+            why = f"the signal is constant ({level:.4g}): only the value g({level:.4g}) is seen"
             return {i: why for i in range(self.n_params)}
         return self._unexcited(np.asarray(self.check_params(params), dtype=float), u)
 
@@ -284,6 +285,23 @@ class Nonlinearity:
         p = self.check_params(params)
         vals = ", ".join(f"{n}={v:.6g}" for n, v in zip(self.param_names, np.atleast_1d(p)))
         return f"{self.name}({vals})"
+
+
+def constant_level(signal) -> float | None:
+    """The value of a signal that does not change (its finite samples within 1e-12 of their largest), else None:
+    a static block driven by it shows one value of its map, whatever its parameters.
+
+    Examples
+    --------
+    >>> constant_level([0.7, 0.7, np.nan]), constant_level([0.7, -0.2])
+    (0.7, None)
+    """
+    u = np.asarray(signal, dtype=float)
+    u = u[np.isfinite(u)]
+    if u.size == 0:
+        return None
+    lo, hi = float(u.min()), float(u.max())
+    return hi if hi - lo <= 1e-12 * max(1.0, abs(hi)) else None
 
 
 #: Points of the scans of :meth:`Nonlinearity.shape_grid`.

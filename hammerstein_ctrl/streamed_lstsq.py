@@ -13,7 +13,9 @@ up a reduction tree).  ``R`` holds everything a least-squares solve needs: ``X =
 gives the same coefficients as a solve on ``X`` itself, with the accuracy of
 a QR factorisation (forming ``X^T X`` would square the condition number).
 A regression small enough (:data:`WHOLE_FACTOR_BYTES`) is copied whole and
-factored in one LAPACK call instead, which is faster than its blocks.
+factored in one call instead, which is faster than its blocks.  The
+factorisations are the package's C library's (Householder, LAPACK's
+reflectors).
 
 Columns are given as a sequence of arrays of shape ``(N,)`` or ``(p_i, N)``
 (each row one column), in column order.
@@ -52,8 +54,9 @@ __all__ = ["BLOCK_SAMPLES", "triangular_factor", "factor_of_blocks", "rank_toler
 #: ``p + 1`` columns takes ``8 (p + 1) BLOCK_SAMPLES`` bytes).
 BLOCK_SAMPLES = 8192
 #: Size of ``[X y]`` (``8 (p + 1) N`` bytes) up to which :func:`triangular_factor` copies it whole and
-#: factors it in one LAPACK call: on the EMPS record (12 000 samples, 6 columns) that takes 200 us
-#: where the blocks and their merges took 430 us, and the copy is small beside the record.
+#: factors it in one call: on the EMPS record (12 000 samples, 6 columns) that took 200 us where the blocks
+#: and their merges took 430 us (with LAPACK's factorisation, when this was chosen), and the copy is small
+#: beside the record.
 WHOLE_FACTOR_BYTES = 1 << 22
 
 _TRTRI = scipy.linalg.get_lapack_funcs(("trtri",), dtype=np.float64)[0]
@@ -95,8 +98,9 @@ def _triangle(a: np.ndarray) -> np.ndarray:
     regression of 12 000 samples and 6 columns, the same ``R`` to a few units
     of rounding.
     """
+    a = np.require(a, np.float64, ["F_CONTIGUOUS", "WRITEABLE"])     # a copy only if it is not one already
     rows = a.T
-    if not rows.flags.c_contiguous or rows.shape[1] < rows.shape[0]:
+    if a.ndim != 2 or rows.shape[1] < rows.shape[0]:
         raise ValueError(f"a must be a Fortran-ordered array of at least as many rows as columns, not {a.shape}")
     R = np.empty((rows.shape[0], rows.shape[0]))
     _LIBRARY.hc_qr_rows(rows, rows.shape[0], rows.shape[1], R)
@@ -112,7 +116,7 @@ def triangular_factor(columns, y) -> np.ndarray:
     """Upper-triangular factor ``R`` (``(p + 1, p + 1)``) of the QR factorisation of ``[X y]``.
 
     Up to :data:`WHOLE_FACTOR_BYTES`, ``[X y]`` is copied whole and factored
-    in one LAPACK call.  Past it, each block of samples is factored on its own and the factors are merged
+    in one call.  Past it, each block of samples is factored on its own and the factors are merged
     pairwise as in a binary counter (a reduction tree: every sample passes
     through about ``log2(N / BLOCK_SAMPLES)`` merges, so rounding errors grow
     far more slowly than when each block is stacked under one running factor).
@@ -147,7 +151,7 @@ def triangular_factor(columns, y) -> np.ndarray:
 
 
 def held_whole(width: int, n_samples: int) -> bool:
-    """Whether :func:`triangular_factor` factors ``[X y]`` of ``width`` columns held whole (in one LAPACK call).
+    """Whether :func:`triangular_factor` factors ``[X y]`` of ``width`` columns held whole (in one call).
 
     Examples
     --------
@@ -160,7 +164,7 @@ def held_whole(width: int, n_samples: int) -> bool:
 def factor_of_rows(whole: np.ndarray) -> np.ndarray:
     """:func:`triangular_factor` of ``[X y]`` held whole as C-ordered rows ``(p + 1, N)`` (overwritten), ``y`` last.
 
-    The rows' transpose is ``[X y]`` in Fortran order, which LAPACK factors
+    The rows' transpose is ``[X y]`` in Fortran order, which is factored
     where it lies, so a caller may simulate its columns straight into
     ``whole``.  All NaN if a value is not finite (or the factorisation overflows).
 
@@ -274,6 +278,8 @@ def factor_of_blocks(blocks, width: int) -> np.ndarray:
     for part in blocks:
         if not np.all(np.isfinite(part)):
             return np.full((width, width), np.nan)
+        if np.ndim(part) != 2 or np.shape(part)[1] != width:
+            raise ValueError(f"a block of shape {np.shape(part)} does not have the {width} columns of the factor")
         if part.shape[0] < width:  # a block shorter than the triangle: zero rows
             part = np.vstack([part, np.zeros((width - part.shape[0], width))])
         level, R = 0, _triangle(np.asfortranarray(part))

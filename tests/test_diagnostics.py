@@ -119,6 +119,16 @@ def test_a_constant_input_leaves_the_nonlinearity_undetermined():
     assert any("constant (0.7)" in v.message for v in res.verdicts if v.code == "undetermined")
 
 
+@pytest.mark.parametrize("x0", [[1.0, 2.0, 3.0, 1.5, 0.8], [12.8, 12.8, 13.8, 0.76, 5.3], [5.0, 1.0, 0.5, 10.0, 0.1]])
+def test_a_constant_input_leaves_the_nonlinearity_undetermined_wherever_the_fit_ends(x0):
+    """The record shows one value of g whatever its parameters: the verdict names them all, with that reason,
+    from every end point (the covariance alone named them or not depending on where the fit ended)."""
+    res = fit("constant_input", method="lm", x0=x0)
+    assert not res.success
+    undetermined = [v for v in res.verdicts if v.code == "undetermined" and {"d0", "d1"} <= set(v.params)]
+    assert len(undetermined) == 1 and "constant (0.7)" in undetermined[0].message
+
+
 def test_offset_and_initial_state_of_an_integrator_get_their_own_verdict(emps_case):
     with pytest.warns(IdentificationWarning, match="not separately determined"):
         res = hc.identify(emps_case.data, emps_case.structure, initial_state="estimate", offset=True)

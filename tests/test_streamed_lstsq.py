@@ -427,7 +427,7 @@ def test_auto_finds_a_lightly_damped_plant_whose_poles_lie_near_its_zeros():
     assert r.fun / n < 1.5e-4, r.message
 
 
-@pytest.mark.parametrize("n", [50, 20000, 300000])      # whole (one LAPACK call) up to 4 MiB, in blocks past it
+@pytest.mark.parametrize("n", [50, 20000, 300000])      # whole (one call) up to 4 MiB, in blocks past it
 def test_the_whole_and_the_blocked_factor_give_the_dense_fit_and_check_lengths(n):
     rng = np.random.default_rng(n)
     X, y = rng.normal(size=(3, n)), rng.normal(size=n)
@@ -729,3 +729,28 @@ def test_the_factor_is_lapacks_to_rounding_at_every_scale(scales):
     assert np.max(np.abs(R - expected) / column) < 1e-13
     rows[2, 7] = np.nan
     assert np.isnan(factor_of_rows(rows)).all()
+
+
+def test_the_factor_takes_squares_below_the_normal_range_and_any_block_it_is_given():
+    """A column whose squares are subnormal but sum past the smallest normal number is normed from its scaled
+    values (the plain sum of squares was 4e-13 off); read-only, integer and C-ordered blocks are factored (copied
+    where they must be); a block of another width is refused."""
+    from scipy.linalg import lapack
+
+    from hammerstein_ctrl.streamed_lstsq import factor_of_blocks, factor_of_rows
+
+    v = 1.6810375542488234e-156
+    rows = np.vstack([np.r_[0.0, np.full(8192, v)], np.linspace(-1.0, 1.0, 8193)])
+    R = factor_of_rows(rows.copy())
+    expected = np.triu(lapack.dgeqrf(rows.T.copy(order="F"))[0][:2])
+    assert abs(R[0, 0] - expected[0, 0]) <= 1e-15 * abs(expected[0, 0])
+    A = np.random.default_rng(3).normal(size=(40, 3))
+    frozen = np.asfortranarray(A)
+    frozen.flags.writeable = False
+    reference = factor_of_blocks([A.copy(order="F")], 3)
+    for block in (frozen, np.ascontiguousarray(A), np.round(A * 10).astype(np.int64) / 10 * 0 + A):
+        np.testing.assert_array_equal(factor_of_blocks([block], 3), reference)
+    np.testing.assert_array_equal(factor_of_blocks([np.arange(12).reshape(4, 3)], 3),
+                                  factor_of_blocks([np.arange(12.0).reshape(4, 3)], 3))
+    with pytest.raises(ValueError, match="does not have the 3 columns"):
+        factor_of_blocks([np.ones((10, 4))], 3)
