@@ -317,3 +317,20 @@ void hc_fill_coefficients(const double *theta, int64_t batch, int64_t stride, co
             db[den_pos[j]] = tb[k + j];
     }
 }
+
+/* The Frobenius norm of T^-1 for an upper-triangular T (n x n, C order; its strict lower triangle not read), by
+ * back substitution, column by column of the identity; not finite where T is singular or the inverse overflows. */
+double hc_triangular_inverse_norm(const double *T, int64_t n)
+{
+    double total = 0.0, x[n > 0 ? n : 1];
+    for (int64_t j = 0; j < n; j++) {
+        for (int64_t i = j; i >= 0; i--) {
+            double s = i == j ? 1.0 : 0.0;
+            for (int64_t k = i + 1; k <= j; k++)
+                s -= T[i * n + k] * x[k];
+            x[i] = s / T[i * n + i];
+            total += x[i] * x[i];
+        }
+    }
+    return sqrt(total);
+}

@@ -358,9 +358,25 @@ def _scaled_factor(R: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
 
 
 def _clear_of_rank_loss(T: np.ndarray, cut: float) -> bool:
-    """Whether the smallest singular value of ``T`` (unit-norm columns) exceeds ``cut`` times the largest."""
+    """Whether the smallest singular value of ``T`` (upper triangular, unit-norm columns) exceeds ``cut`` times the
+    largest.
+
+    Mostly decided without the SVD: the largest is at most ``sqrt(p)`` (the
+    Frobenius norm of ``p`` unit columns) and the smallest at least
+    ``1 / |T^-1|_F``, so ``2 sqrt(p) cut |T^-1|_F < 1`` (the factor 2 for the
+    rounding of an inverse whose condition is then below ``1 / cut``) proves
+    it, in a microsecond of the C library's back substitution; the SVD
+    (27 us through numpy) decides the rest.
+    """
+    p = T.shape[0]
+    if p == 0:
+        return True
+    T = np.ascontiguousarray(T, dtype=float)
+    bound = _LIBRARY.hc_triangular_inverse_norm(T, p) if T.shape == (p, p) else np.inf
+    if 2.0 * np.sqrt(p) * cut * bound < 1.0:
+        return True
     sigma = np.linalg.svd(T, compute_uv=False)
-    return bool(sigma.size == 0 or sigma[-1] > cut * sigma[0])
+    return bool(sigma[-1] > cut * sigma[0])
 
 
 @functools.lru_cache(maxsize=64)

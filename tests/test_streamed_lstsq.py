@@ -754,3 +754,27 @@ def test_the_factor_takes_squares_below_the_normal_range_and_any_block_it_is_giv
                                   factor_of_blocks([np.arange(12.0).reshape(4, 3)], 3))
     with pytest.raises(ValueError, match="does not have the 3 columns"):
         factor_of_blocks([np.ones((10, 4))], 3)
+
+
+def test_the_rank_check_agrees_with_the_svd_on_clear_and_borderline_factors():
+    """_clear_of_rank_loss proves independence from the inverse's norm where it can and asks the SVD otherwise:
+    over random unit-column triangular factors, from well conditioned to singular (condition 1e2 to 1e12, around
+    the cut of 1e-8), it decides as the singular values say."""
+    from hammerstein_ctrl.streamed_lstsq import _clear_of_rank_loss
+
+    rng = np.random.default_rng(11)
+    decided = []
+    for _ in range(400):
+        p = int(rng.integers(1, 9))
+        Q = np.linalg.qr(rng.normal(size=(p, p)))[0]
+        s = np.logspace(0, -rng.uniform(2, 12), p)
+        T = np.linalg.qr((Q * s) @ np.linalg.qr(rng.normal(size=(p, p)))[0])[1]
+        T = T / np.linalg.norm(T, axis=0)
+        sigma = np.linalg.svd(T, compute_uv=False)
+        expected = bool(sigma[-1] > 1e-8 * sigma[0])
+        assert _clear_of_rank_loss(T, 1e-8) == expected
+        decided.append(expected)
+    assert 50 < sum(decided) < 350                      # both answers were exercised
+    T = np.triu(np.ones((3, 3)))
+    T[1, 1] = 0.0                                       # singular: the inverse is not finite, the SVD decides
+    assert not _clear_of_rank_loss(T / np.linalg.norm(T, axis=0), 1e-8)
