@@ -38,10 +38,6 @@ static int fit_shape(const Py_buffer *view, const char *dims, long long *bound, 
     int ndim = 0;
     const char *d = dims;
     char given[96] = "", bindings[96] = "";
-    for (int k = 0; k < view->ndim && k < 3; k++) {
-        size_t used = strlen(given);
-        snprintf(given + used, sizeof given - used, k ? ", %lld" : "%lld", (long long)view->shape[k]);
-    }
     while (*d) {
         long long size = ndim < view->ndim ? (long long)view->shape[ndim] : -1;
         if (*d >= 'A' && *d <= 'Z') {
@@ -81,7 +77,11 @@ static int fit_shape(const Py_buffer *view, const char *dims, long long *bound, 
     }
     if (ndim == view->ndim && ndim <= 3)
         return 0;
-bad:
+bad:                                /* the message is written only for a refusal, never on the way of a call */
+    for (int k = 0; k < view->ndim && k < 3; k++) {
+        size_t used = strlen(given);
+        snprintf(given + used, sizeof given - used, k ? ", %lld" : "%lld", (long long)view->shape[k]);
+    }
     PyErr_Format(PyExc_ValueError, "%s: %s has shape (%s), not (%s)%s", kernel, name, given, dims, bindings);
     return -1;
 }
