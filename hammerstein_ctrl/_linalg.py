@@ -36,8 +36,8 @@ import numpy as np
 from ._jit import cached_njit
 from ._native import c_call, library
 
-__all__ = ["copy_vector", "fill_coefficients", "filled_coefficients", "expm_batch", "expm_into", "one_norm",
-           "tf_augmented", "tf_discrete", "tf_discrete_into", "single_threaded_blas", "solve_in_place",
+__all__ = ["copy_vector", "fill_coefficients", "filled_coefficients", "positions_fit", "expm_batch", "expm_into",
+           "one_norm", "tf_augmented", "tf_discrete", "tf_discrete_into", "single_threaded_blas", "solve_in_place",
            "symmetric_eigenvalues"]
 
 _LIBRARY = library()
@@ -417,10 +417,23 @@ def fill_coefficients(theta, num0, den0, num_pos, den_pos):
     if theta.ndim != 2 or theta.shape[1] < num_pos.size + den_pos.size:
         raise ValueError(f"theta must have rows of at least {num_pos.size + den_pos.size} values, not shape "
                          f"{theta.shape}")
-    if not (np.all((0 <= num_pos) & (num_pos < num0.size)) and np.all((0 <= den_pos) & (den_pos < den0.size))):
+    if not positions_fit(num0, den0, num_pos, den_pos):
         raise ValueError(f"positions {num_pos.tolist()} and {den_pos.tolist()} must index num0 ({num0.size} values) "
                          f"and den0 ({den0.size})")
     return filled_coefficients(theta, num0, den0, num_pos, den_pos)
+
+
+def positions_fit(num0, den0, num_pos, den_pos) -> bool:
+    """Whether the positions ``num_pos``/``den_pos`` index ``num0``/``den0`` (what the C library writes at).
+
+    Examples
+    --------
+    >>> positions_fit(np.zeros(1), np.zeros(3), np.array([0]), np.array([1, 2])), positions_fit(
+    ...     np.zeros(1), np.zeros(3), np.array([1]), np.array([1]))
+    (True, False)
+    """
+    return bool(np.all((0 <= num_pos) & (num_pos < np.size(num0)))
+                and np.all((0 <= den_pos) & (den_pos < np.size(den0))))
 
 
 def filled_coefficients(theta, num0, den0, num_pos, den_pos):

@@ -32,6 +32,7 @@ import math
 import numpy as np
 
 from .. import config
+from .._linalg import positions_fit
 from .._native import library
 from ..kernels import normal_kernel_address
 from ..normal_equations import FD_REL_STEP
@@ -319,8 +320,7 @@ def _loop_fits(p, K, N, gradient, gram, steps, scale, state, counts, settings, d
             and all(log.ndim == 2 for log in logs) and logs[0].shape[1] == logs[1].shape[1] == p
             and logs[2].shape[1] == p + 1 and counts[3] == 0 and p + 1 <= counts[2] <= rows * (p + 1)
             and d.n == d.den0.size - 1 and n_linear <= p and d.num0.size <= d.den0.size
-            and np.all((0 <= d.num_pos) & (d.num_pos < d.num0.size))
-            and np.all((0 <= d.den_pos) & (d.den_pos < d.den0.size))
+            and positions_fit(d.num0, d.den0, d.num_pos, d.den_pos)
             and K == (p - n_linear if d.has_g else 1) and K >= 1)
 
 
