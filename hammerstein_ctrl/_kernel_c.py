@@ -163,6 +163,11 @@ class _Translator:
         self.returns = False            # True for an output map's formula (a function of one sample)
         self.map_source = None          # the C of the output map h, if the kernel calls one
         self.rows: dict = {}            # names holding a row of a two-dimensional array, and that array
+        self.assigned: dict = {}        # each name's assigned values (plain assignments, in order)
+        for node in ast.walk(function):
+            if isinstance(node, ast.Assign):
+                for target in {t.id for t in node.targets if isinstance(t, ast.Name)}:
+                    self.assigned.setdefault(target, []).append(node.value)
         self._infer(function.body)
 
     # -- types ---------------------------------------------------------------------------------------------------
@@ -209,13 +214,10 @@ class _Translator:
         """The largest value the literal size ``node`` takes: a literal, or a name only ever set to literals."""
         if isinstance(node, ast.Constant) and isinstance(node.value, int):
             return node.value
-        values = [n.value.value for n in ast.walk(self.function) if isinstance(n, ast.Assign)
-                  and any(isinstance(t, ast.Name) and t.id == getattr(node, "id", None) for t in n.targets)
-                  and isinstance(n.value, ast.Constant)]
-        if not values or len(values) != sum(1 for n in ast.walk(self.function) if isinstance(n, ast.Assign) and any(
-                isinstance(t, ast.Name) and t.id == getattr(node, "id", None) for t in n.targets)):
+        values = self.assigned.get(getattr(node, "id", None), [])
+        if not values or not all(isinstance(v, ast.Constant) for v in values):
             raise NotImplementedError(f"local array of size {ast.unparse(node)}, not a literal")
-        return max(values)
+        return max(v.value for v in values)
 
     def _row_of(self, node) -> str | None:
         """The array ``A`` of a row ``A[i]`` of a two-dimensional array; else None."""
@@ -233,8 +235,7 @@ class _Translator:
         if isinstance(node, ast.Constant):
             return isinstance(node.value, bool)
         if isinstance(node, ast.Name):
-            values = [n.value for n in ast.walk(self.function) if isinstance(n, ast.Assign)
-                      and any(isinstance(t, ast.Name) and t.id == node.id for t in n.targets)]
+            values = self.assigned.get(node.id, [])
             return bool(values) and all(self._truth(v) for v in values if v is not node)
         return False
 
