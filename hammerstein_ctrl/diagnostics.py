@@ -36,6 +36,7 @@ Examples
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -146,16 +147,17 @@ def _collinear_groups(gram, undetermined: np.ndarray, linked=()) -> list[list[in
 
 
 def _static_blocks(structure, model, data) -> list:
-    """``(nonlinearity, its parameters, its signal (a function), label, its beta names)`` of each static block."""
+    """``(nonlinearity, its parameters, its signal (a function, evaluated once), label, its beta names)`` of each
+    static block."""
     if model is None or data is None:
         return []
     blocks = []
     if structure.input_nonlinearity is not None:
-        blocks.append((structure.input_nonlinearity, model.input_params, lambda: np.asarray(data.u, dtype=float),
-                       "input u"))
+        blocks.append((structure.input_nonlinearity, model.input_params,
+                       functools.cache(lambda: np.asarray(data.u, dtype=float)), "input u"))
     if structure.output_nonlinearity is not None:
-        blocks.append((structure.output_nonlinearity, model.output_params, lambda: model.linear_output(data),
-                       "output of H"))
+        blocks.append((structure.output_nonlinearity, model.output_params,
+                       functools.cache(lambda: model.linear_output(data)), "output of H"))     # a simulation
     return [block + (names,) for block, names in zip(blocks, _block_names(structure))]
 
 
@@ -221,8 +223,7 @@ def identifiability_verdicts(structure, x, unc: ParameterUncertainty, *, model=N
     se = unc.stderr
     blocks = _static_blocks(structure, model, data)
     unseen = _unseen(blocks)
-    undetermined = ~np.isfinite(se) | (vif > UNDETERMINED_VIF) | np.isin(np.asarray(names, dtype=object),
-                                                                         list(unseen))
+    undetermined = ~np.isfinite(se) | (vif > UNDETERMINED_VIF) | np.array([n in unseen for n in names], dtype=bool)
     verdicts = []
     nuisance = {i for i in range(structure.n_core, len(names))} | {
         i for i, n in enumerate(names) if n in _state_partners(structure)}

@@ -89,7 +89,8 @@ def _fill(rows, begin: int, stop: int, out: np.ndarray):
 
 
 def _triangle(a: np.ndarray) -> np.ndarray:
-    """The ``R`` of a QR factorisation of ``a`` (Fortran-ordered, at least as many rows as columns; overwritten).
+    """The ``R`` of a QR factorisation of ``a`` (at least as many rows as columns; overwritten where it is a
+    writeable, Fortran-ordered float array, else factored in such a copy).
 
     The C library's Householder factorisation of the columns where they lie
     (a Fortran-ordered array's columns are the rows of its C-ordered
@@ -101,7 +102,7 @@ def _triangle(a: np.ndarray) -> np.ndarray:
     a = np.require(a, np.float64, ["F_CONTIGUOUS", "WRITEABLE"])     # a copy only if it is not one already
     rows = a.T
     if a.ndim != 2 or rows.shape[1] < rows.shape[0]:
-        raise ValueError(f"a must be a Fortran-ordered array of at least as many rows as columns, not {a.shape}")
+        raise ValueError(f"a must be a matrix of at least as many rows as columns, not of shape {a.shape}")
     R = np.empty((rows.shape[0], rows.shape[0]))
     _LIBRARY.hc_qr_rows(rows, rows.shape[0], rows.shape[1], R)
     return R
@@ -109,7 +110,7 @@ def _triangle(a: np.ndarray) -> np.ndarray:
 
 def _merge(upper: np.ndarray, lower: np.ndarray) -> np.ndarray:
     """``R`` of two stacked triangular factors."""
-    return _triangle(np.asfortranarray(np.vstack([upper, lower])))
+    return _triangle(np.vstack([upper, lower]))
 
 
 def triangular_factor(columns, y) -> np.ndarray:
@@ -282,7 +283,7 @@ def factor_of_blocks(blocks, width: int) -> np.ndarray:
             raise ValueError(f"a block of shape {np.shape(part)} does not have the {width} columns of the factor")
         if part.shape[0] < width:  # a block shorter than the triangle: zero rows
             part = np.vstack([part, np.zeros((width - part.shape[0], width))])
-        level, R = 0, _triangle(np.asfortranarray(part))
+        level, R = 0, _triangle(part)
         while pending and pending[-1][0] == level:
             R = _merge(pending.pop()[1], R)
             level += 1
