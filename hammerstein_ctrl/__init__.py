@@ -8,8 +8,10 @@ python-control (``control.TransferFunction``, ``control.NonlinearIOSystem``)
 for analysis and controller design.
 
 Sub-modules and the names below are imported on first use (PEP 562), so
-``import hammerstein_ctrl`` costs no numpy, scipy, numba or python-control
-import until something is actually needed.
+``import hammerstein_ctrl`` costs no numpy, scipy or python-control import
+until something is actually needed.  The simulation kernels are the compiled
+core ``hammerstein_ctrl._core``, built when the package is installed: nothing
+is compiled, cached or written when it runs.
 
 Examples
 --------
@@ -24,11 +26,12 @@ Examples
 import importlib
 import sys
 import types
+import warnings
 
-from .exceptions import (CacheWarning, DataError, HammersteinError, IdentificationWarning, NativeBuildError,
-                         ParameterError, SimulationWarning, UnknownNameError)
+from .exceptions import (DataError, HammersteinError, IdentificationWarning, ParameterError, SimulationWarning,
+                         UnknownNameError)
 
-__version__ = "0.1.0"
+__version__ = "0.2.0"
 
 #: Sub-modules exposed as attributes of the package.
 _SUBMODULES = ("iodata", "metrics", "nonlinearities", "optimize", "plots", "records",
@@ -76,8 +79,14 @@ __all__ = [
     "minimize", "HammersteinCost", "fit_percent", "fit_report", "nrmse", "rmse", "sse",
     "load_model", "save_model", "load_result", "save_result",
     "DataError", "HammersteinError", "ParameterError", "UnknownNameError", "IdentificationWarning",
-    "SimulationWarning", "CacheWarning", "NativeBuildError", "__version__",
+    "SimulationWarning", "__version__",
 ]
+
+#: Names removed from the front door, kept for one release with a DeprecationWarning: why each went.
+_DEPRECATED = {
+    "NativeBuildError": "the compiled core is built when the package is installed, so nothing raises it any more",
+    "CacheWarning": "nothing is compiled or cached at run time, so nothing issues it any more",
+}
 
 
 #: Short names of the paper layer's modules (:mod:`hammerstein_ctrl.paper`).
@@ -87,6 +96,10 @@ _PAPER_MODULES = {"presets": "paper.presets", "datasets": "paper.datasets", "stu
 
 def __getattr__(name):
     """Import a sub-module or public name on first access (PEP 562)."""
+    if name in _DEPRECATED:
+        warnings.warn(f"hammerstein_ctrl.{name} is deprecated and will be removed: {_DEPRECATED[name]}",
+                      DeprecationWarning, stacklevel=2)
+        return getattr(importlib.import_module(f"{__name__}.exceptions"), name)
     if name in _SUBMODULES or name in _PAPER_MODULES:
         value = importlib.import_module(f"{__name__}.{_PAPER_MODULES.get(name, name)}")
     elif name in _LAZY_NAMES:

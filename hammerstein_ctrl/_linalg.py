@@ -1,4 +1,4 @@
-"""Small dense linear algebra, in the package's C library, for Python and compiled callers alike.
+"""Small dense linear algebra, in the package's compiled core.
 
 The simulator needs one matrix exponential of a tiny matrix (``n + 2`` rows,
 ``n`` the order of the linear block) per candidate.  ``scipy.linalg.expm``
@@ -9,12 +9,9 @@ scaling-and-squaring algorithm with the degree-13 Pade approximant, written as
 plain loops: single-threaded, accurate to a few units of roundoff, and a few
 microseconds for a 4x4 matrix.
 
-These functions live in the C library of :mod:`~hammerstein_ctrl._native`
-(built once per machine in about a second of compiler CPU, where numba compiled
-them for about ten seconds on a machine's first fit).  Each is one definition
-with two doors: called from Python it goes through the library's Python
-module, and called from compiled code numba calls the C function directly
-(an overload of the same name), so both give the same bits.
+These functions are C in the compiled core (``hammerstein_ctrl._core``, built
+when the package is installed); the core's own kernels call the same C, so
+both give the same bits.
 
 Examples
 --------
@@ -30,17 +27,13 @@ import contextlib
 import functools
 import threading
 
-import numba.extending
 import numpy as np
 
-from ._jit import cached_njit
-from ._native import c_call, library
+from . import _core
 
-__all__ = ["copy_vector", "fill_coefficients", "filled_coefficients", "positions_fit", "expm_batch", "expm_into",
+__all__ = ["fill_coefficients", "filled_coefficients", "positions_fit", "expm_batch", "expm_into",
            "one_norm", "tf_augmented", "tf_discrete", "tf_discrete_into", "single_threaded_blas", "solve_in_place",
            "symmetric_eigenvalues"]
-
-_LIBRARY = library()
 
 
 def _input(array, dtype=np.float64) -> np.ndarray:
@@ -73,21 +66,6 @@ def _shaped(array, shape: tuple, what: str):
     return array
 
 
-@numba.extending.intrinsic
-def _c_one_norm(typingctx, M, n):
-    return c_call("hc_one_norm", (M, n))
-
-
-@numba.extending.intrinsic
-def _c_expm(typingctx, M, n, out):
-    return c_call("hc_expm", (M, n, out))
-
-
-@numba.extending.intrinsic
-def _c_augmented(typingctx, num, den, batch, nnum, nden, dt, M, C, D):
-    return c_call("hc_tf_augmented", (num, den, batch, nnum, nden, dt, M, C, D))
-
-
 def one_norm(M) -> float:
     """Largest absolute column sum of the square ``M`` (a NaN column is passed over, as Python's ``max`` does).
 
@@ -97,12 +75,7 @@ def one_norm(M) -> float:
     6.0
     """
     M = _square(M, "M")
-    return _LIBRARY.hc_one_norm(M, M.shape[0])
-
-
-@numba.extending.overload(one_norm)
-def _one_norm_compiled(M):
-    return lambda M: _c_one_norm(M, M.shape[0])
+    return _core.hc_one_norm(M, M.shape[0])
 
 
 def solve_in_place(A, B) -> None:
@@ -123,7 +96,7 @@ def solve_in_place(A, B) -> None:
     n = A.shape[0]
     if getattr(B, "ndim", 0) != 2 or B.shape[0] != n:
         raise ValueError(f"B must be a matrix of {n} rows, not {getattr(B, 'shape', type(B).__name__)}")
-    _LIBRARY.hc_solve_in_place(A, n, B, B.shape[1])
+    _core.hc_solve_in_place(A, n, B, B.shape[1])
 
 
 def symmetric_eigenvalues(S) -> np.ndarray:
@@ -141,23 +114,8 @@ def symmetric_eigenvalues(S) -> np.ndarray:
     """
     A = np.array(_square(S, "S"), order="C")
     w = np.empty(A.shape[0])
-    _LIBRARY.hc_symmetric_eigenvalues(A, A.shape[0], w)
+    _core.hc_symmetric_eigenvalues(A, A.shape[0], w)
     return w
-
-
-@cached_njit(inline="always")
-def copy_vector(src, dst):  # pragma: no cover - compiled
-    """``dst[:] = src`` for vectors of one length, element by element, in compiled code: an array assigned to a
-    slice makes numba compile its shape-mismatch reporting (string formatting, about 5 s on a first use).
-    The lengths are not checked (``dst``'s is used): the caller makes them equal.
-
-    Examples
-    --------
-    >>> dst = np.zeros(2); copy_vector(np.array([1.0, 2.0]), dst); dst
-    array([1., 2.])
-    """
-    for i in range(dst.shape[0]):
-        dst[i] = src[i]
 
 
 def expm_into(M, out) -> None:
@@ -171,12 +129,7 @@ def expm_into(M, out) -> None:
     True
     """
     M = _square(M, "M")
-    _LIBRARY.hc_expm(M, M.shape[0], _shaped(out, M.shape, "out"))
-
-
-@numba.extending.overload(expm_into)
-def _expm_into_compiled(M, out):
-    return lambda M, out: _c_expm(M, M.shape[0], out)
+    _core.hc_expm(M, M.shape[0], _shaped(out, M.shape, "out"))
 
 
 def tf_augmented(num, den, dt):
@@ -207,19 +160,9 @@ def tf_augmented(num, den, dt):
     num, den = _rows(num, den)
     batch, n = den.shape[0], den.shape[1] - 1
     M, C, D = np.empty((batch, n + 2, n + 2)), np.empty((batch, n)), np.empty(batch)
-    _LIBRARY.hc_tf_augmented(num, den, batch, num.shape[1], den.shape[1], float(dt),
+    _core.hc_tf_augmented(num, den, batch, num.shape[1], den.shape[1], float(dt),
                              M, C, D)
     return M, C, D
-
-
-@numba.extending.overload(tf_augmented)
-def _tf_augmented_compiled(num, den, dt):
-    def impl(num, den, dt):
-        batch, n = den.shape[0], den.shape[1] - 1
-        M, C, D = np.empty((batch, n + 2, n + 2)), np.empty((batch, n)), np.empty(batch)
-        _c_augmented(num, den, batch, num.shape[1], den.shape[1], dt, M, C, D)
-        return M, C, D
-    return impl
 
 
 def tf_discrete_into(num, den, dt, max_norm, E, C, D, ok, big) -> bool:
@@ -243,7 +186,7 @@ def tf_discrete_into(num, den, dt, max_norm, E, C, D, ok, big) -> bool:
     for array, shape, what in ((E, (batch, n + 2, n + 2), "E"), (C, (batch, n), "C"), (D, (batch,), "D"),
                                (ok, (batch,), "ok"), (big, (batch,), "big")):
         _shaped(array, shape, what)
-    return _LIBRARY.hc_tf_discrete(num, den, den.shape[0], num.shape[1], den.shape[1],
+    return _core.hc_tf_discrete(num, den, den.shape[0], num.shape[1], den.shape[1],
                                    float(dt), float(max_norm), E, C, D,
                                    ok, big)
 
@@ -288,7 +231,7 @@ def expm_batch(M) -> np.ndarray:
     E = np.empty_like(M)
     m = M.shape[1]
     for k in range(M.shape[0]):
-        _LIBRARY.hc_expm(M[k], m, E[k])
+        _core.hc_expm(M[k], m, E[k])
     return E
 
 
@@ -440,7 +383,7 @@ def filled_coefficients(theta, num0, den0, num_pos, den_pos):
     """:func:`fill_coefficients` for arrays a caller has checked once (C-ordered, of the library's types, positions
     within ``num0``/``den0``, rows of ``theta`` long enough): a structure's template, on every evaluation."""
     num, den = np.empty((theta.shape[0], num0.size)), np.empty((theta.shape[0], den0.size))
-    _LIBRARY.hc_fill_coefficients(theta, theta.shape[0], theta.shape[1], num0, num0.size,
+    _core.hc_fill_coefficients(theta, theta.shape[0], theta.shape[1], num0, num0.size,
                                   den0, den0.size, num_pos, num_pos.size,
                                   den_pos, den_pos.size, num, den)
     return num, den

@@ -18,7 +18,7 @@ import traceback
 import warnings
 from pathlib import Path
 
-from .exceptions import HammersteinError, IdentificationWarning, NativeBuildError
+from .exceptions import HammersteinError, IdentificationWarning
 
 __all__ = ["main", "build_parser", "EXIT_ERROR", "PROG"]
 
@@ -532,19 +532,13 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
         add_select_parser(sub, _count, _number, _writable_file)
     else:
         sub.add_parser("select", help=SELECT_HELP)
-    from .cli_warmup import WARMUP_HELP, add_warmup_parser
-
-    if command in (None, "warmup"):
-        add_warmup_parser(sub, _count)
-    else:
-        sub.add_parser("warmup", help=WARMUP_HELP)
     return parser
 
 
 def _one_line(exc: BaseException) -> str:
     """The error message of ``exc`` on one line; the exception type for anything unexpected."""
     text = " ".join(line.strip() for line in str(exc).strip().splitlines() if line.strip())
-    if isinstance(exc, (HammersteinError, OSError, NativeBuildError)):
+    if isinstance(exc, (HammersteinError, OSError)):
         return text or type(exc).__name__
     return f"{type(exc).__name__}: {text} (an unexpected failure: rerun with --debug for the traceback)"
 

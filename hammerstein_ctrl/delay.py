@@ -41,8 +41,7 @@ import numpy as np
 
 from ._checks import (ESTIMATE, as_signal, check_delay, check_dt, check_intersample, check_transfer_function,
                       uniform_grid)
-from ._jit import cached_njit
-from ._linalg import copy_vector
+from . import _core
 from .exceptions import ParameterError
 from .simulate import companion_realization, discretize
 
@@ -106,27 +105,6 @@ def delayed_values(now, before, a: float, hold: str):
     return a * before + (1.0 - a) * now, now
 
 
-@cached_njit(depends=("_linalg.py",))     # copy_vector is compiled into it
-def _recursion(M, Pa, Pb, Pc, C, D, x0, w0, w1, out):  # pragma: no cover - compiled
-    n = M.shape[0]
-    x = x0.copy()
-    xn = np.empty(n)
-    N = w0.size
-    for k in range(N):
-        acc = D * w0[k]
-        for i in range(n):
-            acc += C[i] * x[i]
-        out[k] = acc
-        if k + 1 == N:
-            break
-        for i in range(n):
-            s = Pa[i] * w0[k] + Pb[i] * w1[k] + Pc[i] * w0[k + 1]
-            for j in range(n):
-                s += M[i, j] * x[j]
-            xn[i] = s
-        copy_vector(xn, x)
-
-
 def delayed_response(num, den, v, dt: float, delay: float, *, x0=None, intersample: str = "foh") -> np.ndarray:
     """Sampled output of ``num(p)/den(p) e^{-delay p}`` driven by ``v`` (exact, any ``delay >= 0``).
 
@@ -161,7 +139,9 @@ def delayed_response(num, den, v, dt: float, delay: float, *, x0=None, intersamp
         raise ParameterError(f"x0 must have {n} entries (the linear block's order), got {state.size}")
     w0, w1 = _delayed_samples(v, d, a, hold)
     out = np.empty(v.size)
-    _recursion(M, Pa, Pb, Pc, C, D, state, w0, w1, out)
+    M, Pa, Pb, Pc, C, state, w0, w1 = (np.ascontiguousarray(x, dtype=float) for x in (M, Pa, Pb, Pc, C, state, w0, w1))
+    if _core.hc_delayed_recursion(M, Pa, Pb, Pc, C, D, n, state, w0, w1, v.size, out):
+        raise MemoryError("no memory for the delayed recursion's state")
     return out
 
 

@@ -5,8 +5,8 @@ and from :class:`ValueError`, so ``except ValueError`` keeps working for callers
 who do not care about the distinction.
 """
 
-__all__ = ["HammersteinError", "DataError", "DataNotFoundError", "ParameterError", "UnknownNameError", "CacheWarning",
-           "IdentificationWarning", "SimulationWarning", "NativeBuildError"]
+__all__ = ["HammersteinError", "DataError", "DataNotFoundError", "ParameterError", "UnknownNameError",
+           "IdentificationWarning", "SimulationWarning"]
 
 
 class HammersteinError(ValueError):
@@ -29,10 +29,6 @@ class UnknownNameError(HammersteinError):
     """A method, nonlinearity or preset name is not known."""
 
 
-class CacheWarning(UserWarning):
-    """A compiled function's on-disk cache could not be read: it was compiled again and saved afresh."""
-
-
 class IdentificationWarning(UserWarning):
     """A finding about an identified model that leaves it usable but needs a look (the result's ``warnings``)."""
 
@@ -41,6 +37,11 @@ class SimulationWarning(UserWarning):
     """A simulation's output stopped being finite (an unstable model, or one whose state overflowed)."""
 
 
+class CacheWarning(UserWarning):
+    """Never issued since 0.2.0 (nothing is compiled or cached at run time); kept for one release so that code that
+    filters it still runs (``hammerstein_ctrl.CacheWarning`` is deprecated)."""
+
+
 class NativeBuildError(RuntimeError):
-    """The package's C library could not be built on this machine (no C compiler, or the compiler failed): the
-    message names the compiler and its first error line."""
+    """Never raised since 0.2.0 (the compiled core is built when the package is installed); kept for one release so
+    that code that catches it still runs (``hammerstein_ctrl.NativeBuildError`` is deprecated)."""

@@ -43,24 +43,13 @@ import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
-from numba import literal_unroll
 
-from ._jit import cached_njit
-from ._linalg import copy_vector
+from . import _core
 from .exact_export import model_settings, sampled_iosys, sampled_matrices
 from .exceptions import DataError, ParameterError
-from .compiled_maps import FAMILY_CODES, MAPS
 
 __all__ = ["simulate_loops", "simulate_controller_loop", "sampled_plant", "SampledPlant", "sampled_loop_iosys",
-           "discrete_pid_iosys", "saturation_iosys", "back_calculation_gain", "check_limits", "NONLINEARITY_CODES",
-           "IDENTITY"]
-
-#: Files whose code the loops call through the compiled maps: an edit of a formula compiles the loops again.
-MAP_SOURCES = ("compiled_maps.py", "nonlinearities.py")
-#: The same and the module of the compiled helpers the loops inline.
-_LOOP_SOURCES = MAP_SOURCES + ("_linalg.py",)
-#: Code of each named nonlinearity family in the compiled loops (its position among the compiled maps).
-NONLINEARITY_CODES = FAMILY_CODES
+           "discrete_pid_iosys", "saturation_iosys", "back_calculation_gain", "check_limits", "IDENTITY"]
 
 #: A simulated output beyond this multiple of the reference's size counts as diverged.
 DIVERGENCE_RATIO = 1e6
@@ -104,128 +93,13 @@ def _block_arrays(nl, params):
     """``(code, params, breakpoints)`` of a static block for the compiled loops (``IDENTITY`` for none)."""
     if nl is None:
         return IDENTITY, np.zeros(1), np.zeros(2)
-    code = NONLINEARITY_CODES.get(type(nl))
-    if code is None:
+    name = nl.compiled_map
+    if name is None:
         raise ParameterError(
             f"the compiled loop simulator supports the named nonlinearity families, not {nl!r}"
         )
-    return code, np.ascontiguousarray(params, dtype=float), np.ascontiguousarray(nl.map_extra(), dtype=float)
-
-
-@contextlib.contextmanager
-def _quiet_compilation(loop):
-    """Silence numba's note, while ``loop`` compiles, that :func:`_g` uses an experimental feature.
-
-    ``_g`` picks a compiled map from a tuple of them, which numba types as
-    "first-class functions"; that is what makes a new nonlinearity family
-    need no code here.  Once ``loop`` has a compiled version the filters are
-    left alone (they are process-wide: not worth touching on every call).
-    """
-    if loop.signatures:
-        yield
-        return
-    from numba.core.errors import NumbaExperimentalFeatureWarning
-
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", NumbaExperimentalFeatureWarning)
-        yield
-
-
-@cached_njit(depends=MAP_SOURCES)
-def _g(code, p, bp, u):  # pragma: no cover - compiled
-    """The static block of code ``code`` (:data:`NONLINEARITY_CODES`) at ``u``, its compiled map; ``u`` for none."""
-    out = u
-    i = 0
-    for h in literal_unroll(MAPS):
-        if i == code:
-            out = h(u, p, bp)
-        i += 1
-    return out
-
-
-@cached_njit(depends=MAP_SOURCES)
-def _plant_output(C, x, offset, hcode, hp, hbp):  # pragma: no cover - compiled
-    """``y = h(C x) + offset``."""
-    z = 0.0
-    for i in range(x.size):
-        z += C[i] * x[i]
-    return _g(hcode, hp, hbp, z) + offset
-
-
-@cached_njit(depends=("_linalg.py",))
-def _plant_step(Ad, Bd, x, xn, v):  # pragma: no cover - compiled
-    """``x <- Ad x + Bd v`` (the exact ZOH step)."""
-    n = x.size
-    for i in range(n):
-        s = Bd[i] * v
-        for j in range(n):
-            s += Ad[i, j] * x[j]
-        xn[i] = s
-    copy_vector(xn, x)
-
-
-@cached_njit()
-def _cut(Y, U, b, k):  # pragma: no cover - compiled
-    for j in range(k + 1, Y.shape[1]):
-        Y[b, j] = np.inf
-        U[b, j] = np.nan
-
-
-@cached_njit(depends=_LOOP_SOURCES)
-def _loops(Ad, Bd, C, x0, offset, code, p, bp, hcode, hp, hbp, G, r, dt, lo, hi, bias, bound, Y, U):  # pragma: no cover
-    batch, N = Y.shape
-    x = np.empty(x0.size)
-    xn = np.empty(x0.size)
-    for b in range(batch):
-        kp, ki, kd, tf, kt = G[b, 0], G[b, 1], G[b, 2], G[b, 3], G[b, 4]
-        ad = tf / (tf + dt)
-        bd = kd / (tf + dt)
-        copy_vector(x0, x)
-        integ, deriv, ep = bias, 0.0, 0.0
-        for k in range(N):
-            y = _plant_output(C, x, offset, hcode, hp, hbp)
-            e = r[k] - y
-            deriv = ad * deriv + bd * (e - ep)
-            uc = kp * e + integ + deriv
-            u = min(max(uc, lo), hi)
-            Y[b, k] = y
-            U[b, k] = u
-            if not abs(y) <= bound:
-                _cut(Y, U, b, k)
-                break
-            _plant_step(Ad, Bd, x, xn, _g(code, p, bp, u))
-            integ += dt * (ki * e + kt * (u - uc))
-            ep = e
-
-
-@cached_njit(depends=_LOOP_SOURCES)
-def _controller_loop(Ad, Bd, C, x0, offset, code, p, bp, hcode, hp, hbp, Ac, Bc, Cc, Dc, r, lo, hi, bias,
-                     bound, Y, U):  # pragma: no cover
-    """A linear discrete controller ``xc+ = Ac xc + Bc e``, ``u = clip(bias + Cc xc + Dc e)`` (from rest)."""
-    N = Y.shape[1]
-    x = x0.copy()
-    xn = np.empty(x0.size)
-    xc = np.zeros(Ac.shape[0])
-    xcn = np.empty(Ac.shape[0])
-    for k in range(N):
-        y = _plant_output(C, x, offset, hcode, hp, hbp)
-        e = r[k] - y
-        uc = bias + Dc * e
-        for i in range(xc.size):
-            uc += Cc[i] * xc[i]
-        u = min(max(uc, lo), hi)
-        Y[0, k] = y
-        U[0, k] = u
-        if not abs(y) <= bound:
-            _cut(Y, U, 0, k)
-            break
-        _plant_step(Ad, Bd, x, xn, _g(code, p, bp, u))
-        for i in range(xc.size):
-            s = Bc[i] * e
-            for j in range(xc.size):
-                s += Ac[i, j] * xc[j]
-            xcn[i] = s
-        copy_vector(xcn, xc)
+    return (_core.MAP_CODES[name], np.ascontiguousarray(params, dtype=float),
+            np.ascontiguousarray(nl.map_extra(), dtype=float))
 
 
 def _gain_table(gains) -> np.ndarray:
@@ -259,9 +133,10 @@ class SampledPlant:
     hbreakpoints: np.ndarray = field(default_factory=lambda: np.zeros(2))
 
     def arrays(self) -> tuple:
-        """The plant's arguments of the compiled loops."""
-        return (self.Ad, self.Bd, self.C, self.x0, self.offset, self.code, self.params, self.breakpoints,
-                self.hcode, self.hparams, self.hbreakpoints)
+        """The plant's arguments of the compiled loops (``hc_pid_loops``, ``hc_controller_loop``)."""
+        return (self.Ad, self.Bd, self.C, self.x0, self.x0.size, float(self.offset), self.code, self.params,
+                self.params.size, self.breakpoints, self.breakpoints.size, self.hcode, self.hparams,
+                self.hparams.size, self.hbreakpoints, self.hbreakpoints.size)
 
 
 def sampled_plant(model, dt: float, *, x0=None) -> SampledPlant:
@@ -334,8 +209,9 @@ def simulate_loops(model, gains, r, dt: float, *, u_limit=None, bias: float = 0.
     G = _gain_table(gains)
     Y = np.empty((G.shape[0], r.size))
     U = np.empty_like(Y)
-    with np.errstate(all="ignore"), _quiet_compilation(_loops):
-        _loops(*plant.arrays(), G, r, float(dt), lo, hi, float(bias), bound, Y, U)
+    if _core.hc_pid_loops(*plant.arrays(), G, G.shape[0], r, r.size, float(dt), lo, hi, float(bias), bound, Y, U):
+        raise ParameterError(f"the compiled loop simulator takes plants of order up to {_core.MAX_ORDER} with "
+                             "static blocks that fit their families")
     return Y, U
 
 
@@ -361,9 +237,12 @@ def simulate_controller_loop(model, controller, r, dt: float, *, u_limit=None, b
     A, B, C, D = (np.ascontiguousarray(np.asarray(M, dtype=float)) for M in (sys.A, sys.B, sys.C, sys.D))
     Y = np.empty((1, r.size))
     U = np.empty_like(Y)
-    with np.errstate(all="ignore"), _quiet_compilation(_controller_loop):
-        _controller_loop(*plant.arrays(), A, B[:, 0].copy(), C[0].copy(), float(D[0, 0]), r, lo, hi, float(bias),
-                         bound, Y, U)
+    status = _core.hc_controller_loop(*plant.arrays(), A, B[:, 0].copy(), C[0].copy(), float(D[0, 0]), A.shape[0],
+                                      r, r.size, lo, hi, float(bias), bound, Y, U)
+    if status:
+        raise (MemoryError("no memory for the controller's state") if status == 2 else ParameterError(
+            f"the compiled loop simulator takes plants of order up to {_core.MAX_ORDER} with static blocks that fit "
+            "their families"))
     return Y[0], U[0]
 
 

@@ -50,12 +50,16 @@ class Nonlinearity:
 
     Subclasses set :attr:`param_names` and define the family's formula once,
     as :attr:`formula` (and, where it is known in closed form, :meth:`_derivative`).
-    Everything else is derived from it: the vectorised :meth:`evaluate`, and,
-    for a family registered in :data:`NONLINEARITIES`, the compiled scalar map
-    that the simulation kernels and the closed-loop simulator call
-    (:mod:`~hammerstein_ctrl.compiled_maps`).  A family whose formula cannot
-    be written in that form overrides :meth:`_evaluate` instead (and then has
-    no compiled map unless it also gives a scalar :attr:`formula`).
+    Everything else is derived from it: the vectorised :meth:`evaluate`.  The
+    families registered in :data:`NONLINEARITIES` also have a compiled map in
+    the package's compiled core (:attr:`compiled_map`), the same formula
+    written for one sample, which the simulation kernels, the Lur'e and the
+    closed-loop simulators apply inside their passes.  Any other family,
+    :class:`CustomNonlinearity` and subclasses written in Python included, is
+    evaluated with numpy outside the compiled pass (an input map before it, an
+    output map after it): it runs as fast as numpy evaluates it.  A family
+    whose formula cannot be written in vectorised form overrides
+    :meth:`_evaluate` instead.
     """
 
     #: Short name used in reprs, the CLI and :func:`nonlinearity_from_name`.
@@ -76,20 +80,20 @@ class Nonlinearity:
 
     @property
     def compiled_map(self) -> str | None:
-        """Name of the compiled form of :attr:`formula` in :mod:`~hammerstein_ctrl.compiled_maps`, or ``None``.
+        """Name of the family's map in the compiled core (:data:`hammerstein_ctrl.kernels.MAP_CODES`), or ``None``.
 
-        Derived for the families registered in :data:`NONLINEARITIES` that
-        have a formula; an output nonlinearity with a compiled map is applied
-        inside the compiled simulation pass.
+        The families registered in :data:`NONLINEARITIES` have one (a subclass
+        of them does not: its formula may be another); an output nonlinearity
+        with a compiled map is applied inside the compiled simulation pass.
 
         Examples
         --------
         >>> Tanh().compiled_map
-        'tanh_map'
+        'tanh'
         """
-        if type(self).formula is None or NONLINEARITIES.get(self.name) is not type(self):
+        if NONLINEARITIES.get(self.name) is not type(self):
             return None
-        return f"{self.name}_map"
+        return self.name
 
     def map_extra(self) -> np.ndarray:
         """Fixed data passed to the compiled map (e.g. breakpoints); empty by default."""

@@ -31,7 +31,7 @@ from typing import NamedTuple
 import numpy as np
 
 from ._checks import as_real_array
-from ._native import library
+from . import _core
 from .exceptions import ParameterError
 
 __all__ = ["NormalEquations", "from_residuals", "from_difference_sums", "from_factor", "scored_inf", "forward_steps",
@@ -93,13 +93,13 @@ def normal_arrays(gradient, gram, *vectors):
 def _finite(fun, gradient, gram) -> bool:
     """Whether ``fun``, ``gradient`` and ``gram`` are all finite."""
     gradient, gram = normal_arrays(gradient, gram)
-    return library().hc_finite_sums(float(fun), gradient, gram, gradient.size)
+    return _core.hc_finite_sums(float(fun), gradient, gram, gradient.size)
 
 
 def _neighbour_values(fun, gradient, gram, steps) -> np.ndarray:
     gradient, gram, steps = normal_arrays(gradient, gram, steps)
     values = np.empty(steps.size)
-    library().hc_neighbour_values(float(fun), gradient, gram, steps, steps.size,
+    _core.hc_neighbour_values(float(fun), gradient, gram, steps, steps.size,
                                   values)
     return values
 
@@ -142,7 +142,7 @@ def _forward_steps(x, upper, lower) -> np.ndarray:
         raise ValueError(f"bounds must hold one value or one per entry of x ({x.size}), not {upper.size} and "
                          f"{lower.size}")
     h = np.empty(x.size)
-    library().hc_forward_steps(x, x.size, upper, upper.size, lower, lower.size,
+    _core.hc_forward_steps(x, x.size, upper, upper.size, lower, lower.size,
                                FD_REL_STEP, h)
     return h
 
@@ -178,7 +178,7 @@ def point_and_steps(structure, beta, steps=None, method: str = "normal_equations
 def _usable_steps(h) -> bool:
     """Whether every step of the flat float array ``h`` is finite and non-zero."""
     h = np.ascontiguousarray(h, dtype=float)
-    return library().hc_usable_steps(h, h.size)
+    return _core.hc_usable_steps(h, h.size)
 
 
 def neighbours(x, steps) -> np.ndarray:
@@ -203,7 +203,7 @@ def _neighbours(x, steps) -> np.ndarray:
     if steps.size != x.size:
         raise ValueError(f"neighbours need one step per entry of x ({x.size}), not {steps.size}")
     X = np.empty((x.size + 1, x.size))
-    library().hc_neighbours(x, x.size, steps, X)
+    _core.hc_neighbours(x, x.size, steps, X)
     return X
 
 
@@ -251,7 +251,7 @@ def _divide_by_steps(sums, steps):
     if sums.size != 1 + p + p * p:
         raise ValueError(f"sums of {sums.size} values do not fit {p} steps (1 + p + p*p values expected)")
     gradient, gram = np.empty(p), np.empty((p, p))
-    library().hc_divide_by_steps(sums, steps, p, gradient, gram)
+    _core.hc_divide_by_steps(sums, steps, p, gradient, gram)
     return gradient, gram
 
 

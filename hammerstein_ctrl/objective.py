@@ -42,7 +42,7 @@ from typing import NamedTuple
 import numpy as np
 
 from ._linalg import single_threaded_blas, tf_discrete
-from ._native import library
+from . import _core
 from .exceptions import ParameterError
 from .kernels import MAX_LANE_BASIS, MAX_NORMAL_LANES, get_coefficient_kernel, get_normal_kernel, has_basis_kernels
 from .normal_equations import (NONFINITE_RESIDUAL, NormalEquations, from_difference_sums, from_factor,
@@ -87,7 +87,7 @@ def _combine(P, basis, out, start: int) -> None:
             and not np.may_share_memory(out, P) and not np.may_share_memory(out, basis)):
         raise TypeError(f"_combine takes arrays of fitting shapes, out apart from the others, not "
                         f"{P.shape}, {basis.shape}, {out.shape}")
-    library().hc_combine(P, B, p, basis, n, out, out.shape[1], start)
+    _core.hc_combine(P, B, p, basis, n, out, out.shape[1], start)
 
 
 #: Methods of :class:`HammersteinCost` that evaluate it: a subclass redefining one gets no compiled LM loop.

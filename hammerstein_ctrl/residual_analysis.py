@@ -53,7 +53,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from ._jit import cached_njit
+from . import _core
 from . import config
 from .exceptions import ParameterError
 
@@ -256,33 +256,15 @@ def _named_first(findings: list) -> list:
     return [first] + [f for f in findings if f is not first]
 
 
-@cached_njit()
-def _lagged_sums(a, b, first, last):  # pragma: no cover - compiled
-    """``sum_t (a_t - mean a)(b_{t-k} - mean b)`` for ``k = first .. last`` (over the overlapping samples).
-
-    Raw products, with the means' share taken out afterwards from the sums
-    over each overlap (its ends differ from the whole record's by ``|k|`` samples).
-    """
-    n = a.size
-    ma, mb = a.mean(), b.mean()
-    sa, sb = a.sum(), b.sum()
-    out = np.empty(last - first + 1)
-    for k in range(first, last + 1):
-        lo, hi = max(k, 0), min(n, n + k)
-        acc = 0.0
-        for t in range(lo, hi):
-            acc += a[t] * b[t - k]
-        ra = sa
-        for t in range(0, lo):
-            ra -= a[t]
-        for t in range(hi, n):
-            ra -= a[t]
-        rb = sb
-        for t in range(0, lo - k):
-            rb -= b[t]
-        for t in range(hi - k, n):
-            rb -= b[t]
-        out[k - first] = acc - mb * ra - ma * rb + (hi - lo) * ma * mb
+def _lagged_sums(a, b, first: int, last: int) -> np.ndarray:
+    """``sum_t (a_t - mean a)(b_{t-k} - mean b)`` for ``k = first .. last`` (over the overlapping samples), in the
+    compiled core: raw products, with the means' share taken out afterwards from the sums over each overlap (its
+    ends differ from the whole record's by ``|k|`` samples).  ``a`` and ``b`` are C-ordered float vectors of one
+    length."""
+    if a.shape != b.shape or a.ndim != 1:
+        raise ValueError(f"lagged sums take two signals of one length, got shapes {a.shape} and {b.shape}")
+    out = np.empty(max(0, last - first + 1))
+    _core.hc_lagged_sums(a, b, a.size, int(first), int(last), out)
     return out
 
 

@@ -42,7 +42,7 @@ import functools
 import numpy as np
 import scipy.linalg
 
-from ._native import library
+from . import _core
 from .exceptions import DataError
 
 __all__ = ["BLOCK_SAMPLES", "triangular_factor", "factor_of_blocks", "rank_tolerance", "solve_scaled",
@@ -60,7 +60,7 @@ BLOCK_SAMPLES = 8192
 WHOLE_FACTOR_BYTES = 1 << 22
 
 _TRTRI = scipy.linalg.get_lapack_funcs(("trtri",), dtype=np.float64)[0]
-_LIBRARY = library()
+
 _GELSY, _GELSY_LWORK = scipy.linalg.get_lapack_funcs(("gelsy", "gelsy_lwork"), dtype=np.float64)
 
 
@@ -104,7 +104,7 @@ def _triangle(a: np.ndarray) -> np.ndarray:
     if a.ndim != 2 or rows.shape[1] < rows.shape[0]:
         raise ValueError(f"a must be a matrix of at least as many rows as columns, not of shape {a.shape}")
     R = np.empty((rows.shape[0], rows.shape[0]))
-    _LIBRARY.hc_qr_rows(rows, rows.shape[0], rows.shape[1], R)
+    _core.hc_qr_rows(rows, rows.shape[0], rows.shape[1], R)
     return R
 
 
@@ -373,7 +373,7 @@ def _clear_of_rank_loss(T: np.ndarray, cut: float) -> bool:
     if p == 0:
         return True
     T = np.ascontiguousarray(T, dtype=float)
-    bound = _LIBRARY.hc_triangular_inverse_norm(T, p) if T.shape == (p, p) else np.inf
+    bound = _core.hc_triangular_inverse_norm(T, p) if T.shape == (p, p) else np.inf
     if 2.0 * np.sqrt(p) * cut * bound < 1.0:
         return True
     sigma = np.linalg.svd(T, compute_uv=False)

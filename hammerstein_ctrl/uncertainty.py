@@ -50,7 +50,7 @@ from typing import Callable, NamedTuple
 
 import numpy as np
 
-from ._native import library
+from . import _core
 from . import config
 from .exceptions import ParameterError
 
@@ -249,7 +249,7 @@ def _backward_filter(rows, ar, out, first: int) -> None:
                          f"{ar.size} coefficients and column {first}")
     if out.ndim != 2 or out.shape[0] != n or out.shape[1] < first + q or out.dtype not in (np.float64, np.float32):
         raise TypeError(f"_backward_filter writes {n} x {first + q} floats, not {out.dtype} {out.shape}")
-    run = library().hc_backward_filter if out.dtype == np.float64 else library().hc_backward_filter_single
+    run = _core.hc_backward_filter if out.dtype == np.float64 else _core.hc_backward_filter_single
     if run(rows, q, n, ar, ar.size - 1, out, out.shape[1], first) != 0:
         raise MemoryError(f"no memory for the whitening filter of {q} x {n} values")
 

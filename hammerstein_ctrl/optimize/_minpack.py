@@ -30,7 +30,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from .._native import library
+from .. import _core
 
 __all__ = ["lmder", "enorm", "MinpackResult", "CONVERGED"]
 
@@ -112,7 +112,7 @@ def reflect(v, w) -> None:
     v = np.ascontiguousarray(v, dtype=float)
     if not (v.size and getattr(w, "size", None) == v.size):       # its type, order and writeability: the wrapper's
         raise TypeError(f"reflect writes into an array of {v.size} values, not {getattr(w, 'shape', type(w))}")
-    library().hc_reflect(v, w, v.size)
+    _core.hc_reflect(v, w, v.size)
 
 
 def enorm(x) -> float:
@@ -127,7 +127,7 @@ def enorm(x) -> float:
     5.0
     """
     x = np.ascontiguousarray(x, dtype=float).ravel()
-    return library().hc_enorm(x, x.size, _RDWARF, _RGIANT) if x.size else 0.0
+    return _core.hc_enorm(x, x.size, _RDWARF, _RGIANT) if x.size else 0.0
 
 
 def _norm(v: list) -> float:

@@ -33,8 +33,8 @@ import numpy as np
 
 from .. import config
 from .._linalg import positions_fit
-from .._native import library
-from ..kernels import normal_kernel_address
+from .. import _core
+from ..kernels import normal_kernel_number
 from ..normal_equations import FD_REL_STEP
 from ..normal_equations import (NormalEquations, forward_steps,
                                 from_residuals, neighbours, normal_arrays)
@@ -151,7 +151,7 @@ class _Passes:
                        max(1, LOOP_MAX_WORK // (d.y.size * (p + 1) * d.n))))
         if rows < 1 or p != d.n_params:     # a point of another length: the general pass refuses it
             return x, ne, scale, HAND_BACK
-        address = normal_kernel_address(d.n, d.hold, p + 1, d.K, d.direct)
+        number = normal_kernel_number(d.n, d.hold, p + 1, d.K, d.direct)
         x = np.array(x, dtype=float)
         if start:
             fun, gradient, gram, steps, scale = np.nan, np.empty(p), np.empty((p, p)), np.empty(p), np.empty(p)
@@ -163,7 +163,7 @@ class _Passes:
         logs = np.empty((rows, p)), np.empty((rows, p)), np.empty((rows, p + 1))
         settings = np.array([*tolerances, ILL_CONDITIONED, d.dt, d.max_norm, FD_REL_STEP, MAX_DAMPING,
                              DAMPING_DECREASE_LIMIT])
-        code = _loop(address, x, state, gradient, gram, steps, scale, counts, settings, start, d, logs)
+        code = _loop(number, x, state, gradient, gram, steps, scale, counts, settings, start, d, logs)
         fun = state[0]
         passes = int(counts[3])
         if passes:
@@ -202,7 +202,7 @@ def _iteration(gram, gradient, fun, scale, lam, x, check, limit, xtol):
     gradient, gram, scale, x = normal_arrays(gradient, gram, scale, x)
     p = scale.size
     work, delta, out = np.empty(2 * p * p + 2 * p), np.empty(p), np.empty(5)
-    library().hc_lm_iteration(gram, gradient, p, float(fun), scale, float(lam),
+    _core.hc_lm_iteration(gram, gradient, p, float(fun), scale, float(lam),
                               x, int(bool(check)), float(limit), float(xtol), work,
                               delta, out)
     return out[0], bool(out[1]), bool(out[2]), delta, bool(out[3]), out[4]
@@ -212,7 +212,7 @@ def _step_measures(gram, gradient, scale, delta, x, xtol):
     """MINPACK's xtol test on the step ``delta`` and the reduction of the sum of squares its linear model predicts."""
     gradient, gram, scale, delta, x = normal_arrays(gradient, gram, scale, delta, x)
     out = np.empty(2)
-    library().hc_lm_step_measures(gram, gradient, scale, delta,
+    _core.hc_lm_step_measures(gram, gradient, scale, delta,
                                   x, scale.size, float(xtol), out)
     return bool(out[0]), out[1]
 
@@ -220,7 +220,7 @@ def _step_measures(gram, gradient, scale, delta, x, xtol):
 def _cosine(gram, gradient, fun):
     """Largest cosine between the residual vector and a Jacobian column (MINPACK's ``gtol`` measure; NaN wins)."""
     gradient, gram = normal_arrays(gradient, gram)
-    return library().hc_lm_cosine(gram, gradient, gradient.size, float(fun))
+    return _core.hc_lm_cosine(gram, gradient, gradient.size, float(fun))
 
 
 def _factor_iteration(ne, scale, lam, x, xtol):
@@ -253,7 +253,7 @@ def _norms(gram, floor):
     """Column norms of J from the Gram matrix (1 for a zero or non-finite one), never below ``floor``."""
     floor, gram = normal_arrays(floor, gram)
     norms = np.empty(floor.size)
-    library().hc_lm_norms(gram, floor.size, floor, norms)
+    _core.hc_lm_norms(gram, floor.size, floor, norms)
     return norms
 
 
@@ -287,7 +287,7 @@ def _lowered_damping(lam, rho) -> float:
     >>> _lowered_damping(1.0, 1.0), _lowered_damping(1.0, 0.5)
     (0.3333333333333333, 1.0)
     """
-    return library().hc_lm_lowered_damping(lam, rho, DAMPING_DECREASE_LIMIT)
+    return _core.hc_lm_lowered_damping(lam, rho, DAMPING_DECREASE_LIMIT)
 
 
 def _accepted_code(actual, predicted, f_old, ftol, small) -> int:
@@ -298,14 +298,14 @@ def _accepted_code(actual, predicted, f_old, ftol, small) -> int:
     >>> _accepted_code(1e-9, 1e-9, 1.0, 1e-8, False), _accepted_code(0.5, 0.5, 1.0, 1e-8, True)
     (1, 2)
     """
-    return library().hc_lm_accepted_code(actual, predicted, f_old, ftol, bool(small))
+    return _core.hc_lm_accepted_code(actual, predicted, f_old, ftol, bool(small))
 
 
 def compiled_loop_wanted() -> bool:
     """Whether :func:`normal_equations_lm` runs its compiled loop (``config.defaults["lm.compiled_loop"]``):
     ``"auto"`` and ``"always"`` run it, ``"never"`` runs the same steps in Python.
 
-    The loop is C in the package's library (:func:`_loop`), built with it: nothing is compiled on a first use.
+    The loop is C in the package's compiled core (:func:`_loop`), built when the package is installed.
     """
     return config.get("lm.compiled_loop") != "never"
 
@@ -324,8 +324,8 @@ def _loop_fits(p, K, N, gradient, gram, steps, scale, state, counts, settings, d
             and K == (p - n_linear if d.has_g else 1) and K >= 1)
 
 
-def _loop(address, x, state, gradient, gram, steps, scale, counts, settings, start, d, logs) -> int:
-    """The C library's Levenberg-Marquardt loop around the pass kernel at ``address`` (``hc_lm_loop``), for a
+def _loop(number, x, state, gradient, gram, steps, scale, counts, settings, start, d, logs) -> int:
+    """The compiled core's Levenberg-Marquardt loop around the pass kernel ``number`` (``hc_lm_loop``), for a
     cost's :meth:`~hammerstein_ctrl.objective.HammersteinCost.direct_pass` ``d`` (no offset, initial state or
     output map; the signal ``P @ Phi`` with ``P`` the parameters of ``g``).
 
@@ -352,8 +352,8 @@ def _loop(address, x, state, gradient, gram, steps, scale, counts, settings, sta
     if not _loop_fits(p, K, N, gradient, gram, steps, scale, state, counts, settings, d, logs):
         raise ValueError("the compiled loop's arrays do not fit its point, its pass or its logs")
     log_x, log_steps, log_values = logs
-    return library().hc_lm_loop(
-        address, x, p, state, gradient, gram, steps, scale, counts, settings, int(bool(start)), d.num0, d.num0.size,
+    return _core.hc_lm_loop(
+        number, x, p, state, gradient, gram, steps, scale, counts, settings, int(bool(start)), d.num0, d.num0.size,
         d.den0, d.den0.size, d.num_pos, d.num_pos.size, d.den_pos, d.den_pos.size, int(bool(d.has_g)),
         int(bool(d.direct)), d.basis, K, N, d.y, log_x, log_steps, log_values)
 

@@ -1,9 +1,11 @@
-/* The two loops of MINPACK (hammerstein_ctrl.optimize._minpack) that run over a whole residual vector, compiled
- * with the package's C library (hammerstein_ctrl._native) in the arithmetic of scipy's C translation: sums added
+/* The two loops of MINPACK (hammerstein_ctrl.optimize._minpack) that run over a whole residual vector, part of the
+ * compiled core (hammerstein_ctrl._core), in the arithmetic of scipy's C translation: sums added
  * left to right, pow(q, 2.0) as q * q, no fused multiply-add (the build passes -ffp-contract=off).
  */
 #include <math.h>
 #include <stdint.h>
+
+#include "hc.h"
 
 /* w -= (sum(v * w) / v[0]) * v over n elements: w through the Householder reflection of v (scaled so that v[0] is
  * its 1 + |.|), the sum added left to right, then the update. */

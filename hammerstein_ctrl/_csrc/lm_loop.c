@@ -1,9 +1,9 @@
 /* Levenberg-Marquardt's compiled loop around the normal-equation pass of a plain cost (hammerstein_ctrl.optimize.
- * normal_lm), compiled with the package's C library (hammerstein_ctrl._native).
+ * normal_lm), part of the compiled core (hammerstein_ctrl._core).
  *
  * The loop takes the steps of the Python loop one after another while each trial point is accepted, with the same
  * library functions in the same order (so the same bits), and returns where the Python loop must take the next
- * iteration.  The pass is a generated kernel built in C, called through its address.  No fused multiply-add (the
+ * iteration.  The pass is a normal-equation kernel of the core (hc_kernel_at).  No fused multiply-add (the
  * build passes -ffp-contract=off).
  */
 #include <math.h>
@@ -11,32 +11,16 @@
 #include <stdint.h>
 #include <string.h>
 
-#include "../_native_kernel.h"
+#include "hc.h"
 
 /* normal_lm's codes: hand back (the Python loop takes the next iteration), alone (its trials without neighbours),
  * go on. */
 #define HAND_BACK 0
 #define HAND_BACK_ALONE (-1)
 #define GO_ON (-2)
-
-void hc_forward_steps(const double *x, int64_t n, const double *upper, int64_t nu, const double *lower, int64_t nl,
-                      double rel_step, double *h);
-void hc_neighbours(const double *x, int64_t n, const double *steps, double *X);
-void hc_divide_by_steps(const double *sums, const double *steps, int64_t p, double *gradient, double *gram);
-void hc_neighbour_values(double fun, const double *gradient, const double *gram, const double *steps, int64_t p,
-                         double *values);
-bool hc_finite_sums(double fun, const double *gradient, const double *gram, int64_t p);
-void hc_fill_coefficients(const double *theta, int64_t batch, int64_t stride, const double *num0, int64_t nnum,
-                          const double *den0, int64_t nden, const int64_t *num_pos, int64_t k, const int64_t *den_pos,
-                          int64_t kd, double *num, double *den);
-bool hc_tf_discrete(const double *num, const double *den, int64_t batch, int64_t nnum, int64_t nden, double dt,
-                    double max_norm, double *E, double *C, double *D, bool *ok, bool *big);
-void hc_lm_iteration(const double *gram, const double *gradient, int64_t p, double fun, const double *scale,
-                     double lam, const double *x, int64_t check, double limit, double xtol, double *work,
-                     double *delta, double *out);
-void hc_lm_norms(const double *gram, int64_t p, const double *floor, double *norms);
-double hc_lm_lowered_damping(double lam, double rho, double limit);
-int hc_lm_accepted_code(double actual, double predicted, double f_old, double ftol, int64_t small);
+/* Most parameters (the point and its neighbours fill the lanes of one pass), and the largest augmented matrix. */
+#define MAX_P (HC_MAX_LANES - 1)
+#define MAX_M (HC_MAX_ORDER + 2)
 
 /* The settings' entries (normal_lm._loop_settings). */
 enum { FTOL, XTOL, GTOL, ILL, DT, MAX_NORM, REL_STEP, MAX_DAMPING, DECREASE_LIMIT };
@@ -51,7 +35,7 @@ static int trial_step(const double *x, int64_t p, double fun, const double *grad
                       const double *scale, double lam, const int64_t *counts, const double *settings, double *trial,
                       bool *small, double *predicted)
 {
-    double work[2 * p * p + 2 * p], delta[p], out[5];
+    double work[2 * MAX_P * MAX_P + 2 * MAX_P], delta[MAX_P], out[5];
     if (fun == 0.0)
         return 1;
     hc_lm_iteration(gram, gradient, p, fun, scale, lam, x, settings[ILL] > 0 ? 1 : 0, settings[ILL], settings[XTOL],
@@ -81,9 +65,10 @@ static bool run_pass(hc_kernel kernel, const double *trial, int64_t p, const dou
     const double upper = INFINITY, lower = -INFINITY;
     int64_t lanes = p + 1, n_linear = k + kd, rows = 1 + n_linear, n = nden - 1, m = nden + 1;
     int64_t width = has_g ? p - n_linear : 1;
-    double X[lanes * p], num[rows * nnum], den[rows * nden], E[rows * m * m], C[rows * (n > 0 ? n : 1)], D[rows];
-    double P[lanes * width], zeros[lanes * (n > 0 ? n : 1)], Y0[lanes], VP[lanes], none[1];
-    bool ok[rows], big[rows];
+    double X[HC_MAX_LANES * MAX_P], num[HC_MAX_LANES * MAX_M], den[HC_MAX_LANES * MAX_M];
+    double E[HC_MAX_LANES * MAX_M * MAX_M], C[HC_MAX_LANES * HC_MAX_ORDER], D[HC_MAX_LANES];
+    double P[HC_MAX_LANES * MAX_P], zeros[HC_MAX_LANES * HC_MAX_ORDER], Y0[HC_MAX_LANES], VP[HC_MAX_LANES], none[1];
+    bool ok[HC_MAX_LANES], big[HC_MAX_LANES];
     hc_forward_steps(trial, p, &upper, 1, &lower, 1, settings[REL_STEP], h);
     hc_neighbours(trial, p, h, X);
     hc_fill_coefficients(X, rows, p, num0, nnum, den0, nden, num_pos, k, den_pos, kd, num, den);
@@ -111,15 +96,17 @@ static bool run_pass(hc_kernel kernel, const double *trial, int64_t p, const dou
  * step limit, evaluations left, passes logged]; with start, the loop begins with the pass at x and fills gradient,
  * gram, steps and scale.  Row i of the logs holds pass i's point, steps, and the sums of squares of the point and
  * its neighbours.  Returns a termination code, HAND_BACK or HAND_BACK_ALONE. */
-int hc_lm_loop(int64_t address, double *x, int64_t p, double *state, double *gradient, double *gram, double *steps,
+int hc_lm_loop(int64_t kernel_number, double *x, int64_t p, double *state, double *gradient, double *gram, double *steps,
                double *scale, int64_t *counts, const double *settings, int64_t start, const double *num0, int64_t nnum,
                const double *den0, int64_t nden, const int64_t *num_pos, int64_t k, const int64_t *den_pos,
                int64_t kd, int64_t has_g, int64_t direct, const double *Phi, int64_t K, int64_t N, const double *y,
                double *log_x, double *log_steps, double *log_values)
 {
-    hc_kernel kernel = (hc_kernel)(intptr_t)address;
-    double trial[p], h[p], sums[1 + p * (p + 1)], new_gradient[p], new_gram[p * p], values[p + 1], norms[p],
-        floor[p];
+    hc_kernel kernel = hc_kernel_at(kernel_number);
+    double trial[MAX_P], h[MAX_P], sums[1 + MAX_P * (MAX_P + 1)], new_gradient[MAX_P], new_gram[MAX_P * MAX_P],
+        values[MAX_P + 1], norms[MAX_P], floor[MAX_P];
+    if (kernel == NULL || p < 1 || p > MAX_P || nden < 1 || nden > HC_MAX_ORDER + 1 || nnum > nden)
+        return HAND_BACK;               /* not a pass of this loop: the general one takes it */
     while (true) {
         bool small = false;
         double predicted = 0.0;

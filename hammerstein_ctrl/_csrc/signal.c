@@ -1,4 +1,4 @@
-/* Loops over the samples of a record, compiled with the package's C library (hammerstein_ctrl._native): the
+/* Loops over the samples of a record, part of the compiled core (hammerstein_ctrl._core): the
  * signals of a batch of candidates from a basis (hammerstein_ctrl.objective), the whitening filter of the
  * parameter covariance run backwards (hammerstein_ctrl.uncertainty), and the QR factorisation of a regression's
  * columns (hammerstein_ctrl.streamed_lstsq).  No fused multiply-add (the build passes -ffp-contract=off); arrays
@@ -10,25 +10,22 @@
 #include <stdlib.h>
 #include <string.h>
 
-typedef double lanes4 __attribute__((vector_size(32)));
+#include "hc.h"
 
-/* sum_i a[i] b[i] over i < n in a fixed order: eight running sums (two vectors of four lanes) over blocks of
- * eight, added lane by lane, then the rest one by one. */
+/* sum_i a[i] b[i] over i < n in a fixed order: eight running sums (lanes 0-7) over blocks of eight, lane l + 4 added
+ * to lane l, then (s0 + s1) + (s2 + s3), then the rest one by one.  The eight lanes are independent, so a compiler
+ * may keep them in vector registers of any width without changing a bit. */
 static double lane_dot(const double *a, const double *b, int64_t n)
 {
-    lanes4 s0 = {0.0, 0.0, 0.0, 0.0}, s1 = {0.0, 0.0, 0.0, 0.0};
+    double s[8] = {0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0};
     int64_t i = 0;
-    for (; i + 8 <= n; i += 8) {
-        lanes4 a0, a1, b0, b1;
-        memcpy(&a0, a + i, sizeof a0);
-        memcpy(&a1, a + i + 4, sizeof a1);
-        memcpy(&b0, b + i, sizeof b0);
-        memcpy(&b1, b + i + 4, sizeof b1);
-        s0 += a0 * b0;
-        s1 += a1 * b1;
-    }
-    lanes4 s = s0 + s1;
-    double r = (s[0] + s[1]) + (s[2] + s[3]);
+    for (; i + 8 <= n; i += 8)
+        for (int l = 0; l < 8; l++)
+            s[l] += a[i + l] * b[i + l];
+    double t[4];
+    for (int l = 0; l < 4; l++)
+        t[l] = s[l] + s[l + 4];
+    double r = (t[0] + t[1]) + (t[2] + t[3]);
     for (; i < n; i++)
         r += a[i] * b[i];
     return r;

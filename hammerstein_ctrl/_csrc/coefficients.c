@@ -1,4 +1,4 @@
-/* A single evaluation from the transfer functions' coefficients, compiled with the package's C library
+/* A single evaluation from the transfer functions' coefficients, part of the compiled core
  * (hammerstein_ctrl._native): the exact discretisation, then a generated "sse" kernel with a basis signal
  * (hammerstein_ctrl.kernels.get_coefficient_kernel), in one call from Python through the library's call.
  */

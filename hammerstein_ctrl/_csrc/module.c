@@ -1,20 +1,69 @@
-/* The Python door of the generated kernels built in C (hammerstein_ctrl._kernel_c): part of the extension module
- * of hammerstein_ctrl._native, compiled with its generated wrappers (it needs Python.h).
+/* The extension module hammerstein_ctrl._core: the Python doors of the compiled core.
  *
- * call(address, spec, *args) runs the kernel at address (int64_t kernel(const hc_arg *args)) on args and returns
- * its status.  spec is "name|arg arg ...", one word per argument: "X:r:B,4" (a C-ordered float64 array only
- * read, of two dimensions: B, bound by its first appearance and the same in every array naming it, and 4),
- * "out:w:B" (one that is written), "begin:i" (an integer), "dt:f" (a float: its bits in shape[0]).  A dimension
- * is a number, a number followed by + (at least that), a capital letter, a capital letter followed by + (bound,
- * and at least 1) or * (any).  An argument that does not fit is a TypeError or a
- * ValueError naming the kernel and the argument; the kernel runs without the GIL.
+ * - call(number, spec, *args) runs kernel `number` of the table (hc_kernel_number) on args and returns its status.
+ *   spec is "name|arg arg ...", one word per argument: "X:r:B,4" (a C-ordered float64 array only read, of two
+ *   dimensions: B, bound by its first appearance and the same in every array naming it, and 4), "out:w:B" (one that
+ *   is written), "begin:i" (an integer), "dt:f" (a float: its bits in shape[0]).  A dimension is a number, a number
+ *   followed by + (at least that), a capital letter, a capital letter followed by + (bound, and at least 1) or *
+ *   (any).  An argument that does not fit is a TypeError or a ValueError naming the kernel and the argument; the
+ *   kernel runs without the GIL.
+ * - one wrapper per library function (hc.h), generated when the core is built (generate_wrappers.py): each array
+ *   argument is checked to be C-ordered, of the C type and, where the function writes it, writeable (else a
+ *   TypeError naming the function and the argument); sizes are non-negative integers; the function runs without
+ *   the GIL.
+ * - constants: the kernel families, the map codes (MAP_CODES), the limits the kernels are built for.
  */
+#define PY_SSIZE_T_CLEAN
+#include <Python.h>
+#include <stdbool.h>
+#include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
+#include <string.h>
 
-#include "_native_kernel.h"
+#include "hc.h"
 
 #define HC_MAX_ARGS 16
+
+/* A C-ordered buffer of the given item size and format (one of formats), writeable if asked; else a TypeError. */
+static int take(PyObject *o, Py_buffer *view, Py_ssize_t itemsize, const char *formats, int writeable,
+                const char *function, int index)
+{
+    int flags = PyBUF_C_CONTIGUOUS | PyBUF_FORMAT | (writeable ? PyBUF_WRITABLE : 0);
+    if (PyObject_GetBuffer(o, view, flags) < 0) {
+        PyErr_Clear();
+        PyErr_Format(PyExc_TypeError, "%s: argument %d must be a C-ordered%s array", function, index,
+                     writeable ? ", writeable" : "");
+        return -1;
+    }
+    const char *format = view->format ? view->format : "B";
+    while (*format == '@' || *format == '=' || *format == '<')
+        format++;
+    if (view->itemsize != itemsize || strlen(format) != 1 || strchr(formats, *format) == NULL) {
+        char given[8] = {0};
+        strncpy(given, format, sizeof given - 1);   /* the exporter may free its format on release */
+        PyBuffer_Release(view);
+        PyErr_Format(PyExc_TypeError, "%s: argument %d has items of format '%s', not '%s'", function, index,
+                     given, formats);
+        return -1;
+    }
+    return 0;
+}
+
+/* A size, count or flag: a non-negative integer; else a ValueError (or TypeError) naming it. */
+static int size(PyObject *o, long long *value, const char *function, int index)
+{
+    *value = PyLong_AsLongLong(o);
+    if (*value == -1 && PyErr_Occurred())
+        return -1;
+    if (*value < 0) {
+        PyErr_Format(PyExc_ValueError, "%s: argument %d must be a size (>= 0), not %lld", function, index, *value);
+        return -1;
+    }
+    return 0;
+}
+
+#include "wrappers.inc"
 
 /* The next word of spec (up to a space or its end) copied to word; the position after it. */
 static const char *next_word(const char *spec, char *word, size_t size)
@@ -145,17 +194,18 @@ static PyObject *call_kernel(PyObject *self, PyObject *const *args, Py_ssize_t n
     int taken = 0;
     char kernel[64] = "", word[64];
     if (nargs < 2 || nargs - 2 > HC_MAX_ARGS)
-        return PyErr_Format(PyExc_TypeError, "call takes an address, a description and at most %d arguments",
+        return PyErr_Format(PyExc_TypeError, "call takes a kernel number, a description and at most %d arguments",
                             HC_MAX_ARGS);
-    long long address = PyLong_AsLongLong(args[0]);
-    if (address == -1 && PyErr_Occurred())
+    long long number = PyLong_AsLongLong(args[0]);
+    if (number == -1 && PyErr_Occurred())
         return NULL;
     const char *spec = PyUnicode_AsUTF8(args[1]);
     if (spec == NULL)
         return NULL;
     const char *bar = strchr(spec, '|');
-    if (address == 0 || bar == NULL)
-        return PyErr_Format(PyExc_ValueError, "call: no kernel at address %lld or no '|' in '%s'", address, spec);
+    hc_kernel function = hc_kernel_at(number);
+    if (function == NULL || bar == NULL)
+        return PyErr_Format(PyExc_ValueError, "call: no kernel number %lld or no '|' in '%s'", number, spec);
     snprintf(kernel, sizeof kernel, "%.*s", (int)(bar - spec), spec);
     for (int s = 0; s < 26; s++)
         bound[s] = -1;
@@ -175,7 +225,6 @@ static PyObject *call_kernel(PyObject *self, PyObject *const *args, Py_ssize_t n
         goto fail;
     }
     int64_t status;
-    int64_t (*function)(const hc_arg *) = (int64_t (*)(const hc_arg *))(intptr_t)address;
     Py_BEGIN_ALLOW_THREADS
     status = function(cargs);
     Py_END_ALLOW_THREADS
@@ -185,5 +234,63 @@ static PyObject *call_kernel(PyObject *self, PyObject *const *args, Py_ssize_t n
 fail:
     for (int k = 0; k < taken; k++)
         PyBuffer_Release(&views[k]);
+    return NULL;
+}
+
+static PyObject *vector_isa(PyObject *self, PyObject *unused)
+{
+    return PyUnicode_FromString(hc_vector_isa());
+}
+
+static PyMethodDef methods[] = {
+    {"call", (PyCFunction)(void (*)(void))call_kernel, METH_FASTCALL,
+     "call(number, spec, *args): run kernel number of the table on args checked against spec; its status."},
+    {"vector_isa", vector_isa, METH_NOARGS, "The instruction set the vector kernels run with on this processor."},
+    HC_WRAPPED_METHODS
+    {NULL, NULL, 0, NULL}
+};
+
+static struct PyModuleDef definition = {PyModuleDef_HEAD_INIT, "_core",
+                                        "The compiled core of hammerstein_ctrl (built when the package is installed).",
+                                        -1, methods};
+
+/* name = value in the module, or -1. */
+static int constant(PyObject *module, const char *name, long value)
+{
+    return PyModule_AddIntConstant(module, name, value);
+}
+
+PyMODINIT_FUNC PyInit__core(void)
+{
+    static const char *const map_names[HC_MAP_COUNT] = {"tanh", "coulomb", "polynomial", "saturation", "deadzone",
+                                                        "piecewise_linear", "sigmoid", "friction"};
+    hc_core_init();
+    PyObject *module = PyModule_Create(&definition);
+    if (module == NULL)
+        return NULL;
+    PyObject *codes = PyDict_New();
+    if (codes == NULL)
+        goto fail;
+    for (long i = 0; i < HC_MAP_COUNT; i++) {
+        PyObject *value = PyLong_FromLong(i);
+        int failed = value == NULL || PyDict_SetItemString(codes, map_names[i], value) < 0;
+        Py_XDECREF(value);
+        if (failed) {
+            Py_DECREF(codes);
+            goto fail;
+        }
+    }
+    if (PyModule_AddObject(module, "MAP_CODES", codes) < 0) {
+        Py_DECREF(codes);
+        goto fail;
+    }
+    if (constant(module, "SINGLE", HC_SINGLE) < 0 || constant(module, "LANES", HC_LANES) < 0 ||
+        constant(module, "NORMAL", HC_NORMAL) < 0 || constant(module, "COEFFICIENT", HC_COEFFICIENT) < 0 ||
+        constant(module, "MAX_ORDER", HC_MAX_ORDER) < 0 || constant(module, "LANES_MAX_ORDER", HC_LANES_MAX_ORDER) < 0 ||
+        constant(module, "MAX_BASIS", HC_MAX_BASIS) < 0 || constant(module, "MAX_LANES", HC_MAX_LANES) < 0)
+        goto fail;
+    return module;
+fail:
+    Py_DECREF(module);
     return NULL;
 }

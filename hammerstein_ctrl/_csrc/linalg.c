@@ -1,4 +1,4 @@
-/* Small dense linear algebra of hammerstein_ctrl, compiled once per machine by hammerstein_ctrl._native.
+/* Small dense linear algebra of hammerstein_ctrl, part of its compiled core (hammerstein_ctrl._core).
  *
  * Every matrix is a C-ordered (row-major) block of doubles.  The arithmetic is
  * written in the order the results are defined in (sums left to right, no
@@ -9,6 +9,8 @@
 #include <stdbool.h>
 #include <stdint.h>
 #include <stdlib.h>
+
+#include "hc.h"
 
 /* Largest 1-norm for which the degree-13 Pade approximant is accurate to unit roundoff without scaling
  * (Higham 2005, Table 2.3). */

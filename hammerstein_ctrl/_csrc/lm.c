@@ -1,5 +1,5 @@
 /* The linear algebra of one Levenberg-Marquardt iteration on the normal equations (hammerstein_ctrl.optimize.normal_lm),
- * compiled with the package's C library (hammerstein_ctrl._native).
+ * part of the compiled core (hammerstein_ctrl._core).
  *
  * gram is the p x p Gram matrix J^T J (C order), gradient J^T r, fun the sum of squares r^T r.  Sums run left to
  * right with no fused multiply-add (the build passes -ffp-contract=off).  PYMAX is Python's max(a, b): b only if
@@ -10,10 +10,10 @@
 #include <stdbool.h>
 #include <stdint.h>
 
+#include "hc.h"
+
 #define PYMAX(a, b) ((b) > (a) ? (b) : (a))
 
-void hc_solve_in_place(double *A, int64_t n, double *B, int64_t m);
-void hc_symmetric_eigenvalues(double *A, int64_t n, double *w);
 
 /* Largest cosine between the residual vector and a Jacobian column (MINPACK's gtol measure); NaN wins, as in
  * numpy's max, and never passes the gtol test. */

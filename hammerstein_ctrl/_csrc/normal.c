@@ -1,5 +1,5 @@
 /* Forward-difference steps and the normal equations formed from a pass's sums (hammerstein_ctrl.normal_equations),
- * compiled with the package's C library (hammerstein_ctrl._native).
+ * part of the compiled core (hammerstein_ctrl._core).
  *
  * p is the number of parameters; gram is p x p in C order.  No fused multiply-add (the build passes
  * -ffp-contract=off).  PYMAX is Python's max(a, b): b only if b > a.
@@ -7,6 +7,8 @@
 #include <math.h>
 #include <stdbool.h>
 #include <stdint.h>
+
+#include "hc.h"
 
 #define PYMAX(a, b) ((b) > (a) ? (b) : (a))
 
