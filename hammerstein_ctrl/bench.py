@@ -463,7 +463,7 @@ import json, time
 t0 = time.perf_counter()
 import hammerstein_ctrl as hc
 t1 = time.perf_counter()
-import numpy, scipy.optimize, scipy.linalg, numba, control
+import numpy, scipy.optimize, scipy.linalg, control
 t2 = time.perf_counter()
 case = hc.presets.emps()
 t3 = time.perf_counter()

@@ -185,7 +185,7 @@ def get_kernel(n: int, mode: str, hold: str = "foh", outmap: str | None = None, 
     if outmap is not None and not has_output_maps(n):
         raise ValueError(f"output maps are applied in the pass for up to {MAX_UNROLLED_STATES} states, not {n}")
     options = (_SSE if mode == "sse" else 0) | (_BASIS if K is not None else 0) | (_MAP if outmap else 0)
-    signal = "V:r:B,N" if K is None else f"P:r:B,{K} Phi:r:{K}+,N"
+    signal = "V:r:B,N+" if K is None else f"P:r:B,{K} Phi:r:{K}+,N+"
     mapped = " HP:r:B,M HX:r:X*" if outmap else ""
     out = " y:r:N out:w:B" if mode == "sse" else " out:w:B,N+"
     name = f"hc_kernel_n{n}_{mode}_{hold}" + (f"_{outmap}" if outmap else "") + (f"_k{K}" if K else "")
@@ -241,7 +241,7 @@ def get_lane_kernel(n: int, hold: str, K: int, direct: bool = True, offset: bool
     _check_sizes(n, K)
     terms = ("_d" if direct else "") + ("_o" if offset else "")
     spec = (f"hc_lanes_n{n}_{hold}_k{K}{terms}|E:r:B,{_block_shape(n, hold)} C:r:B,{n}+ D:r:B X0:r:B,{n}+ Y0:r:B "
-            f"P:r:B,{K} Phi:r:{K}+,N y:r:N out:w:B")
+            f"P:r:B,{K} Phi:r:{K}+,N+ y:r:N out:w:B")
     options = (_DIRECT if direct else 0) | (_OFFSET if offset else 0)
     return Kernel(_core.hc_kernel_number(_core.LANES, n, _hold(hold), options), spec, ("a basis of no signals",))
 
@@ -377,7 +377,7 @@ def get_coefficient_kernel(n: int, hold: str, K: int):
     """
     number = get_kernel(n, "sse", hold, None, K).number
     spec = (f"hc_coefficient_pass_n{n}_k{K}|kernel:i num:r:B,L den:r:B,{n + 1} dt:f max_norm:f X0:r:B,{n}+ Y0:r:B "
-            f"P:r:B,{K} Phi:r:{K}+,N y:r:N out:w:B")
+            f"P:r:B,{K} Phi:r:{K}+,N+ y:r:N out:w:B")
     return functools.partial(_coefficient_pass, spec, number)
 
 
@@ -413,12 +413,12 @@ def has_output_maps(n: int) -> bool:
 
 
 def vector_isa() -> str:
-    """The instruction set the vector kernels run in on this processor: ``"avx512"``, ``"avx2"`` or ``"baseline"``
-    (SSE2 on x86-64, NEON on arm64); every set gives the same bits.
+    """The instruction set the vector kernels run in on this processor: ``"avx2"`` (x86-64 processors that have it)
+    or ``"baseline"`` (SSE2 on other x86-64 processors, NEON on arm64); every set gives the same bits.
 
     Examples
     --------
-    >>> vector_isa() in ("avx512", "avx2", "baseline")
+    >>> vector_isa() in ("avx2", "baseline")
     True
     """
     return _core.vector_isa()

@@ -64,7 +64,7 @@ int64_t hc_kernel_number(int64_t family, int64_t n, int64_t hold, int64_t option
 hc_kernel hc_kernel_at(int64_t number);
 /* Fills the kernel table (the module's initialisation, once, before any kernel runs). */
 void hc_core_init(void);
-/* The instruction set the vector kernels run with on this processor ("avx512", "avx2" or "baseline"). */
+/* The instruction set the vector kernels run with on this processor ("avx2" or "baseline"). */
 const char *hc_vector_isa(void);
 
 /* The built-in static maps (hammerstein_ctrl.nonlinearities), by code, as the kernels apply them: */

@@ -28,6 +28,28 @@
 #include "hc.h"
 #include "maps.hpp"
 
+/* Inlined whatever the compiler's inlining budget: a candidate's step (written with the lambdas and unroll below)
+ * must become straight-line code with its state in registers, as it would be written out by hand.  (MSVC inlines
+ * small lambdas by itself; its attribute for them is not portable across its versions.) */
+#if defined(__GNUC__) || defined(__clang__)
+#define HC_INLINE inline __attribute__((always_inline))
+#define HC_LAMBDA __attribute__((always_inline))
+#elif defined(_MSC_VER)
+#define HC_INLINE __forceinline
+#define HC_LAMBDA
+#else
+#define HC_INLINE inline
+#define HC_LAMBDA
+#endif
+
+/* Before a loop over the lanes of a group: vectorise it as a loop (GCC would otherwise unroll a short loop whole
+ * first and then pack its statements into vectors, with shuffles). */
+#if defined(__GNUC__) && !defined(__clang__)
+#define HC_LANE_LOOP _Pragma("GCC unroll 1") _Pragma("GCC ivdep")
+#else
+#define HC_LANE_LOOP
+#endif
+
 namespace {
 
 /* A sum of squares above this is treated as overflowed. */
@@ -36,14 +58,14 @@ constexpr double OVERFLOW_LIMIT = 1.7e308;
 constexpr int64_t CHECK_MASK = 1023;
 
 template <class F, int... I>
-inline void unroll_sequence(F &&f, std::integer_sequence<int, I...>)
+HC_INLINE void unroll_sequence(F &&f, std::integer_sequence<int, I...>)
 {
     (f(I), ...);
 }
 
 /* f(0), f(1), ..., f(COUNT - 1), written out (the order of a sum is kept). */
 template <int COUNT, class F>
-inline void unroll(F &&f)
+HC_INLINE void unroll(F &&f)
 {
     unroll_sequence(f, std::make_integer_sequence<int, COUNT>{});
 }
@@ -61,10 +83,10 @@ template <int N, bool ZOH>
 struct Block {
     double a[N][N], p[N], q[N], c[N], d;
 
-    void load(const double *e, int64_t ecols, const double *crow, double direct)
+    HC_INLINE void load(const double *e, int64_t ecols, const double *crow, double direct)
     {
-        unroll<N>([&](int r) {
-            unroll<N>([&](int k) { a[r][k] = e[r * ecols + k]; });
+        unroll<N>([&](int r) HC_LAMBDA {
+            unroll<N>([&](int k) HC_LAMBDA { a[r][k] = e[r * ecols + k]; });
             if (ZOH) {
                 p[r] = e[r * ecols + N];
                 q[r] = 0.0;
@@ -78,22 +100,22 @@ struct Block {
     }
 
     /* x <- Ad x + drive, the signal vp before and vi now. */
-    inline void advance(double *x, double vp, double vi) const
+    HC_INLINE void advance(double *x, double vp, double vi) const
     {
         double next[N];
-        unroll<N>([&](int r) {
+        unroll<N>([&](int r) HC_LAMBDA {
             double s = a[r][0] * x[0];
-            unroll<N - 1>([&](int k) { s += a[r][k + 1] * x[k + 1]; });
+            unroll<N - 1>([&](int k) HC_LAMBDA { s += a[r][k + 1] * x[k + 1]; });
             next[r] = ZOH ? s + p[r] * vp : s + (p[r] * vp + q[r] * vi);
         });
-        unroll<N>([&](int r) { x[r] = next[r]; });
+        unroll<N>([&](int r) HC_LAMBDA { x[r] = next[r]; });
     }
 
     /* C x, summed left to right. */
-    inline double linear(const double *x) const
+    HC_INLINE double linear(const double *x) const
     {
         double z = c[0] * x[0];
-        unroll<N - 1>([&](int r) { z += c[r + 1] * x[r + 1]; });
+        unroll<N - 1>([&](int r) HC_LAMBDA { z += c[r + 1] * x[r + 1]; });
         return z;
     }
 };
@@ -104,7 +126,7 @@ struct OutputMap {
     const double *x = nullptr;
     int64_t nx = 0;
 
-    inline double operator()(double z, const double *p, int64_t m) const
+    HC_INLINE double operator()(double z, const double *p, int64_t m) const
     {
         return apply_map(code, z, p, m, x, nx);
     }
@@ -113,7 +135,7 @@ struct OutputMap {
 /* The output ((C x) + d v) (then the map) + o: without the direct term or the offset (DIRECT, OFFSET false) those
  * terms are left out, which adds exactly nothing when they are zero (and v finite). */
 template <int N, bool ZOH, bool DIRECT, bool OFFSET, bool MAP>
-inline double output(const Block<N, ZOH> &blk, const double *x, double v, double o, const OutputMap &h,
+HC_INLINE double output(const Block<N, ZOH> &blk, const double *x, double v, double o, const OutputMap &h,
                      const double *hp, int64_t hm)
 {
     double z = blk.linear(x);
@@ -127,7 +149,7 @@ inline double output(const Block<N, ZOH> &blk, const double *x, double v, double
 }
 
 /* v = P[0] phi[0] + P[1] phi[1] + ... (K >= 1 terms; P with stride 1, phi with stride step). */
-inline double combination(const double *P, const double *phi, int64_t K, int64_t step)
+HC_INLINE double combination(const double *P, const double *phi, int64_t K, int64_t step)
 {
     double v = P[0] * phi[0];
     for (int64_t k = 1; k < K; k++)
@@ -135,11 +157,147 @@ inline double combination(const double *P, const double *phi, int64_t K, int64_t
     return v;
 }
 
-/* A table of COUNT kernels, entry I made by MAKE::template at<I> (one instantiation per entry). */
+/* Samples whose signals a kernel forms at a time (basis_signals). */
+constexpr int64_t CHUNK = 128;
+
+/* v[j] = P[0] Phi[0][first + j] + P[1] Phi[1][first + j] + ... (added basis row by basis row) for the len <= CHUNK
+ * samples from first: one candidate's signals (P: its K coefficients; Phi: rows of stride samples), in loops over the
+ * samples that the compiler vectorises.  The same operations as combination, sample by sample. */
+HC_INLINE void basis_signals(const double *P, const double *Phi, int64_t stride, int64_t K, int64_t first,
+                             int64_t len, double *v)
+{
+    const double *phi = Phi + first;
+    double c = P[0];
+    for (int64_t j = 0; j < len; j++)
+        v[j] = c * phi[j];
+    for (int64_t k = 1; k < K; k++) {
+        phi = Phi + k * stride + first;
+        c = P[k];
+        for (int64_t j = 0; j < len; j++)
+            v[j] += c * phi[j];
+    }
+}
+
+/* Orders whose lane kernels are written out per lane (the state in registers); above, loops over the order with the
+ * lanes innermost. */
+constexpr int FIXED_MAX_ORDER = 4;
+
+/* The discretised blocks and states of W lanes side by side (one column per lane), of the order N, or for N = 0 of
+ * an order n known at run time (up to HC_MAX_ORDER).  Each lane's arithmetic is Block's, operation for operation;
+ * the loops over the lanes are the ones the compiler vectorises. */
+template <int N, bool ZOH, int W>
+struct LaneBlocks {
+    static constexpr int M = N > 0 ? N : HC_MAX_ORDER;
+    int64_t n = N;
+    alignas(64) double a[M][M][W], p[M][W], q[M][W], c[M][W], x[M][W];
+
+    /* Lane w's block from its row of E (rows of ecols columns) and C, its state from xrow. */
+    void load(int w, const double *e, int64_t ecols, const double *crow, const double *xrow)
+    {
+        for (int64_t r = 0; r < n; r++) {
+            for (int64_t k = 0; k < n; k++)
+                a[r][k][w] = e[r * ecols + k];
+            q[r][w] = ZOH ? 0.0 : e[r * ecols + n + 1];
+            p[r][w] = ZOH ? e[r * ecols + n] : e[r * ecols + n] - q[r][w];
+            c[r][w] = crow[r];
+            x[r][w] = xrow[r];
+        }
+    }
+
+    /* Every lane's state advanced: x <- Ad x + drive (signal vp before, vi now). */
+    HC_INLINE void advance(const double *vp, const double *vi)
+    {
+        if constexpr (N > 0) {
+            HC_LANE_LOOP
+            for (int w = 0; w < W; w++) {
+                double next[N];
+                unroll<N>([&](int r) HC_LAMBDA {
+                    double t = a[r][0][w] * x[0][w];
+                    unroll<N - 1>([&](int k) HC_LAMBDA { t += a[r][k + 1][w] * x[k + 1][w]; });
+                    next[r] = ZOH ? t + p[r][w] * vp[w] : t + (p[r][w] * vp[w] + q[r][w] * vi[w]);
+                });
+                unroll<N>([&](int r) HC_LAMBDA { x[r][w] = next[r]; });
+            }
+        } else {
+            alignas(64) double next[M][W];
+            for (int64_t r = 0; r < n; r++) {
+                HC_LANE_LOOP
+                for (int w = 0; w < W; w++)
+                    next[r][w] = a[r][0][w] * x[0][w];
+                for (int64_t k = 1; k < n; k++) {
+                    HC_LANE_LOOP
+                    for (int w = 0; w < W; w++)
+                        next[r][w] += a[r][k][w] * x[k][w];
+                }
+                HC_LANE_LOOP
+                for (int w = 0; w < W; w++)
+                    next[r][w] = ZOH ? next[r][w] + p[r][w] * vp[w] : next[r][w] + (p[r][w] * vp[w] + q[r][w] * vi[w]);
+            }
+            for (int64_t r = 0; r < n; r++) {
+                HC_LANE_LOOP
+                for (int w = 0; w < W; w++)
+                    x[r][w] = next[r][w];
+            }
+        }
+    }
+
+    /* z[w] = C x of every lane, summed left to right. */
+    HC_INLINE void linear(double *z) const
+    {
+        if constexpr (N > 0) {
+            HC_LANE_LOOP
+            for (int w = 0; w < W; w++) {
+                double t = c[0][w] * x[0][w];
+                unroll<N - 1>([&](int r) HC_LAMBDA { t += c[r + 1][w] * x[r + 1][w]; });
+                z[w] = t;
+            }
+        } else {
+            HC_LANE_LOOP
+            for (int w = 0; w < W; w++)
+                z[w] = c[0][w] * x[0][w];
+            for (int64_t r = 1; r < n; r++) {
+                HC_LANE_LOOP
+                for (int w = 0; w < W; w++)
+                    z[w] += c[r][w] * x[r][w];
+            }
+        }
+    }
+};
+
+/* vi[w] = P[0][w] phi[0] + P[1][w] phi[1] + ... for the W lanes of a group (rows of P: basis signals), the K terms
+ * written out, so that the loop over the lanes is the one the compiler vectorises. */
+template <int K, int W>
+HC_INLINE void lane_signals_of(const double (*P)[W], const double *phi, double *vi)
+{
+    HC_LANE_LOOP
+    for (int w = 0; w < W; w++) {
+        double v = P[0][w] * phi[0];
+        unroll<K - 1>([&](int k) HC_LAMBDA { v += P[k + 1][w] * phi[k + 1]; });
+        vi[w] = v;
+    }
+}
+
+/* lane_signals_of for the runtime count K (1 .. HC_MAX_BASIS; a branch per sample that the processor predicts). */
+template <int W>
+HC_INLINE void lane_signals(const double (*P)[W], const double *phi, int64_t K, double *vi)
+{
+    switch (K) {
+    case 1: lane_signals_of<1, W>(P, phi, vi); break;
+    case 2: lane_signals_of<2, W>(P, phi, vi); break;
+    case 3: lane_signals_of<3, W>(P, phi, vi); break;
+    case 4: lane_signals_of<4, W>(P, phi, vi); break;
+    case 5: lane_signals_of<5, W>(P, phi, vi); break;
+    case 6: lane_signals_of<6, W>(P, phi, vi); break;
+    case 7: lane_signals_of<7, W>(P, phi, vi); break;
+    default: lane_signals_of<8, W>(P, phi, vi); break;
+    }
+}
+
+/* A table of kernels, entry I MAKE::template at<I> (a kernel, or NULL where none is built). */
 template <class MAKE, int... I>
 inline const hc_kernel *kernel_table(std::integer_sequence<int, I...>)
 {
-    static const hc_kernel table[] = {&MAKE::template at<I>...};
+    static const hc_kernel table[] = {MAKE::template at<I>...};
     return table;
 }
 

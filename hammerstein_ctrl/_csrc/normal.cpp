@@ -17,10 +17,11 @@
  *   P (lanes, K), Phi (K+, N), HP (lanes, m), HX (nx,), y (N,), begin (an integer);
  *   acc: the sums [f, sum d r (p), sum d d^T (p x p)] (p = lanes - 1; the lower triangle of the last is read, all of
  *        it written), or with the outputs option an (N, lanes) array of the lanes' outputs.
- * Options: bit 0 a direct term, bit 1 an offset (without them D, Y0 are not read: the caller has seen them all zero),
- * bit 2 an output map, bit 3 the outputs.  A non-finite signal sample not yet in the state (zero-order hold: the last
- * one) reaches no sum when the direct term is left out: the sum of squares is then NaN, as it would be with d = 0.
- * Returns 0, or 1 if the arrays do not fit the pass (sizes, or an output map's parameters and data).
+ * Options: bit 0 a direct term, bit 1 an offset, bit 2 an output map, bit 3 the outputs.  Without a direct term or an
+ * offset D, Y0 are not read (the caller has seen them all zero) and the lanes add zero for them: the same sums (an
+ * output may differ in the sign of a zero).  A non-finite signal sample not yet in the state (zero-order hold: the
+ * last one) makes the sums NaN.  Returns 0, or 1 if the arrays do not fit the pass (sizes, or an output map's
+ * parameters and data).
  *
  * The summing passes of orders up to BLOCK_SUM_MAX_ORDER without a map add a block's sums of d r and d d^T to acc at
  * its end (from zero); the others carry acc's values through the block.  (Two ways of adding that give the same
@@ -33,20 +34,17 @@ namespace {
 
 enum { OPT_DIRECT = 1, OPT_OFFSET = 2, OPT_MAP = 4, OPT_OUTPUTS = 8 };
 constexpr int BLOCK_SUM_MAX_ORDER = 4;
-/* Most neighbours, and the entries of the lower triangle of their products. */
-constexpr int MAX_P = HC_MAX_LANES - 1;
-constexpr int MAX_TRIANGLE = MAX_P * (MAX_P + 1) / 2;
 
 struct NormalArgs {
     const double *E, *C, *D, *Y0, *P, *Phi, *HP, *y;
     double *X, *VP, *acc;
-    int64_t rows, erows, ecols, ccols, xcols, lanes, K, N, hm, acols, begin;
+    int64_t rows, erows, ecols, ccols, xcols, lanes, K, N, hm, acols, begin, n;
     bool direct, offset;
     OutputMap h;
 };
 
 /* The arguments of a pass with the given options, read and checked; false if they do not fit. */
-inline bool read_normal(const hc_arg *args, int options, NormalArgs &s)
+inline bool read_normal(const hc_arg *args, int options, int64_t n, NormalArgs &s)
 {
     int i = 0;
     if (options & OPT_MAP)
@@ -54,6 +52,7 @@ inline bool read_normal(const hc_arg *args, int options, NormalArgs &s)
     const hc_arg &E = args[i], &C = args[i + 1], &D = args[i + 2], &X = args[i + 3], &Y0 = args[i + 4],
                  &VP = args[i + 5], &P = args[i + 6], &Phi = args[i + 7], &HP = args[i + 8], &HX = args[i + 9],
                  &y = args[i + 10], &begin = args[i + 11], &acc = args[i + 12];
+    s.n = n;
     s.E = (const double *)E.data;
     s.rows = E.shape[0];
     s.erows = E.shape[1];
@@ -99,26 +98,78 @@ inline bool read_normal(const hc_arg *args, int options, NormalArgs &s)
     return fits;
 }
 
-template <int N, bool ZOH, int OPT, int W>
+/* The running sums of a pass over W lanes, kept by lane: f, G[a] = sum d_a r and the square H[a][b] = sum d_a d_b,
+ * with d_a = yhat_0 - yhat_a for lane a (lane 0's is zero: neighbour j is lane j + 1).  Only the rows of the
+ * neighbours are added to, over all W columns, so that every loop runs over whole vectors. */
+template <int W>
+struct Sums {
+    double f;
+    alignas(64) double G[W], H[W][W];
+    int64_t p;
+
+    /* From acc (carry, the lower triangle of the neighbours' square) or zero (block sums), f always from acc. */
+    void start(const double *acc, int64_t np, bool carry)
+    {
+        p = np;
+        f = acc[0];
+        for (int a = 0; a < W; a++) {
+            int64_t j = a - 1;
+            G[a] = carry && 0 <= j && j < p ? acc[1 + j] : 0.0;
+            for (int b = 0; b < W; b++) {
+                int64_t k = b - 1;
+                H[a][b] = carry && 0 <= k && k <= j && j < p ? acc[1 + p + j * p + k] : 0.0;
+            }
+        }
+    }
+
+    /* One sample's terms from the lanes' outputs yh. */
+    HC_INLINE void add(double yi, const double *yh)
+    {
+        alignas(64) double d[W];
+        double y0 = yh[0], r = yi - y0;
+        f += r * r;
+        HC_LANE_LOOP
+        for (int w = 0; w < W; w++)
+            d[w] = y0 - yh[w];
+        HC_LANE_LOOP
+        for (int w = 0; w < W; w++)
+            G[w] += d[w] * r;
+        for (int64_t a = 1; a <= p; a++) {
+            HC_LANE_LOOP
+            for (int b = 0; b < W; b++)
+                H[a][b] += d[a] * d[b];
+        }
+    }
+
+    /* Into acc: the sums (carried) or added to acc's (block sums); the triangle mirrored. */
+    void store(double *acc, bool carry) const
+    {
+        acc[0] = f;
+        for (int64_t j = 0; j < p; j++) {
+            acc[1 + j] = carry ? G[j + 1] : acc[1 + j] + G[j + 1];
+            for (int64_t k = 0; k <= j; k++) {
+                double v = carry ? H[j + 1][k + 1] : acc[1 + p + j * p + k] + H[j + 1][k + 1];
+                acc[1 + p + j * p + k] = v;
+                acc[1 + p + k * p + j] = v;
+            }
+        }
+    }
+};
+
+/* The pass over W lanes, of order N (0: s.n at run time). */
+template <int N, bool ZOH, bool MAP, bool OUTPUTS, int W>
 void normal_lanes(const NormalArgs &s)
 {
-    constexpr bool MAP = OPT & OPT_MAP, OUTPUTS = OPT & OPT_OUTPUTS;
-    constexpr bool BLOCK_SUMS = N <= BLOCK_SUM_MAX_ORDER && !MAP && !OUTPUTS;
-    alignas(64) double a[N][N][W], p[N][W], q[N][W], c[N][W], x[N][W], d[W], o[W], vp[W], vi[W], yh[W];
-    alignas(64) double P[HC_MAX_BASIS][W];
+    constexpr bool BLOCK_SUMS = N > 0 && N <= BLOCK_SUM_MAX_ORDER && !MAP && !OUTPUTS;
+    LaneBlocks<N, ZOH, W> blk;
+    blk.n = s.n;
+    alignas(64) double d[W], o[W], vp[W], vi[W], z[W], yh[W], P[HC_MAX_BASIS][W];
     double f[HC_MAX_BASIS] = {0.0};
     const double *hp[W];
-    const int64_t K = s.K, lanes = s.lanes, np = lanes - 1;
+    const int64_t K = s.K, lanes = s.lanes;
     for (int w = 0; w < W; w++) {
         int64_t b = w < lanes ? w : 0, e = b < s.rows ? b : 0;
-        const double *er = s.E + e * s.erows * s.ecols;
-        unroll<N>([&](int r) {
-            unroll<N>([&](int k) { a[r][k][w] = er[r * s.ecols + k]; });
-            q[r][w] = ZOH ? 0.0 : er[r * s.ecols + N + 1];
-            p[r][w] = ZOH ? er[r * s.ecols + N] : er[r * s.ecols + N] - q[r][w];
-            c[r][w] = s.C[e * s.ccols + r];
-            x[r][w] = s.X[b * s.xcols + r];
-        });
+        blk.load(w, s.E + e * s.erows * s.ecols, s.ecols, s.C + e * s.ccols, s.X + b * s.xcols);
         d[w] = s.direct ? s.D[e] : 0.0;
         o[w] = s.offset ? s.Y0[b] : 0.0;
         hp[w] = MAP ? s.HP + b * s.hm : nullptr;
@@ -126,115 +177,81 @@ void normal_lanes(const NormalArgs &s)
         for (int64_t k = 0; k < K; k++)
             P[k][w] = s.P[b * K + k];
     }
-    double fsum = OUTPUTS ? 0.0 : s.acc[0], g[MAX_P] = {0.0}, H[MAX_TRIANGLE] = {0.0};
-    if (!OUTPUTS && !BLOCK_SUMS)
-        for (int64_t j = 0, t = 0; j < np; j++) {
-            g[j] = s.acc[1 + j];
-            for (int64_t k = 0; k <= j; k++, t++)
-                H[t] = s.acc[1 + np + j * np + k];
+    Sums<W> sums;
+    if (!OUTPUTS)
+        sums.start(s.acc, lanes - 1, !BLOCK_SUMS);
+    /* the lanes' outputs of sample i from their states and signals, then its sums (or its row of outputs) */
+    auto sample = [&](int64_t i) HC_LAMBDA {
+        blk.linear(z);
+        HC_LANE_LOOP
+        for (int w = 0; w < W; w++) {
+            double v = z[w] + d[w] * vi[w];
+            if (MAP)
+                v = s.h(v, hp[w], s.hm);
+            yh[w] = v + o[w];
         }
-    auto signals = [&](int64_t i) {
-        for (int64_t k = 0; k < K; k++)
-            f[k] = s.Phi[k * s.N + i];
-        for (int w = 0; w < W; w++)
-            vi[w] = P[0][w] * f[0];
-        for (int64_t k = 1; k < K; k++)
-            for (int w = 0; w < W; w++)
-                vi[w] += P[k][w] * f[k];
-    };
-    /* lane w's output from its state and its signal sample vi[w] */
-    auto lane_output = [&](int w) {
-        double z = c[0][w] * x[0][w];
-        unroll<N - 1>([&](int r) { z += c[r + 1][w] * x[r + 1][w]; });
-        if (s.direct)
-            z = z + d[w] * vi[w];
-        if (MAP)
-            z = s.h(z, hp[w], s.hm);
-        if (s.offset)
-            z = z + o[w];
-        return z;
-    };
-    /* the sums of sample i (or the outputs' row i) */
-    auto add = [&](int64_t i) {
         if (OUTPUTS) {
             for (int64_t w = 0; w < lanes; w++)
                 s.acc[i * s.acols + w] = yh[w];
-            return;
+        } else {
+            sums.add(s.y[i], yh);
         }
-        double y0 = yh[0], r = s.y[i] - y0, dj[MAX_P];
-        fsum += r * r;
-        for (int64_t j = 0; j < np; j++)
-            dj[j] = y0 - yh[j + 1];
-        for (int64_t j = 0; j < np; j++)
-            g[j] += dj[j] * r;
-        for (int64_t j = 0, t = 0; j < np; j++)
-            for (int64_t k = 0; k <= j; k++, t++)
-                H[t] += dj[j] * dj[k];
     };
     int64_t start = 0;
     if (s.begin == 0 && s.N > 0) {
-        signals(0);
-        for (int w = 0; w < W; w++) {
+        for (int64_t k = 0; k < K; k++)
+            f[k] = s.Phi[k * s.N];
+        lane_signals<W>(P, f, K, vi);
+        for (int w = 0; w < W; w++)
             vp[w] = vi[w];
-            yh[w] = lane_output(w);
-        }
-        add(0);
+        sample(0);
         start = 1;
     }
     for (int64_t i = start; i < s.N; i++) {
-        signals(i);
-        for (int w = 0; w < W; w++) {
-            double next[N];
-            unroll<N>([&](int r) {
-                double t = a[r][0][w] * x[0][w];
-                unroll<N - 1>([&](int k) { t += a[r][k + 1][w] * x[k + 1][w]; });
-                next[r] = ZOH ? t + p[r][w] * vp[w] : t + (p[r][w] * vp[w] + q[r][w] * vi[w]);
-            });
-            unroll<N>([&](int r) { x[r][w] = next[r]; });
+        for (int64_t k = 0; k < K; k++)
+            f[k] = s.Phi[k * s.N + i];
+        lane_signals<W>(P, f, K, vi);
+        blk.advance(vp, vi);
+        for (int w = 0; w < W; w++)
             vp[w] = vi[w];
-            yh[w] = lane_output(w);
-        }
-        add(i);
+        sample(i);
     }
+    bool finite = true;
     for (int64_t w = 0; w < lanes; w++) {
-        unroll<N>([&](int r) { s.X[w * s.xcols + r] = x[r][w]; });
+        for (int64_t r = 0; r < s.n; r++)
+            s.X[w * s.xcols + r] = blk.x[r][w];
         s.VP[w] = vp[w];
-        if (!OUTPUTS && !std::isfinite(vp[w]))
-            fsum = NAN;
+        finite = finite && std::isfinite(vp[w]);
     }
     if (OUTPUTS)
         return;
-    s.acc[0] = fsum;
-    for (int64_t j = 0, t = 0; j < np; j++) {
-        s.acc[1 + j] = BLOCK_SUMS ? s.acc[1 + j] + g[j] : g[j];
-        for (int64_t k = 0; k <= j; k++, t++) {
-            double v = BLOCK_SUMS ? s.acc[1 + np + j * np + k] + H[t] : H[t];
-            s.acc[1 + np + j * np + k] = v;
-            s.acc[1 + np + k * np + j] = v;
-        }
-    }
+    if (!finite)
+        sums.f = NAN;
+    sums.store(s.acc, !BLOCK_SUMS);
 }
 
 template <int N, bool ZOH, int OPT>
 int64_t normal_kernel(const hc_arg *args)
 {
+    constexpr bool MAP = OPT & OPT_MAP, OUTPUTS = OPT & OPT_OUTPUTS;
+    constexpr int ORDER = N <= FIXED_MAX_ORDER ? N : 0;
     NormalArgs s;
-    if (!read_normal(args, OPT, s))
+    if (!read_normal(args, OPT, N, s))
         return 1;
     if (s.lanes <= 8)
-        normal_lanes<N, ZOH, OPT & (OPT_MAP | OPT_OUTPUTS), 8>(s);
+        normal_lanes<ORDER, ZOH, MAP, OUTPUTS, 8>(s);
     else
-        normal_lanes<N, ZOH, OPT & (OPT_MAP | OPT_OUTPUTS), 16>(s);
+        normal_lanes<ORDER, ZOH, MAP, OUTPUTS, 16>(s);
     return 0;
 }
 
-/* Table entry I: order I / 32 + 1, hold (I / 16) % 2, options I % 16. */
+/* Table entry I: order I / 32 + 1, hold (I / 16) % 2, options I % 16.  A pass with an output map steps its lanes
+ * one by one (a map is no vector operation): only the baseline's build has it. */
 struct MakeNormal {
     template <int I>
-    static int64_t at(const hc_arg *args)
-    {
-        return normal_kernel<I / 32 + 1, (I / 16) % 2 == 1, I % 16>(args);
-    }
+    static constexpr hc_kernel at = HC_BASELINE || !(I % 16 & OPT_MAP)
+                                        ? &normal_kernel<I / 32 + 1, (I / 16) % 2 == 1, I % 16>
+                                        : nullptr;
 };
 
 }  // namespace

@@ -2,8 +2,8 @@
  * single evaluation from transfer-function coefficients (HC_COEFFICIENT).
  *
  * A candidate's recursion is latency-bound (each sample waits for the last), so independent candidates are stepped
- * side by side: pairs, and three together for orders up to TRIO_MAX_ORDER where three are left (on the EMPS, order 2,
- * three together took 69 us where a pair and a single took 84).  Each candidate's arithmetic is kernels.hpp's, the
+ * side by side up to PAIR_MAX_ORDER: pairs, and three together for orders up to TRIO_MAX_ORDER where three are left
+ * (on the EMPS, order 2, three together took 69 us where a pair and a single took 84).  Each candidate's arithmetic is kernels.hpp's, the
  * same whatever its neighbours.
  *
  * Arguments (hc_arg), in order:
@@ -22,6 +22,9 @@ namespace {
 /* Orders up to this take three candidates side by side where three are left (at 4 states three cost as much as a
  * pair and a single). */
 constexpr int TRIO_MAX_ORDER = 2;
+/* Orders up to this step candidates in pairs; above, one at a time (a recursion of five states or more has the
+ * independent work of a pair within one candidate: its rows). */
+constexpr int PAIR_MAX_ORDER = 4;
 
 enum { OPT_SSE = 1, OPT_BASIS = 2, OPT_MAP = 4 };
 
@@ -97,17 +100,17 @@ void run_group(const SingleArgs &s, int64_t b0)
     Block<N, ZOH> blk[G];
     double x[G][N], o[G], vp[G], J[G];
     const double *hp[G];
-    auto signal = [&](int g, int64_t i) {
+    auto signal = [&](int g, int64_t i) HC_LAMBDA {
         int64_t b = b0 + g;
         return BASIS ? combination(s.P + b * s.pcols, s.Phi + i, s.K, s.N) : s.V[b * s.vcols + i];
     };
-    auto out_of = [&](int g, double v) {
+    auto out_of = [&](int g, double v) HC_LAMBDA {
         return output<N, ZOH, true, true, MAP>(blk[g], x[g], v, o[g], s.h, hp[g], s.hm);
     };
-    unroll<G>([&](int g) {
+    unroll<G>([&](int g) HC_LAMBDA {
         int64_t b = b0 + g;
         blk[g].load(s.E + b * s.erows * s.ecols, s.ecols, s.C + b * s.ccols, s.D[b]);
-        unroll<N>([&](int r) { x[g][r] = s.X0[b * s.xcols + r]; });
+        unroll<N>([&](int r) HC_LAMBDA { x[g][r] = s.X0[b * s.xcols + r]; });
         o[g] = s.Y0[b];
         hp[g] = MAP ? s.HP + b * s.hm : nullptr;
         vp[g] = signal(g, 0);
@@ -119,29 +122,46 @@ void run_group(const SingleArgs &s, int64_t b0)
             s.out[b * s.ocols] = yh;
         }
     });
-    for (int64_t i = 1; i < s.N; i++) {
-        double yi = SSE ? s.y[i] : 0.0;
-        unroll<G>([&](int g) {
-            double vi = signal(g, i);
-            blk[g].advance(x[g], vp[g], vi);
-            double yh = out_of(g, vi);
-            if (SSE) {
-                double e = yi - yh;
-                J[g] += e * e;
+    double chunk[BASIS ? G : 1][BASIS ? CHUNK : 1];
+    const double *v[G];
+    for (int64_t first = 1; first < s.N; first += CHUNK) {
+        int64_t len = s.N - first < CHUNK ? s.N - first : CHUNK;
+        unroll<G>([&](int g) HC_LAMBDA {
+            int64_t b = b0 + g;
+            if (BASIS) {
+                basis_signals(s.P + b * s.pcols, s.Phi, s.N, s.K, first, len, chunk[g]);
+                v[g] = chunk[g];
             } else {
-                s.out[(b0 + g) * s.ocols + i] = yh;
+                v[g] = s.V + b * s.vcols + first;
             }
-            vp[g] = vi;
         });
-        if (SSE && (i & CHECK_MASK) == 0) {     /* stop once every sum has overflowed (or is NaN) */
-            bool alive = false;
-            unroll<G>([&](int g) { alive = alive || J[g] <= OVERFLOW_LIMIT; });
-            if (!alive)
-                break;
+        for (int64_t j = 0; j < len; j++) {
+            int64_t i = first + j;
+            double yi = SSE ? s.y[i] : 0.0;
+            unroll<G>([&](int g) HC_LAMBDA {
+                double vi = v[g][j];
+                blk[g].advance(x[g], vp[g], vi);
+                double yh = out_of(g, vi);
+                if (SSE) {
+                    double e = yi - yh;
+                    J[g] += e * e;
+                } else {
+                    s.out[(b0 + g) * s.ocols + i] = yh;
+                }
+                vp[g] = vi;
+            });
+            if (SSE && (i & CHECK_MASK) == 0) { /* stop once every sum has overflowed (or is NaN) */
+                bool alive = false;
+                unroll<G>([&](int g) HC_LAMBDA { alive = alive || J[g] <= OVERFLOW_LIMIT; });
+                if (!alive)
+                    first = s.N;
+                if (!alive)
+                    break;
+            }
         }
     }
     if (SSE)
-        unroll<G>([&](int g) { s.out[b0 + g] = J[g] <= OVERFLOW_LIMIT ? J[g] : INFINITY; });
+        unroll<G>([&](int g) HC_LAMBDA { s.out[b0 + g] = J[g] <= OVERFLOW_LIMIT ? J[g] : INFINITY; });
 }
 
 template <int N, bool ZOH, int OPT>
@@ -151,13 +171,17 @@ int64_t single_kernel(const hc_arg *args)
     if (!read_args(args, OPT, s))
         return 1;
     int64_t b0 = 0;
-    while (s.batch - b0 >= 2 && !(N <= TRIO_MAX_ORDER && s.batch - b0 == 3)) {
-        run_group<N, ZOH, OPT, 2>(s, b0);
-        b0 += 2;
+    if constexpr (N <= PAIR_MAX_ORDER) {
+        while (s.batch - b0 >= 2 && !(N <= TRIO_MAX_ORDER && s.batch - b0 == 3)) {
+            run_group<N, ZOH, OPT, 2>(s, b0);
+            b0 += 2;
+        }
     }
-    if (N <= TRIO_MAX_ORDER && s.batch - b0 == 3) {
-        run_group<N, ZOH, OPT, 3>(s, b0);
-        b0 += 3;
+    if constexpr (N <= TRIO_MAX_ORDER) {
+        if (s.batch - b0 == 3) {
+            run_group<N, ZOH, OPT, 3>(s, b0);
+            b0 += 3;
+        }
     }
     while (b0 < s.batch) {
         run_group<N, ZOH, OPT, 1>(s, b0);
@@ -166,13 +190,21 @@ int64_t single_kernel(const hc_arg *args)
     return 0;
 }
 
-/* Table entry I: order I / 16 + 1, hold (I / 8) % 2, options I % 8. */
+/* Whether the kernel of order N with the options OPT is built: the signals V ("sse" or "outputs", with an output
+ * map up to HC_LANES_MAX_ORDER) and, up to that order too, a basis in "sse" mode without a map. */
+constexpr bool built(int N, int OPT)
+{
+    bool basis = OPT & OPT_BASIS, map = OPT & OPT_MAP, sse = OPT & OPT_SSE;
+    if (basis)
+        return sse && !map && N <= HC_LANES_MAX_ORDER;
+    return !map || N <= HC_LANES_MAX_ORDER;
+}
+
+/* Table entry I: order I / 16 + 1, hold (I / 8) % 2, options I % 8 (NULL where not built). */
 struct MakeSingle {
     template <int I>
-    static int64_t at(const hc_arg *args)
-    {
-        return single_kernel<I / 16 + 1, (I / 8) % 2 == 1, I % 8>(args);
-    }
+    static constexpr hc_kernel at = built(I / 16 + 1, I % 8) ? &single_kernel<I / 16 + 1, (I / 8) % 2 == 1, I % 8>
+                                                             : nullptr;
 };
 
 }  // namespace

@@ -2,9 +2,10 @@
  * processor runs best.
  *
  * The vector kernels (lanes.cpp, normal.cpp) are built once for the platform's baseline and, on x86-64, again for
- * AVX2 and AVX-512; the module's initialisation (hc_core_init) picks the widest set the processor and the operating
- * system support (CPUID and XGETBV).  The sets give the same bits: the kernels' arithmetic is elementwise IEEE operations, with no contraction
- * into fused multiply-adds and no reordered sums, whatever the width of the vectors that carry it.
+ * AVX2; the module's initialisation (hc_core_init) takes AVX2's where the processor and the operating system support
+ * it (CPUID and XGETBV), and the baseline's for the entries AVX2's build leaves out.  The sets give the same bits:
+ * the kernels' arithmetic is elementwise IEEE operations, with no contraction into fused multiply-adds and no
+ * reordered sums, whatever the width of the vectors that carry it.
  */
 #include "hc.h"
 
@@ -26,8 +27,6 @@ const hc_kernel *hc_normal_table_baseline(void);
 #ifdef HC_X86
 const hc_kernel *hc_lanes_table_avx2(void);
 const hc_kernel *hc_normal_table_avx2(void);
-const hc_kernel *hc_lanes_table_avx512(void);
-const hc_kernel *hc_normal_table_avx512(void);
 #endif
 int64_t hc_coefficient_pass(const hc_arg *args);
 }
@@ -41,7 +40,7 @@ constexpr int64_t SINGLE_COUNT = 16 * HC_MAX_ORDER, LANES_COUNT = 8 * HC_LANES_M
 constexpr int64_t LANES_FIRST = SINGLE_COUNT, NORMAL_FIRST = LANES_FIRST + LANES_COUNT,
                   COEFFICIENT_NUMBER = NORMAL_FIRST + NORMAL_COUNT, TABLE_SIZE = COEFFICIENT_NUMBER + 1;
 
-enum Isa { BASELINE = 0, AVX2 = 1, AVX512 = 2 };
+enum Isa { BASELINE = 0, AVX2 = 1 };
 
 #ifdef HC_X86
 void cpuid(int leaf, int sub, unsigned regs[4])
@@ -67,26 +66,19 @@ unsigned long long xgetbv0(void)
 #endif
 }
 
-/* The widest set the processor has and the operating system saves the registers of. */
+/* AVX2 where the processor has it and the operating system saves the AVX registers. */
 Isa detect(void)
 {
     unsigned r[4];
     cpuid(0, 0, r);
-    unsigned top = r[0];
-    if (top < 7)
+    if (r[0] < 7)
         return BASELINE;
     cpuid(1, 0, r);
     bool osxsave = (r[2] >> 27) & 1, avx = (r[2] >> 28) & 1;
-    if (!osxsave || !avx)
-        return BASELINE;
-    unsigned long long xcr0 = xgetbv0();
-    if ((xcr0 & 0x6) != 0x6)                 /* the SSE and AVX registers */
+    if (!osxsave || !avx || (xgetbv0() & 0x6) != 0x6)        /* the SSE and AVX registers */
         return BASELINE;
     cpuid(7, 0, r);
-    bool avx2 = (r[1] >> 5) & 1, avx512f = (r[1] >> 16) & 1;
-    if (avx512f && (xcr0 & 0xe6) == 0xe6)    /* and the AVX-512 ones */
-        return AVX512;
-    return avx2 ? AVX2 : BASELINE;
+    return (r[1] >> 5) & 1 ? AVX2 : BASELINE;
 }
 #else
 Isa detect(void)
@@ -128,22 +120,19 @@ void hc_core_init(void)
 {
     isa = detect();
     const hc_kernel *single = hc_single_table(), *lanes = hc_lanes_table_baseline(),
-                    *normal = hc_normal_table_baseline();
+                    *normal = hc_normal_table_baseline(), *wide_lanes = lanes, *wide_normal = normal;
 #ifdef HC_X86
     if (isa == AVX2) {
-        lanes = hc_lanes_table_avx2();
-        normal = hc_normal_table_avx2();
-    } else if (isa == AVX512) {
-        lanes = hc_lanes_table_avx512();
-        normal = hc_normal_table_avx512();
+        wide_lanes = hc_lanes_table_avx2();
+        wide_normal = hc_normal_table_avx2();
     }
 #endif
     for (int64_t i = 0; i < SINGLE_COUNT; i++)
         entries[i] = single[i];
     for (int64_t i = 0; i < LANES_COUNT; i++)
-        entries[LANES_FIRST + i] = lanes[i];
+        entries[LANES_FIRST + i] = wide_lanes[i] ? wide_lanes[i] : lanes[i];
     for (int64_t i = 0; i < NORMAL_COUNT; i++)
-        entries[NORMAL_FIRST + i] = normal[i];
+        entries[NORMAL_FIRST + i] = wide_normal[i] ? wide_normal[i] : normal[i];
     entries[COEFFICIENT_NUMBER] = hc_coefficient_pass;
 }
 
@@ -154,7 +143,7 @@ hc_kernel hc_kernel_at(int64_t number)
 
 const char *hc_vector_isa(void)
 {
-    static const char *const names[] = {"baseline", "avx2", "avx512"};
+    static const char *const names[] = {"baseline", "avx2"};
     return names[isa];
 }
 
