@@ -1,5 +1,9 @@
 """Shared fixtures.
 
+The suite runs against the installed package (``make test`` installs it, building its compiled core, then runs
+pytest from its console script, which puts no source folder on ``sys.path``): a package imported from the source
+tree, which has no compiled core, stops the run at once with the reason.
+
 EMPS tests need the benchmark files.  They are looked up through
 ``$HAMMERSTEIN_CTRL_DATA`` (CI sets it to ``../shared/data``) or, for a developer
 checkout, ``../shared/data`` next to the repository.  When the files are truly
@@ -18,6 +22,24 @@ import numpy as np
 import pytest
 
 REPO = Path(__file__).resolve().parents[1]
+
+
+def _installed_package():
+    """The package as installed: its compiled core imports, and it is not the source tree's folder."""
+    try:
+        import hammerstein_ctrl._core  # noqa: F401
+        import hammerstein_ctrl
+    except ImportError as exc:
+        raise pytest.UsageError(f"hammerstein_ctrl's compiled core does not import ({exc}): install the package "
+                                "(make install, or pip install .) and run pytest from its console script, which "
+                                "puts no source folder on sys.path") from None
+    if Path(hammerstein_ctrl.__file__).resolve().parent == REPO / "hammerstein_ctrl":
+        raise pytest.UsageError("hammerstein_ctrl was imported from the source tree: the tests run against the "
+                                "installed package (make test; python -m pytest puts the current folder first)")
+
+
+def pytest_configure(config):
+    _installed_package()
 
 
 def _emps_dir():

@@ -70,6 +70,24 @@ HC_INLINE void unroll(F &&f)
     unroll_sequence(f, std::make_integer_sequence<int, COUNT>{});
 }
 
+/* a where mask is all ones, b where it is zero: a select by the bits (which the compiler vectorises, where a
+ * conditional on a flag would keep a loop scalar). */
+HC_INLINE double pick(uint64_t mask, double a, double b)
+{
+    uint64_t x, y;
+    std::memcpy(&x, &a, sizeof x);
+    std::memcpy(&y, &b, sizeof y);
+    x = (x & mask) | (y & ~mask);
+    std::memcpy(&a, &x, sizeof a);
+    return a;
+}
+
+/* The mask of pick for a flag. */
+HC_INLINE uint64_t mask_of(bool flag)
+{
+    return flag ? ~(uint64_t)0 : 0;
+}
+
 /* A float passed by its bits in an argument's shape[0]. */
 inline double float_arg(const hc_arg &a)
 {

@@ -10,9 +10,10 @@
  *
  * Arguments (hc_arg): E (B, n+, n+2+), C (B, n+), D (B,), X0 (B, n+), Y0 (B,), P (B, K), Phi (K+, N), y (N,),
  * out (B,).  Options: bit 0 a direct term, bit 1 an offset; without them D, Y0 are not read (the caller has seen
- * them all zero) and the lanes add a zero direct term and offset: the same sums, as adding zero changes no sum of
- * squares (a non-finite signal sample gives inf either way).  Returns 0, or 1 for a basis of no signals or more
- * than HC_MAX_BASIS.
+ * them all zero) and the lanes add a zero direct term and offset, which leaves every sum of squares as it is: a
+ * zero's sign does not reach a square, and a non-finite signal sample gives inf either way (the last one reaches
+ * the output only through the direct term under zero-order hold: it scores inf as it would with d = 0).  Returns 0,
+ * or 1 for a basis of no signals or more than HC_MAX_BASIS.
  */
 #include "kernels.hpp"
 #include "isa.h"

@@ -17,11 +17,10 @@
  *   P (lanes, K), Phi (K+, N), HP (lanes, m), HX (nx,), y (N,), begin (an integer);
  *   acc: the sums [f, sum d r (p), sum d d^T (p x p)] (p = lanes - 1; the lower triangle of the last is read, all of
  *        it written), or with the outputs option an (N, lanes) array of the lanes' outputs.
- * Options: bit 0 a direct term, bit 1 an offset, bit 2 an output map, bit 3 the outputs.  Without a direct term or an
- * offset D, Y0 are not read (the caller has seen them all zero) and the lanes add zero for them: the same sums (an
- * output may differ in the sign of a zero).  A non-finite signal sample not yet in the state (zero-order hold: the
- * last one) makes the sums NaN.  Returns 0, or 1 if the arrays do not fit the pass (sizes, or an output map's
- * parameters and data).
+ * Options: bit 0 a direct term, bit 1 an offset (without them D, Y0 are not read: the caller has seen them all zero),
+ * bit 2 an output map, bit 3 the outputs.  A non-finite signal sample not yet in the state (zero-order hold: the last
+ * one) reaches no sum when the direct term is left out: the sum of squares is then NaN, as it would be with d = 0.
+ * Returns 0, or 1 if the arrays do not fit the pass (sizes, or an output map's parameters and data).
  *
  * The summing passes of orders up to BLOCK_SUM_MAX_ORDER without a map add a block's sums of d r and d d^T to acc at
  * its end (from zero); the others carry acc's values through the block.  (Two ways of adding that give the same
@@ -177,6 +176,7 @@ void normal_lanes(const NormalArgs &s)
         for (int64_t k = 0; k < K; k++)
             P[k][w] = s.P[b * K + k];
     }
+    const uint64_t direct = mask_of(s.direct), offset = mask_of(s.offset);
     Sums<W> sums;
     if (!OUTPUTS)
         sums.start(s.acc, lanes - 1, !BLOCK_SUMS);
@@ -184,11 +184,11 @@ void normal_lanes(const NormalArgs &s)
     auto sample = [&](int64_t i) HC_LAMBDA {
         blk.linear(z);
         HC_LANE_LOOP
-        for (int w = 0; w < W; w++) {
-            double v = z[w] + d[w] * vi[w];
+        for (int w = 0; w < W; w++) {     /* each term computed, then taken or not */
+            double v = pick(direct, z[w] + d[w] * vi[w], z[w]);
             if (MAP)
                 v = s.h(v, hp[w], s.hm);
-            yh[w] = v + o[w];
+            yh[w] = pick(offset, v + o[w], v);
         }
         if (OUTPUTS) {
             for (int64_t w = 0; w < lanes; w++)
