@@ -111,9 +111,9 @@ class Kernel:
     __slots__ = ("number", "spec", "messages", "prefix")
 
     def __init__(self, number: int, spec: str, messages: tuple, prefix: tuple = ()):
+        self.number, self.spec, self.messages, self.prefix = number, spec, messages, prefix
         if number < 0:
             raise ValueError(f"the compiled core has no kernel {spec.split('|')[0]}")
-        self.number, self.spec, self.messages, self.prefix = number, spec, messages, prefix
 
     def __call__(self, *args):
         status = _core.call(self.number, self.spec, *self.prefix, *args)
@@ -158,7 +158,8 @@ def get_kernel(n: int, mode: str, hold: str = "foh", outmap: str | None = None, 
     Parameters
     ----------
     n : int
-        State dimension of the linear block (``1 .. MAX_PASS_STATES``).
+        State dimension of the linear block (``1 .. MAX_PASS_STATES``, any for signals ``V`` without a map: a
+        state-space model's ``E`` is then exactly ``(B, n + 2, n + 2)``).
     mode : {"sse", "outputs"}
     hold : {"foh", "zoh"}
     outmap : str, optional
@@ -184,6 +185,11 @@ def get_kernel(n: int, mode: str, hold: str = "foh", outmap: str | None = None, 
         raise ValueError(f"unknown kernel mode {mode!r}")
     if outmap is not None and not has_output_maps(n):
         raise ValueError(f"output maps are applied in the pass for up to {MAX_UNROLLED_STATES} states, not {n}")
+    if n > MAX_PASS_STATES and K is None and outmap is None:     # past the written-out orders: one generic loop
+        spec = (f"hc_kernel_n{n}_{mode}_{hold}|E:r:B,{n + 2},{n + 2} C:r:B,{n}+ D:r:B X0:r:B,{n}+ Y0:r:B V:r:B,N+"
+                + (" y:r:N out:w:B" if mode == "sse" else " out:w:B,N+"))
+        return Kernel(_core.hc_kernel_number(_core.ANY_ORDER, n, _hold(hold), _SSE if mode == "sse" else 0), spec,
+                      ("", "", "no memory for the state"))
     options = (_SSE if mode == "sse" else 0) | (_BASIS if K is not None else 0) | (_MAP if outmap else 0)
     signal = "V:r:B,N+" if K is None else f"P:r:B,{K} Phi:r:{K}+,N+"
     mapped = " HP:r:B,M HX:r:X*" if outmap else ""

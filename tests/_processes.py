@@ -13,7 +13,7 @@ STARTUP_TIMEOUT = 120.0
 
 def cli(*argv, **kwargs) -> subprocess.Popen:
     """Start ``python -m hammerstein_ctrl.cli *argv`` on this checkout."""
-    env = {**os.environ, "PYTHONPATH": str(REPO)}
+    env = dict(os.environ)
     return subprocess.Popen([sys.executable, "-m", "hammerstein_ctrl.cli", *map(str, argv)], env=env,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, **kwargs)
 

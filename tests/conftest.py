@@ -17,6 +17,9 @@ from pathlib import Path
 # the suite exercises Levenberg-Marquardt's compiled loop wherever it applies (the default, "auto", runs it too;
 # tests hide it where they compare it with the Python loop)
 os.environ.setdefault("HAMMERSTEIN_CTRL_COMPILED_LOOP", "always")
+# child Python processes (python -c, python -m) import the installed package too: none puts its current folder,
+# the checkout perhaps, first on sys.path
+os.environ["PYTHONSAFEPATH"] = "1"
 
 import numpy as np
 import pytest

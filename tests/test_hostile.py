@@ -196,7 +196,7 @@ def test_hostile_case_count():
 
 def test_a_real_process_prints_one_line_and_exits_2(tmp_path):
     proc = subprocess.run([sys.executable, "-m", "hammerstein_ctrl.cli", "reproduce", "trs", "--seed", "-1"],
-                          capture_output=True, text=True, env={"PYTHONPATH": str(REPO), "PATH": "/usr/bin:/bin"},
+                          capture_output=True, text=True, env={"PYTHONSAFEPATH": "1", "PATH": "/usr/bin:/bin"},
                           timeout=120)
     assert proc.returncode == 2 and proc.stdout == ""
     assert proc.stderr.splitlines() == [

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from hammerstein_ctrl import presets
-from hammerstein_ctrl.kernels import LANE_MIN, LANE_WIDTHS, lane_source
+from hammerstein_ctrl.kernels import LANE_MIN, LANE_WIDTHS
 from hammerstein_ctrl.simulate import sse_basis_batch, sse_batch
 
 
@@ -81,12 +81,6 @@ def test_cost_batch_matches_single_evaluations():
     np.testing.assert_array_equal(J, [case.cost(b) for b in betas])
 
 
-def test_source_leaves_out_zero_terms():
-    full, lean = lane_source(2, "foh", 3), lane_source(2, "foh", 3, direct=False, offset=False)
-    assert "D[b]" in full and "Y0[b]" in full
-    assert "D[b]" not in lean and "Y0[b]" not in lean
-
-
 def test_inapplicable_sizes_return_none():
     basis = np.ones((9, 10))
     assert sse_basis_batch(np.ones((3, 1)), np.tile([1.0, 1.0], (3, 1)), np.ones((3, 9)), basis, 0.1,
@@ -137,18 +131,6 @@ def test_basis_arguments_are_checked():
         sse_basis_batch(num, den, np.ones((3, 1)), u[None], 0.01, y[:-1])
     with pytest.raises(DataError, match="same, non-zero, length"):
         sse_batch(num, den, np.ones((3, 0)), 0.01, np.ones(0))
-
-
-def test_kernels_compile_in_memory_without_a_cache_directory(monkeypatch):
-    from hammerstein_ctrl import kernels
-
-    monkeypatch.setattr(kernels, "cache_dir", lambda: None)
-    module = kernels._load_module(kernels.lane_source(1, "zoh", 2, True, False), "hc_test_in_memory")
-    J = np.empty(3)
-    E = np.array([[[1.0, 0.5, 0.0], [0.0, 1.0, 1.0], [0.0, 0.0, 1.0]]] * 3)
-    module.kernel(E, np.ones((3, 1)), np.zeros(3), np.zeros((3, 1)), np.zeros(3), np.ones((3, 2)),
-                  np.vstack([np.ones(4), np.zeros(4)]), np.zeros(4), J)
-    np.testing.assert_array_equal(J, [3.5, 3.5, 3.5])
 
 
 @pytest.mark.parametrize("kind", ["basis", "no g", "offset and x0", "reject unstable", "tanh", "tanh, offset and x0"])

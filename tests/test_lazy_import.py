@@ -20,7 +20,7 @@ HEAVY = ("numpy", "scipy", "numba", "control", "matplotlib")
 def fresh(code: str) -> dict:
     import os
 
-    env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")]))
+    env = dict(os.environ)
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, check=True)
     return json.loads(out.stdout.strip().splitlines()[-1])
 

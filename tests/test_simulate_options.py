@@ -8,7 +8,6 @@ import scipy.signal
 
 from hammerstein_ctrl import HammersteinModel, IOData, Tanh
 from hammerstein_ctrl._linalg import expm_batch
-from hammerstein_ctrl.kernels import cache_dir
 from hammerstein_ctrl.simulate import companion_realization, discretize, lsim, simulate_batch, sse_batch
 
 
@@ -93,6 +92,3 @@ def test_compiled_expm_matches_scipy(rng):
     assert np.all(np.isnan(expm_batch(np.full((1, 2, 2), np.inf))))
 
 
-def test_generated_kernels_are_cached_on_disk():
-    folder = cache_dir()
-    assert folder is not None and any(folder.glob("hc_kernel_n2_*.py"))

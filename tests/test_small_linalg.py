@@ -194,12 +194,9 @@ def _transfer_rows(rng, rows: int, n: int):
 
 
 def test_the_discretisation_gives_scipys_exponential_and_flags_the_rows_it_cannot_take():
-    """The C library's discretisation: scipy's exponential (independent oracle) for every usable row, the unusable
-    rows (NaN, a zero leading coefficient) and those past the compiled Pade flagged; compiled callers that pass it
-    arrays of other kinds are refused when they are compiled."""
-    import numba
-
-    from hammerstein_ctrl._linalg import _c_expm, tf_augmented, tf_discrete
+    """The compiled core's discretisation: scipy's exponential (independent oracle) for every usable row, the
+    unusable rows (NaN, a zero leading coefficient) and those past the compiled Pade flagged."""
+    from hammerstein_ctrl._linalg import tf_augmented, tf_discrete
 
     rng = np.random.default_rng(5)
     for n in (1, 2, 4):
@@ -211,15 +208,6 @@ def test_the_discretisation_gives_scipys_exponential_and_flags_the_rows_it_canno
         M = tf_augmented(num[ok], den[ok], 0.05)[0]
         np.testing.assert_allclose(E[ok & ~big], scipy.linalg.expm(M[~big[ok]]), rtol=1e-12, atol=1e-14)
         assert tf_discrete(num[[0, 4]].copy(), den[[0, 4]].copy(), 0.05, 64.0)[5]      # usable rows: clean
-
-    @numba.njit
-    def wrong(M):
-        out = np.empty((1, 1))
-        _c_expm(M, 1, out)
-        return out
-
-    with pytest.raises(numba.core.errors.TypingError, match="hc_expm takes arguments of kinds"):
-        wrong(np.ones((1, 1), dtype=np.float32))
 
 
 def test_the_python_doors_refuse_shapes_the_c_code_would_read_past():

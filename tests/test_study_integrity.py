@@ -160,7 +160,7 @@ def test_without_pdeathsig_the_parent_watch_ends_the_workers(tmp_path):
     from hammerstein_ctrl.executors import PARENT_WATCH_INTERVAL
 
     proc = subprocess.Popen([sys.executable, "-c", _POOL_WITHOUT_PDEATHSIG], stdout=subprocess.PIPE, text=True,
-                            env={**os.environ, "PYTHONPATH": str(REPO)})
+                            env=dict(os.environ))
     try:
         assert proc.stdout.readline().strip() == "ready"
         workers = children(proc.pid)

@@ -46,6 +46,7 @@ enum hc_family {
     HC_LANES = 1,    /* candidates side by side across vector lanes: sums of squares */
     HC_NORMAL = 2,   /* a point and its forward-difference neighbours: normal-equation sums, or the lanes' outputs */
     HC_COEFFICIENT = 3, /* the discretisation of transfer-function rows, then an HC_SINGLE "sse" kernel with a basis */
+    HC_ANY_ORDER = 4,   /* a state-space model of any order, one candidate at a time (n = E.shape[1] - 2) */
 };
 /* Highest order (state dimension) the kernels are built for; the lanes kernels' highest. */
 #define HC_MAX_ORDER 10
@@ -58,7 +59,7 @@ enum hc_family {
 /* The kernel of a family for the given order n, hold (0 first order, 1 zero order) and options: for HC_SINGLE,
  * option bit 0 "sse" (else outputs), bit 1 a basis (else the signals themselves), bit 2 an output map; for HC_LANES,
  * bit 0 a direct term, bit 1 an offset; for HC_NORMAL, bit 0 a direct term, bit 1 an offset, bit 2 an output map,
- * bit 3 the lanes' outputs (else the sums); HC_COEFFICIENT takes none.  Its number in the table (>= 0), or -1 if
+ * bit 3 the lanes' outputs (else the sums); HC_COEFFICIENT takes none; HC_ANY_ORDER (n is ignored) bit 0 "sse".  Its number in the table (>= 0), or -1 if
  * there is none; hc_kernel_at gives the function of a number (NULL if out of range). */
 int64_t hc_kernel_number(int64_t family, int64_t n, int64_t hold, int64_t options);
 hc_kernel hc_kernel_at(int64_t number);

@@ -286,6 +286,7 @@ PyMODINIT_FUNC PyInit__core(void)
     }
     if (constant(module, "SINGLE", HC_SINGLE) < 0 || constant(module, "LANES", HC_LANES) < 0 ||
         constant(module, "NORMAL", HC_NORMAL) < 0 || constant(module, "COEFFICIENT", HC_COEFFICIENT) < 0 ||
+        constant(module, "ANY_ORDER", HC_ANY_ORDER) < 0 ||
         constant(module, "MAX_ORDER", HC_MAX_ORDER) < 0 || constant(module, "LANES_MAX_ORDER", HC_LANES_MAX_ORDER) < 0 ||
         constant(module, "MAX_BASIS", HC_MAX_BASIS) < 0 || constant(module, "MAX_LANES", HC_MAX_LANES) < 0)
         goto fail;

@@ -207,9 +207,64 @@ struct MakeSingle {
                                                              : nullptr;
 };
 
+/* Any order n (the state dimension of a state-space model past HC_MAX_ORDER): signals V, "sse" (SSE) or "outputs",
+ * one candidate at a time, the state in memory; n = E.shape[1] - 2.  Returns 0, or 3 if no memory could be had. */
+template <bool ZOH, bool SSE>
+int64_t any_order_kernel(const hc_arg *args)
+{
+    SingleArgs s;
+    read_args(args, SSE ? OPT_SSE : 0, s);
+    int64_t n = s.erows - 2, ec = s.ecols;
+    double *x = (double *)malloc((size_t)(2 * n + 1) * sizeof(double)), *next = x + n;
+    if (x == nullptr)
+        return 3;
+    for (int64_t b = 0; b < s.batch; b++) {
+        const double *E = s.E + b * s.erows * ec, *c = s.C + b * s.ccols, *v = s.V + b * s.vcols;
+        double d = s.D[b], o = s.Y0[b], J = 0.0;
+        for (int64_t r = 0; r < n; r++)
+            x[r] = s.X0[b * s.xcols + r];
+        for (int64_t i = 0; i < s.N; i++) {
+            if (i > 0) {
+                for (int64_t r = 0; r < n; r++) {
+                    double t = E[r * ec] * x[0];
+                    for (int64_t k = 1; k < n; k++)
+                        t += E[r * ec + k] * x[k];
+                    double q = ZOH ? 0.0 : E[r * ec + n + 1], p = ZOH ? E[r * ec + n] : E[r * ec + n] - q;
+                    next[r] = ZOH ? t + p * v[i - 1] : t + (p * v[i - 1] + q * v[i]);
+                }
+                memcpy(x, next, (size_t)n * sizeof(double));
+            }
+            double z = c[0] * x[0];
+            for (int64_t r = 1; r < n; r++)
+                z += c[r] * x[r];
+            double yh = (z + d * v[i]) + o;
+            if (SSE) {
+                double e = s.y[i] - yh;
+                J += e * e;
+                if ((i & CHECK_MASK) == 0 && !(J <= OVERFLOW_LIMIT))
+                    break;
+            } else {
+                s.out[b * s.ocols + i] = yh;
+            }
+        }
+        if (SSE)
+            s.out[b] = J <= OVERFLOW_LIMIT ? J : INFINITY;
+    }
+    free(x);
+    return 0;
+}
+
 }  // namespace
 
 extern "C" {
+
+/* The kernels of any order: [hold * 2 + sse] (signals V, no map). */
+const hc_kernel *hc_any_order_table(void)
+{
+    static const hc_kernel table[4] = {any_order_kernel<false, false>, any_order_kernel<false, true>,
+                                       any_order_kernel<true, false>, any_order_kernel<true, true>};
+    return table;
+}
 
 const hc_kernel *hc_single_table(void)
 {

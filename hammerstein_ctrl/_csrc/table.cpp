@@ -7,6 +7,9 @@
  * the kernels' arithmetic is elementwise IEEE operations, with no contraction into fused multiply-adds and no
  * reordered sums, whatever the width of the vectors that carry it.
  */
+#include <cstdlib>
+#include <cstring>
+
 #include "hc.h"
 
 /* meson.build defines HC_HAS_ISA_VARIANTS where it built the AVX2 and AVX-512 variants (x86-64). */
@@ -22,6 +25,7 @@
 
 extern "C" {
 const hc_kernel *hc_single_table(void);
+const hc_kernel *hc_any_order_table(void);
 const hc_kernel *hc_lanes_table_baseline(void);
 const hc_kernel *hc_normal_table_baseline(void);
 #ifdef HC_X86
@@ -34,11 +38,13 @@ int64_t hc_coefficient_pass(const hc_arg *args);
 namespace {
 
 /* Entries of each family: HC_SINGLE 16 per order (hold, 3 option bits), HC_LANES 8 per order up to
- * HC_LANES_MAX_ORDER (hold, 2 option bits), HC_NORMAL 32 per order (hold, 4 option bits), HC_COEFFICIENT one. */
+ * HC_LANES_MAX_ORDER (hold, 2 option bits), HC_NORMAL 32 per order (hold, 4 option bits), HC_COEFFICIENT one,
+ * HC_ANY_ORDER 4 (hold, 1 option bit). */
 constexpr int64_t SINGLE_COUNT = 16 * HC_MAX_ORDER, LANES_COUNT = 8 * HC_LANES_MAX_ORDER,
                   NORMAL_COUNT = 32 * HC_MAX_ORDER;
 constexpr int64_t LANES_FIRST = SINGLE_COUNT, NORMAL_FIRST = LANES_FIRST + LANES_COUNT,
-                  COEFFICIENT_NUMBER = NORMAL_FIRST + NORMAL_COUNT, TABLE_SIZE = COEFFICIENT_NUMBER + 1;
+                  COEFFICIENT_NUMBER = NORMAL_FIRST + NORMAL_COUNT, ANY_ORDER_FIRST = COEFFICIENT_NUMBER + 1,
+                  TABLE_SIZE = ANY_ORDER_FIRST + 4;
 
 enum Isa { BASELINE = 0, AVX2 = 1 };
 
@@ -94,7 +100,8 @@ Isa isa = BASELINE;
 
 extern "C" {
 
-int64_t hc_kernel_number(int64_t family, int64_t n, int64_t hold, int64_t options)
+/* The entry's number by the table's layout, whether or not it is built. */
+static int64_t position(int64_t family, int64_t n, int64_t hold, int64_t options)
 {
     if (hold != 0 && hold != 1)
         return -1;
@@ -111,14 +118,24 @@ int64_t hc_kernel_number(int64_t family, int64_t n, int64_t hold, int64_t option
                    : -1;
     case HC_COEFFICIENT:
         return COEFFICIENT_NUMBER;
+    case HC_ANY_ORDER:
+        return 0 <= options && options < 2 ? ANY_ORDER_FIRST + hold * 2 + options : -1;
     default:
         return -1;
     }
 }
 
+int64_t hc_kernel_number(int64_t family, int64_t n, int64_t hold, int64_t options)
+{
+    int64_t number = position(family, n, hold, options);
+    return number >= 0 && entries[number] != nullptr ? number : -1;
+}
+
 void hc_core_init(void)
 {
-    isa = detect();
+    /* $HAMMERSTEIN_CTRL_VECTOR_ISA=baseline keeps the baseline's vector kernels (to compare the sets' bits) */
+    const char *asked = std::getenv("HAMMERSTEIN_CTRL_VECTOR_ISA");
+    isa = asked != nullptr && std::strcmp(asked, "baseline") == 0 ? BASELINE : detect();
     const hc_kernel *single = hc_single_table(), *lanes = hc_lanes_table_baseline(),
                     *normal = hc_normal_table_baseline(), *wide_lanes = lanes, *wide_normal = normal;
 #ifdef HC_X86
@@ -134,6 +151,8 @@ void hc_core_init(void)
     for (int64_t i = 0; i < NORMAL_COUNT; i++)
         entries[NORMAL_FIRST + i] = wide_normal[i] ? wide_normal[i] : normal[i];
     entries[COEFFICIENT_NUMBER] = hc_coefficient_pass;
+    for (int64_t i = 0; i < 4; i++)
+        entries[ANY_ORDER_FIRST + i] = hc_any_order_table()[i];
 }
 
 hc_kernel hc_kernel_at(int64_t number)
