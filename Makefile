@@ -1,24 +1,41 @@
 # hammerstein_ctrl: the two commands of the README, plus helpers.
-#   make demo   create .venv, install, reproduce the paper's TRS comparison, write figures
-#   make test   create .venv, install with test extras, run the test suite (all but the tests marked slow)
-#               on every core (pytest-xdist; one test file per worker, so a file's compiled kernels are built once)
+#   make demo       create .venv, install (building the compiled core once), reproduce the paper's TRS comparison,
+#                   write figures
+#   make test       create .venv, install with test extras, run the test suite (all but the tests marked slow) on
+#                   every core against the installed package (pytest-xdist; one test file per worker)
 #   make test-slow  the tests marked slow (notebooks, studies, CLI examples); .ci/run runs both
+#   make wheel      the platform wheel of this machine into dist/ (what pip install takes: no compiler needed)
 #   make bench      the speed benchmark, then the tests marked timing (wall-clock bounds: never in make test)
-#   make warmup     compile the kernels of the common structures now, on every core (once per machine)
 #   make lint       ruff under the project's configuration (pyproject.toml); .ci/run runs it first
 #   make notebooks  execute notebooks/*.ipynb in place, saving their outputs (figures)
+#
+# The package has one compiled extension (hammerstein_ctrl._core, sources in hammerstein_ctrl/_csrc), built when it
+# is installed, so the tests always run against the installed package: an edited source is built again (only what
+# changed, in build/venv) by the next make.  Building from source needs a C and C++ compiler (gcc and g++, clang, or
+# MSVC); a wheel needs none.
 PYTHON ?= python3
 VENV   ?= .venv
 BIN    := $(VENV)/bin
+TOOLS  := $(VENV)/.build-tools
 STAMP  := $(VENV)/.installed
+# what the installed package is built from
+SOURCES := pyproject.toml meson.build data/trs_reconstruction.csv \
+           $(shell find hammerstein_ctrl -type f ! -path '*/__pycache__/*' ! -name '*.pyc')
+PYTEST := $(BIN)/pytest -q -n auto --dist loadfile tests --pyargs hammerstein_ctrl
 
-.PHONY: demo test test-slow lint bench notebooks install clean warmup
+.PHONY: demo test test-slow lint bench notebooks install wheel clean
 
-$(STAMP): pyproject.toml
+$(TOOLS):
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
-	$(BIN)/python -m pip install --quiet -e '.[test]'
-	touch $(STAMP)
+	$(BIN)/python -m pip install --quiet "meson-python>=0.15" "meson>=1.1" ninja
+	touch $@
+
+# a non-editable install: the compiled core is built here (incrementally, in build/venv), never when it runs
+$(STAMP): $(TOOLS) $(SOURCES)
+	PATH="$(abspath $(BIN)):$$PATH" $(BIN)/python -m pip install --quiet --no-build-isolation \
+	    -Cbuild-dir=build/venv '.[test]'
+	touch $@
 
 install: $(STAMP)
 
@@ -26,13 +43,14 @@ demo: $(STAMP)
 	$(BIN)/hammerstein-ctrl reproduce trs --out results/trs
 
 test: $(STAMP)
-	$(BIN)/python -m pytest -q -n auto --dist loadfile
+	$(PYTEST)
 
 test-slow: $(STAMP)
-	$(BIN)/python -m pytest -q -n auto --dist loadfile -m 'slow and not timing'
+	$(PYTEST) -m 'slow and not timing'
 
-warmup: $(STAMP)
-	$(BIN)/hammerstein-ctrl warmup
+wheel: $(TOOLS)
+	PATH="$(abspath $(BIN)):$$PATH" $(BIN)/python -m pip wheel --quiet --no-deps --no-build-isolation \
+	    -Cbuild-dir=build/wheel -w dist .
 
 lint: $(STAMP)
 	$(BIN)/ruff check hammerstein_ctrl tests benchmarks notebooks
@@ -42,7 +60,7 @@ notebooks: $(STAMP)
 
 bench: $(STAMP)
 	$(BIN)/hammerstein-ctrl bench --methods nspsa nlspsa spsa amvo-sca
-	$(BIN)/python -m pytest -q -m timing
+	$(BIN)/pytest -q tests --pyargs hammerstein_ctrl -m timing
 
 clean:
-	rm -rf $(VENV) results .pytest_cache
+	rm -rf $(VENV) build dist results .pytest_cache

@@ -282,8 +282,8 @@ def memory_child(method: str, n_samples: int) -> dict:
     then the peak resident memory is reset and the identification run.
     ``peak_bytes`` is the rise of resident memory above what the process held
     with the record loaded, so it counts every allocation of the run
-    (numpy's, numba's, scipy's and MINPACK's); ``tracemalloc_bytes`` counts
-    the allocations Python's allocator sees (numpy arrays, not numba's).
+    (numpy's, the compiled core's, scipy's and MINPACK's); ``tracemalloc_bytes`` counts
+    the allocations Python's allocator sees (numpy arrays, not the compiled core's).
     """
     import gc
     import tracemalloc
@@ -485,13 +485,13 @@ def _wall(argv) -> float:
 def first_call_latency(*, repeat: int = 3) -> dict:
     """Import time, first ``identify(method="lm")`` on EMPS and ``--help`` time, each in a fresh process.
 
-    The kernel and bytecode caches are warmed by one untimed run first (see
-    :func:`_child_env`).  The package imports
+    Python's bytecode cache is warmed by one untimed run first (see
+    :func:`_child_env`; the compiled core needs no warming).  The package imports
     its dependencies on first use; ``dependencies_s`` is the import of numpy,
-    scipy, numba and python-control (the last for a model's transfer function,
+    scipy and python-control (the last for a model's transfer function,
     made when first asked for: an identification itself does not import it),
     so that the first call's time is the package's own; ``load_s`` reading the EMPS preset,
-    ``first_identify_s`` the first call (loading the compiled kernels) and
+    ``first_identify_s`` the first call and
     ``second_identify_s`` the same call again, so their difference is the
     package's own first-call overhead.  ``python_s`` is a bare interpreter's start-up, to
     read ``help_s`` against.  Medians over ``repeat`` processes.
@@ -782,9 +782,9 @@ def format_contention(rows) -> str:
 
 def format_first_call(r) -> str:
     return "\n".join([
-        f"Fresh process, kernel and bytecode caches warm (medians of {r.get('processes', 3)} processes)", "",
+        f"Fresh process, bytecode cache warm (medians of {r.get('processes', 3)} processes)", "",
         f"import hammerstein_ctrl            {r['import_s']:.3f} s",
-        f"then numpy, scipy, numba, control  {r['dependencies_s']:.3f} s (imported on first use; control for a "
+        f"then numpy, scipy, control         {r['dependencies_s']:.3f} s (imported on first use; control for a "
         "model's transfer function)",
         f"then presets.emps() (read record)  {r['load_s']:.3f} s",
         f"first identify(method='lm'), EMPS  {r['first_identify_s']:.3f} s "

@@ -37,9 +37,7 @@ True
 
 from __future__ import annotations
 
-import contextlib
 import math
-import warnings
 from dataclasses import dataclass, field
 
 import numpy as np

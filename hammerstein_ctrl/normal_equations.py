@@ -130,7 +130,7 @@ def _bound(value, x, default):
 
 
 #: The bounds of unbounded forward steps (one value for every parameter; never written, and left writeable
-#: so that numba compiles one signature for bounded and unbounded steps).
+#: like the bounds given).
 _NO_UPPER, _NO_LOWER = np.array([np.inf]), np.array([-np.inf])
 
 

@@ -144,7 +144,8 @@ def test_the_baseline_and_the_wide_vector_kernels_give_the_same_bits():
             "    num = rng.standard_normal((11, 1)); basis = rng.standard_normal((3, 700))\n"
             "    P, y = rng.standard_normal((11, 3)), rng.standard_normal(700)\n"
             "    out += sse_basis_batch(num, den, P, basis, 0.05, y, offset=rng.standard_normal(11)).tolist()\n"
-            "    ne = normal_pass(num[:1], den[:1], 0.05, y, P[:6], [basis[:, :300], basis[:, 300:]], np.full(5, 1e-3))\n"
+            "    blocks = [basis[:, :300], basis[:, 300:]]\n"
+            "    ne = normal_pass(num[:1], den[:1], 0.05, y, P[:6], blocks, np.full(5, 1e-3))\n"
             "    out += [ne.fun] + ne.gradient.tolist() + ne.gram.ravel().tolist()\n"
             "print(out[0], np.array(out[1:]).tobytes().hex())\n")
     wide = _run(code).split()

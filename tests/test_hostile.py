@@ -22,7 +22,6 @@ import pytest
 from hammerstein_ctrl import load_trs
 from hammerstein_ctrl.cli import main
 
-from _processes import REPO
 
 linux = pytest.mark.skipif(not sys.platform.startswith("linux"), reason="uses /proc and fork")
 

@@ -6,7 +6,6 @@ Jacobian (``residuals_batch``), scipy's own 2-point Jacobian, and
 """
 
 import os
-import re
 import tracemalloc
 import warnings
 

@@ -51,12 +51,12 @@ def test_interrupted_study_resumes_to_the_same_summary(trs_case, tmp_path):
     script = (
         "from hammerstein_ctrl import presets\n"
         "from hammerstein_ctrl.paper.study import run_study\n"
-        "import tests.test_study as T\n"
+        "import test_study as T\n"
         f"run_study(presets.trs(), ['nspsa', 'nlspsa'], trials=8, seed=5, executor='serial', "
         f"results_path={str(path)!r}, settings=T.KILLABLE)\n"
     )
-    repo = os.path.dirname(os.path.dirname(__file__))
-    proc = subprocess.Popen([sys.executable, "-c", script], cwd=repo)
+    here = os.path.dirname(os.path.abspath(__file__))
+    proc = subprocess.Popen([sys.executable, "-c", script], env={**os.environ, "PYTHONPATH": here})
     deadline = time.time() + 120
     while time.time() < deadline:
         if path.exists() and len(path.read_text().splitlines()) >= 5:

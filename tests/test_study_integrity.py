@@ -156,7 +156,7 @@ def test_without_pdeathsig_the_parent_watch_ends_the_workers(tmp_path):
     import signal
     import subprocess
 
-    from _processes import REPO, alive, children
+    from _processes import alive, children
     from hammerstein_ctrl.executors import PARENT_WATCH_INTERVAL
 
     proc = subprocess.Popen([sys.executable, "-c", _POOL_WITHOUT_PDEATHSIG], stdout=subprocess.PIPE, text=True,
