@@ -367,7 +367,7 @@ def fill_coefficients(theta, num0, den0, num_pos, den_pos):
 
 
 def positions_fit(num0, den0, num_pos, den_pos) -> bool:
-    """Whether the positions ``num_pos``/``den_pos`` index ``num0``/``den0`` (what the C library writes at).
+    """Whether the positions ``num_pos``/``den_pos`` index ``num0``/``den0`` (what the compiled core writes at).
 
     Examples
     --------
@@ -380,7 +380,7 @@ def positions_fit(num0, den0, num_pos, den_pos) -> bool:
 
 
 def filled_coefficients(theta, num0, den0, num_pos, den_pos):
-    """:func:`fill_coefficients` for arrays a caller has checked once (C-ordered, of the library's types, positions
+    """:func:`fill_coefficients` for arrays a caller has checked once (C-ordered, of the core's types, positions
     within ``num0``/``den0``, rows of ``theta`` long enough): a structure's template, on every evaluation."""
     num, den = np.empty((theta.shape[0], num0.size)), np.empty((theta.shape[0], den0.size))
     _core.hc_fill_coefficients(theta, theta.shape[0], theta.shape[1], num0, num0.size,

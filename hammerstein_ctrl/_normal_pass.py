@@ -126,7 +126,7 @@ def normal_factor(num, den, dt: float, y, P, blocks, steps, *, x0=None, offset=N
     if lane_pass is None:
         return None
     p = lane_pass.lanes - 1
-    with single_threaded_blas():        # the blocks' products (the QR is the C library's): threads would only spin
+    with single_threaded_blas():        # the blocks' products (the QR is the compiled core's): threads would only spin
         R = factor_of_blocks(lane_pass.difference_blocks(blocks), p + 1)
     if not lane_pass.signals_finite():   # a signal sample that reached no output
         R[:] = np.nan

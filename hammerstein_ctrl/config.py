@@ -17,7 +17,7 @@ key                           default  meaning
 ``residual_analysis.lags``        25   lags of the residual correlations
 ``control.max_sensitivity``      1.6   robustness target ``max(Ms, Mt)`` of the PID rules
 ``control.simc_ti_factor``       4.0   SIMC's ``tau_I = min(tau1, factor (tau_c + theta))``
-``lm.compiled_loop``            auto   Levenberg-Marquardt's compiled loop (C, in the package's library):
+``lm.compiled_loop``            auto   Levenberg-Marquardt's compiled loop (C, in the compiled core):
                                        ``"auto"`` and ``"always"`` run it, ``"never"`` the same steps in
                                        Python; the initial value is ``$HAMMERSTEIN_CTRL_COMPILED_LOOP``
                                        when set

@@ -136,7 +136,7 @@ _NO_UPPER, _NO_LOWER = np.array([np.inf]), np.array([-np.inf])
 
 def _forward_steps(x, upper, lower) -> np.ndarray:
     """:func:`forward_steps` of a flat ``x`` in ``[lower, upper]`` (one value each, or one for all), in one call of
-    the C library."""
+    the compiled core."""
     x, upper, lower = (np.ascontiguousarray(a, dtype=float).ravel() for a in (x, upper, lower))
     if upper.size not in (1, x.size) or lower.size not in (1, x.size):
         raise ValueError(f"bounds must hold one value or one per entry of x ({x.size}), not {upper.size} and "

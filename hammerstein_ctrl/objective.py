@@ -79,8 +79,8 @@ EVAL_BLOCK = 1 << 13
 
 def _combine(P, basis, out, start: int) -> None:
     """``out[:B, start:start + n] = P @ basis`` single-threaded (BLAS threads would compete with the simulation), in
-    the C library: the products added term by term.  ``P``, ``basis`` and the writeable ``out`` are C-ordered float
-    arrays (the library's wrapper checks that), ``out`` wide enough and apart from the others (checked here)."""
+    the compiled core: the products added term by term.  ``P``, ``basis`` and the writeable ``out`` are C-ordered float
+    arrays (the core's wrapper checks that), ``out`` wide enough and apart from the others (checked here)."""
     B, p = P.shape
     n = basis.shape[1]
     if not (basis.shape[0] == p and out.ndim == 2 and out.shape[0] >= B and out.shape[1] >= start + n and start >= 0

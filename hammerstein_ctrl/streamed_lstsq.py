@@ -14,7 +14,7 @@ gives the same coefficients as a solve on ``X`` itself, with the accuracy of
 a QR factorisation (forming ``X^T X`` would square the condition number).
 A regression small enough (:data:`WHOLE_FACTOR_BYTES`) is copied whole and
 factored in one call instead, which is faster than its blocks.  The
-factorisations are the package's C library's (Householder, LAPACK's
+factorisations are the compiled core's (Householder, LAPACK's
 reflectors).
 
 Columns are given as a sequence of arrays of shape ``(N,)`` or ``(p_i, N)``
@@ -92,7 +92,7 @@ def _triangle(a: np.ndarray) -> np.ndarray:
     """The ``R`` of a QR factorisation of ``a`` (at least as many rows as columns; overwritten where it is a
     writeable, Fortran-ordered float array, else factored in such a copy).
 
-    The C library's Householder factorisation of the columns where they lie
+    The compiled core's Householder factorisation of the columns where they lie
     (a Fortran-ordered array's columns are the rows of its C-ordered
     transpose): LAPACK's reflectors, its sums in a fixed order of vector
     lanes, 1.43-1.49x faster than LAPACK's ``dgeqrf`` (through scipy) on a
@@ -366,7 +366,7 @@ def _clear_of_rank_loss(T: np.ndarray, cut: float) -> bool:
     Frobenius norm of ``p`` unit columns) and the smallest at least
     ``1 / |T^-1|_F``, so ``2 sqrt(p) cut |T^-1|_F < 1`` (the factor 2 for the
     rounding of an inverse whose condition is then below ``1 / cut``) proves
-    it, in a microsecond of the C library's back substitution; the SVD
+    it, in a microsecond of the compiled core's back substitution; the SVD
     (27 us through numpy) decides the rest.
     """
     p = T.shape[0]

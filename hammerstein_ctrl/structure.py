@@ -132,7 +132,7 @@ class LinearStructure:
         self.param_names: tuple[str, ...] = tuple(names)
         self._num_pos = np.array(num_pos, dtype=np.int64)
         self._den_pos = np.array(den_pos, dtype=np.int64)
-        for template in self._template:         # read by the C library unchecked on every evaluation
+        for template in self._template:         # read by the compiled core unchecked on every evaluation
             template.flags.writeable = False
 
     @property

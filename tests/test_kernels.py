@@ -166,7 +166,7 @@ def test_an_output_map_in_the_pass_gives_the_references_bits(family):
         kernels.get_kernel(n, "outputs", hold, family)(E, C, D, X0, Y0, V, HP, HX, out)
         kernels.get_kernel(n, "sse", hold, family)(E, C, D, X0, Y0, V, HP, HX, y, J)
         expected = [_py_pass(E[b], C[b], D[b], X0[b], Y0[b], list(V[b]), hold,
-                             outmap=(family, list(HP[b]), list(HX))) for b in range(B)]
+                             outmap=(family, HP[b].tolist(), HX.tolist())) for b in range(B)]
         assert _same_bits(out, expected)
         assert _same_bits(J, [_py_sse(y, e) for e in expected])
     with pytest.raises(ValueError, match="the output map's parameters"):       # fewer than the map reads
@@ -186,7 +186,7 @@ def test_a_compiled_map_is_the_familys_formula(family):
     out = np.empty((3, z.size))
     assert _core.hc_map_rows(kernels.MAP_CODES[nl.compiled_map], z, z.size, P, 3, P.shape[1], extra, extra.size,
                              out) == 0
-    expected = [[_py_map(family, float(zi), list(P[b]), list(extra)) for zi in z] for b in range(3)]
+    expected = [[_py_map(family, zi, P[b].tolist(), extra.tolist()) for zi in z.tolist()] for b in range(3)]
     assert _same_bits(out, expected)
     with np.errstate(all="ignore"):
         np.testing.assert_allclose(out, nl(z, P), rtol=1e-13, atol=1e-300, equal_nan=True)
@@ -221,7 +221,7 @@ def _py_normal(E, C, D, X, Y0, P, Phi, HP, HX, y, hold, direct, offset, outmap, 
     outs = []
     for g in range(lanes):
         e = g if g < E.shape[0] else 0
-        mapped = None if outmap is None else (outmap, list(HP[g]), list(HX))
+        mapped = None if outmap is None else (outmap, HP[g].tolist(), HX.tolist())
         outs.append(_py_pass(E[e], C[e], D[e], X[g], Y0[g], _py_signal(P[g], Phi), hold, direct, offset, mapped))
     f, g, H = 0.0, [0.0] * p, [[0.0] * p for _ in range(p)]
     for span in (range(0, cut), range(cut, len(y))):

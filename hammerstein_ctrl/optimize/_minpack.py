@@ -101,7 +101,7 @@ def _sqrt(v: float) -> float:
 
 def reflect(v, w) -> None:
     """``w -= (sum(v * w) / v[0]) * v``: ``w`` through the Householder reflection of vector ``v`` (scaled so
-    that ``v[0]`` is its ``1 + |.|``), MINPACK's loops in the C library: the sum added left to right, then the
+    that ``v[0]`` is its ``1 + |.|``), MINPACK's loops in the compiled core: the sum added left to right, then the
     update.  ``w`` is a writeable C-ordered float array of ``v``'s length (a row of the factored matrix).
 
     Examples

@@ -181,7 +181,7 @@ class _Passes:
 
 
 def _iteration(gram, gradient, fun, scale, lam, x, check, limit, xtol):
-    """One iteration's linear algebra: ``(cosine, ill, solved, delta, small, predicted)`` (the C library's).
+    """One iteration's linear algebra: ``(cosine, ill, solved, delta, small, predicted)`` (the compiled core's).
 
     ``cosine`` is MINPACK's gtol measure; ``ill`` whether the scaled Gram
     matrix has a non-finite entry or a condition number of ``limit`` or more
