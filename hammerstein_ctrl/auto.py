@@ -37,7 +37,8 @@ from .exceptions import ParameterError
 from .initialize import Budget, initial_points, nuisance_estimate, stabilize
 from .lure_fit import hammerstein_start, hammerstein_structure_of
 from .objective import HammersteinCost
-from .optimize import BUDGET_EXHAUSTED, COMPLETED, SOLVER_FAILED, History, as_rng, as_x0, levenberg_marquardt
+from .optimize import (BUDGET_EXHAUSTED, COMPLETED, SOLVER_FAILED, History, OptimizeResult, as_rng, as_x0,
+                       levenberg_marquardt)
 from .simulate import unstable
 
 __all__ = ["auto_minimize", "auto_records", "auto_delayed", "auto_mimo", "auto_lure", "RESTART_SPREAD", "MAX_RESTARTS"]
@@ -210,12 +211,12 @@ def auto_minimize(cost, x0=None, *, maxfev: int | None = None, seed=None, allow_
     allow_unstable : bool, default False
         Accept a model with a right-half-plane pole without restarting.
     callback : callable, optional
-        Called with each refinement's :class:`scipy.optimize.OptimizeResult`;
+        Called with each refinement's :class:`~hammerstein_ctrl.optimize.OptimizeResult`;
         returning True stops after that refinement.
 
     Returns
     -------
-    scipy.optimize.OptimizeResult
+    hammerstein_ctrl.optimize.OptimizeResult
         ``x, fun, nfev, nit`` (refinements run), ``status``, ``message``,
         ``success`` (the last refinement converged and the model is acceptable),
         ``history`` and ``starts`` (how many starts were refined).
@@ -252,7 +253,6 @@ def _unrefined(cost, starts, found, budget, merged, started):
     The start's J is evaluated once more for the report (as ``identify``
     simulates its final model), outside the budget.
     """
-    from scipy.optimize import OptimizeResult
 
     hint = (f"{budget.nfev} of maxfev = {budget.maxfev} evaluations spent, and a refinement needs at least "
             f"{MIN_REFINE_BUDGET}; raise maxfev (the default is {config.get('auto.maxfev')})")
@@ -272,7 +272,6 @@ def _unrefined(cost, starts, found, budget, merged, started):
 
 
 def _result(cost, best, budget, runs, n_starts, merged, allow_unstable, started):
-    from scipy.optimize import OptimizeResult
 
     # the best refinement's own status: converged, out of budget, or any other stop (a solver's failure)
     status = best.status if best.status in (COMPLETED, BUDGET_EXHAUSTED) else SOLVER_FAILED

@@ -279,7 +279,7 @@ class BlockModel:
 
         Takes a record or ``(t, u)`` as :meth:`simulate` does.
         """
-        inner = BlockModel.build(self.linear, input_nonlinearity=self.input_nonlinearity,
+        inner = BlockModel.build((self._num, self._den), input_nonlinearity=self.input_nonlinearity,
                                  input_params=self.input_params, initial_state=self.initial_state,
                                  intersample=self.intersample, delay=self.delay)
         with np.errstate(all="ignore"):

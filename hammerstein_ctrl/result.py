@@ -52,7 +52,7 @@ class IdentificationResult(UncertainParameters):
         The structure fitted (:class:`~hammerstein_ctrl.experiments.RecordsStructure` for several records).
     data : IOData
         The estimation record (the first one of several).
-    optimize_result : scipy.optimize.OptimizeResult
+    optimize_result : hammerstein_ctrl.optimize.OptimizeResult
         The optimiser's full result.
     covariance : ndarray or None
         Covariance of ``x`` (aligned with it; ``inf`` on the diagonal of a

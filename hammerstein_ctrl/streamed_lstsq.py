@@ -40,7 +40,6 @@ from __future__ import annotations
 import functools
 
 import numpy as np
-import scipy.linalg
 
 from . import _core
 from .exceptions import DataError
@@ -59,9 +58,16 @@ BLOCK_SAMPLES = 8192
 #: beside the record.
 WHOLE_FACTOR_BYTES = 1 << 22
 
-_TRTRI = scipy.linalg.get_lapack_funcs(("trtri",), dtype=np.float64)[0]
 
-_GELSY, _GELSY_LWORK = scipy.linalg.get_lapack_funcs(("gelsy", "gelsy_lwork"), dtype=np.float64)
+@functools.lru_cache(maxsize=1)
+def _lapack() -> dict:
+    """scipy's LAPACK routines this module calls (scipy.linalg is imported when first needed: a sixth of a
+    first fit's imports)."""
+    import scipy.linalg
+
+    trtri, gelsy, gelsy_lwork = scipy.linalg.get_lapack_funcs(("trtri", "gelsy", "gelsy_lwork"), dtype=np.float64)
+    return {"trtri": trtri, "gelsy": gelsy, "gelsy_lwork": gelsy_lwork}
+
 
 
 def constant_column(n_samples: int) -> np.ndarray:
@@ -328,7 +334,7 @@ def solve_scaled(R: np.ndarray, n_samples: int) -> np.ndarray | None:
     if p == 0:
         return np.zeros(0)
     # LAPACK's gelsy as scipy.linalg.lstsq calls it (the same bits), without its checks and workspace query
-    w = _GELSY(T, R[:-1, -1].copy(), np.zeros((p, 1), dtype=np.int32), cond, _gelsy_work(p), True, True)[1]
+    w = _lapack()["gelsy"](T, R[:-1, -1].copy(), np.zeros((p, 1), dtype=np.int32), cond, _gelsy_work(p), True, True)[1]
     return w / scale
 
 
@@ -382,8 +388,8 @@ def _clear_of_rank_loss(T: np.ndarray, cut: float) -> bool:
 
 @functools.lru_cache(maxsize=64)
 def _gelsy_work(p: int) -> int:
-    """Workspace size of :data:`_GELSY` for a ``p x p`` system and one right-hand side (whatever the cut)."""
-    work, info = _GELSY_LWORK(p, p, 1, np.finfo(float).eps)
+    """Workspace size of LAPACK's gelsy for a ``p x p`` system and one right-hand side (whatever the cut)."""
+    work, info = _lapack()["gelsy_lwork"](p, p, 1, np.finfo(float).eps)
     if info != 0:  # pragma: no cover - only for invalid arguments
         raise RuntimeError(f"gelsy's workspace query failed (info = {info})")
     return int(work)
@@ -467,7 +473,7 @@ def _inverse_factor(T: np.ndarray, cut: float) -> np.ndarray:
     """``T^+`` of an upper-triangular ``T`` with unit-norm columns, singular values below ``cut`` times the largest
     dropped: LAPACK's triangular inverse where none is, else the pseudo-inverse."""
     if T.size and _clear_of_rank_loss(T, cut):
-        inverse, info = _TRTRI(T, lower=0)
+        inverse, info = _lapack()["trtri"](T, lower=0)
         if info == 0 and np.all(np.isfinite(inverse)):
             return inverse
     return np.linalg.pinv(T, rcond=cut)

@@ -235,7 +235,7 @@ def fit_noise_model(r, n_params: int = 0, *, max_order: int | None = None, white
 
 
 def _backward_filter(rows, ar, out, first: int) -> None:
-    """``out[:, first + c] = H^T rows[c]``: ``w_t = rows_t - sum_i ar[i] w_{t+i}``, run from the end (the compiled core).
+    """``out[:, first + c] = H^T rows[c]``: ``w_t = rows_t - sum_i ar[i] w_{t+i}``, run from the end (compiled).
 
     The recursion runs in double precision, the sum over ``i`` added in
     order, whatever ``out`` holds (float64 or float32); ``rows`` (q x n),

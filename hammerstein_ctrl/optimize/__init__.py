@@ -1,8 +1,9 @@
 """Optimisers for Hammerstein identification: SPSA, NL-SPSA, N-SPSA and AMVO-SCA.
 
 Use :func:`minimize` (``scipy.optimize.minimize`` style) or the individual
-functions.  Every routine takes a ``seed`` (int or ``numpy.random.Generator``),
-counts every objective evaluation in ``nfev`` and never exceeds ``maxfev``.
+functions; each returns an :class:`OptimizeResult` (scipy's interface).  Every
+routine takes a ``seed`` (int or ``numpy.random.Generator``), counts every
+objective evaluation in ``nfev`` and never exceeds ``maxfev``.
 :func:`lmder` is MINPACK's Levenberg-Marquardt on a residual vector, the
 package's own copy (scipy 1.15-1.17's reads past a Jacobian column), which the
 ``"lm"`` method and the start search hand ill-conditioned problems to.
@@ -21,7 +22,7 @@ with a finite ``fun``):
 """
 
 from ._common import (BUDGET_EXHAUSTED, CALLBACK_STOP, COMPLETED, DIVERGED, NO_FINITE_VALUE, SOLVER_FAILED,
-                      STATUS_CODES, Budget, BudgetExhausted, History, as_rng, as_x0)
+                      STATUS_CODES, Budget, BudgetExhausted, History, OptimizeResult, as_rng, as_x0)
 from ._minpack import MinpackResult, lmder
 from .amvo_sca import amvo_sca
 from .least_squares import levenberg_marquardt
@@ -30,7 +31,7 @@ from .minimize import METHODS, SCIPY_METHODS, canonical_method, minimize
 from .spsa import nlspsa, normalized_difference, nspsa, spsa
 
 __all__ = [
-    "Budget", "BudgetExhausted",
+    "Budget", "BudgetExhausted", "OptimizeResult",
     "minimize", "canonical_method", "METHODS", "SCIPY_METHODS",
     "spsa", "nlspsa", "nspsa", "amvo_sca", "levenberg_marquardt", "normalized_difference",
     "GainSequence", "StepGain", "PerturbationGain", "SPALL_ALPHA", "SPALL_GAMMA",

@@ -5,7 +5,6 @@ from __future__ import annotations
 import time
 
 import numpy as np
-from scipy.optimize import Bounds, OptimizeResult
 
 from .._checks import as_count, as_real_array
 from ..exceptions import ParameterError
@@ -19,6 +18,46 @@ SOLVER_FAILED = 4  #: a delegated scipy solver reported failure
 BUDGET_EXHAUSTED = 5  #: a converging method (LM, scipy's) ran out of evaluations before its convergence test
 #: Every status code, in order.
 STATUS_CODES = (COMPLETED, CALLBACK_STOP, DIVERGED, NO_FINITE_VALUE, SOLVER_FAILED, BUDGET_EXHAUSTED)
+
+
+class OptimizeResult(dict):
+    """What every optimiser returns: a dict whose keys are also attributes, the interface of
+    :class:`scipy.optimize.OptimizeResult` (``x``, ``fun``, ``nfev``, ``nit``, ``success``, ``status``,
+    ``message``, ``history`` and each optimiser's own entries).
+
+    The package's own class, so that a fit never imports :mod:`scipy.optimize` (a third of a first fit's time)
+    unless one of scipy's methods is asked for.
+
+    Examples
+    --------
+    >>> r = OptimizeResult(x=[1.0], fun=0.5, success=True)
+    >>> r.fun, r["success"], sorted(r)
+    (0.5, True, ['fun', 'success', 'x'])
+    >>> print(r)
+          x: [1.0]
+        fun: 0.5
+    success: True
+    """
+
+    __slots__ = ()
+
+    def __getattr__(self, name):
+        try:
+            return self[name]
+        except KeyError:
+            raise AttributeError(name) from None
+
+    __setattr__ = dict.__setitem__
+    __delattr__ = dict.__delitem__
+
+    def __dir__(self):
+        return list(self)
+
+    def __repr__(self):
+        if not self:
+            return f"{type(self).__name__}()"
+        width = max(map(len, self))
+        return "\n".join(f"{key.rjust(width)}: {value!r}" for key, value in self.items())
 
 
 def budget_exhausted_message(maxfev) -> str:
@@ -226,6 +265,8 @@ def as_bounds(bounds, n: int):
     """
     if bounds is None:
         return None
+    from scipy.optimize import Bounds    # scipy.optimize's import is a third of a first fit's: made when needed
+
     if isinstance(bounds, Bounds):
         lo = np.broadcast_to(np.asarray(bounds.lb, dtype=float), (n,)).copy()
         hi = np.broadcast_to(np.asarray(bounds.ub, dtype=float), (n,)).copy()
@@ -292,7 +333,7 @@ def call_back(callback, x, fun, nit, nfev) -> bool:
 
 def make_result(*, x, fun, obj: CountedObjective, nit, status, message, history: History,
                 method: str, started: float, keep_last: bool = False, **extra) -> OptimizeResult:
-    """Assemble the :class:`scipy.optimize.OptimizeResult` every optimiser returns.
+    """Assemble the :class:`OptimizeResult` every optimiser returns.
 
     The contract of every optimiser: the point returned is never worse than
     the best one it evaluated (``obj.best_x``, which replaces ``x`` when

@@ -110,7 +110,7 @@ def amvo_sca(fun, x0, *, bounds, maxfev: int | None = 5000, maxiter: int | None 
 
     Returns
     -------
-    scipy.optimize.OptimizeResult
+    hammerstein_ctrl.optimize.OptimizeResult
         ``x`` is the best universe found and ``fun`` its objective value.
     """
     started = time.perf_counter()

@@ -16,7 +16,6 @@ from __future__ import annotations
 import time
 
 import numpy as np
-import scipy.optimize
 
 from .._linalg import single_threaded_blas
 from ..exceptions import ParameterError, UnknownNameError
@@ -27,6 +26,7 @@ from ._common import (
     BudgetExhausted,
     CountedObjective,
     History,
+    OptimizeResult,
     as_x0,
     budget_exhausted_message,
     check_budget,
@@ -128,7 +128,7 @@ def minimize(fun, x0, method: str | None = None, *, args=(), maxfev: int | None 
 
     Returns
     -------
-    scipy.optimize.OptimizeResult
+    hammerstein_ctrl.optimize.OptimizeResult
         With ``x, fun, nfev, nit, success, status, message``, ``history`` (a dict
         of per-iteration arrays ``nit, nfev, fun, best``), ``best_x``,
         ``best_fun``, ``method`` and ``elapsed`` (seconds).
@@ -169,6 +169,8 @@ def minimize(fun, x0, method: str | None = None, *, args=(), maxfev: int | None 
 
 
 def _scipy_minimize(method, fun, x0, *, args, maxfev, maxiter, options, callback, bounds):
+    import scipy.optimize        # a third of a first fit's time: imported where scipy's methods are asked for
+
     started = time.perf_counter()
     x0 = as_x0(x0)
     obj = CountedObjective(fun, args, maxfev=maxfev)
@@ -184,8 +186,7 @@ def _scipy_minimize(method, fun, x0, *, args, maxfev, maxiter, options, callback
         nit += 1
         if not isinstance(intermediate_result, scipy.optimize.OptimizeResult):
             # tnc (and scipy's legacy callbacks) pass only the current point
-            intermediate_result = scipy.optimize.OptimizeResult(x=np.array(intermediate_result, dtype=float),
-                                                                fun=obj.best_fun)
+            intermediate_result = OptimizeResult(x=np.array(intermediate_result, dtype=float), fun=obj.best_fun)
         history.append(nit, obj.nfev, float(intermediate_result.fun), obj.best_fun, obj.best_fun)
         if callback is not None and callback(intermediate_result):
             raise StopIteration

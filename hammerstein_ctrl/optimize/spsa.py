@@ -432,7 +432,7 @@ def spsa(fun, x0, *, a=None, c=None, maxiter=None, maxfev=None, seed=None, args=
 
     Returns
     -------
-    scipy.optimize.OptimizeResult
+    hammerstein_ctrl.optimize.OptimizeResult
         ``x, fun, nfev, nit, success, status, message, history, best_x,
         best_fun, last_x, last_fun``.
     """
