@@ -62,7 +62,7 @@ def wrapper(name: str, kinds: str, result: str) -> str:
     """The C of the Python wrapper of ``name``: its arguments checked and converted, the call without the GIL."""
     arrays = sum(kind in ARRAYS for kind in kinds)
     lines = [f"static PyObject *w_{name}(PyObject *self, PyObject *const *args, Py_ssize_t nargs)", "{",
-             f"    Py_buffer views[{max(arrays, 1)}];", "    int taken = 0;",
+             f"    Py_buffer views[{max(arrays, 1)}];", "    int taken = 0;", "    (void)self;",
              f"    if (nargs != {len(kinds)})",
              f"        return PyErr_Format(PyExc_TypeError, \"{name} takes {len(kinds)} arguments, not %zd\", nargs);"]
     values, view = [], 0

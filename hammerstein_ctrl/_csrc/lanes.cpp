@@ -72,7 +72,11 @@ template <int N, bool ZOH, int K>
 void fixed_group(const LaneArgs &s, int64_t b0, int64_t m)
 {
     Group<N, ZOH> G(s, b0, m, N);
-    auto &a = G.blk.a, &p = G.blk.p, &q = G.blk.q, &c = G.blk.c, &x = G.blk.x;
+    auto &a = G.blk.a;
+    auto &p = G.blk.p;
+    auto &q = G.blk.q;
+    auto &c = G.blk.c;
+    auto &x = G.blk.x;
     /* the output of lane w from its linear part z and signal v */
     auto output = [&](int w, double z, double v) HC_LAMBDA { return (z + G.d[w] * v) + G.o[w]; };
     double f[K];

@@ -190,6 +190,7 @@ static PyObject *call_kernel(PyObject *self, PyObject *const *args, Py_ssize_t n
 {
     hc_arg cargs[HC_MAX_ARGS];
     Py_buffer views[HC_MAX_ARGS];
+    (void)self;
     long long bound[26];
     int taken = 0;
     char kernel[64] = "", word[64];
@@ -239,6 +240,8 @@ fail:
 
 static PyObject *vector_isa(PyObject *self, PyObject *unused)
 {
+    (void)self;
+    (void)unused;
     return PyUnicode_FromString(hc_vector_isa());
 }
 
@@ -250,9 +253,9 @@ static PyMethodDef methods[] = {
     {NULL, NULL, 0, NULL}
 };
 
-static struct PyModuleDef definition = {PyModuleDef_HEAD_INIT, "_core",
-                                        "The compiled core of hammerstein_ctrl (built when the package is installed).",
-                                        -1, methods};
+static struct PyModuleDef definition = {
+    PyModuleDef_HEAD_INIT, "_core", "The compiled core of hammerstein_ctrl (built when the package is installed).",
+    -1, methods, NULL, NULL, NULL, NULL};
 
 /* name = value in the module, or -1. */
 static int constant(PyObject *module, const char *name, long value)
