@@ -97,9 +97,10 @@ inline bool read_normal(const hc_arg *args, int options, int64_t n, NormalArgs &
     return fits;
 }
 
-/* The running sums of a pass over W lanes, kept by lane: f, G[a] = sum d_a r and the square H[a][b] = sum d_a d_b,
- * with d_a = yhat_0 - yhat_a for lane a (lane 0's is zero: neighbour j is lane j + 1).  Only the rows of the
- * neighbours are added to, over all W columns, so that every loop runs over whole vectors. */
+/* The running sums of a pass over W lanes, kept by lane: f, G[a] = sum d_a r and H[a][b] = sum d_a d_b, with
+ * d_a = yhat_0 - yhat_a for lane a (lane 0's is zero: neighbour j is lane j + 1).  Only the rows of the neighbours
+ * are added to, each over its lower triangle rounded up to whole vectors of four (W is a multiple of 8), so that
+ * every loop runs over whole vectors. */
 template <int W>
 struct Sums {
     double f;
@@ -133,9 +134,10 @@ struct Sums {
         HC_LANE_LOOP
         for (int w = 0; w < W; w++)
             G[w] += d[w] * r;
-        for (int64_t a = 1; a <= p; a++) {
+        for (int64_t a = 1; a <= p; a++) {    /* the row's lower triangle, rounded up to whole vectors of 4 */
+            const int64_t end = (a + 4) & ~(int64_t)3;
             HC_LANE_LOOP
-            for (int b = 0; b < W; b++)
+            for (int64_t b = 0; b < end; b++)
                 H[a][b] += d[a] * d[b];
         }
     }
@@ -186,7 +188,7 @@ void normal_lanes(const NormalArgs &s)
         HC_LANE_LOOP
         for (int w = 0; w < W; w++) {     /* each term computed, then taken or not */
             double v = pick(direct, z[w] + d[w] * vi[w], z[w]);
-            if (MAP)
+            if (MAP && w < lanes)           /* a padding lane's output reaches no sum: not worth its map */
                 v = s.h(v, hp[w], s.hm);
             yh[w] = pick(offset, v + o[w], v);
         }
@@ -234,11 +236,13 @@ template <int N, bool ZOH, int OPT>
 int64_t normal_kernel(const hc_arg *args)
 {
     constexpr bool MAP = OPT & OPT_MAP, OUTPUTS = OPT & OPT_OUTPUTS;
-    constexpr int ORDER = N <= FIXED_MAX_ORDER ? N : 0;
+    /* a pass with an output map steps its lanes one by one through the map anyway: one form of it serves every
+     * order and lane count */
+    constexpr int ORDER = N <= FIXED_MAX_ORDER && !MAP ? N : 0;
     NormalArgs s;
     if (!read_normal(args, OPT, N, s))
         return 1;
-    if (s.lanes <= 8)
+    if (s.lanes <= 8 && !MAP)
         normal_lanes<ORDER, ZOH, MAP, OUTPUTS, 8>(s);
     else
         normal_lanes<ORDER, ZOH, MAP, OUTPUTS, 16>(s);

@@ -171,13 +171,15 @@ int64_t single_kernel(const hc_arg *args)
     if (!read_args(args, OPT, s))
         return 1;
     int64_t b0 = 0;
-    if constexpr (N <= PAIR_MAX_ORDER) {
+    /* with an output map, the map's work hides the recursion's latency: one candidate at a time */
+    constexpr bool MAP = OPT & OPT_MAP;
+    if constexpr (N <= PAIR_MAX_ORDER && !MAP) {
         while (s.batch - b0 >= 2 && !(N <= TRIO_MAX_ORDER && s.batch - b0 == 3)) {
             run_group<N, ZOH, OPT, 2>(s, b0);
             b0 += 2;
         }
     }
-    if constexpr (N <= TRIO_MAX_ORDER) {
+    if constexpr (N <= TRIO_MAX_ORDER && !MAP) {
         if (s.batch - b0 == 3) {
             run_group<N, ZOH, OPT, 3>(s, b0);
             b0 += 3;
