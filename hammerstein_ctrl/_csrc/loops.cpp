@@ -50,6 +50,11 @@ struct Plant {
             z += C[i] * x[i];
         return h(z) + offset;
     }
+    /* Sample k: the output y and the clipped input u = clip(uc) recorded, then the plant stepped under g(u); false
+     * (the rest of the record cut) where |y| passed the bound.  *u receives the input. */
+    inline bool drive(double *x, double y, double uc, double lo, double hi, double bound, int64_t k, double *Y,
+                      double *U, int64_t N, double *u) const;
+
     /* x <- Ad x + Bd v */
     inline void step(double *x, double v) const
     {
@@ -78,6 +83,20 @@ inline void cut(double *Y, double *U, int64_t k, int64_t N)
         Y[j] = INFINITY;
         U[j] = NAN;
     }
+}
+
+inline bool Plant::drive(double *x, double y, double uc, double lo, double hi, double bound, int64_t k, double *Y,
+                         double *U, int64_t N, double *u) const
+{
+    *u = clip(uc, lo, hi);
+    Y[k] = y;
+    U[k] = *u;
+    if (!(std::fabs(y) <= bound)) {
+        cut(Y, U, k, N);
+        return false;
+    }
+    step(x, g(*u));
+    return true;
 }
 
 Plant plant_of(const double *Ad, const double *Bd, const double *C, const double *x0, int64_t n, double offset,
@@ -126,15 +145,9 @@ int hc_pid_loops(const double *Ad, const double *Bd, const double *C, const doub
             double y = P.output(x);
             double e = r[k] - y;
             deriv = ad * deriv + bd * (e - ep);
-            double uc = kp * e + integ + deriv;
-            double u = clip(uc, lo, hi);
-            Yb[k] = y;
-            Ub[k] = u;
-            if (!(std::fabs(y) <= bound)) {
-                cut(Yb, Ub, k, N);
+            double uc = kp * e + integ + deriv, u;
+            if (!P.drive(x, y, uc, lo, hi, bound, k, Yb, Ub, N, &u))
                 break;
-            }
-            P.step(x, P.g(u));
             integ += dt * (ki * e + kt * (u - uc));
             ep = e;
         }
@@ -167,14 +180,9 @@ int hc_controller_loop(const double *Ad, const double *Bd, const double *C, cons
         double uc = bias + Dc * e;
         for (int64_t i = 0; i < nc; i++)
             uc += Cc[i] * xc[i];
-        double u = clip(uc, lo, hi);
-        Y[k] = y;
-        U[k] = u;
-        if (!(std::fabs(y) <= bound)) {
-            cut(Y, U, k, N);
+        double u;
+        if (!P.drive(x, y, uc, lo, hi, bound, k, Y, U, N, &u))
             break;
-        }
-        P.step(x, P.g(u));
         for (int64_t i = 0; i < nc; i++) {
             double s = Bc[i] * e;
             for (int64_t j = 0; j < nc; j++)

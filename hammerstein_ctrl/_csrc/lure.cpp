@@ -385,6 +385,17 @@ int sample(Loop &L, double *x, int mode, double uk, double s, double c, double f
     return mode;
 }
 
+/* Sample k's output yk: stored (want_outputs), or its squared error against y[k] added to sse. */
+inline void record(double yk, int64_t k, const double *y, double *outb, bool want_outputs, double &sse)
+{
+    if (want_outputs) {
+        outb[k] = yk;
+    } else {
+        double e = yk - y[k];
+        sse += e * e;
+    }
+}
+
 /* One candidate over the record (any order): its outputs into outb, or its SSE returned. */
 double samples(Loop &L, const double *Cb, double *x, int mode, double cb, double fcb, double y0, const double *u,
                int64_t N, const double *y, double *outb, bool want_outputs, bool foh)
@@ -397,12 +408,7 @@ double samples(Loop &L, const double *Cb, double *x, int mode, double cb, double
         double yk = y0;
         for (int64_t i = 0; i < n; i++)
             yk += Cb[i] * x[i];
-        if (want_outputs) {
-            outb[k] = yk;
-        } else {
-            double e = yk - y[k];
-            sse += e * e;
-        }
+        record(yk, k, y, outb, want_outputs, sse);
         if (k + 1 == N)
             break;
         double s = foh ? u[k + 1] - u[k] : 0.0;
@@ -441,13 +447,7 @@ double samples_two(Loop &L, const double *Cb, double *x, int mode, double cb, do
     double sse = 0.0, side = (double)mode;
     double shift = cb + side * fcb;            /* the input's constant part while slipping: c + fc sign(z) */
     for (int64_t k = 0; k < N; k++) {
-        double yk = y0 + c0 * x0 + c1 * x1;
-        if (want_outputs) {
-            outb[k] = yk;
-        } else {
-            double e = yk - y[k];
-            sse += e * e;
-        }
+        record(y0 + c0 * x0 + c1 * x1, k, y, outb, want_outputs, sse);
         if (k + 1 == N)
             break;
         double s = foh ? u[k + 1] - u[k] : 0.0;
