@@ -103,6 +103,7 @@ def _run(code: str, **env) -> str:
     return done.stdout.strip()
 
 
+@pytest.mark.skipif(sys.platform == "win32", reason="a read-only folder, $HOME and an empty $PATH are POSIX's")
 def test_a_first_fit_compiles_caches_and_writes_nothing_and_needs_no_numba(tmp_path):
     """A fresh process identifies a Hammerstein and a Wiener structure with no compiler to find ($CC and $PATH
     pointing nowhere), no cache folder it could write ($HOME, $XDG_CACHE_HOME in an empty folder) and a read-only
