@@ -143,5 +143,5 @@ def lure_loop_run(Adt, Asdt, Bdt, C, Cz, h, Q, Phi, G0, G1, Ps, ok, fc, c, X0, Y
         raise ValueError("the controller's matrices, the reference, the added input and the outputs do not fit one "
                          "another")
     if _core.hc_lure_loop_run(*setup, batch, n, fc, c, X0, Y0, Ac, Bc, Cc, Dc, nc, xc0, r, d, N, Y, U):
-        raise ValueError(f"a controller of {nc} states is past the loop simulator's {_core.MAX_ORDER + 2}")
+        raise MemoryError(f"no memory for a controller of {nc} states")
     return Y, U

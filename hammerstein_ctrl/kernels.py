@@ -69,8 +69,8 @@ MAX_PASS_STATES = _core.MAX_ORDER
 MAX_NORMAL_LANES = _core.MAX_LANES
 #: Most basis signals of a kernel that forms the signal from a basis.
 MAX_LANE_BASIS = _core.MAX_BASIS
-#: Candidates per group of a lanes kernel (16, then 8 for the rest, the last group padded).
-LANE_WIDTHS = (16, 8)
+#: Candidates per group of a lanes kernel (the last group padded).
+LANE_WIDTHS = (8,)
 #: Fewest candidates for which the lanes kernel beats the one-at-a-time kernel (a padded group costs about as much
 #: as a full one).
 LANE_MIN = 3
@@ -158,8 +158,8 @@ def get_kernel(n: int, mode: str, hold: str = "foh", outmap: str | None = None, 
     Parameters
     ----------
     n : int
-        State dimension of the linear block (``1 .. MAX_PASS_STATES``, any for signals ``V`` without a map: a
-        state-space model's ``E`` is then exactly ``(B, n + 2, n + 2)``).
+        State dimension of the linear block (``1 .. MAX_PASS_STATES``; any, a static block's 0 included, for
+        signals ``V`` without a map: ``E`` is then exactly ``(B, n + 2, n + 2)``).
     mode : {"sse", "outputs"}
     hold : {"foh", "zoh"}
     outmap : str, optional
@@ -185,7 +185,8 @@ def get_kernel(n: int, mode: str, hold: str = "foh", outmap: str | None = None, 
         raise ValueError(f"unknown kernel mode {mode!r}")
     if outmap is not None and not has_output_maps(n):
         raise ValueError(f"output maps are applied in the pass for up to {MAX_UNROLLED_STATES} states, not {n}")
-    if n > MAX_PASS_STATES and K is None and outmap is None:     # past the written-out orders: one generic loop
+    if (n > MAX_PASS_STATES or n == 0) and K is None and outmap is None:   # a static block, or past the written-out
+        # orders: one generic loop
         spec = (f"hc_kernel_n{n}_{mode}_{hold}|E:r:B,{n + 2},{n + 2} C:r:B,{n}+ D:r:B X0:r:B,{n}+ Y0:r:B V:r:B,N+"
                 + (" y:r:N out:w:B" if mode == "sse" else " out:w:B,N+"))
         return Kernel(_core.hc_kernel_number(_core.ANY_ORDER, n, _hold(hold), _SSE if mode == "sse" else 0), spec,
@@ -209,7 +210,7 @@ def get_lane_kernel(n: int, hold: str, K: int, direct: bool = True, offset: bool
     parameters, or ``Phi = u`` and ``P = 1``), formed sample by sample inside
     the kernel.  Candidates are taken in groups of :data:`LANE_WIDTHS` whose
     quantities sit in the columns of one small array, so the whole group
-    steps in vector instructions; each candidate's arithmetic is that of
+    steps in vector instructions (AVX2 where the processor has it); each candidate's arithmetic is that of
     :func:`get_kernel`'s ``"sse"`` kernel on ``P @ Phi``, operation for
     operation, so the sums are bit-identical to it.  A group that is not
     full is padded (its unused lanes repeat its first candidate), so batches
@@ -414,8 +415,15 @@ def has_basis_kernels(n: int, K: int = 1) -> bool:
 
 
 def has_output_maps(n: int) -> bool:
-    """Whether kernels for ``n`` states can apply an output map in the compiled pass."""
-    return n <= MAX_UNROLLED_STATES
+    """Whether kernels for ``n`` states can apply an output map in the compiled pass (a static block's map, n = 0,
+    is applied after it).
+
+    Examples
+    --------
+    >>> has_output_maps(2), has_output_maps(0)
+    (True, False)
+    """
+    return 1 <= n <= MAX_UNROLLED_STATES
 
 
 def vector_isa() -> str:

@@ -130,6 +130,18 @@ class SampledPlant:
     hparams: np.ndarray = field(default_factory=lambda: np.zeros(1))
     hbreakpoints: np.ndarray = field(default_factory=lambda: np.zeros(2))
 
+    def __post_init__(self):
+        n = np.shape(self.x0)[0] if np.ndim(self.x0) == 1 else -1
+        shapes = {"Ad": (n, n), "Bd": (n,), "C": (n,), "x0": (n,)}
+        wrong = [name for name, shape in shapes.items() if np.shape(getattr(self, name)) != shape]
+        wrong += [name for name in ("params", "breakpoints", "hparams", "hbreakpoints")
+                  if np.ndim(getattr(self, name)) != 1]
+        if wrong or not 0 <= n <= _core.MAX_ORDER:
+            raise ParameterError(f"a sampled plant needs Ad (n x n), Bd, C and x0 (n each, n <= {_core.MAX_ORDER}) "
+                                 f"and its blocks' parameters as vectors; these do not fit: {', '.join(wrong) or 'n'}")
+        for name in ("Ad", "Bd", "C", "x0", "params", "breakpoints", "hparams", "hbreakpoints"):
+            object.__setattr__(self, name, np.ascontiguousarray(getattr(self, name), dtype=float))
+
     def arrays(self) -> tuple:
         """The plant's arguments of the compiled loops (``hc_pid_loops``, ``hc_controller_loop``)."""
         return (self.Ad, self.Bd, self.C, self.x0, self.x0.size, float(self.offset), self.code, self.params,

@@ -263,6 +263,8 @@ def _lagged_sums(a, b, first: int, last: int) -> np.ndarray:
     length."""
     if a.shape != b.shape or a.ndim != 1:
         raise ValueError(f"lagged sums take two signals of one length, got shapes {a.shape} and {b.shape}")
+    if not -a.size < first <= last < a.size:
+        raise ValueError(f"lags {first} to {last} reach past a record of {a.size} samples")
     out = np.empty(max(0, last - first + 1))
     _core.hc_lagged_sums(a, b, a.size, int(first), int(last), out)
     return out
@@ -332,6 +334,9 @@ class ResidualAnalysis:
     def __init__(self, residuals, u, dt, *, lags: int, coherence, cross_bound: float, name: str = ""):
         e = np.asarray(residuals, dtype=float)
         n = e.size
+        if isinstance(lags, bool) or int(lags) != lags or not 1 <= lags < n:
+            raise ParameterError(f"lags must be an integer between 1 and {n - 1} (the residuals' length less one), "
+                                 f"got {lags!r}")
         self.residuals, self.dt, self.name = e, float(dt), name
         self.lags = np.arange(lags + 1)
         self._u = np.asarray(u, dtype=float)

@@ -525,3 +525,17 @@ def test_tuning_refuses_models_beyond_numerical_range(num, den, params, message)
     model = hc.HammersteinModel(ct.tf(num, den), hc.Tanh(), params)
     with pytest.raises(ParameterError, match=message):
         cd.tune_pid(model)
+
+
+def test_a_sampled_plant_of_mismatched_arrays_is_refused():
+    """The compiled loops read Ad, Bd and C at the order x0 gives: arrays that disagree are refused when the plant is
+    made, never read past."""
+    from hammerstein_ctrl.loop_sim import IDENTITY, SampledPlant
+
+    good = dict(Ad=np.eye(2) * 0.5, Bd=np.ones(2), C=np.ones(2), x0=np.zeros(2), offset=0.0, code=IDENTITY,
+                params=np.zeros(1), breakpoints=np.zeros(2), dt=0.1)
+    Y, U = simulate_loops(SampledPlant(**good), [[1.0, 0.5, 0.0, 0.0]], np.ones(5), 0.1)
+    assert np.all(np.isfinite(Y)) and Y[0, 0] == 0.0
+    for name, value in (("Ad", np.eye(3)), ("Bd", np.ones(3)), ("C", np.ones(1)), ("x0", np.zeros((1, 2)))):
+        with pytest.raises(ParameterError, match="a sampled plant needs Ad"):
+            SampledPlant(**{**good, name: value})

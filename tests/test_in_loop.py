@@ -120,7 +120,7 @@ def test_bad_match_and_weights_are_refused():
 def test_emps_controller_reproduces_the_recorded_force(emps_dir):
     from hammerstein_ctrl.paper.emps_loop import load_emps_loop
 
-    record, loop, gains = load_emps_loop("estimation")
+    record, loop, gains = load_emps_loop("estimation", path=emps_dir)
     qm, qg = record.y.ravel(), loop.reference
     vir = gains["kv"] * (gains["kp"] * (qg - qm) - np.r_[0.0, np.diff(qm)] / record.dt)
     assert hc.fit_percent(record.u.ravel(), vir) > 96.0
@@ -132,8 +132,8 @@ def test_emps_controller_reproduces_the_recorded_force(emps_dir):
 def test_emps_force_is_reproduced_inside_the_loop(emps_dir):
     from hammerstein_ctrl.paper.emps_loop import load_emps_loop
 
-    record, loop, _ = load_emps_loop("estimation")
-    val, val_loop, _ = load_emps_loop("validation")
+    record, loop, _ = load_emps_loop("estimation", path=emps_dir)
+    val, val_loop, _ = load_emps_loop("validation", path=emps_dir)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         res = identify_in_loop(record, lure_structure(), loop, seed=0)

@@ -272,6 +272,33 @@ def test_a_normal_equation_pass_gives_the_references_sums_over_blocks(n):
             assert _same_bits(VP, [_py_signal(P[g], Phi[:, -1:])[0] for g in range(lanes)])
 
 
+def test_a_static_block_and_a_state_space_model_of_any_order_run_the_generic_loop():
+    """A static block (order 0: the output is its direct term) and a model past the written-out orders run one
+    generic loop, the reference's arithmetic; a static transfer function simulates as its gain (python-control's
+    answer too)."""
+    import control
+
+    from hammerstein_ctrl.simulate import lsim
+
+    rng = np.random.default_rng(9)
+    for n in (0, 12):
+        B, N = 2, 60
+        E, C, D, X0, Y0, V, y = (_stable_blocks(rng, B, n), _array(rng, B, n), _array(rng, B),
+                                 _array(rng, B, n, scale=0.1), _array(rng, B), _array(rng, B, N), _array(rng, N))
+        for hold in ("foh", "zoh"):
+            out, J = np.empty((B, N)), np.empty(B)
+            kernels.get_kernel(n, "outputs", hold)(E, C, D, X0, Y0, V, out)
+            kernels.get_kernel(n, "sse", hold)(E, C, D, X0, Y0, V, y, J)
+            expected = [_py_pass(E[b], C[b], D[b], X0[b], Y0[b], list(V[b]), hold) if n else
+                        [(0.0 + float(D[b]) * float(v)) + float(Y0[b]) for v in V[b]] for b in range(B)]
+            assert _same_bits(out, expected)
+            assert _same_bits(J, [_py_sse(y, e) for e in expected])
+    t, v = np.arange(5) * 0.1, np.array([1.0, -2.0, 0.5, 3.0, 0.0])
+    np.testing.assert_array_equal(lsim(control.tf([2.0], [1.0]), t, v), 2.0 * v)
+    np.testing.assert_allclose(lsim(control.tf([2.0], [1.0]), t, v),
+                               control.forced_response(control.tf([2.0], [1.0]), t, v).outputs, rtol=1e-15)
+
+
 def test_a_non_finite_last_signal_sample_makes_the_sums_not_finite():
     """Under zero-order hold the last signal sample reaches the output only through the direct term: without one,
     a non-finite last sample still makes the pass's sum of squares NaN and a batch's sum inf (as with d = 0)."""

@@ -73,8 +73,8 @@ def test_overflow_and_unstable_candidates():
     assert np.isinf(rejected[[2, 5]]).all() and np.isfinite(np.delete(rejected, [2, 5])).all()
 
 
-def test_cost_batch_matches_single_evaluations():
-    case = presets.emps()
+def test_cost_batch_matches_single_evaluations(emps_dir):
+    case = presets.emps(path=emps_dir)
     x = np.asarray(case.paper["nspsa"]["beta"], float)
     betas = x * (1 + 0.05 * np.random.default_rng(0).normal(size=(50, x.size)))
     J = case.cost.batch(betas)
@@ -179,7 +179,7 @@ def test_a_single_evaluation_evaluates_g_once_whatever_the_order():
     assert counted == {2: 3000, 9: 3000}
 
 
-def test_reject_unstable_set_after_construction_and_threads_keep_their_own_buffers():
+def test_reject_unstable_set_after_construction_and_threads_keep_their_own_buffers(emps_dir):
     """The one-call path honours reject_unstable as it is now; each thread forms its signals in its own buffer."""
     import pickle
     from concurrent.futures import ThreadPoolExecutor
@@ -196,7 +196,7 @@ def test_reject_unstable_set_after_construction_and_threads_keep_their_own_buffe
     copy = pickle.loads(pickle.dumps(case.cost))
     np.testing.assert_array_equal(copy.batch(betas), case.cost.batch(betas))
 
-    emps = presets.emps()
+    emps = presets.emps(path=emps_dir)
     unstable = np.asarray(emps.x0, float)          # a1 = -1: a pole in the right half-plane
     assert np.isfinite(emps.cost(unstable))
     emps.cost.reject_unstable = True

@@ -244,8 +244,8 @@ def test_coulomb_map_with_a_viscous_term_matches_the_same_loop_with_that_damping
 def test_emps_lure_model_from_rest_validates_beyond_the_published_models(emps_dir):
     from hammerstein_ctrl.paper.datasets import load_emps
 
-    est, full = load_emps("estimation", duration=12.0), load_emps("estimation")
-    val = load_emps("validation")
+    est = load_emps("estimation", duration=12.0, path=emps_dir)
+    full, val = load_emps("estimation", path=emps_dir), load_emps("validation", path=emps_dir)
 
     def validation(data):
         with warnings.catch_warnings():
@@ -259,7 +259,7 @@ def test_emps_lure_model_from_rest_validates_beyond_the_published_models(emps_di
     assert rep["fit_percent"] >= 89.5 and rep["rmse"] <= 8.7e-3
     from hammerstein_ctrl.paper.emps_loop import EMPS_PHYSICAL, load_emps_loop, physical_parameters
 
-    phys = physical_parameters(r.x, load_emps_loop("estimation")[2]["gtau"])
+    phys = physical_parameters(r.x, load_emps_loop("estimation", path=emps_dir)[2]["gtau"])
     for key in ("mass", "viscous", "coulomb", "offset"):       # the published physical identification
         assert phys[key] == pytest.approx(EMPS_PHYSICAL[key], rel=0.05), key
     r, rep = validation(full)

@@ -124,3 +124,19 @@ def test_the_test_uses_bounded_memory_on_long_records():
     assert a.passed
     assert peak < 40e6          # segments of at most SEGMENT_MAX samples: a constant, not a multiple of n
     assert RA.COHERENCE_SEGMENTS * RA.SEGMENT_MAX < n
+
+
+def test_lags_past_the_record_are_refused_before_any_sum():
+    """A lag of the record's length or more has no overlap: the analysis refuses it by name (the lagged sums read
+    past the signals before), whichever door it comes through."""
+    e, u = np.ones(5), np.arange(5.0)
+    with pytest.raises(ParameterError, match="lags must be an integer between 1 and 4"):
+        RA.ResidualAnalysis(e, u, 0.1, lags=5, coherence=[], cross_bound=0.5)
+    with pytest.raises(ParameterError, match="lags must be an integer between 1 and 4"):
+        residual_analysis(e, u, dt=0.1, lags=50)
+    with pytest.raises(ValueError, match="reach past a record of 5 samples"):
+        RA._lagged_sums(e, u, -5, 0)
+    e = np.array([1.0, -1.0, 2.0, 0.5, -0.5])
+    analysis = RA.ResidualAnalysis(e, u, 0.1, lags=4, coherence=[], cross_bound=0.5)      # the longest lag there is
+    d = e - e.mean()
+    np.testing.assert_allclose(analysis.autocorrelation, np.correlate(d, d, "full")[4:] / (d @ d), rtol=1e-12)

@@ -24,6 +24,12 @@
 #include <stdbool.h>
 #endif
 
+/* No contraction into fused multiply-adds in any file that includes this header: MSVC before VS 2022 contracted
+ * under /fp:precise where AVX2 was allowed (gcc and clang get -ffp-contract=off from meson.build). */
+#if defined(_MSC_VER) && !defined(__clang__)
+#pragma fp_contract(off)
+#endif
+
 #ifdef __cplusplus
 extern "C" {
 #endif

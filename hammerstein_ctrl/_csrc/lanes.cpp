@@ -63,7 +63,7 @@ struct Group {
     void store(const LaneArgs &s, int64_t b0, int64_t m) const
     {
         for (int64_t w = 0; w < m; w++)
-            s.out[b0 + w] = J[w] <= OVERFLOW_LIMIT && std::isfinite(vp[w]) ? J[w] : INFINITY;
+            s.out[b0 + w] = J[w] <= OVERFLOW_LIMIT && is_finite(vp[w]) ? J[w] : INFINITY;
     }
 };
 

@@ -321,10 +321,13 @@ void hc_fill_coefficients(const double *theta, int64_t batch, int64_t stride, co
 }
 
 /* The Frobenius norm of T^-1 for an upper-triangular T (n x n, C order; its strict lower triangle not read), by
- * back substitution, column by column of the identity; not finite where T is singular or the inverse overflows. */
+ * back substitution, column by column of the identity; not finite where T is singular or the inverse overflows
+ * (NaN if no work memory could be had). */
 double hc_triangular_inverse_norm(const double *T, int64_t n)
 {
-    double total = 0.0, x[n > 0 ? n : 1];
+    double total = 0.0, *x = malloc((size_t)(n > 0 ? n : 1) * sizeof(double));
+    if (x == NULL)
+        return NAN;
     for (int64_t j = 0; j < n; j++) {
         for (int64_t i = j; i >= 0; i--) {
             double s = i == j ? 1.0 : 0.0;
@@ -334,5 +337,6 @@ double hc_triangular_inverse_norm(const double *T, int64_t n)
             total += x[i] * x[i];
         }
     }
+    free(x);
     return sqrt(total);
 }

@@ -105,7 +105,8 @@ int hc_lm_loop(int64_t kernel_number, double *x, int64_t p, double *state, doubl
     hc_kernel kernel = hc_kernel_at(kernel_number);
     double trial[MAX_P], h[MAX_P], sums[1 + MAX_P * (MAX_P + 1)], new_gradient[MAX_P], new_gram[MAX_P * MAX_P],
         values[MAX_P + 1], norms[MAX_P], floor[MAX_P];
-    if (kernel == NULL || p < 1 || p > MAX_P || nden < 2 || nden > HC_MAX_ORDER + 1 || nnum > nden)
+    if (kernel == NULL || p < 1 || p > MAX_P || nden < 2 || nden > HC_MAX_ORDER + 1 || nnum < 1 || nnum > nden ||
+        k < 0 || kd < 0 || k + kd > p || K < 1 || K > HC_MAX_BASIS)
         return HAND_BACK;               /* not a pass of this loop: the general one takes it */
     bool summing = false;               /* the summing pass of den's order (a direct term or not), nothing else */
     for (int64_t hold = 0; hold < 2; hold++)

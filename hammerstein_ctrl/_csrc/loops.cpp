@@ -238,6 +238,10 @@ void hc_lagged_sums(const double *a, const double *b, int64_t n, hc_signed first
     double ma = sa / (double)n, mb = sb / (double)n;
     for (int64_t k = first; k <= last; k++) {
         int64_t lo = k > 0 ? k : 0, hi = n < n + k ? n : n + k;
+        if (hi <= lo) {                 /* a lag of the record's length or more: no overlap, the empty sum */
+            out[k - first] = 0.0;
+            continue;
+        }
         double acc = 0.0;
         for (int64_t t = lo; t < hi; t++)
             acc += a[t] * b[t - k];

@@ -19,6 +19,19 @@
 
 namespace {
 
+/* isnan and isfinite of one double, defined here with internal linkage: the standard library's are inline
+ * functions, which an unoptimised build emits as shared weak symbols, and the copies compiled for AVX2 must never
+ * stand in for the baseline's. */
+inline bool is_nan(double x)
+{
+    return x != x;
+}
+
+inline bool is_finite(double x)
+{
+    return x - x == 0.0;
+}
+
 inline double np_sign(double x)
 {
     return x > 0 ? 1.0 : (x < 0 ? -1.0 : x);
@@ -26,12 +39,12 @@ inline double np_sign(double x)
 
 inline double np_minimum(double a, double b)
 {
-    return std::isnan(a) ? a : (std::isnan(b) ? b : (b < a ? b : a));
+    return is_nan(a) ? a : (is_nan(b) ? b : (b < a ? b : a));
 }
 
 inline double np_maximum(double a, double b)
 {
-    return std::isnan(a) ? a : (std::isnan(b) ? b : (b > a ? b : a));
+    return is_nan(a) ? a : (is_nan(b) ? b : (b > a ? b : a));
 }
 
 inline double clip(double z, double a)

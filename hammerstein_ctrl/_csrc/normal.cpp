@@ -223,7 +223,7 @@ void normal_lanes(const NormalArgs &s)
         for (int64_t r = 0; r < s.n; r++)
             s.X[w * s.xcols + r] = blk.x[r][w];
         s.VP[w] = vp[w];
-        finite = finite && std::isfinite(vp[w]);
+        finite = finite && is_finite(vp[w]);
     }
     if (OUTPUTS)
         return;

@@ -209,8 +209,9 @@ struct MakeSingle {
                                                              : nullptr;
 };
 
-/* Any order n (the state dimension of a state-space model past HC_MAX_ORDER): signals V, "sse" (SSE) or "outputs",
- * one candidate at a time, the state in memory; n = E.shape[1] - 2.  Returns 0, or 3 if no memory could be had. */
+/* Any order n (a static block, n = 0, or the state dimension of a state-space model past HC_MAX_ORDER): signals V,
+ * "sse" (SSE) or "outputs", one candidate at a time, the state in memory; n = E.shape[1] - 2.  Returns 0, or 3 if no
+ * memory could be had. */
 template <bool ZOH, bool SSE>
 int64_t any_order_kernel(const hc_arg *args)
 {
@@ -236,7 +237,7 @@ int64_t any_order_kernel(const hc_arg *args)
                 }
                 memcpy(x, next, (size_t)n * sizeof(double));
             }
-            double z = c[0] * x[0];
+            double z = n > 0 ? c[0] * x[0] : 0.0;      /* a static block (n = 0): the direct term alone */
             for (int64_t r = 1; r < n; r++)
                 z += c[r] * x[r];
             double yh = (z + d * v[i]) + o;

@@ -12,7 +12,7 @@
 
 #include "hc.h"
 
-/* meson.build defines HC_HAS_ISA_VARIANTS where it built the AVX2 and AVX-512 variants (x86-64). */
+/* meson.build defines HC_HAS_ISA_VARIANTS where it built the AVX2 variants (x86-64). */
 #if defined(HC_HAS_ISA_VARIANTS) && (defined(__x86_64__) || defined(_M_X64))
 #define HC_X86 1
 #if defined(_MSC_VER)
