@@ -15,6 +15,9 @@ key                           default  meaning
 ``delay.pade_order``               6   order of the Pade approximant that stands for a dead time in exports
 ``uncertainty.level``           0.95   confidence level of intervals and bands
 ``residual_analysis.lags``        25   lags of the residual correlations
+``verdicts.significance``       1e-4   level of the F-tests against the models nested in a fit (a
+                                       constant, a static affine gain, the linear model of the same
+                                       order): a fit not better at this level fails
 ``control.max_sensitivity``      1.6   robustness target ``max(Ms, Mt)`` of the PID rules
 ``control.simc_ti_factor``       4.0   SIMC's ``tau_I = min(tau1, factor (tau_c + theta))``
 ``lm.compiled_loop``            auto   Levenberg-Marquardt's compiled loop (C, in the compiled core):
@@ -58,6 +61,7 @@ _SPEC = {
     "delay.pade_order": (6, "int", 1, 20),
     "uncertainty.level": (0.95, "float", 0.0, 1.0),
     "residual_analysis.lags": (25, "int", 1, None),
+    "verdicts.significance": (1e-4, "float", 0.0, 1.0),
     "control.max_sensitivity": (1.6, "float", 1.0, math.inf),
     "control.simc_ti_factor": (4.0, "float", 0.0, math.inf),
     "lm.compiled_loop": (os.environ.get("HAMMERSTEIN_CTRL_COMPILED_LOOP", "auto"), "choice",

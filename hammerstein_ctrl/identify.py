@@ -57,6 +57,7 @@ from .lure_fit import LureCost
 from .metrics import channel_report, fit_report
 from .mimo import MIMOStructure
 from .mimo_fit import MIMOCost
+from .nested import significance_verdicts
 from .objective import HammersteinCost
 from .result import IdentificationResult
 from .optimize import BUDGET_EXHAUSTED, COMPLETED, DIVERGED, SCIPY_METHODS, canonical_method, minimize
@@ -401,6 +402,10 @@ def _trust_verdicts(cost, x, r, model, checks: _Checks):
         return verdicts, None, None
     explained = {n for v in verdicts for n in v.params}
     verdicts = identifiability_verdicts(structure, x, unc, model=model, data=data, exempt=explained) + verdicts
+    simpler, _ = significance_verdicts(cost, r, noise=unc.noise, seed=checks.seed)
+    if any(v.code == "not-significant" for v in simpler):   # its failures stand, warnings on details would be noise
+        return [v for v in verdicts if v.severity == FAILURE] + simpler, unc, None
+    verdicts += simpler
     offset = offset_verdict(structure, r, unc)
     if offset is not None:
         verdicts.append(offset)
@@ -410,6 +415,8 @@ def _trust_verdicts(cost, x, r, model, checks: _Checks):
     return verdicts, unc, analysis
 
 
+#: Codes of the failures of a fit that a simpler model matches: more evaluations would not help.
+_SIMPLER = ("not-significant", "worse-than-nested")
 #: Codes of failures after which ``auto`` tries the structure with an output offset.
 _OFFSET_PROBED = ("no-better", "unstable")
 #: The offset probe is reported when it lowers J below this fraction of the failed fit's.
@@ -449,7 +456,11 @@ def _message(res, key: str, verdicts, checks: _Checks) -> str:
     message = str(res.message)
     failures = [v.message for v in verdicts if v.severity == FAILURE]
     if _out_of_budget(res, key):
-        failures.append(budget_advice(verdicts, checks.maxfev, late_improvement(res.history)))
+        improvement = late_improvement(res.history)
+        if improvement > STILL_IMPROVING:       # the budget first: what the fit shows so far may still change
+            failures.insert(0, budget_advice(verdicts, checks.maxfev, improvement))
+        elif not any(v.code in _SIMPLER for v in verdicts):   # a simpler model as good: more would not help
+            failures.append(budget_advice(verdicts, checks.maxfev, improvement))
     if failures:
         return "; ".join(dict.fromkeys(failures)) + f" [{message}]"
     warned = [v for v in verdicts if v.severity != FAILURE]
@@ -479,8 +490,8 @@ def _result(cost, res, key, x0, started, checks: _Checks) -> IdentificationResul
         # a fit no better than a constant, or stopped while still improving, is no optimum: verdicts on its
         # parameters would be noise
         still = _out_of_budget(res, key) and late_improvement(res.history) > STILL_IMPROVING
-        if not still and not any(v.code == "no-better" for v in verdicts):
-            verdicts += trust
+        if not any(v.code == "no-better" for v in verdicts):
+            verdicts += [v for v in trust if v.code == "not-significant"] if still else trust
     if key == AUTO and checks.uncertainty and isinstance(cost, HammersteinCost):
         probe = _offset_probe(cost, res, verdicts, checks, checks.seed)
         if probe is not None:

@@ -56,7 +56,7 @@ from .streamed_lstsq import (constant_column, factor_of_blocks, factor_of_column
                              solve_minimum_norm, solve_scaled, triangular_factor)
 
 __all__ = ["initial_points", "stabilize", "continuous_poles", "nuisance_estimate", "estimate_initial_state",
-           "static_affine_sse", "static_affine_sse_columns",
+           "static_affine_sse", "static_affine_sse_columns", "affine_coefficients",
            "Budget", "POLE_PATTERNS"]
 
 #: Frequencies scanned per pole pattern (at least; see :data:`SCAN_PER_DECADE`).
@@ -829,6 +829,19 @@ def static_affine_sse(data) -> float:
         return float(sum(static_affine_sse_columns(data.inputs, y) for y in data.outputs.T))
     R = triangular_factor([u, constant_column(u.size)], y)
     return factor_sse(R, solve_minimum_norm(R, u.size))
+
+
+def affine_coefficients(u, y) -> tuple[float, float]:
+    """``(k, c)`` of the best static affine model ``y = k u + c`` (the one :func:`static_affine_sse` scores).
+
+    Examples
+    --------
+    >>> [round(v, 6) for v in affine_coefficients(np.arange(4.0), np.array([1.0, 3.0, 5.0, 8.0]))]
+    [2.3, 0.8]
+    """
+    u, y = np.asarray(u, dtype=float).reshape(-1), np.asarray(y, dtype=float).reshape(-1)
+    k, c = solve_minimum_norm(triangular_factor([u, constant_column(u.size)], y), u.size)
+    return float(k), float(c)
 
 
 def static_affine_sse_columns(inputs, y) -> float:

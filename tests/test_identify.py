@@ -33,7 +33,10 @@ def test_identify_known_truth_polynomial_system():
 def test_identify_trs_nspsa_result_is_usable_in_python_control(trs_case):
     kw = {k: v for k, v in trs_case.minimize_kwargs("nspsa").items() if k != "method"}
     res = identify(trs_case.data, trs_case.structure, method="nspsa", x0=trs_case.x0, seed=3, **kw)
-    assert 178.4 < res.fun < 180.0 and res.nfev == 2001 and res.success
+    assert 178.4 < res.fun < 180.0 and res.nfev == 2001
+    # the paper's own start and budget reach 178.5; the linear model of the same order fits the reconstruction
+    # to 178.145 (its tanh is nearly linear at the record's 1 V): the verdict says so and fails the fit
+    assert not res.success and "worse-than-nested" in [v.code for v in res.verdicts] and "178.145" in res.message
     assert res.fun == pytest.approx(trs_case.cost(res.x), rel=1e-12)
     # the fitted model wires into a loop with a controller
     sys = res.model.to_iosys()

@@ -134,6 +134,8 @@ LAYERS = [
     ("hammerstein_ctrl.display", ("identify", "plots", "model", "structure", "optimize")),
     ("hammerstein_ctrl.structure", ("identify", "objective", "optimize", "persistence", "plots")),
     ("hammerstein_ctrl.uncertainty", ("identify", "model", "structure", "plots")),
+    ("hammerstein_ctrl.significance", ("identify", "nested", "auto", "objective", "structure", "model")),
+    ("hammerstein_ctrl.nested", ("identify", "selection", "result", "persistence", "plots")),
 ]
 
 

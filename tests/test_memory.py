@@ -75,8 +75,10 @@ def test_residuals_in_bounded_memory(cost):
 # the lanes' state and a residual vector (40 B measured; MINPACK's route held its Jacobian and ours,
 # 32 B each, and scipy's least_squares route two more Jacobian copies: 216 B here).  The uncertainty after
 # the fit (the residuals here are coloured) adds the whitened Jacobian in single precision, 4 B per
-# parameter (16 B), and a column and its simulation (16 B): 72 B measured.
-@pytest.mark.parametrize("method, bound", [("nspsa", 80), ("amvo-sca", 80), ("lm", 80)])
+# parameter (16 B), and a column and its simulation (16 B): 72 B measured.  The significance tests then fit the
+# linear model nested in the structure by ``auto`` while the fit's cost and residuals are held: 128 B measured
+# (its starts hold their regression columns whole below STREAMED_COLUMNS_BYTES, 88 B here; past it they stream).
+@pytest.mark.parametrize("method, bound", [("nspsa", 136), ("amvo-sca", 136), ("lm", 136)])
 def test_identify_in_bounded_memory(record, method, bound):
     bench.identify_long_record(bench.synthetic_record(2000), method)  # compile/load outside the measurement
     per_sample, r = peak_bytes_per_sample(lambda: bench.identify_long_record(record, method))
@@ -123,7 +125,7 @@ def test_auto_in_bounded_memory(record):
         per_sample, r = peak_bytes_per_sample(lambda: identify(record, structure, maxfev=budget, seed=0))
     assert r.success and r.nfev <= budget and r.optimize_result.starts == 3
     np.testing.assert_allclose(r.x, bench.SYNTHETIC_BETA, rtol=1e-6)
-    assert per_sample < 56          # 48 B measured: the optimisation's 25 B, then the uncertainty's (above)
+    assert per_sample < 104         # 96 B measured: the nested linear fit's starts (above); the optimisation 25 B
 
 
 @pytest.mark.slow
