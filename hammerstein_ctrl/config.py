@@ -18,6 +18,9 @@ key                           default  meaning
 ``verdicts.significance``       1e-4   level of the F-tests against the models nested in a fit (a
                                        constant, a static affine gain, the linear model of the same
                                        order): a fit not better at this level fails
+``verdicts.nested_tests``       True   fit those nested models and test against them; False skips it
+                                       (for Monte-Carlo studies of a known structure: the fits cost
+                                       about as much as the fit itself)
 ``control.max_sensitivity``      1.6   robustness target ``max(Ms, Mt)`` of the PID rules
 ``control.simc_ti_factor``       4.0   SIMC's ``tau_I = min(tau1, factor (tau_c + theta))``
 ``lm.compiled_loop``            auto   Levenberg-Marquardt's compiled loop (C, in the compiled core):
@@ -50,8 +53,8 @@ from .exceptions import ParameterError
 
 __all__ = ["defaults", "set_defaults", "reset_defaults"]
 
-#: ``key: (initial value, kind, low, high)``: kind "int" (whole, >= low), "float" (low < value < high) or
-#: "choice" (one of the strings ``low``).
+#: ``key: (initial value, kind, low, high)``: kind "int" (whole, >= low), "float" (low < value < high),
+#: "bool" or "choice" (one of the strings ``low``).
 _SPEC = {
     "auto.maxfev": (2000, "int", 1, None),
     "auto.records_joint_share": (0.25, "float", 0.0, 1.0),
@@ -62,6 +65,7 @@ _SPEC = {
     "uncertainty.level": (0.95, "float", 0.0, 1.0),
     "residual_analysis.lags": (25, "int", 1, None),
     "verdicts.significance": (1e-4, "float", 0.0, 1.0),
+    "verdicts.nested_tests": (True, "bool", None, None),
     "control.max_sensitivity": (1.6, "float", 1.0, math.inf),
     "control.simc_ti_factor": (4.0, "float", 0.0, math.inf),
     "lm.compiled_loop": (os.environ.get("HAMMERSTEIN_CTRL_COMPILED_LOOP", "auto"), "choice",
@@ -77,6 +81,10 @@ def _checked(key: str, value):
     if kind == "choice":
         if value not in low:
             raise ParameterError(f"{key} must be one of {list(low)}, got {value!r}")
+        return value
+    if kind == "bool":
+        if not isinstance(value, bool):
+            raise ParameterError(f"{key} must be True or False, got {value!r}")
         return value
     if kind == "int":
         ok = isinstance(value, int) and not isinstance(value, bool) and value >= low and (high is None or value <= high)

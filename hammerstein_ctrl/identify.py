@@ -16,8 +16,10 @@ specific ``message`` that says what to do, when a least-squares method did not
 converge, when the model is unstable (unless ``allow_unstable``; a pole within
 its uncertainty of the imaginary axis counts as marginal, not unstable), when
 the record does not determine a parameter, when the model fits no better than
-the best static affine gain ``y = k u + c`` (fit % <= 0 included), or when a
-search stalled at its starting value.  Residuals that the input still
+the best static affine gain ``y = k u + c`` (fit % <= 0 included), when the
+linear model of the same order fits as well (an F-test on the whitened
+residuals, :mod:`~hammerstein_ctrl.significance`), or when a search stalled
+at its starting value.  Residuals that the input still
 explains (a missing order, a wrong nonlinearity) are warnings: the model is
 usable, and the warning says what seems missing.
 
@@ -27,7 +29,9 @@ Examples
 >>> case = hc.presets.trs()
 >>> res = hc.identify(case.data, case.structure)
 >>> bool(res.fun < 178.5), res.success, res.method
-(True, True, 'auto')
+(True, False, 'auto')
+>>> res.message.split(":")[0]   # the linear model of the same order fits as well
+'the nonlinearity is not significant'
 >>> res = hc.identify(case.data, case.structure, method="nspsa", x0=case.x0, seed=0,
 ...                   **{k: v for k, v in case.minimize_kwargs("nspsa").items() if k != "method"})
 >>> round(res.fun, 1), res.nfev, type(res.model.linear).__name__
@@ -48,7 +52,7 @@ from ._linalg import single_threaded_blas
 from .iodata import IOData
 from .delay_fit import DelayedCost
 from .experiments import RecordsCost
-from .diagnostics import (FAILURE, STILL_IMPROVING, Verdict, budget_advice, identifiability_verdicts,
+from .diagnostics import (FAILURE, STILL_IMPROVING, WARNING, Verdict, budget_advice, identifiability_verdicts,
                           late_improvement, linear_verdicts, offset_verdict, row_pole_verdicts)
 from .exceptions import IdentificationWarning, ParameterError
 from .initialize import static_affine_sse, static_affine_sse_columns
@@ -94,6 +98,7 @@ def identify(
     noise: str = "colored",
     loop=None,
     match: str = "both",
+    closed_loop: bool = False,
 ) -> IdentificationResult:
     """Identify a Hammerstein model from an input/output record.
 
@@ -147,6 +152,12 @@ def identify(
         by simulating that loop from its reference, matching ``match``.
     match : {"output", "input", "both"}, default "both"
         With ``loop``: the measured signals the simulated loop must reproduce.
+    closed_loop : bool, default False
+        The record was measured inside a feedback loop (the input depends on
+        past outputs), fitted here in open loop: the residual tests are then
+        those valid in closed loop (:mod:`~hammerstein_ctrl.residual_analysis`:
+        whitened residuals against past inputs); the open-loop tests would
+        find the controller's link between them.  Implied by ``loop``.
 
     Returns
     -------
@@ -176,7 +187,7 @@ def identify(
             x0 = _starting_point(cost.structure, x0, bounds)
             res = minimize(cost, x0, method=key, maxfev=maxfev, maxiter=maxiter, seed=seed,
                            options=options, callback=callback, bounds=bounds)
-        checks = _Checks(allow_unstable, uncertainty, noise, maxfev, seed, bounds is not None)
+        checks = _Checks(allow_unstable, uncertainty, noise, maxfev, seed, bounds is not None, bool(closed_loop))
         if isinstance(cost, MIMOCost):
             result = _mimo_result(cost, res, key, x0, started, checks)
         else:
@@ -313,6 +324,22 @@ class _Checks:
     maxfev: int | None
     seed: object = None
     bounded: bool = False
+    closed_loop: bool = False
+
+
+#: Residuals below this share of the output's spread (RMS, 180 dB) are rounding: their tests say nothing of the model.
+ROUNDING_LEVEL = 1e-9
+
+
+def _at_rounding_level(r, y) -> bool:
+    """Whether the residuals ``r`` are at the arithmetic's level against the output ``y`` (:data:`ROUNDING_LEVEL`).
+
+    >>> _at_rounding_level(np.full(4, 1e-13), np.arange(4.0)), _at_rounding_level(np.full(4, 1e-3), np.arange(4.0))
+    (True, False)
+    """
+    y = np.asarray(y, dtype=float).reshape(-1)
+    r = np.asarray(r, dtype=float).reshape(-1)
+    return bool(np.sqrt(np.mean(r * r)) <= ROUNDING_LEVEL * np.std(y))
 
 
 def _no_model(res) -> list[Verdict]:
@@ -409,9 +436,14 @@ def _trust_verdicts(cost, x, r, model, checks: _Checks):
     offset = offset_verdict(structure, r, unc)
     if offset is not None:
         verdicts.append(offset)
-    analysis = residual_analysis(r, data.u, dt=data.dt, output=data.y, name=data.name)
+    analysis = residual_analysis(r, data.u, dt=data.dt, output=data.y, name=data.name, noise=unc.noise,
+                                 closed_loop=checks.closed_loop)
+    if _at_rounding_level(r, data.y):   # an exact fit: what structure the residuals have is the arithmetic's
+        return verdicts, unc, analysis
     if analysis.findings:
-        verdicts.append(Verdict("inadequate", "warning", analysis.verdict()))
+        verdicts.append(Verdict("inadequate", WARNING, analysis.verdict()))
+    if analysis.coloured:
+        verdicts.append(Verdict("coloured", WARNING, analysis.colour_verdict()))
     return verdicts, unc, analysis
 
 
@@ -560,7 +592,7 @@ def _mimo_trust(cost, x, model, checks: _Checks):
         if verdict is not None:
             verdicts.append(Verdict(verdict.code, verdict.severity, f"output {name!r}: {verdict.message}"))
         for j, u in enumerate(data.inputs.T):
-            found = residual_analysis(e, u, dt=data.dt, output=data.outputs[:, i],
+            found = residual_analysis(e, u, dt=data.dt, output=data.outputs[:, i], closed_loop=checks.closed_loop,
                                       name=f"{data.name}: {name} against {data.input_names[j]}")
             analysis = analysis or found
             if found.findings:

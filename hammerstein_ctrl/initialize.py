@@ -851,23 +851,90 @@ def static_affine_sse_columns(inputs, y) -> float:
     return factor_sse(R, solve_minimum_norm(R, len(y)))
 
 
-def estimate_initial_state(model, data) -> np.ndarray:
-    """Least-squares initial state of ``model`` on ``data`` (its other parameters fixed).
+def estimate_initial_state(model, data, *, offset: bool = False):
+    """Least-squares initial state of ``model`` on ``data`` (its other parameters fixed), through the whole model.
+
+    The state enters the output linearly when the model has no output map and
+    no feedback: then the columns ``simulate(e_i) - simulate(0)`` give it by
+    linear least squares.  Through an output map ``h`` or a Lur'e loop it does
+    not: that solution, the model's own initial state and rest are the starts,
+    and Levenberg-Marquardt (forward differences of the model's own
+    simulation) refines the best of them.  The result is never worse than any
+    of the starts.
+
+    Parameters
+    ----------
+    model : model with ``order``, ``offset`` and ``simulate(data, initial_state=...)``
+    data : IOData
+    offset : bool, default False
+        Also re-estimate the additive output offset (a new experiment's
+        operating point): returns ``(x0, offset)``.
+
+    Returns
+    -------
+    ndarray, or (ndarray, float) with ``offset``
 
     Examples
     --------
     >>> import numpy as np, control as ct
     >>> from hammerstein_ctrl import HammersteinModel, Coulomb, IOData
     >>> m = HammersteinModel(ct.tf([1], [1, 1.0, 4.0]), Coulomb(), [1.0, 0.0, 0.0], initial_state=[0.5, -1.0])
-    >>> t = np.arange(0, 10, 0.01); d = IOData(np.sin(t), m.simulate(t, np.sin(t)), t)
-    >>> estimate_initial_state(m, d).round(6).tolist()
-    [0.5, -1.0]
+    >>> t = np.arange(0, 10, 0.01); d = IOData(np.sin(t), m.simulate(t, np.sin(t)) + 0.3, t)
+    >>> x0, c = estimate_initial_state(m, d, offset=True)
+    >>> x0.round(6).tolist(), round(c, 6)
+    ([0.5, -1.0], 0.3)
     """
-    rest = model.simulate(data, initial_state=np.zeros(model.order))
-    num, den = model.coefficients()
-    free = free_response(num, den, data.dt, len(data)).T
+    fit = _StateFit(model, data, offset)
     with np.errstate(all="ignore"):
-        R = triangular_factor([free], np.asarray(data.y, dtype=float) - rest)
-    if not np.all(np.isfinite(R)):
-        return np.zeros(model.order)
-    return solve_minimum_norm(R, len(data))
+        starts = [fit.linear_start(), np.zeros(fit.size)]
+        if getattr(model, "initial_state", None) is not None:
+            starts.append(np.append(model.initial_state, [fit.own_offset] if offset else []))
+        best = min(starts, key=fit.sse)
+        if not fit.linear:
+            best = fit.refine(best)
+    return (best[:-1], float(best[-1])) if offset else best
+
+
+class _StateFit:
+    """The residuals of ``model`` on ``data`` as a function of its initial state (and offset)."""
+
+    def __init__(self, model, data, offset: bool):
+        self.model, self.data, self.offset = model, data, bool(offset)
+        self.y = np.asarray(data.y, dtype=float).reshape(-1)
+        self.n = model.order
+        self.size = self.n + self.offset
+        self.own_offset = float(getattr(model, "offset", 0.0) or 0.0)
+        self.linear = (getattr(model, "output_nonlinearity", None) is None and not hasattr(model, "feedback"))
+
+    def simulate(self, beta) -> np.ndarray:
+        y = self.model.simulate(self.data, initial_state=beta[:self.n])
+        return y + (beta[-1] - self.own_offset) if self.offset else y
+
+    def residual(self, beta) -> np.ndarray:
+        return self.y - self.simulate(np.asarray(beta, dtype=float))
+
+    def sse(self, beta) -> float:
+        r = self.residual(beta)
+        return float(r @ r) if np.all(np.isfinite(r)) else np.inf
+
+    def linear_start(self) -> np.ndarray:
+        """The least-squares solution of the model linearised in the state at rest (exact when it is linear)."""
+        zero = np.zeros(self.size)
+        rest = self.simulate(zero)
+        columns = [self.simulate(np.eye(self.size)[i]) - rest for i in range(self.n)]
+        if self.offset:
+            columns.append(constant_column(self.y.size))
+        if not columns:
+            return zero
+        R = triangular_factor(columns, self.y - rest)
+        return solve_minimum_norm(R, self.y.size) if np.all(np.isfinite(R)) else zero
+
+    def refine(self, start) -> np.ndarray:
+        """Levenberg-Marquardt from ``start`` (kept if it does not improve)."""
+        if self.size == 0 or not np.isfinite(self.sse(start)):
+            return start
+        try:
+            res = lmder(self.residual, None, start, maxfev=30 * (self.size + 1))
+        except ValueError:   # a non-finite trial where MINPACK would go on with NaN
+            return start
+        return res.x if self.sse(res.x) < self.sse(start) else start

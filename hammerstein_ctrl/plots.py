@@ -966,7 +966,8 @@ def residual_figure(analysis, *, title=None):
             ax.plot(lags[outside] * lag_s, values[outside], "o", color="firebrick", ms=4, label="outside the bound")
         ax.axhline(0.0, color="k", lw=0.6)
         _finish(ax, xlabel="lag (s)", ylabel="correlation", title=what)
-    verdict = "passed" if analysis.passed else "the input still explains part of the residuals"
+    verdict = ("passed" if analysis.passed else "the input still explains part of the residuals" if analysis.findings
+               else "strongly coloured residuals: mostly a signal the model misses")
     fig.suptitle(title or f"Residual analysis{' of ' + analysis.name if analysis.name else ''}: {verdict}")
     return fig
 

@@ -29,9 +29,29 @@ Three nested sets of regressors say what seems missing:
 
 The sets are nested, so a residual that the input nonlinearity explains is
 also explained by the largest set; the verdict names the smallest found set
-that explains :data:`NAMED_SHARE` of what the largest explains.  On records
-measured inside a feedback loop the input also depends on past noise, and a
-finding may mean that instead.
+that explains :data:`NAMED_SHARE` of what the largest explains.
+
+**Any shape, on the whole record.**  Polynomial regressors and short
+segments miss a residual that is a smooth but non-polynomial function of a
+slow signal (``x |x|`` behind a filter).  The *level test* therefore also
+asks, on the whole record, how much of the residuals' power their mean in
+each of :data:`LEVEL_BINS` quantile bins of the input, and of the simulated
+output, explains (a binned conditional mean: any static function), against
+the same statistic with the residuals cyclically shifted against the signal
+(the shifts keep both signals' colour and break their link).
+
+**Colour.**  Residuals much larger than their unpredictable part are mostly
+something the model misses, not noise: :attr:`ResidualAnalysis.coloured`
+compares their power with the innovation variance of an autoregressive model
+of them (:func:`~hammerstein_ctrl.uncertainty.fit_noise_model`).
+
+**Closed loop.**  On a record measured inside a feedback loop the input
+depends on past noise, so every test above can find a link that is only the
+controller's.  With ``closed_loop=True`` the tests are replaced by one valid
+there: the residuals, whitened by their autoregressive model (the noise's
+innovations, independent of everything before them), are regressed on *past*
+inputs ``u(t-1) .. u(t-M)`` (and their squares and cubes), an F-test per
+set.
 
 Examples
 --------
@@ -56,9 +76,11 @@ import numpy as np
 from . import _core
 from . import config
 from .exceptions import ParameterError
+from .uncertainty import COLOURED_RATIO, fit_noise_model
 
-__all__ = ["ResidualAnalysis", "CoherenceFinding", "residual_analysis", "coherence_test",
-           "RESID_LEVEL", "ADEQUACY_Z", "COHERENCE_SEGMENTS", "SEGMENT_MAX", "GROUPS", "NAMED_SHARE"]
+__all__ = ["ResidualAnalysis", "CoherenceFinding", "residual_analysis", "coherence_test", "level_test",
+           "causal_test", "RESID_LEVEL", "ADEQUACY_Z", "COHERENCE_SEGMENTS", "SEGMENT_MAX", "GROUPS", "NAMED_SHARE",
+           "LEVEL_BINS", "LEVEL_GROUPS", "COLOURED_RATIO", "CAUSAL_P"]
 
 #: Level of the correlation bounds (MATLAB ``resid``'s 99 %).
 RESID_LEVEL = 0.99
@@ -78,6 +100,21 @@ GROUPS = (
     ("output nonlinearity", ("u", "u^2", "u^3", "y^2", "y^3"),
      "an output nonlinearity seems missing or wrong: try a Wiener or Hammerstein-Wiener structure"),
 )
+
+
+#: Quantile bins of the level test.
+LEVEL_BINS = 10
+#: The level test's signals: (name, signal, what seems missing when the residuals' mean depends on it).
+LEVEL_GROUPS = (
+    ("input level", "u", "the residuals' mean depends on the input's level in a way the model's input map does not "
+                         "take: try another input family, or a Hammerstein-Wiener structure"),
+    ("output level", "the simulated output",
+     "the residuals' mean depends on the simulated output's level: an output nonlinearity seems missing or of the "
+     "wrong shape: try a Wiener or Hammerstein-Wiener structure, or another output family"),
+)
+#: p-value below which a set of past-input regressors explains the whitened residuals (the closed-loop test;
+#: that of :data:`ADEQUACY_Z` standard deviations of a normal).
+CAUSAL_P = 3e-5
 
 
 class CoherenceFinding(NamedTuple):
@@ -256,6 +293,167 @@ def _named_first(findings: list) -> list:
     return [first] + [f for f in findings if f is not first]
 
 
+#: Samples binned at a time by the level test (its memory does not grow with the record).
+_LEVEL_BLOCK = 1 << 16
+
+
+def _bin_index(signal_of, n: int, bins: int) -> np.ndarray:
+    """The quantile bin (``0 .. bins - 1``, one byte each) of every sample of a signal given as
+    ``signal_of(a, b) -> x[a:b]``; the quantiles from at most 65 536 evenly spread samples."""
+    step = max(1, n // _LEVEL_BLOCK)
+    sample = np.concatenate([signal_of(a, min(n, a + _LEVEL_BLOCK * step))[::step]
+                             for a in range(0, n, _LEVEL_BLOCK * step)])
+    edges = np.quantile(sample, np.linspace(0.0, 1.0, bins + 1)[1:-1])
+    index = np.empty(n, dtype=np.uint8)
+    for a in range(0, n, _LEVEL_BLOCK):
+        b = min(n, a + _LEVEL_BLOCK)
+        index[a:b] = np.searchsorted(edges, signal_of(a, b))
+    return index
+
+
+def _binned_share(e: np.ndarray, index: np.ndarray, shift: int, bins: int, total: float) -> float:
+    """Share of ``|e|^2`` that the mean of ``e[(t + shift) mod N]`` per bin ``index[t]`` explains (no copy)."""
+    n = e.size
+    count = np.bincount(index, minlength=bins).astype(float)
+    sums = (np.bincount(index[:n - shift], weights=e[shift:], minlength=bins)
+            + np.bincount(index[n - shift:], weights=e[:shift], minlength=bins))
+    return float(np.sum(sums * sums / np.maximum(count, 1.0)) / total)
+
+
+def _scaled_chi2_tail(value: float, mean: float, std: float) -> float:
+    """Upper tail at ``value`` of the scaled chi-square with the given mean and standard deviation.
+
+    A binned share of independent residuals is ``chi2(bins - 1) / N`` for white ones; coloured ones scale it
+    and change its degrees of freedom, which the shifted pairings' moments measure (``k = 2 mean^2 / var``).
+    """
+    from scipy.special import chdtrc
+
+    if not (mean > 0 and std > 0):
+        return 0.0 if value > mean else 1.0
+    k = 2.0 * mean * mean / (std * std)
+    return float(chdtrc(k, value * k / mean))
+
+
+def level_test(residuals, signals: dict, groups=LEVEL_GROUPS, *, bins: int = LEVEL_BINS,
+               shifts: int = COHERENCE_SEGMENTS) -> list[CoherenceFinding]:
+    """How much of the residuals' power their mean per quantile bin of each signal explains, against chance.
+
+    Parameters
+    ----------
+    residuals : array_like, shape (N,)
+    signals : dict of str to array_like shape (N,) or callable ``(a, b) -> x[a:b]``
+        The signals of ``groups`` (those missing are not tested).
+    groups : sequence of (name, signal name, advice)
+    bins : int
+        Quantile bins of each signal.
+    shifts : int
+        Cyclic shifts of the residuals (``k N / shifts``, ``k = 1 .. shifts - 1``) that make the chance
+        distribution: a share is a finding when it exceeds every shifted one and the upper tail of the scaled
+        chi-square with their mean and spread is below :data:`CAUSAL_P` there.
+
+    Returns
+    -------
+    list of CoherenceFinding
+        One per tested group; empty on a record shorter than ``shifts * bins * 4`` samples.
+
+    Examples
+    --------
+    >>> rng = np.random.default_rng(0)
+    >>> v = np.convolve(rng.standard_normal(4000), np.ones(40) / 40, "same")       # a slow signal
+    >>> e = 0.3 * np.abs(v) + 0.02 * rng.standard_normal(4000)                   # an even function of it
+    >>> [(f.group, f.found) for f in level_test(e, {"u": v}, LEVEL_GROUPS[:1])]
+    [('input level', True)]
+    """
+    e = np.asarray(residuals, dtype=float).reshape(-1)
+    n = e.size
+    if n < shifts * bins * 4:
+        return []
+    e = e - e.mean()
+    total = float(e @ e)
+    if not (total > 0 and np.isfinite(total)):
+        return []
+    out = []
+    for name, signal, advice in groups:
+        if signal not in signals:
+            continue
+        x = signals[signal]
+        index = _bin_index(x if callable(x) else _slicer(np.asarray(x, dtype=float)), n, bins)
+        stats = np.array([_binned_share(e, index, (k * n) // shifts, bins, total) for k in range(shifts)])
+        chance = stats[1:]
+        mean, std, top = float(chance.mean()), float(chance.std()), float(chance.max())
+        found = bool(stats[0] > top and _scaled_chi2_tail(stats[0], mean, std) < CAUSAL_P)
+        label = f"a function of {signal}"
+        out.append(CoherenceFinding(name, (label,), float(stats[0]), mean, std, top, found, advice))
+    return out
+
+
+def _slicer(x: np.ndarray):
+    """``x`` as a function of a block ``(a, b)``, as the level test reads its signals."""
+    return lambda a, b: x[a:b]
+
+
+def _past_regressors(u: np.ndarray, lags: int, powers: int) -> np.ndarray:
+    """Columns ``u(t-k)^j`` (``k = 1 .. lags``, ``j = 1 .. powers``, ``u`` centred and scaled) for ``t >= lags``."""
+    v = (u - u.mean()) / (u.std() or 1.0)
+    n = v.size
+    cols = [v[lags - k:n - k] ** j for j in range(1, powers + 1) for k in range(1, lags + 1)]
+    return np.column_stack(cols)
+
+
+def causal_test(residuals, u, *, lags: int, noise=None) -> list[CoherenceFinding]:
+    """Closed-loop test: do past inputs explain the whitened residuals?  (Module notes; an F-test per set.)
+
+    Parameters
+    ----------
+    residuals, u : array_like, shape (N,)
+    lags : int
+        Past inputs ``u(t-1) .. u(t-lags)``.
+    noise : NoiseModel, optional
+        The residuals' autoregressive model (default: fitted here).
+
+    Returns
+    -------
+    list of CoherenceFinding
+        ``dynamics`` (past inputs) and ``input nonlinearity`` (with their squares and cubes).
+
+    Examples
+    --------
+    >>> rng = np.random.default_rng(0)
+    >>> u = rng.standard_normal(3000)
+    >>> e = rng.standard_normal(3000)
+    >>> [f.found for f in causal_test(e, u, lags=10)]
+    [False, False]
+    >>> [f.found for f in causal_test(e + 0.3 * np.roll(u, 2) ** 2, u, lags=10)]
+    [False, True]
+    """
+    from scipy.special import fdtrc, fdtri
+
+    e = np.asarray(residuals, dtype=float).reshape(-1)
+    u = np.asarray(u, dtype=float).reshape(-1)
+    noise = fit_noise_model(e) if noise is None else noise
+    start = max(lags, noise.order)
+    w = noise.whiten(e)[start - noise.order:]                 # the innovations at t >= start
+    out = []
+    for (name, members, advice), powers in zip(GROUPS[:2], (1, 3)):
+        X = _past_regressors(u[start - lags:], lags, powers)
+        X = np.column_stack([np.ones(len(w)), X])
+        q = X.shape[1] - 1
+        dof = len(w) - q - 1
+        if dof < 10:
+            return []
+        coef, *_ = np.linalg.lstsq(X, w, rcond=None)
+        r = w - X @ coef
+        total = float(np.sum((w - w.mean()) ** 2))
+        explained = (total - float(r @ r)) / total if total > 0 else 0.0
+        F = (explained / q) / max((1.0 - explained) / dof, 1e-300)
+        p = float(fdtrc(q, dof, F))
+        past = tuple(f"past {m}" for m in members)
+        critical = q * float(fdtri(q, dof, 1.0 - CAUSAL_P))        # the share the test needs: q F / (q F + dof)
+        out.append(CoherenceFinding(name, past, explained, q / (len(w) - 1), float(np.sqrt(2.0 * q)) / len(w),
+                                    critical / (critical + dof), bool(p < CAUSAL_P), advice))
+    return out
+
+
 def _lagged_sums(a, b, first: int, last: int) -> np.ndarray:
     """``sum_t (a_t - mean a)(b_{t-k} - mean b)`` for ``k = first .. last`` (over the overlapping samples), in the
     compiled core: raw products, with the means' share taken out afterwards from the sums over each overlap (its
@@ -326,12 +524,21 @@ class ResidualAnalysis:
     findings : list of CoherenceFinding
         The sets found to explain part of the residuals, the one :meth:`verdict` names first (empty when none).
     coherence : list of CoherenceFinding
-        The test of every set.
+        The test of every set (with ``closed_loop``: the past-input sets of :func:`causal_test`).
+    level : list of CoherenceFinding
+        The level test of each signal (:func:`level_test`; none in closed loop).
     passed : bool
         No finding: nothing in the residuals can be explained from the input.
+    noise : NoiseModel
+        The residuals' autoregressive model.
+    predictability : float
+        The residuals' power over the innovation variance of ``noise`` (1 for white residuals).
+    closed_loop : bool
+        Whether the tests were those valid in closed loop.
     """
 
-    def __init__(self, residuals, u, dt, *, lags: int, coherence, cross_bound: float, name: str = ""):
+    def __init__(self, residuals, u, dt, *, lags: int, coherence, cross_bound: float, name: str = "", level=(),
+                 noise=None, closed_loop: bool = False):
         e = np.asarray(residuals, dtype=float)
         n = e.size
         if isinstance(lags, bool) or int(lags) != lags or not 1 <= lags < n:
@@ -342,9 +549,10 @@ class ResidualAnalysis:
         self._u = np.asarray(u, dtype=float)
         self.autocorrelation_bound = _normal_quantile(RESID_LEVEL) / np.sqrt(n)
         self.cross_correlation_bound = cross_bound
-        self.coherence = list(coherence)
-        self.findings = _named_first([f for f in self.coherence if f.found])
-        self.passed = not self.findings
+        self.coherence, self.level, self.closed_loop = list(coherence), list(level), bool(closed_loop)
+        self.findings = _named_first([f for f in self.coherence if f.found]) + [f for f in self.level if f.found]
+        self.noise = fit_noise_model(e) if noise is None else noise
+        self.predictability = self.noise.predictability(e)
 
     @functools.cached_property
     def autocorrelation(self) -> np.ndarray:
@@ -371,13 +579,35 @@ class ResidualAnalysis:
         """Lags ``-M .. M`` of :attr:`cross_correlation`."""
         return np.arange(-self.lags[-1], self.lags[-1] + 1)
 
+    @property
+    def passed(self) -> bool:
+        """Whether nothing was found: no test explains the residuals and they are not strongly coloured."""
+        return not self.findings and not self.coloured
+
+    @property
+    def coloured(self) -> bool:
+        """Whether the residuals are strongly coloured: not white, and their power more than
+        :data:`COLOURED_RATIO` times their unpredictable part (mostly something the model misses, not noise)."""
+        return bool(self.predictability > COLOURED_RATIO and not self.whiteness)
+
     def verdict(self) -> str | None:
         """What seems missing, or ``None`` when nothing is: the smallest found set that explains nearly as much
         as the largest (:data:`NAMED_SHARE`)."""
         if not self.findings:
             return None
         f = self.findings[0]
-        return f"the residuals still depend on the input: {f.describe()}; {f.advice}"
+        where = "past inputs" if self.closed_loop else "the input"
+        return f"the residuals still depend on {where}: {f.describe()}; {f.advice}"
+
+    def colour_verdict(self) -> str | None:
+        """Why strongly coloured residuals matter and what may cause them, or ``None`` when they are not."""
+        if not self.coloured:
+            return None
+        return (f"the residuals are strongly coloured: their power is {self.predictability:.3g} times the noise floor "
+                f"that an autoregressive model of them leaves ({self.noise.describe()}), so most of what the model "
+                f"misses is a predictable signal, not noise; likely causes: a nonlinearity of the wrong family or in "
+                f"the wrong place (try a Wiener or Hammerstein-Wiener structure, or another family), an order too "
+                f"low, or a slow disturbance or drift in the output, which an output-error model does not describe")
 
     def summary(self) -> str:
         """A few lines: whiteness, independence and the coherence test."""
@@ -387,7 +617,9 @@ class ResidualAnalysis:
                  f"{self.autocorrelation_bound:.3g})",
                  f"  input correlation: max |r_eu| = {np.max(np.abs(self.cross_correlation)):.3g} (99 % bound "
                  f"{self.cross_correlation_bound:.3g})"]
-        lines += [f"  {'FOUND' if f.found else 'ok'} {f.group}: {f.describe()}" for f in self.coherence]
+        lines.append(f"  colour: residual power {self.predictability:.3g} times their unpredictable part "
+                     f"({self.noise.describe()}){'; STRONGLY COLOURED' if self.coloured else ''}")
+        lines += [f"  {'FOUND' if f.found else 'ok'} {f.group}: {f.describe()}" for f in self.coherence + self.level]
         lines.append(f"  verdict: {self.verdict() or 'nothing in the residuals is explained by the input'}")
         return "\n".join(lines)
 
@@ -411,7 +643,7 @@ def _normal_quantile(level: float) -> float:
 
 
 def residual_analysis(residuals, u, *, dt: float, simulated=None, output=None, lags: int | None = None,
-                      name: str = "") -> ResidualAnalysis:
+                      name: str = "", closed_loop: bool = False, noise=None) -> ResidualAnalysis:
     """Analyse residuals ``e = y - y_sim`` against the input ``u`` (see the module notes).
 
     Parameters
@@ -428,6 +660,10 @@ def residual_analysis(residuals, u, *, dt: float, simulated=None, output=None, l
         Default ``config.defaults["residual_analysis.lags"]`` (25).
     name : str
         Shown in the summary and the figure.
+    closed_loop : bool, default False
+        The record was measured inside a feedback loop: use the tests valid there (module notes).
+    noise : NoiseModel, optional
+        The residuals' autoregressive model, when already fitted.
     """
     e = np.asarray(residuals, dtype=float)
     if lags is None:                        # the default, shortened for a record too short for it
@@ -439,10 +675,16 @@ def residual_analysis(residuals, u, *, dt: float, simulated=None, output=None, l
         raise ParameterError(f"lags must be an integer between 1 and {e.size - 1}, got {lags!r}")
     if not (np.all(np.isfinite(e)) and np.all(np.isfinite(u))):
         raise ParameterError("residuals and u must be finite (the model cannot be simulated on this record)")
+    noise = fit_noise_model(e) if noise is None else noise
     seg = _Segments(e.size)
     z = _normal_quantile(RESID_LEVEL)
+    common = dict(lags=int(lags), name=name, noise=noise, closed_loop=closed_loop)
+    if closed_loop:
+        return ResidualAnalysis(e, u, dt, coherence=causal_test(e, u, lags=int(lags), noise=noise),
+                                cross_bound=z / np.sqrt(e.size), **common)
+    level = level_test(e, _level_signals(u, simulated, output, e))
     if not seg.usable:
-        return ResidualAnalysis(e, u, dt, lags=int(lags), coherence=[], cross_bound=z / np.sqrt(e.size), name=name)
+        return ResidualAnalysis(e, u, dt, coherence=[], cross_bound=z / np.sqrt(e.size), level=level, **common)
     groups = GROUPS if simulated is not None or output is not None else GROUPS[:2]
     regressors = _regressor_segments(seg, u, simulated, output, e)
     names = list(regressors)
@@ -450,4 +692,15 @@ def residual_analysis(residuals, u, *, dt: float, simulated=None, output=None, l
     R, X = spectra[0], spectra[1:]
     coherence = _coherence(R, X, names, groups)
     bound = _bartlett_bound(R, X[0], seg.length, e.size, z)
-    return ResidualAnalysis(e, u, dt, lags=int(lags), coherence=coherence, cross_bound=bound, name=name)
+    return ResidualAnalysis(e, u, dt, coherence=coherence, cross_bound=bound, level=level, **common)
+
+
+def _level_signals(u, simulated, output, e) -> dict:
+    """The level test's signals: the input, and the simulated output (``output - e`` formed a block at a time)."""
+    out = {"u": u}
+    if simulated is not None:
+        out["the simulated output"] = np.asarray(simulated, dtype=float)
+    elif output is not None:
+        y = np.asarray(output, dtype=float).reshape(-1)
+        out["the simulated output"] = lambda a, b: y[a:b] - e[a:b]
+    return out

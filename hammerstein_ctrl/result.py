@@ -143,7 +143,7 @@ class IdentificationResult(UncertainParameters):
                                  f"{self.record_name!r}: pass the record itself (data=...)")
         return self.data
 
-    def validate(self, data, *, initial_state: str | None = None):
+    def validate(self, data, *, initial_state: str | None = None, offset: str = "model"):
         """Goodness of fit (``sse``, ``rmse``, ``nrmse``, ``fit_percent``) on another record, or on each of a list.
 
         Parameters
@@ -155,30 +155,66 @@ class IdentificationResult(UncertainParameters):
             :attr:`model` (the first record's).
         initial_state : {"zero", "estimate"}, optional
             Start the model from rest, or estimate its initial state on
-            ``data`` by least squares (as MATLAB's ``compare`` does).  Default:
-            ``"estimate"`` if the identification estimated it, else ``"zero"``.
+            ``data`` by least squares through the whole model, output map and
+            feedback included (as MATLAB's ``compare`` does;
+            :func:`~hammerstein_ctrl.initialize.estimate_initial_state`).
+            Default: ``"estimate"`` if the identification estimated it, else
+            ``"zero"``.
+        offset : {"model", "estimate"}, default "model"
+            Keep the model's output offset, or re-estimate it on ``data`` with
+            the initial state (a new experiment at another operating point;
+            the report then has ``offset``, the value used).
+
+        Examples
+        --------
+        >>> import numpy as np, hammerstein_ctrl as hc
+        >>> rng = np.random.default_rng(0); u = rng.uniform(-1, 1, 400)
+        >>> truth = hc.HammersteinModel(([1.0], [1.0, 1.2]), hc.Tanh(), [2.0, 1.5], offset=0.5)
+        >>> s = hc.HammersteinStructure(hc.LinearStructure(0, 1), hc.Tanh(), offset=True)
+        >>> res = hc.identify(hc.IOData(u, truth.simulate(np.arange(400) * 0.05, u), dt=0.05), s)
+        >>> new = hc.IOData(u, truth.simulate(np.arange(400) * 0.05, u) - 1.5, dt=0.05)  # another operating point
+        >>> round(res.validate(new)["fit_percent"]) < 0, round(res.validate(new, offset="estimate")["fit_percent"], 3)
+        (True, 100.0)
         """
         from .display import as_iodata
-        from .initialize import estimate_initial_state
 
         if self.model is None:
             raise ParameterError(f"this identification produced no model, so there is nothing to validate "
                                  f"({self.message})")
         if isinstance(data, (list, tuple)) and data and all(hasattr(d, "u") for d in data):
-            return [self.validate(d, initial_state=initial_state) for d in data]
+            return [self.validate(d, initial_state=initial_state, offset=offset) for d in data]
         data = as_iodata(data)
+        if offset not in ("model", "estimate"):
+            raise ParameterError(f"offset must be 'model' or 'estimate', got {offset!r}")
         if self.is_mimo:
+            if offset != "model":
+                raise ParameterError("a MIMO model is validated with its own offsets (offset='model')")
             return self._validate_channels(data, initial_state)
+        yhat, c = self._simulated_on(self._model_for(data), data, initial_state, offset == "estimate")
+        report = (fit_report(data.y, yhat) if np.all(np.isfinite(yhat))
+                  else {"sse": np.inf, "rmse": np.inf, "nrmse": np.inf, "fit_percent": -np.inf})
+        return report if c is None else {**report, "offset": c}
+
+    def _simulated_on(self, model, data, initial_state, offset: bool):
+        """``(simulated output, re-estimated offset or None)`` of ``model`` on ``data``."""
+        from .initialize import estimate_initial_state
+
         mode = initial_state or self.structure.initial_state
         if mode not in ("zero", "estimate"):
             raise ParameterError(f"initial_state must be 'zero' or 'estimate', got {initial_state!r}")
-        model = self._model_for(data)
+        if offset and not hasattr(model, "offset"):
+            raise ParameterError(f"a {type(model).__name__} has no output offset to re-estimate")
         with np.errstate(all="ignore"):
-            x0 = estimate_initial_state(model, data) if mode == "estimate" else np.zeros(model.order)
-            yhat = model.simulate(data, initial_state=x0)
-        if not np.all(np.isfinite(yhat)):
-            return {"sse": np.inf, "rmse": np.inf, "nrmse": np.inf, "fit_percent": -np.inf}
-        return fit_report(data.y, yhat)
+            if mode == "zero" and not offset:
+                return model.simulate(data, initial_state=np.zeros(model.order)), None
+            if mode == "zero":   # the offset alone: the mean of what the model leaves
+                rest = model.simulate(data, initial_state=np.zeros(model.order)) - model.offset
+                c = float(np.mean(np.asarray(data.y, dtype=float) - rest))
+                return rest + c, c
+            found = estimate_initial_state(model, data, offset=offset)
+            x0, c = found if offset else (found, None)
+            y = model.simulate(data, initial_state=x0)
+            return (y, None) if c is None else (y - model.offset + c, c)
 
     @property
     def is_mimo(self) -> bool:
@@ -262,17 +298,10 @@ class IdentificationResult(UncertainParameters):
                                  name=record.name)
 
     def _simulated(self, record, initial_state):
-        from .initialize import estimate_initial_state
-
         if record is self.data and initial_state is None:
             with np.errstate(all="ignore"):
                 return self.model.simulate(record)
-        mode = initial_state or self.structure.initial_state
-        if mode not in ("zero", "estimate"):
-            raise ParameterError(f"initial_state must be 'zero' or 'estimate', got {initial_state!r}")
-        with np.errstate(all="ignore"):
-            x0 = estimate_initial_state(self.model, record) if mode == "estimate" else np.zeros(self.model.order)
-            return self.model.simulate(record, initial_state=x0)
+        return self._simulated_on(self.model, record, initial_state, False)[0]
 
     def propagate(self, fun, *, level: float | None = None, method: str = "linear", samples: int = 2000,
                   seed=None) -> Propagated:

@@ -6,7 +6,8 @@ naming it.  Whole files (:func:`write_bytes`, :func:`write_text`,
 :func:`save_figure`) are written to a fresh temporary file made by
 ``tempfile.mkstemp`` in the target's folder and moved over the target with
 ``os.replace``, so a reader never sees half a file and no fixed temporary
-name can be pre-planted.  Files appended to (:func:`open_append`) and lock
+name can be pre-planted.  The file gets the permissions of the file it
+replaces, else those a plain ``open`` gives (``0666`` less the umask).  Files appended to (:func:`open_append`) and lock
 files (:func:`open_lock`) are opened with ``O_NOFOLLOW``, and must be regular
 files.  With ``root`` given, the target must also lie inside that folder
 once resolved.
@@ -107,8 +108,11 @@ def check_output(path, *, root=None) -> Path:
 def write_bytes(path, data: bytes, *, root=None) -> None:
     """Write ``data`` to ``path`` whole: a ``mkstemp`` file in its folder, then ``os.replace`` (module notes)."""
     p = check_output(path, root=root)
+    mode = _mode_for(p)
     fd, tmp = tempfile.mkstemp(dir=p.parent if str(p.parent) else ".", prefix=f".{p.name}.", suffix=".tmp")
     try:
+        if hasattr(os, "fchmod"):   # mkstemp's 0600 would hide every file from the user's group
+            os.fchmod(fd, mode)
         with os.fdopen(fd, "wb") as fh:
             fh.write(data)
             fh.flush()
@@ -120,6 +124,29 @@ def write_bytes(path, data: bytes, *, root=None) -> None:
         except OSError:
             pass
         raise
+
+
+def _mode_for(p: Path) -> int:
+    """The permissions a written file gets: those of the file it replaces, else ``0666`` less the umask (as a
+    plain ``open`` gives)."""
+    try:
+        return stat.S_IMODE(os.stat(p, follow_symlinks=False).st_mode)
+    except OSError:
+        return 0o666 & ~_umask()
+
+
+def _umask() -> int:
+    """The process's umask, read without changing it where the system says it (Linux), else set and put back."""
+    try:
+        with open("/proc/self/status", encoding="ascii") as fh:
+            for line in fh:
+                if line.startswith("Umask:"):
+                    return int(line.split()[1], 8)
+    except (OSError, ValueError):
+        pass
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
 
 
 def write_text(path, text: str, *, root=None) -> None:

@@ -12,10 +12,12 @@ parameters and ``J`` the sum of squared errors:
 * ``"fpe"``: ``(J/N) (N + p) / (N - p)`` (Akaike's final prediction error);
 * ``"validation"``: the fit % on ``validation`` (higher is better).
 
-Candidates whose identification does not succeed rank after those that do;
-each row keeps the result's verdicts, so an over-ordered candidate (a pole
-beyond the record's bandwidth, a cancelling pole-zero pair, undetermined
-parameters) is flagged in the table even where its criterion is good.
+Candidates whose identification does not succeed rank after those that do,
+and over-ordered ones (a pole beyond the record's bandwidth, a cancelling
+pole-zero pair, undetermined parameters) after those that are not, whatever
+their criterion: a validation fit, which does not charge for parameters,
+can favour an over-ordered candidate by a few thousandths of a percent.
+Each row keeps the result's verdicts.
 
 Examples
 --------
@@ -258,7 +260,8 @@ def select_structure(data, candidates, validation=None, criterion: str = "aic", 
         if owned:
             pool.shutdown()
     rows = [_row(res, checked, len(data)) for res, checked in fits]
-    order = sorted(range(len(rows)), key=lambda i: (not rows[i]["success"], _score(rows[i], criterion)))
+    order = sorted(range(len(rows)), key=lambda i: (not rows[i]["success"], rows[i]["over_ordered"],
+                                                    _score(rows[i], criterion)))
     ranked = [{"rank": k + 1, **rows[i]} for k, i in enumerate(order)]
     return SelectionResult(ranked, [fits[i][0] for i in order], criterion)
 

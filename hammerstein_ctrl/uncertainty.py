@@ -73,6 +73,12 @@ RANK_TOLERANCE = 1e-13
 JACOBIAN_MAX_BYTES = 1 << 24
 
 
+#: Residual power past this many times the innovation variance of their autoregressive model (their
+#: unpredictable part, the noise floor) makes them strongly coloured (AR(1) noise of pole 0.9 gives 5.3):
+#: mostly a systematic error, for which tests that take the residuals for noise say nothing.
+COLOURED_RATIO = 20.0
+
+
 class NoiseModel(NamedTuple):
     """An autoregressive description ``A(q) v = e`` of the residuals ``v``.
 
@@ -97,6 +103,30 @@ class NoiseModel(NamedTuple):
     def describe(self) -> str:
         """``"white"`` or ``"AR(n)"``."""
         return "white" if self.white else f"AR({self.order})"
+
+    def predictability(self, r) -> float:
+        """Power of the residuals ``r`` (about their mean) over the innovation variance: 1 for white noise;
+        past :data:`COLOURED_RATIO` they are mostly a predictable signal, not noise.
+
+        Examples
+        --------
+        >>> NoiseModel(0, np.array([1.0]), 2.0).predictability(np.array([1.0, -1.0, 2.0, -2.0]))
+        1.25
+        """
+        r = np.asarray(r, dtype=float).reshape(-1)
+        power = float(np.mean((r - r.mean()) ** 2)) if r.size else 0.0
+        return power / self.variance if self.variance > 0 else 1.0
+
+    def whiten(self, r) -> np.ndarray:
+        """The innovations ``A(q) r`` at samples ``order .. N - 1`` (the first ones need samples before ``r``).
+
+        Examples
+        --------
+        >>> NoiseModel(1, np.array([1.0, -0.5]), 1.0).whiten(np.array([2.0, 1.0, 0.5])).tolist()
+        [0.0, 0.0]
+        """
+        r = np.asarray(r, dtype=float).reshape(-1)
+        return r.copy() if self.order == 0 else np.convolve(r, self.ar)[self.order:r.size]
 
 
 class ParameterUncertainty(NamedTuple):

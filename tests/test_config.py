@@ -56,6 +56,7 @@ def test_pid_rules_follow_the_registry():
 
 
 @pytest.mark.parametrize("module, name, value, match", [
+    ("verdicts", "nested_tests", 1, "True or False"),
     ("auto", "maxfev", 0, "auto.maxfev must be a whole number >= 1"),
     ("auto", "maxfev", 2.5, "auto.maxfev must be a whole number"),
     ("uncertainty", "level", 1.0, "uncertainty.level must be a number between 0 and 1"),

@@ -244,3 +244,24 @@ def test_files_written_are_regular_and_private_to_the_folder(tmp_path):
     write_text(tmp_path / "a.txt", "x")
     mode = (tmp_path / "a.txt").stat().st_mode
     assert stat.S_ISREG(mode) and np.all([not p.is_symlink() for p in tmp_path.iterdir()])
+
+
+@pytest.mark.skipif(not hasattr(os, "fchmod"), reason="POSIX permissions")
+@pytest.mark.parametrize("mask", [0o022, 0o077, 0o002])
+def test_written_files_get_the_permissions_a_plain_open_gives(tmp_path, mask):
+    old = os.umask(mask)
+    try:
+        write_text(tmp_path / "new.txt", "x")
+        with open(tmp_path / "plain.txt", "w") as fh:
+            fh.write("x")
+    finally:
+        os.umask(old)
+    assert stat.S_IMODE((tmp_path / "new.txt").stat().st_mode) == stat.S_IMODE((tmp_path / "plain.txt").stat().st_mode)
+
+
+@pytest.mark.skipif(not hasattr(os, "fchmod"), reason="POSIX permissions")
+def test_a_replaced_file_keeps_its_permissions(tmp_path):
+    (tmp_path / "a.txt").write_text("old")
+    os.chmod(tmp_path / "a.txt", 0o640)
+    write_text(tmp_path / "a.txt", "new")
+    assert stat.S_IMODE((tmp_path / "a.txt").stat().st_mode) == 0o640 and (tmp_path / "a.txt").read_text() == "new"

@@ -80,3 +80,14 @@ def test_bad_arguments_are_refused(trs_case, kwargs, message):
     with pytest.raises(ParameterError, match="non-empty sequence of structures"):
         select_structure(trs_case.data, ["tanh"])
     assert set(CRITERIA) == {"aic", "bic", "fpe", "validation"}
+
+
+@pytest.mark.parametrize("name", sorted(RECORDS))
+def test_validation_picks_the_true_order_and_family_as_bic_does(name):
+    """The same five records as the information criteria: ranked by their fit on a second record of the
+    truth (other input, other noise), the true structure wins."""
+    data, structure, _, _ = make_case(name, 0)
+    other, _, _, _ = make_case(name, 1)
+    sel = select_structure(data, _candidates(structure, RECORDS[name]), validation=other, criterion="validation",
+                           executor="serial", maxfev=1500)
+    assert sel.best.structure.describe() == structure.describe(), sel.table

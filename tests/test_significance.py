@@ -124,3 +124,12 @@ def test_a_real_nonlinearity_is_significant():
     data = hc.IOData(u, y + 0.02 * rng.standard_normal(u.size), t)
     res = hc.identify(data, hc.HammersteinStructure(hc.LinearStructure(1, 2), hc.Tanh()), seed=0)
     assert res.success and not {"not-significant", "worse-than-nested"} & {v.code for v in res.verdicts}
+
+
+def test_the_nested_tests_can_be_switched_off_for_monte_carlo_studies(trs_case):
+    hc.config.set_defaults("verdicts", nested_tests=False)
+    try:
+        res = hc.identify(trs_case.data, trs_case.structure)
+    finally:
+        hc.config.reset_defaults()
+    assert res.success and not any(v.code == "not-significant" for v in res.verdicts)
