@@ -28,8 +28,8 @@ import sys
 import types
 import warnings
 
-from .exceptions import (DataError, HammersteinError, IdentificationWarning, ParameterError, SimulationWarning,
-                         UnknownNameError)
+from .exceptions import (ChannelWarning, DataError, HammersteinError, IdentificationWarning, ParameterError,
+                         SimulationWarning, UnknownNameError)
 
 __version__ = "0.2.0"
 
@@ -79,7 +79,7 @@ __all__ = [
     "minimize", "HammersteinCost", "fit_percent", "fit_report", "nrmse", "rmse", "sse",
     "load_model", "save_model", "load_result", "save_result",
     "DataError", "HammersteinError", "ParameterError", "UnknownNameError", "IdentificationWarning",
-    "SimulationWarning", "__version__",
+    "SimulationWarning", "ChannelWarning", "__version__",
 ]
 
 #: Names removed from the front door, kept for one release with a DeprecationWarning: why each went.

@@ -8,7 +8,7 @@ import numpy as np
 
 from .exceptions import DataError, ParameterError
 
-__all__ = ["GRID_TOLERANCE", "INTERSAMPLE", "MAX_ORDER", "MAX_MAGNITUDE", "check_intersample", "as_signal",
+__all__ = ["signal_names", "GRID_TOLERANCE", "INTERSAMPLE", "MAX_ORDER", "MAX_MAGNITUDE", "check_intersample", "as_signal",
            "as_real_array", "as_count", "check_transfer_function", "uniform_grid", "check_delay", "ESTIMATE",
            "as_channels", "require_siso_model"]
 
@@ -32,6 +32,26 @@ MAX_MAGNITUDE = 1e100
 
 #: Intersample behaviours of an input (MATLAB ``iddata`` ``InterSample``).
 INTERSAMPLE = ("foh", "zoh")
+
+
+def signal_names(names, what: str) -> list[str]:
+    """``names`` as python-control signal names, refused in one line where python-control would refuse them.
+
+    Examples
+    --------
+    >>> signal_names(["motor.a"], "input")
+    Traceback (most recent call last):
+    ...
+    hammerstein_ctrl.exceptions.ParameterError: input name 'motor.a' contains '.', which python-control does not allow in a signal name: rename the channel (e.g. 'motor_a')
+    """
+    names = [names] if isinstance(names, str) else list(names)
+    for name in names:
+        if not isinstance(name, str) or not name:
+            raise ParameterError(f"{what} names must be non-empty strings, got {name!r}")
+        if "." in name:
+            raise ParameterError(f"{what} name {name!r} contains '.', which python-control does not allow in a "
+                                 f"signal name: rename the channel (e.g. {name.replace('.', '_')!r})")
+    return names
 
 
 def check_intersample(value) -> str:
@@ -499,6 +519,10 @@ def resampling_grid(t, dt=None, *, name: str = "t", max_gap: float = MAX_RESAMPL
 ESTIMATE = "estimate"
 
 
+#: Shortest dead time taken (seconds); a shorter positive one is refused rather than read as none.
+MIN_DELAY = 1e-12
+
+
 def check_delay(value, *, estimate: bool = True):
     """A dead time: a finite float ``>= 0``, or ``"estimate"`` when ``estimate`` allows it.
 
@@ -523,6 +547,9 @@ def check_delay(value, *, estimate: bool = True):
             tau = float(value)
         except (TypeError, ValueError, OverflowError):
             tau = math.nan
+        if 0 < tau < MIN_DELAY:
+            raise ParameterError(f"delay {tau!r} s is below {MIN_DELAY:g} s, too short to mean a dead time (its "
+                                 "Pade approximant would divide by zero): give 0 for none")
         if math.isfinite(tau) and 0 <= tau <= MAX_MAGNITUDE:
             return tau
     allowed = " or 'estimate'" if estimate else ""

@@ -6,7 +6,7 @@ who do not care about the distinction.
 """
 
 __all__ = ["HammersteinError", "DataError", "DataNotFoundError", "ParameterError", "UnknownNameError",
-           "IdentificationWarning", "SimulationWarning"]
+           "IdentificationWarning", "SimulationWarning", "ChannelWarning"]
 
 
 class HammersteinError(ValueError):
@@ -31,6 +31,10 @@ class UnknownNameError(HammersteinError):
 
 class IdentificationWarning(UserWarning):
     """A finding about an identified model that leaves it usable but needs a look (the result's ``warnings``)."""
+
+
+class ChannelWarning(UserWarning):
+    """A record's channels were matched to a model's by position, not by name (one side has default names)."""
 
 
 class SimulationWarning(UserWarning):

@@ -56,17 +56,27 @@ def worker_init(parent_pid: int):
         os._exit(1)
 
 
+def usable_cores() -> int:
+    """The cores this process may run on (its CPU affinity where the system tells, else ``os.cpu_count()``)."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except (AttributeError, OSError):
+        return max(1, os.cpu_count() or 1)
+
+
 def make_executor(executor, jobs: int | None):
     """``(executor or None, owned)``: ``None`` runs in this process; ``owned`` says the caller must shut it down.
 
     ``executor`` is a ``concurrent.futures.Executor`` (used as is), ``"serial"``
     (this process) or ``None`` (a local process pool of ``jobs`` workers,
-    default all cores; one worker means this process).
+    default all cores; one worker means this process).  ``jobs`` past the
+    cores this process may use is capped at their number: the jobs are
+    CPU-bound, so more workers only add memory and processes.
     """
     if jobs is not None and (isinstance(jobs, bool) or int(jobs) != jobs or jobs < 1):
         raise ParameterError(f"jobs must be a positive integer, got {jobs!r}")
     if executor is None:
-        workers = int(jobs or os.cpu_count() or 1)
+        workers = min(int(jobs or usable_cores()), usable_cores())
         if workers == 1:
             return None, False
         ctx = multiprocessing.get_context("fork" if "fork" in multiprocessing.get_all_start_methods() else None)

@@ -60,10 +60,12 @@ Examples
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 
-from ._checks import ESTIMATE, as_count, check_delay, check_intersample
-from .exceptions import DataError, ParameterError
+from ._checks import ESTIMATE, as_count, check_delay, check_intersample, signal_names
+from .exceptions import ChannelWarning, DataError, ParameterError
 from .nonlinearities import Nonlinearity
 from .structure import LinearStructure
 
@@ -112,7 +114,12 @@ def _channel_order(model_names, record_names, what: str, record: str) -> np.ndar
     default = tuple(f"{prefix}[{k}]" for k in range(len(model_names)))
     singles = (prefix,)
     if tuple(record_names) in (default, singles) or tuple(model_names) in (default, singles):
-        return np.arange(len(model_names))                # unnamed on one side: by position
+        if len(model_names) > 1:                          # unnamed on one side: by position, said aloud
+            pairs = ", ".join(f"{m} = {r!r}" for m, r in zip(model_names, record_names))
+            warnings.warn(f"record {record!r} and the model name their {what}s differently ({list(record_names)} "
+                          f"and {list(model_names)}), one side with default names: matched by position ({pairs}); "
+                          f"give both the same names to match them by name", ChannelWarning, stacklevel=3)
+        return np.arange(len(model_names))
     raise DataError(f"record {record!r} names its {what}s {list(record_names)}, the model {list(model_names)}: "
                     f"rename them (IOData(..., {what}_name=[...])) so they match")
 
@@ -1063,7 +1070,8 @@ class MIMOModel:
             w = Cp @ x[:k] + Dp @ model.g(u)[0]
             return model.h(C @ x[k:] + D @ w)[0] + model.offset
 
-        return control.nlsys(updfcn, outfcn, inputs=list(self.input_names), outputs=list(self.output_names),
+        return control.nlsys(updfcn, outfcn, inputs=signal_names(self.input_names, "input"),
+                             outputs=signal_names(self.output_names, "output"),
                              states=k + A.shape[0], name=name or self.name)
 
     def describe(self) -> str:

@@ -36,7 +36,7 @@ import warnings as _warnings
 
 import numpy as np
 
-from ._checks import as_count, as_signal, check_delay, check_intersample, check_transfer_function
+from ._checks import as_count, as_signal, check_delay, check_intersample, check_transfer_function, signal_names
 from .exceptions import ParameterError, SimulationWarning
 from .nonlinearities import Nonlinearity
 
@@ -336,6 +336,7 @@ class BlockModel:
         """
         import control
 
+        (inputs,), (outputs,) = signal_names(inputs, "input"), signal_names(outputs, "output")
         if dt is not None:
             from .exact_export import sampled_iosys
 

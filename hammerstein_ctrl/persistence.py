@@ -615,7 +615,11 @@ def _uncertainty_from(obj, version: int, p: int, where: str) -> dict:
     dof = None if obj["dof"] is None else _integer(obj["dof"], f"{where}: dof")
     if dof is not None and dof < 1:
         raise ParameterError(f"{where}: dof must be a positive integer, got {dof}")
-    return {"covariance": _covariance_from(obj["covariance"], p, f"{where}: covariance"), "dof": dof,
+    covariance = _covariance_from(obj["covariance"], p, f"{where}: covariance")
+    if covariance is not None and dof is None:
+        raise ParameterError(f"{where}: dof is null beside a covariance: the intervals need the residuals' degrees "
+                             "of freedom (N - p)")
+    return {"covariance": covariance, "dof": dof,
             "warnings": [_string(w, f"{where}: warnings[{i}]") for i, w in enumerate(warnings)]}
 
 

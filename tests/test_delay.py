@@ -276,3 +276,9 @@ def test_a_negative_dead_time_in_x0_and_a_fixed_one_longer_than_the_record_are_r
         hc.identify(data, s, method="nspsa", x0=[0.7, 1.0, 0.8, -0.3], maxfev=50, seed=0)
     with pytest.raises(ParameterError, match="dead time 12 s is not shorter than the record"):
         hc.identify(data, s.with_delay(12.0))
+
+
+@pytest.mark.parametrize("tau", [1e-320, 5e-324, 1e-13])
+def test_a_dead_time_too_short_to_mean_one_is_refused(tau):
+    with pytest.raises(ParameterError, match="too short to mean a dead time .*give 0 for none"):
+        hc.LinearStructure(0, 2, delay=tau)

@@ -549,7 +549,8 @@ def test_a_record_is_matched_to_the_model_by_channel_name():
         model.simulate(other)
     with pytest.raises(DataError, match="has 1 output"):
         model.simulate(named.channel(outputs="p"))
-    assert np.array_equal(model.simulate(data), model.simulate(named))          # default names: by position
+    with pytest.warns(hc.ChannelWarning, match="matched by position"):           # default names: by position
+        assert np.array_equal(model.simulate(data), model.simulate(named))
 
 
 def test_a_plant_without_the_reference_element_is_refused_saying_which_channels_to_reorder():
@@ -627,3 +628,17 @@ def test_outputs_with_different_noise_levels_are_weighted_and_their_standard_err
     ratio = np.std(xs, axis=0, ddof=1) / np.mean(ses, axis=0)
     assert np.all((ratio > 0.5) & (ratio < 1.7)), ratio
     assert 0.75 < np.median(ratio) < 1.3
+
+
+def test_channels_matched_by_position_say_so():
+    """A model with default channel names meets a record with named channels: matched by position, with a
+    warning naming each pair; the same names on both sides match by name, silently."""
+    model = hc.MIMOModel([[[1.0], [2.0]]], [[1.0, 1.0]])
+    t = np.arange(200) * 0.05
+    U = np.column_stack([np.sin(t), np.cos(t)])
+    named = hc.IOData(U, np.zeros(200), dt=0.05, input_name=["valve_b", "valve_a"])
+    with pytest.warns(hc.ChannelWarning, match=r"matched by position \(u\[0\] = 'valve_b', u\[1\] = 'valve_a'\)"):
+        model.simulate(named)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        model.simulate(hc.IOData(U, np.zeros(200), dt=0.05))

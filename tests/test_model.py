@@ -4,6 +4,7 @@ import control as ct
 import numpy as np
 import pytest
 
+import hammerstein_ctrl as hc
 from hammerstein_ctrl import Coulomb, HammersteinModel, ParameterError, Tanh
 
 
@@ -98,3 +99,13 @@ def test_a_diverging_simulation_warns_where_and_why():
 def test_bad_model_arguments_raise_parameter_errors(build, message):
     with pytest.raises(ParameterError, match=message):
         build()
+
+
+def test_export_refuses_a_signal_name_python_control_cannot_take():
+    model = hc.HammersteinModel(([1.0], [1.0, 1.0]), hc.Tanh(), [1.0, 1.0])
+    with pytest.raises(hc.ParameterError, match="input name 'motor.voltage' contains '.'.*'motor_voltage'"):
+        model.to_iosys(inputs="motor.voltage")
+    mimo = hc.MIMOModel([[[1.0], [2.0]]], [[1.0, 1.0]], input_names=["motor.a", "motor.b"])
+    with pytest.raises(hc.ParameterError, match="input name 'motor.a' contains '.'"):
+        mimo.to_iosys()
+    assert model.to_iosys(inputs="motor_voltage").input_labels == ["motor_voltage"]

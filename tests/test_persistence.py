@@ -330,6 +330,7 @@ def result_doc(trs_case):
     (("status",), 17, "status must be one of the optimisers' codes"),
     (("success",), 1, "success must be true or false"),
     (("dof",), 0, "dof must be a positive integer"),
+    (("dof",), None, "dof is null beside a covariance"),
     (("J",), "1e3", "J must be a number"),
 ])
 def test_a_tampered_result_is_refused_naming_the_field(tmp_path, result_doc, key, value, message):

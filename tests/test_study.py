@@ -214,3 +214,15 @@ def test_untrustworthy_results_lines_are_set_aside_and_their_trials_rerun(trs_ca
     # a clean file afterwards: no warning, every trial reused
     again = run_study(trs_case, ["nspsa"], trials=2, seed=0, executor="serial", results_path=path)
     assert again.resumed == 2 and again.rejected == []
+
+
+def test_jobs_past_the_cores_are_capped_at_their_number():
+    from hammerstein_ctrl.executors import make_executor, usable_cores
+
+    pool, owned = make_executor(None, 10 * usable_cores() + 7)
+    try:
+        assert owned == (usable_cores() > 1)
+        assert pool is None or pool._max_workers == usable_cores()
+    finally:
+        if owned:
+            pool.shutdown()
