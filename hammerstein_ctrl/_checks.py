@@ -8,7 +8,8 @@ import numpy as np
 
 from .exceptions import DataError, ParameterError
 
-__all__ = ["signal_names", "GRID_TOLERANCE", "INTERSAMPLE", "MAX_ORDER", "MAX_MAGNITUDE", "check_intersample", "as_signal",
+__all__ = ["signal_names",
+           "GRID_TOLERANCE", "INTERSAMPLE", "MAX_ORDER", "MAX_MAGNITUDE", "check_intersample", "as_signal",
            "as_real_array", "as_count", "check_transfer_function", "uniform_grid", "check_delay", "ESTIMATE",
            "as_channels", "require_siso_model"]
 
@@ -39,10 +40,12 @@ def signal_names(names, what: str) -> list[str]:
 
     Examples
     --------
-    >>> signal_names(["motor.a"], "input")
+    >>> signal_names(["motor_a", "u[1]"], "input")
+    ['motor_a', 'u[1]']
+    >>> signal_names(["motor.a"], "input")  # doctest: +ELLIPSIS
     Traceback (most recent call last):
     ...
-    hammerstein_ctrl.exceptions.ParameterError: input name 'motor.a' contains '.', which python-control does not allow in a signal name: rename the channel (e.g. 'motor_a')
+    hammerstein_ctrl.exceptions.ParameterError: input name 'motor.a' contains '.', ... (e.g. 'motor_a')
     """
     names = [names] if isinstance(names, str) else list(names)
     for name in names:

@@ -70,6 +70,14 @@ def _affine_parts(nonlinearity: Nonlinearity, P: np.ndarray):
     return P[:, 0], np.abs(P[:, 1]), P[:, 2]
 
 
+def _numerator_degree(linear: LinearStructure) -> int:
+    """The numerator's degree once its leading coefficients fixed at 0 are dropped."""
+    top = linear.num_order
+    while top > 0 and getattr(linear, "fixed", {}).get(f"b{top}") == 0.0:
+        top -= 1
+    return top
+
+
 def _check_feedback(linear: LinearStructure, nonlinearity, feedback: str):
     if not isinstance(feedback, str) or feedback not in FEEDBACKS:
         raise ParameterError(f"feedback must be one of {tuple(FEEDBACKS)}, got {feedback!r}")
@@ -77,12 +85,15 @@ def _check_feedback(linear: LinearStructure, nonlinearity, feedback: str):
         raise ParameterError(
             f"a Lur'e loop takes a {' or '.join(f.__name__ for f in FEEDBACK_FAMILIES)} map in its feedback "
             f"(simulated exactly through sticking), got {type(nonlinearity).__name__}")
-    degree, need = linear.den_order - linear.num_order, FEEDBACKS[feedback]
+    top = _numerator_degree(linear)
+    degree, need = linear.den_order - top, FEEDBACKS[feedback]
     if degree != need:
         den_order = max(linear.den_order, need)
+        zeros = (f" (b{linear.num_order} is fixed at 0, so the numerator's degree is {top})"
+                 if top < linear.num_order else "")
         raise ParameterError(
             f"friction on the {feedback} needs a linear block of relative degree {need} (den_order - num_order), "
-            f"got {degree}: e.g. LinearStructure({den_order - need}, {den_order}, monic_numerator=False)")
+            f"got {degree}{zeros}: e.g. LinearStructure({den_order - need}, {den_order}, monic_numerator=False)")
     if linear.monic_numerator:
         raise ParameterError("a Lur'e loop carries its gain in the linear block: use "
                              "LinearStructure(..., monic_numerator=False)")

@@ -32,12 +32,11 @@ array([-0.5793,  1.0519])
 
 from __future__ import annotations
 
-import warnings as _warnings
 
 import numpy as np
 
 from ._checks import as_count, as_signal, check_delay, check_intersample, check_transfer_function, signal_names
-from .exceptions import ParameterError, SimulationWarning
+from .exceptions import ParameterError
 from .nonlinearities import Nonlinearity
 
 __all__ = ["BlockModel", "HammersteinModel", "WienerModel", "HammersteinWienerModel", "pade_order_of"]
@@ -266,13 +265,14 @@ class BlockModel:
 
     def _warn_diverged(self, t: np.ndarray, y: np.ndarray) -> None:
         """Issue a :class:`SimulationWarning` naming where the output stopped being finite, and why."""
-        k = int(np.flatnonzero(~np.isfinite(y))[0])
+        from .simulate import warn_diverged
+
         poles = np.roots(self._den)
         growing = poles[poles.real > 0]
         why = (f"the model is unstable (pole(s) {', '.join(f'{p:.4g}' for p in growing)} in the right half-plane)"
                if growing.size else "its state overflowed")
-        _warnings.warn(f"{self.name}: the simulated output is not finite from sample {k} (t = {t[k]:.6g} s): {why}; "
-                       "do not use this output", SimulationWarning, stacklevel=3)
+        dt = float(t[1] - t[0]) if t.size > 1 else 0.0
+        warn_diverged(y, dt, self.name, why, t0=float(t[0]) if t.size else 0.0, stacklevel=4)
 
     def linear_output(self, t, u=None) -> np.ndarray:
         """``z = H(p) g(u)``: the linear block's output (the signal entering ``h``), from the model's ``x(0)``.

@@ -49,10 +49,12 @@ True
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 
 from ._checks import as_signal, check_intersample, check_transfer_function, uniform_grid
-from .exceptions import DataError, ParameterError
+from .exceptions import DataError, ParameterError, SimulationWarning
 from .kernels import MAX_PASS_STATES, MAX_UNROLLED_STATES, get_kernel
 from ._batch import output_terms, simulate_batch, sse_basis_batch, sse_batch
 from ._discretize import (COMPILED_EXPM_MAX_NORM, _augmented, _expm, _offset_rows, _state_rows, _tf_system,
@@ -144,7 +146,20 @@ def lsim(linear, t, v, *, x0=None, intersample: str = "foh") -> np.ndarray:
     ndarray, shape (N,)
     """
     dt, v = _check_pair(t, v)
-    return _response(linear, dt, v, x0=x0, intersample=intersample)
+    return warn_diverged(_response(linear, dt, v, x0=x0, intersample=intersample), dt, "lsim")
+
+
+def warn_diverged(y: np.ndarray, dt: float, name: str, why: str | None = None, *, t0: float = 0.0,
+                  stacklevel: int = 3) -> np.ndarray:
+    """``y``, after a :class:`~hammerstein_ctrl.exceptions.SimulationWarning` naming the first sample where it is
+    not finite (``why``: the cause, when the caller knows it; ``stacklevel`` as :func:`warnings.warn`'s)."""
+    bad = ~np.isfinite(y)
+    if bad.any():
+        k = int(np.flatnonzero(bad.reshape(len(y), -1).any(axis=1))[0])
+        why = why or "the linear block is unstable, or its state overflowed"
+        warnings.warn(f"{name}: the simulated output is not finite from sample {k} (t = {t0 + k * dt:.6g} s): "
+                      f"{why}; do not use this output", SimulationWarning, stacklevel=stacklevel)
+    return y
 
 
 def _response(linear, dt: float, v: np.ndarray, *, x0=None, offset=None, intersample="foh") -> np.ndarray:
@@ -190,7 +205,7 @@ def simulate(linear, nonlinearity, params, t, u, *, x0=None, offset=0.0, intersa
     """
     dt, u = _check_pair(t, u, "u")
     v = as_signal(nonlinearity(u, params), "g(u)")
-    return _response(linear, dt, v, x0=x0, offset=offset, intersample=intersample)
+    return warn_diverged(_response(linear, dt, v, x0=x0, offset=offset, intersample=intersample), dt, "simulate")
 
 
 def simulate_blocks(model, t, u, *, x0=None, intersample: str = "foh") -> np.ndarray:

@@ -401,3 +401,13 @@ def test_discrete_or_mimo_blocks_are_refused():
         LureModel(ct.tf([0.4], [1.0, -1.9, 0.9], 0.01), Friction(), [0.5, 0.0])
     with pytest.raises(ParameterError, match="SISO"):
         LureModel(ct.tf([[[1.0]], [[1.0]]], [[[1.0, 2.0, 0.0]], [[1.0, 2.0, 0.0]]]), Friction(), [0.5, 0.0])
+
+
+def test_a_numerator_coefficient_fixed_at_zero_counts_in_the_relative_degree():
+    """b1 fixed at 0 makes (b0)/(a2 p^2 + ...) of relative degree 2: refused for output feedback at construction
+    (not after the search), accepted for velocity feedback."""
+    lin = hc.LinearStructure(1, 2, monic_numerator=False, fixed={"b1": 0.0})
+    with pytest.raises(ParameterError, match=r"relative degree 1 .*got 2 \(b1 is fixed at 0, so the numerator's "
+                                             r"degree is 0\)"):
+        hc.LureStructure(lin, hc.Friction(), feedback="output")
+    assert hc.LureStructure(lin, hc.Friction(), feedback="velocity").param_names[:3] == ("b0", "a0", "a1")

@@ -6,11 +6,12 @@ import control as ct
 import numpy as np
 import pytest
 
+import hammerstein_ctrl as hc
 from hammerstein_ctrl import DataError, ParameterError
 from hammerstein_ctrl._checks import MAX_ORDER
 from hammerstein_ctrl.exceptions import HammersteinError
 from hammerstein_ctrl.simulate import (MAX_UNROLLED_STATES, free_response, lsim, response_blocks, simulate_batch,
-                                       sse_batch)
+                                       simulate, sse_batch)
 
 EMPS_BETAS = [
     [3.2870, 0.59130, -0.4448, 0.0486],
@@ -237,3 +238,10 @@ def test_lsim_is_accurate_up_to_max_order_and_refuses_higher_orders():
     # a state-space model of that order is simulated from its own (well-conditioned) matrices
     np.testing.assert_allclose(lsim(modal, t, v), ct.forced_response(modal, t, v).outputs,
                                rtol=1e-8, atol=1e-10)
+
+
+def test_an_unstable_simulation_warns_where_its_output_stops_being_finite():
+    t = np.arange(200) * 0.01
+    with pytest.warns(hc.SimulationWarning, match=r"simulate: the simulated output is not finite from sample \d+"):
+        y = simulate(ct.tf([1.0], [1.0, -1000.0]), hc.Tanh(), [1.0, 1.0], t, np.sin(t))
+    assert not np.all(np.isfinite(y))
