@@ -96,6 +96,9 @@ def _cmd_tune(args) -> int:
                        t_final=args.t_final)
     print(f"{args.rule} PID for {model!r}")
     print(pid.summary())
+    print(f"  sampled at dt = {dt:g} s ({'--dt' if args.dt is not None else 'the record of the fit: --dt to change'}); "
+          "the verdict includes the digital loop" if dt is not None
+          else "  continuous design (no sampling interval known: --dt for a digital controller)")
     print(f"  (parallel form kp + ki/s + kd s/(tf s + 1), output added to u0 = {pid.u0:.6g}); "
           f"IAE {rep['iae']:.4g}, ISE {rep['ise']:.4g}, ITAE {rep['itae']:.4g}")
     plot = Path(args.plot) if args.plot else Path(args.model).with_name(f"{Path(args.model).stem}_pid_{args.rule}.png")

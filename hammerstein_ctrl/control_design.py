@@ -481,26 +481,8 @@ class PIDResult:
         >>> d.success, d.controller.dt
         (True, 0.01)
         """
-        import control
-
-        from .robust_pid import discrete_loop_figures
-
         dt = _check_dt(dt)
-        cd = control.sample_system(self.controller, dt, method=method)
-        pd = control.sample_system(self.linearized, dt, method="zoh")
-        L = cd * pd
-        fig = discrete_loop_figures(np.asarray(L.num[0][0], float), np.asarray(L.den[0][0], float), dt)
-        bound = self.max_sensitivity * MS_SLACK
-        ok = fig["stable"] and fig["Ms"] <= bound and fig["Mt"] <= bound
-        if ok:
-            message = (f"stable on the plant sampled at {dt:g} s with its input held: Ms = {fig['Ms']:.3g}, "
-                       f"Mt = {fig['Mt']:.3g}")
-        elif not fig["stable"]:
-            message = (f"the digital loop at dt = {dt:g} s is unstable (closed-loop poles outside the unit circle): "
-                       "sample faster")
-        else:
-            message = (f"at dt = {dt:g} s the digital loop's Ms = {fig['Ms']:.3g}, Mt = {fig['Mt']:.3g} exceed "
-                       f"{self.max_sensitivity:g}: sample faster, or tune with dt={dt:g}")
+        cd, fig, ok, message = _digital_check(self.controller, self.linearized, dt, self.max_sensitivity, method)
         return DiscretePID(cd, dt, method, fig["stable"], fig["Ms"], fig["Mt"], fig["gain_margin"],
                            fig["phase_margin"], fig["poles"], bool(ok), message)
 
@@ -698,9 +680,12 @@ def tune_pid(model, rule: str = "robust", *, kind: str = "pid", max_sensitivity:
         The operating point (:func:`~hammerstein_ctrl.operating_point.operating_point`):
         the loop regulates around it and starts at rest there.
     dt : float, optional
-        Controller sampling interval: adds ``dt/2`` to the delay of SIMC/IMC,
-        bounds the robust design's bandwidth, and is the step of the
-        simulations.
+        Controller sampling interval: adds ``dt/2`` to the delay of SIMC/IMC
+        and to the plant of the robust design (the hold), bounds the robust
+        design's bandwidth, and is the step of the simulations.  The
+        verdict then includes the digital loop of :meth:`PIDResult.to_discrete`
+        at ``dt`` (Tustin controller, plant with its input held): ``success``
+        means ``to_discrete(dt)`` succeeds too.
     u_limit : (lo, hi), optional
         Actuator limits (``lo < hi``), with back-calculation anti-windup.
     tau_c : float, optional
@@ -754,8 +739,10 @@ def tune_pid(model, rule: str = "robust", *, kind: str = "pid", max_sensitivity:
     if key in ("simc", "imc"):
         gains, record = _rule_design(model, key, op, dt, limits, tau_c, step, ms, num, den, record, delayed)
     else:
-        gains = _robust_design(model, op, num, den, ms=ms, kind=kind, bandwidth=bandwidth, dt=dt, limits=limits,
-                               step=step, record=record)
+        if bandwidth is None and dt is not None:    # the plant's, not the hold's approximant's poles
+            bandwidth = default_bandwidth(num, den, dt)
+        gains = _robust_design(model, op, *_with_hold(num, den, dt), ms=ms, kind=kind, bandwidth=bandwidth, dt=dt,
+                               limits=limits, step=step, record=record)
     extra = {}
     if key in ("nspsa", "auto"):
         gains, extra = _tune_model_based(model, key, gains if start is None else _start(start), op, dt=dt,
@@ -916,7 +903,8 @@ def _rule_design(model, key, op, dt, limits, tau_c, step, ms, num, den, record, 
         gains = _with_filter(design(dict(a), tau))
         size = _default_step(model, op, limits, gains[0]) if step is None else float(step)
         factors = gain_factors(model, op, *_visited_range(model, op, size, gains[0], limits))
-        figs = [loop_figures(k * num, den, *gains) for k in factors]
+        held = _with_hold(num, den, dt)             # the digital loop's hold, which the verdict checks
+        figs = [loop_figures(k * held[0], held[1], *gains) for k in factors]
         if all(f["stable"] and max(f["Ms"], f["Mt"]) <= ms * MS_SLACK for f in figs):
             if count:
                 a["notes"].append(f"detuned {count} time(s) to tau_c = {tau:.4g} for Ms and Mt <= {ms:g}")
@@ -1079,6 +1067,45 @@ def _verdict(fig: dict, nl: dict | None, ms: float, op: OperatingPoint) -> tuple
                   f"{fig['phase_margin']:.3g} deg{tracked}"), warnings
 
 
+def _digital_check(controller, linearized, dt: float, ms: float, method: str = "tustin", *, tuned: bool = False):
+    """``(discrete controller, figures, ok, message)`` of ``controller`` sampled at ``dt`` (``method``) on the
+    plant ``linearized`` sampled with its input held: stable, and ``Ms``, ``Mt`` within the target ``ms``
+    (``tuned``: the design already took ``dt`` into account, so the advice is to sample faster or detune)."""
+    import control
+
+    from .robust_pid import discrete_loop_figures
+
+    cd = control.sample_system(controller, dt, method=method)
+    pd = control.sample_system(linearized, dt, method="zoh")
+    L = cd * pd
+    fig = discrete_loop_figures(np.asarray(L.num[0][0], float), np.asarray(L.den[0][0], float), dt)
+    bound = ms * MS_SLACK
+    ok = bool(fig["stable"] and fig["Ms"] <= bound and fig["Mt"] <= bound)
+    if ok:
+        message = (f"stable on the plant sampled at {dt:g} s with its input held: Ms = {fig['Ms']:.3g}, "
+                   f"Mt = {fig['Mt']:.3g}")
+    elif not fig["stable"]:
+        message = (f"the digital loop at dt = {dt:g} s is unstable (closed-loop poles outside the unit circle): "
+                   "sample faster")
+    else:
+        advice = ("sample faster, or detune (a larger tau_c, a smaller bandwidth)" if tuned
+                  else f"sample faster, or tune with dt={dt:g}")
+        message = (f"at dt = {dt:g} s the digital loop's Ms = {fig['Ms']:.3g}, Mt = {fig['Mt']:.3g} exceed "
+                   f"{ms:g}: {advice}")
+    return cd, fig, ok, message
+
+
+def _with_hold(num, den, dt: float | None):
+    """``num/den`` with the half-sample delay of a sampled controller's hold (a second-order Pade approximant),
+    for a continuous design whose digital loop must meet the same target; unchanged without ``dt``."""
+    if dt is None:
+        return num, den
+    import control
+
+    pn, pd = control.pade(dt / 2.0, 2)
+    return np.polymul(num, pn), np.polymul(den, pd)
+
+
 def _verified(model, key, gains, op, record, *, dt, limits, u_limit, step, t_final, ms, criterion=None,
               cost=None, optimize_result=None, sim_dt=None) -> PIDResult:
     """The :class:`PIDResult` of ``gains``, with the linearised and the nonlinear loop checked."""
@@ -1103,6 +1130,11 @@ def _verified(model, key, gains, op, record, *, dt, limits, u_limit, step, t_fin
             nl["unreachable"] = False
     success, message, warnings = _verdict(fig, nl, ms, op)
     controller = pid_controller(kp, ki, kd, tf)
+    if dt is not None and fig["stable"]:        # the controller runs at dt: its digital loop is the one to meet
+        _, digital, ok, said = _digital_check(controller, P, dt, ms, tuned=True)
+        record["digital"] = {k: digital[k] for k in ("stable", "Ms", "Mt", "gain_margin", "phase_margin")}
+        if not ok:
+            success, message = False, (f"{said}; {message}" if success else f"{message}; {said}")
     steps = {k: v for k, v in (nl or {}).items() if k not in ("t", "r", "y", "u")}
     return PIDResult(kp=float(kp), ki=float(ki), kd=float(kd), tf=float(tf), rule=key, controller=controller,
                      iosys=control.ss(controller, inputs="e", outputs="uc", name="pid"), approximation=record,

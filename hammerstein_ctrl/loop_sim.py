@@ -85,17 +85,18 @@ def check_limits(u_limit) -> tuple[float, float]:
 
 #: Code of "no static block" (the identity) in the compiled loops.
 IDENTITY = -1
+#: Code of a static block the compiled loops do not know (a custom map): the loop then runs in Python.
+PYTHON_MAP = -2
 
 
 def _block_arrays(nl, params):
-    """``(code, params, breakpoints)`` of a static block for the compiled loops (``IDENTITY`` for none)."""
+    """``(code, params, breakpoints)`` of a static block for the compiled loops (``IDENTITY`` for none,
+    ``PYTHON_MAP`` for a map without a compiled form)."""
     if nl is None:
         return IDENTITY, np.zeros(1), np.zeros(2)
     name = nl.compiled_map
     if name is None:
-        raise ParameterError(
-            f"the compiled loop simulator supports the named nonlinearity families, not {nl!r}"
-        )
+        return PYTHON_MAP, np.asarray(params, dtype=float).reshape(-1), np.zeros(2)
     return (_core.MAP_CODES[name], np.ascontiguousarray(params, dtype=float),
             np.ascontiguousarray(nl.map_extra(), dtype=float))
 
@@ -129,6 +130,27 @@ class SampledPlant:
     hcode: int = IDENTITY
     hparams: np.ndarray = field(default_factory=lambda: np.zeros(1))
     hbreakpoints: np.ndarray = field(default_factory=lambda: np.zeros(2))
+    #: The static blocks themselves (``(u, params) -> array``), used where a code is ``PYTHON_MAP``.
+    g_map: object = None
+    h_map: object = None
+
+    @property
+    def compiled(self) -> bool:
+        """Whether the compiled loops know both static blocks (else the loops run in Python)."""
+        return PYTHON_MAP not in (self.code, self.hcode)
+
+    def _apply(self, code, fun, params, v: float) -> float:
+        if code == IDENTITY:
+            return v
+        return float(np.asarray(fun(np.array([v]), params), dtype=float).reshape(-1)[0])
+
+    def output(self, x: np.ndarray) -> float:
+        """``h(C x) + offset`` (the Python twin of the compiled plant's output)."""
+        return self._apply(self.hcode, self.h_map, self.hparams, float(self.C @ x)) + self.offset
+
+    def step(self, x: np.ndarray, u: float) -> np.ndarray:
+        """``Ad x + Bd g(u)``."""
+        return self.Ad @ x + self.Bd * self._apply(self.code, self.g_map, self.params, u)
 
     def __post_init__(self):
         n = np.shape(self.x0)[0] if np.ndim(self.x0) == 1 else -1
@@ -171,7 +193,7 @@ def sampled_plant(model, dt: float, *, x0=None) -> SampledPlant:
         raise ParameterError(f"x0 must be {Ad.shape[0]} finite numbers (the states of H), got {np.shape(x0)}")
     return SampledPlant(np.ascontiguousarray(Ad), np.ascontiguousarray(B0), np.ascontiguousarray(C),
                         np.ascontiguousarray(start, dtype=float), settings["offset"], code, p, bp, float(dt),
-                        hcode, hp, hbp)
+                        hcode, hp, hbp, model.input_nonlinearity, model.output_nonlinearity)
 
 
 def _loop_inputs(model, r, dt, u_limit, x0):
@@ -186,14 +208,57 @@ def _loop_inputs(model, r, dt, u_limit, x0):
     return r, lo, hi, plant, bound
 
 
+def _drive(plant: SampledPlant, x, y: float, uc: float, lo: float, hi: float, bound: float, k: int, Y, U):
+    """The compiled ``Plant::drive`` in Python: record ``y`` and ``u = clip(uc)``, then step (``None`` once the
+    output passed ``bound``: the rest of the record cut to ``inf``/``NaN``)."""
+    u = min(max(uc, lo), hi) if not math.isnan(uc) else uc
+    Y[k], U[k] = y, u
+    if not abs(y) <= bound:
+        Y[k + 1:], U[k + 1:] = np.inf, np.nan
+        return None, u
+    return plant.step(x, u), u
+
+
+def _pid_loop_in_python(plant: SampledPlant, gains, r, dt, lo, hi, bias, bound, Y, U) -> None:
+    """The recursion of the module notes for a plant with a map the compiled loops do not know (numpy's speed)."""
+    kp, ki, kd, tf, kt = gains
+    ad, bd = tf / (tf + dt), kd / (tf + dt)
+    x, integ, deriv, ep = plant.x0.copy(), bias, 0.0, 0.0
+    for k in range(r.size):
+        y = plant.output(x)
+        e = r[k] - y
+        deriv = ad * deriv + bd * (e - ep)
+        uc = kp * e + integ + deriv
+        x, u = _drive(plant, x, y, uc, lo, hi, bound, k, Y, U)
+        if x is None:
+            return
+        integ += dt * (ki * e + kt * (u - uc))
+        ep = e
+
+
+def _controller_loop_in_python(plant: SampledPlant, controller, r, lo, hi, bias, bound, Y, U) -> None:
+    """:func:`simulate_controller_loop`'s recursion in Python (a map the compiled loops do not know)."""
+    Ac, Bc, Cc, Dc = controller
+    x, xc = plant.x0.copy(), np.zeros(Ac.shape[0])
+    for k in range(r.size):
+        y = plant.output(x)
+        e = r[k] - y
+        x, _ = _drive(plant, x, y, bias + Dc * e + float(Cc @ xc), lo, hi, bound, k, Y, U)
+        if x is None:
+            return
+        xc = Ac @ xc + Bc * e
+
+
 def simulate_loops(model, gains, r, dt: float, *, u_limit=None, bias: float = 0.0, x0=None):
     """Simulate the sampled loop for a batch of PID gains (compiled, exact recursion).
 
     Parameters
     ----------
     model : BlockModel or SampledPlant
-        The plant (strictly proper linear block, named nonlinearity families),
-        or its precomputed :func:`sampled_plant` at ``dt``.
+        The plant (strictly proper linear block), or its precomputed
+        :func:`sampled_plant` at ``dt``.  A map without a compiled form (a
+        :class:`~hammerstein_ctrl.nonlinearities.CustomNonlinearity`) runs
+        the same recursion in Python, at numpy's speed.
     gains : array_like, shape (B, 4) or (B, 5)
         Rows ``kp, ki, kd, tf`` and optionally the back-calculation gain ``kt``.
     r : array_like, shape (N,)
@@ -219,6 +284,10 @@ def simulate_loops(model, gains, r, dt: float, *, u_limit=None, bias: float = 0.
     G = _gain_table(gains)
     Y = np.empty((G.shape[0], r.size))
     U = np.empty_like(Y)
+    if not plant.compiled:
+        for b, (kp, ki, kd, tf, kt) in enumerate(G):
+            _pid_loop_in_python(plant, (kp, ki, kd, tf, kt), r, float(dt), lo, hi, float(bias), bound, Y[b], U[b])
+        return Y, U
     if _core.hc_pid_loops(*plant.arrays(), G, G.shape[0], r, r.size, float(dt), lo, hi, float(bias), bound, Y, U):
         raise ParameterError(f"the compiled loop simulator takes plants of order up to {_core.MAX_ORDER} with "
                              "static blocks that fit their families")
@@ -247,6 +316,10 @@ def simulate_controller_loop(model, controller, r, dt: float, *, u_limit=None, b
     A, B, C, D = (np.ascontiguousarray(np.asarray(M, dtype=float)) for M in (sys.A, sys.B, sys.C, sys.D))
     Y = np.empty((1, r.size))
     U = np.empty_like(Y)
+    if not plant.compiled:
+        _controller_loop_in_python(plant, (A, B[:, 0], C[0], float(D[0, 0])), r, lo, hi, float(bias), bound, Y[0],
+                                   U[0])
+        return Y[0], U[0]
     status = _core.hc_controller_loop(*plant.arrays(), A, B[:, 0].copy(), C[0].copy(), float(D[0, 0]), A.shape[0],
                                       r, r.size, lo, hi, float(bias), bound, Y, U)
     if status:
