@@ -33,6 +33,8 @@ Examples
 
 from __future__ import annotations
 
+import hashlib
+
 import numpy as np
 
 from ._checks import as_count
@@ -43,7 +45,7 @@ from .delay_fit import DelayedCost
 from .objective import HammersteinCost
 from .structure import BlockStructure
 
-__all__ = ["RecordsStructure", "RecordsCost", "concatenated"]
+__all__ = ["RecordsStructure", "RecordsCost", "concatenated", "duplicated_records"]
 
 
 class RecordsStructure:
@@ -296,3 +298,27 @@ class RecordsCost:
 
     def __repr__(self):
         return f"RecordsCost({len(self.records)} records, {self.n_samples} samples, {self.structure.base!r})"
+
+
+def duplicated_records(records) -> list[tuple[int, ...]]:
+    """Groups of records (their indices) that hold the same samples: the same ``dt``, ``u`` and ``y``.
+
+    A record passed twice counts its noise twice, which makes every
+    standard error too small (by ``sqrt(2)`` for one copy).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> a = IOData(np.arange(5.0), np.ones(5), dt=0.1, name="a")
+    >>> b = IOData(np.arange(5.0), np.ones(5) * 2, dt=0.1, name="b")
+    >>> duplicated_records([a, b, a])
+    [(0, 2)]
+    """
+    groups: dict = {}
+    for k, rec in enumerate(records):
+        digest = hashlib.blake2b(digest_size=16)
+        for signal in (rec.u, rec.y):
+            digest.update(np.ascontiguousarray(signal, dtype=float).tobytes())
+        groups.setdefault((len(rec), float(rec.dt), digest.digest()), []).append(k)
+    return [tuple(g) for g in groups.values() if len(g) > 1]
+

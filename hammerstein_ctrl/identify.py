@@ -51,7 +51,7 @@ import numpy as np
 from ._linalg import single_threaded_blas
 from .iodata import IOData
 from .delay_fit import DelayedCost
-from .experiments import RecordsCost
+from .experiments import RecordsCost, duplicated_records
 from .diagnostics import (FAILURE, STILL_IMPROVING, WARNING, Verdict, budget_advice, identifiability_verdicts,
                           late_improvement, linear_verdicts, offset_verdict, row_pole_verdicts)
 from .exceptions import IdentificationWarning, ParameterError
@@ -327,6 +327,19 @@ class _Checks:
     closed_loop: bool = False
 
 
+def _duplicate_verdicts(cost) -> list[Verdict]:
+    """A warning for records passed more than once (their noise counted as many times)."""
+    groups = duplicated_records(cost.records) if isinstance(cost, RecordsCost) else []
+    if not groups:
+        return []
+    said = "; ".join(f"records {', '.join(map(str, g))} ({cost.records[g[0]].name!r})" for g in groups)
+    worst = max(len(g) for g in groups)
+    return [Verdict("duplicated-records", WARNING,
+                    f"the same samples are passed more than once: {said}: their noise counts as independent, so the "
+                    f"standard errors are too small (by up to sqrt({worst}) = {np.sqrt(worst):.3g}); pass each record "
+                    "once")]
+
+
 #: Residuals below this share of the output's spread (RMS, 180 dB) are rounding: their tests say nothing of the model.
 ROUNDING_LEVEL = 1e-9
 
@@ -429,6 +442,7 @@ def _trust_verdicts(cost, x, r, model, checks: _Checks):
         return verdicts, None, None
     explained = {n for v in verdicts for n in v.params}
     verdicts = identifiability_verdicts(structure, x, unc, model=model, data=data, exempt=explained) + verdicts
+    verdicts += _duplicate_verdicts(cost)
     simpler, _ = significance_verdicts(cost, r, noise=unc.noise, seed=checks.seed)
     if any(v.code == "not-significant" for v in simpler):   # its failures stand, warnings on details would be noise
         return [v for v in verdicts if v.severity == FAILURE] + simpler, unc, None

@@ -699,8 +699,11 @@ def result_from_dict(obj, where: str = "result") -> IdentificationResult:
 def _output_fits(obj, where: str, names) -> dict:
     if obj is None:
         return {}
-    if not isinstance(obj, dict) or names is None or list(obj) != list(names):
-        raise ParameterError(f"{where}: output_fits must map the model's outputs {names} to fit percentages")
+    loop = ["y (in loop)", "u (in loop)"]         # a fit inside a known loop: the loop's two signals
+    allowed = [list(names)] if names is not None else []
+    if not isinstance(obj, dict) or list(obj) not in allowed + [loop]:
+        expected = " or ".join(str(a) for a in allowed + [loop])
+        raise ParameterError(f"{where}: output_fits must map the model's outputs ({expected}) to fit percentages")
     return {str(k): _number(v, f"{where}: output_fits.{k}", finite=False) for k, v in obj.items()}
 
 

@@ -225,3 +225,15 @@ def test_three_records_share_an_estimated_dead_time():
     assert abs(res.params["delay"] - 0.37) < 0.1 * DT
     truth = np.r_[CORE, 0.37, OFFSETS]
     assert np.all(np.abs(res.x - truth) < 4 * se), (res.x - truth) / se
+
+
+def test_a_record_passed_twice_is_said_to_shrink_the_standard_errors():
+    rec, other = records(7)[:2]
+    once, twice = fit(rec), fit([rec, rec])
+    shared = [k for k in once.stderr if k in ("a0", "a1", "d0", "d1")]     # each copy has its own offset and state
+    ratio = np.array([twice.stderr[k] / once.stderr[k] for k in shared])
+    assert len(shared) == 4
+    np.testing.assert_allclose(ratio, 1 / np.sqrt(2), rtol=0.02)
+    dup = [v for v in twice.verdicts if v.code == "duplicated-records"]
+    assert twice.success and len(dup) == 1 and "records 0, 1 ('run0')" in dup[0].message and "sqrt(2)" in dup[0].message
+    assert not any(v.code == "duplicated-records" for v in fit([rec, other]).verdicts)

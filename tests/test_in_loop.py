@@ -156,3 +156,21 @@ def test_identify_takes_the_loop_as_its_front_door():
         hc.identify(data, lure_structure(), method="lm", loop=loop)
     with pytest.raises(ParameterError, match="does not take offset"):
         hc.identify(data, lure_structure(), loop=loop, offset=True)
+
+
+def test_a_fit_in_a_loop_saves_and_loads_with_its_loop_fits(tmp_path):
+    r = _reference(1500)
+    loop = KnownLoop(PI, r)
+    y, u = loop.simulate(lure_structure().model(TRUTH))
+    rng = np.random.default_rng(20)
+    data = hc.IOData(u + 0.01 * rng.standard_normal(u.size), y + 0.002 * rng.standard_normal(y.size), dt=DT,
+                     intersample="zoh")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        res = hc.identify(data, lure_structure(), loop=loop, seed=0)
+    hc.save_result(res, tmp_path / "loop.json")
+    back = hc.load_result(tmp_path / "loop.json")
+    np.testing.assert_array_equal(back.x, res.x)
+    assert back.output_fits == pytest.approx(res.output_fits) and list(back.output_fits) == ["y (in loop)",
+                                                                                           "u (in loop)"]
+    assert type(hc.load_model(tmp_path / "loop.json")).__name__ == "LureModel"
