@@ -34,7 +34,7 @@ from . import config
 from ._linalg import single_threaded_blas
 from ._checks import as_count
 from .exceptions import ParameterError
-from .initialize import Budget, initial_points, nuisance_estimate, stabilize
+from .initialize import Budget, check_automatic, initial_points, nuisance_estimate, stabilize
 from .lure_fit import hammerstein_start, hammerstein_structure_of
 from .objective import HammersteinCost
 from .optimize import (BUDGET_EXHAUSTED, COMPLETED, SOLVER_FAILED, History, OptimizeResult, as_rng, as_x0,
@@ -369,7 +369,8 @@ def auto_delayed(cost, x0=None, *, maxfev: int | None = None, seed=None, allow_u
     start of Levenberg-Marquardt on everything, the dead time continuous.
     ``maxfev`` bounds all stages together, ``config.defaults["auto.delay_joint_share"]`` of it
     kept for the joint refinement.  ``x0``, if given, is a whole beta of the
-    delayed structure and is refined directly.
+    delayed structure, or its block parameters and dead time alone (the
+    offset and initial state then by least squares), and is refined directly.
 
     Parameters and return value as :func:`auto_minimize`.
     """
@@ -381,8 +382,12 @@ def auto_delayed(cost, x0=None, *, maxfev: int | None = None, seed=None, allow_u
     budget, merged = Budget(total), _Merged()
     s, data = cost.structure, cost.data
     if x0 is not None:
-        best = _refine(cost, s.check_beta(as_x0(x0)), budget, total, merged)
+        x = as_x0(x0)
+        if x.size == s.n_core and s.n_params > s.n_core:     # the blocks and dead time: offset and state by LS
+            x = _nuisance(data, s, x, budget)
+        best = _refine(cost, s.check_beta(x), budget, total, merged)
         return _result(cost, best, budget, 1, 1, merged, allow_unstable, started)
+    check_automatic(s, np.asarray(data.u, dtype=float))    # names the delayed structure's whole x0
     if s.linear.estimates_delay:
         shifts = delay_candidates(data, s.linear.den_order)
     else:

@@ -55,7 +55,7 @@ from .streamed_lstsq import (constant_column, factor_of_blocks, factor_of_column
                              held_whole, independent, orthogonal_part, residual, residual_of_columns,
                              solve_minimum_norm, solve_scaled, triangular_factor)
 
-__all__ = ["initial_points", "stabilize", "continuous_poles", "nuisance_estimate", "estimate_initial_state",
+__all__ = ["check_automatic", "initial_points", "stabilize", "continuous_poles", "nuisance_estimate", "estimate_initial_state",
            "static_affine_sse", "static_affine_sse_columns", "affine_coefficients",
            "Budget", "POLE_PATTERNS"]
 
@@ -694,13 +694,21 @@ def _assemble(structure, theta, g_params, h_params, nuisance) -> np.ndarray:
     return structure.normalize(np.concatenate([theta, g_params, h_params, nuisance]))
 
 
-def _check_automatic(structure, u):
+def _nuisance_words(structure) -> list[str]:
+    return (["offset"] if structure.offset else []) + (["initial state"] if structure.initial_state == "estimate"
+                                                       else [])
+
+
+def check_automatic(structure, u) -> None:
+    """Refuse, naming the whole x0 to give, a structure whose maps have neither a basis nor a scan."""
     for nl in (structure.input_nonlinearity, structure.output_nonlinearity):
         # whether there is a basis shows on one sample (the whole basis of a long record takes 8 p bytes per sample)
         if nl is not None and nl.checked_basis(u[:1]) is None and (nl.shape_grid(u) is None or nl.scale_index is None):
             raise ParameterError(
                 f"no automatic initial point for the {nl.name!r} nonlinearity (it has neither a basis nor a "
-                f"scan); give x0 = [{', '.join(structure.param_names)}]")
+                f"scan); give x0 = [{', '.join(structure.param_names[:structure.n_core])}]"
+                + (f" (the {' and '.join(_nuisance_words(structure))} then follow by least squares; or the whole "
+                   f"[{', '.join(structure.param_names)}])" if structure.n_params > structure.n_core else ""))
 
 
 def _ranked_starts(reg: _Regression, groups: dict, drives: _Drives, count: int) -> list:
@@ -772,7 +780,7 @@ def initial_points(data, structure, budget: Budget, *, count: int = REFINED_CAND
         :class:`~hammerstein_ctrl.nonlinearities.CustomNonlinearity`): give ``x0``.
     """
     u = np.asarray(data.u, dtype=float)
-    _check_automatic(structure, u)
+    check_automatic(structure, u)
     # the starts may use a share of what is left; the refinements need the rest
     own = Budget(int(INITIAL_SHARE * budget.remaining) if np.isfinite(budget.remaining) else None)
     reg = _Regression(structure, data, own, affine_output=structure.output_nonlinearity is not None)

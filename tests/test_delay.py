@@ -282,3 +282,22 @@ def test_a_negative_dead_time_in_x0_and_a_fixed_one_longer_than_the_record_are_r
 def test_a_dead_time_too_short_to_mean_one_is_refused(tau):
     with pytest.raises(ParameterError, match="too short to mean a dead time .*give 0 for none"):
         hc.LinearStructure(0, 2, delay=tau)
+
+
+def test_a_custom_map_with_a_dead_time_takes_the_blocks_and_dead_time_as_x0():
+    """Without x0 the refusal names the x0 to give (dead time included); given it, the offset and initial state
+    follow by least squares and the fit finds the truth."""
+    custom = hc.CustomNonlinearity(lambda v, q: q[0] * np.tanh(q[1] * v), 2, param_names=["k", "s"])
+    rng = np.random.default_rng(0)
+    t = np.arange(2000) * 0.05
+    u = np.repeat(rng.uniform(-2, 2, 100), 20)
+    y = ct.forced_response(ct.tf([1.0], [1.0, 1.0]), t, 2.0 * np.tanh(0.8 * u)).outputs
+    y = np.r_[np.zeros(6), y[:-6]] + 0.3 + 0.01 * rng.standard_normal(t.size)          # 6 samples = 0.3 s
+    s = hc.HammersteinStructure(hc.LinearStructure(0, 1, delay="estimate"), custom, offset=True,
+                                initial_state="estimate")
+    with pytest.raises(ParameterError, match=r"give x0 = \[a0, k, s, delay\] \(the offset and initial state then "
+                                             r"follow by least squares; or the whole \[a0, k, s, delay, y0, xi0\]\)"):
+        hc.identify(hc.IOData(u, y, dt=0.05), s)
+    res = hc.identify(hc.IOData(u, y, dt=0.05), s, x0=[1.0, 2.0, 0.8, 0.3], seed=0)
+    assert res.success
+    np.testing.assert_allclose(res.x[:5], [1.0, 2.0, 0.8, 0.3, 0.3], atol=0.01)
