@@ -55,7 +55,8 @@ from .streamed_lstsq import (constant_column, factor_of_blocks, factor_of_column
                              held_whole, independent, orthogonal_part, residual, residual_of_columns,
                              solve_minimum_norm, solve_scaled, triangular_factor)
 
-__all__ = ["check_automatic", "initial_points", "stabilize", "continuous_poles", "nuisance_estimate", "estimate_initial_state",
+__all__ = ["check_automatic", "initial_points", "stabilize", "continuous_poles", "nuisance_estimate",
+           "estimate_initial_state",
            "static_affine_sse", "static_affine_sse_columns", "affine_coefficients",
            "Budget", "POLE_PATTERNS"]
 
