@@ -41,7 +41,8 @@ from .optimize import (BUDGET_EXHAUSTED, COMPLETED, SOLVER_FAILED, History, Opti
                        levenberg_marquardt)
 from .simulate import unstable
 
-__all__ = ["auto_minimize", "auto_records", "auto_delayed", "auto_mimo", "auto_lure", "RESTART_SPREAD", "MAX_RESTARTS"]
+__all__ = ["auto_minimize", "auto_records", "auto_delayed", "auto_mimo", "auto_lure", "auto_known_loop",
+           "RESTART_SPREAD", "MAX_RESTARTS"]
 
 #: Relative size of the random perturbations of a restart.
 RESTART_SPREAD = 0.3
@@ -561,6 +562,30 @@ def auto_lure(cost, x0=None, *, maxfev: int | None = None, seed=None, allow_unst
         return _unrefined(cost, starts, len(starts), budget, merged, started)
     best, more = _explore(cost, best, rng, budget, merged, allow_unstable)
     return _result(cost, best, budget, runs + more, len(starts), merged, allow_unstable, started)
+
+
+def auto_known_loop(cost, starts, *, maxfev: int | None = None, seed=None, allow_unstable: bool = False,
+                    callback=None):
+    """Levenberg-Marquardt on a known loop's residuals (a :class:`~hammerstein_ctrl.in_loop.LoopCost` of a block
+    structure) from ``starts`` (the open-loop fit), restarts from seeded perturbations of the best while it is not
+    acceptable.  Parameters and return value as :func:`auto_minimize`."""
+    started = time.perf_counter()
+    budget = Budget(_total(maxfev))
+    rng = as_rng(seed)
+    starts = [cost.structure.check_beta(as_x0(x)).copy() for x in starts]
+    if not starts:
+        raise ParameterError("the open-loop fit that starts a loop fit found no finite parameters")
+    merged, restarts = _Merged(), []
+
+    def next_restart(anchor):
+        if not restarts:
+            restarts.append(_restart_points(anchor, rng, cost.structure.linear))
+        return next(restarts[0], None)
+
+    best, runs = _search(cost, starts, next_restart, budget, merged, allow_unstable, callback)
+    if best is None:
+        return _unrefined(cost, starts, len(starts), budget, merged, started)
+    return _result(cost, best, budget, runs, len(starts), merged, allow_unstable, started)
 
 
 def _explore(cost, best, rng, budget: Budget, merged: _Merged, allow_unstable: bool):

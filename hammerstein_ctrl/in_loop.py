@@ -16,7 +16,13 @@ signal, or both, each weighted.
     the plant holds u_k over the sample (a DAC)
 
 The plant is a :class:`~hammerstein_ctrl.lure.LureStructure` (friction in
-feedback, simulated exactly through stick-slip).
+feedback, simulated exactly through stick-slip) or a block structure
+(Hammerstein, Wiener, Hammerstein-Wiener; strictly proper, no dead time),
+whose sampled step under the held input is exact
+(:func:`~hammerstein_ctrl.loop_sim.simulate_known_loop`, compiled).  The
+residual tests of an open-loop fit assume the input does not depend on
+past outputs; a fit inside a loop is judged by its loop fits and its
+parameters' uncertainty instead.
 
 Examples
 --------
@@ -38,8 +44,11 @@ import numpy as np
 from ._checks import as_real_array
 from ._lure_sim import lure_loop_run
 from .exceptions import DataError, ParameterError
+from .loop_sim import sampled_plant, simulate_known_loop
 from .lure import LoopParts, LureModel, LureStructure
+from .model import BlockModel
 from .normal_equations import NONFINITE_RESIDUAL
+from .structure import BlockStructure
 
 __all__ = ["KnownLoop", "LoopCost", "identify_in_loop", "MATCHES"]
 
@@ -135,10 +144,18 @@ class KnownLoop:
                           self.initial_state, self.reference, self.added, Y, U)
         return Y, U
 
-    def simulate(self, model: LureModel):
-        """``(y, u)`` of the loop around ``model`` (from its initial state)."""
+    def simulate(self, model):
+        """``(y, u)`` of the loop around ``model`` (a Lur'e or block model, from its initial state; a block model's
+        input is held over each sample)."""
+        if isinstance(model, BlockModel):
+            if model.delay:
+                raise ParameterError("a block model in a known loop cannot have a dead time yet (its sampled loop "
+                                     "has none): fit without it, or use a Pade approximant (model.without_delay())")
+            return simulate_known_loop(sampled_plant(model, self.dt), self._matrices, self.reference, self.added,
+                                       initial_state=self.initial_state)
         if not isinstance(model, LureModel):
-            raise ParameterError(f"model must be a LureModel, got {type(model).__name__}")
+            raise ParameterError(f"model must be a LureModel or a block model (Hammerstein, Wiener, "
+                                 f"Hammerstein-Wiener), got {type(model).__name__}")
         Y, U = self.simulate_parts(model._parts())
         return Y[0], U[0]
 
@@ -150,9 +167,12 @@ class LoopCost:
     matched ones, in that order); ``J`` is their sum of squares.
     """
 
-    def __init__(self, data, structure: LureStructure, loop: KnownLoop, *, match: str = "both", weights=None):
-        if not isinstance(structure, LureStructure):
-            raise ParameterError(f"structure must be a LureStructure, got {type(structure).__name__}")
+    def __init__(self, data, structure, loop: KnownLoop, *, match: str = "both", weights=None):
+        if not isinstance(structure, (LureStructure, BlockStructure)):
+            raise ParameterError(f"structure must be a LureStructure or a block structure (Hammerstein, Wiener, "
+                                 f"Hammerstein-Wiener), got {type(structure).__name__}")
+        if isinstance(structure, BlockStructure) and structure.linear.delay:
+            raise ParameterError("a block structure in a known loop cannot have a dead time yet: fit without it")
         if match not in MATCHES:
             raise ParameterError(f"match must be one of {MATCHES}, got {match!r}")
         data.require_siso("a loop fit")
@@ -192,7 +212,17 @@ class LoopCost:
 
     def simulate_batch(self, betas):
         """``(Y, U)`` of the loop around each candidate plant."""
-        return self.loop.simulate_parts(self.structure.parts(np.atleast_2d(self.structure.check_beta(betas))))
+        B = np.atleast_2d(self.structure.check_beta(betas))
+        if isinstance(self.structure, LureStructure):
+            return self.loop.simulate_parts(self.structure.parts(B))
+        Y, U = np.empty((B.shape[0], len(self.loop))), np.empty((B.shape[0], len(self.loop)))
+        with np.errstate(all="ignore"):
+            for k, beta in enumerate(B):
+                try:
+                    Y[k], U[k] = self.loop.simulate(self.structure.model(beta, intersample="zoh"))
+                except ParameterError:                  # a candidate that is no plant (improper, not finite)
+                    Y[k], U[k] = np.inf, np.nan
+        return Y, U
 
     def residuals_batch(self, betas) -> np.ndarray:
         Y, U = self.simulate_batch(betas)
@@ -227,15 +257,18 @@ def _fits(cost: LoopCost, x) -> dict:
     return {"y": fit_report(cost._y, Y[0])["fit_percent"], "u": fit_report(cost._u, U[0])["fit_percent"]}
 
 
-def identify_in_loop(data, structure: LureStructure, loop: KnownLoop, *, match: str = "both", weights=None,
+def identify_in_loop(data, structure, loop: KnownLoop, *, match: str = "both", weights=None,
                      seed=None, maxfev: int | None = None, noise: str = "colored"):
-    """Identify a Lur'e plant by simulating the known loop the record was measured in.
+    """Identify a plant by simulating the known loop the record was measured in.
 
     Parameters
     ----------
     data : IOData
         The record: ``u`` the measured control signal (the plant's input), ``y`` the measured output.
-    structure : LureStructure
+    structure : LureStructure or BlockStructure
+        A Lur'e loop, or a Hammerstein, Wiener or Hammerstein-Wiener
+        structure (strictly proper, no dead time; its input held over each
+        sample).
     loop : KnownLoop
         The controller, the reference and any added signal of the record.
     match : {"output", "input", "both"}, default "both"
@@ -256,19 +289,27 @@ def identify_in_loop(data, structure: LureStructure, loop: KnownLoop, *, match: 
 
     Notes
     -----
-    The starts come from the open-loop Lur'e fit of ``(u, y)`` (``identify``
-    with the same structure), then Levenberg-Marquardt refines on the loop's
+    The starts come from the open-loop fit of ``(u, y)`` (``identify`` with
+    the same structure), then Levenberg-Marquardt refines on the loop's
     residuals, with restarts from perturbations of the best.
     """
-    from .auto import auto_lure
+    from .auto import auto_known_loop, auto_lure, auto_minimize
     from .lure_fit import LureCost
+    from .objective import HammersteinCost
 
     started = time.perf_counter()
     cost = LoopCost(data, structure, loop, match=match, weights=weights)
-    open_loop = auto_lure(LureCost(data, structure), maxfev=None if maxfev is None else max(1, maxfev // 3),
-                          seed=seed)
+    share = None if maxfev is None else max(1, maxfev // 3)
+    if isinstance(structure, LureStructure):
+        open_loop = auto_lure(LureCost(data, structure), maxfev=share, seed=seed)
+    else:
+        open_loop = auto_minimize(HammersteinCost(data, structure), maxfev=share, seed=seed, allow_unstable=True)
     x0 = open_loop.x if np.all(np.isfinite(open_loop.x)) else None
-    res = auto_lure(cost, x0, maxfev=None if maxfev is None else max(1, maxfev - int(open_loop.nfev)), seed=seed)
+    rest = None if maxfev is None else max(1, maxfev - int(open_loop.nfev))
+    if isinstance(structure, LureStructure):
+        res = auto_lure(cost, x0, maxfev=rest, seed=seed)
+    else:
+        res = auto_known_loop(cost, [] if x0 is None else [x0], maxfev=rest, seed=seed)
     return _result(cost, res, noise, started)
 
 

@@ -46,7 +46,8 @@ from . import _core
 from .exact_export import model_settings, sampled_iosys, sampled_matrices
 from .exceptions import DataError, ParameterError
 
-__all__ = ["simulate_loops", "simulate_controller_loop", "sampled_plant", "SampledPlant", "sampled_loop_iosys",
+__all__ = ["simulate_loops", "simulate_controller_loop", "simulate_known_loop",
+           "sampled_plant", "SampledPlant", "sampled_loop_iosys",
            "discrete_pid_iosys", "saturation_iosys", "back_calculation_gain", "check_limits", "IDENTITY"]
 
 #: A simulated output beyond this multiple of the reference's size counts as diverged.
@@ -327,6 +328,41 @@ def simulate_controller_loop(model, controller, r, dt: float, *, u_limit=None, b
             f"the compiled loop simulator takes plants of order up to {_core.MAX_ORDER} with static blocks that fit "
             "their families"))
     return Y[0], U[0]
+
+
+def simulate_known_loop(plant: SampledPlant, controller, reference, added, *, initial_state=None):
+    """``(y, u)`` of the loop ``u[k] = d[k] + Dc [r[k], y[k]] + Cc xc[k]``, ``xc[k+1] = Ac xc[k] + Bc [r[k], y[k]]``
+    around ``plant`` (no actuator limit), compiled; a map without a compiled form runs it in Python.
+
+    ``controller`` is ``(Ac, Bc, Cc, Dc)`` with ``Bc`` of shape ``(nc, 2)`` and ``Dc`` two numbers (acting on
+    ``[r, y]``), ``initial_state`` its state at the first sample (zeros by default).  A diverging run is cut
+    short as in :func:`simulate_loops`.
+    """
+    Ac, Bc, Cc, Dc = (np.ascontiguousarray(np.asarray(M, dtype=float)) for M in controller)
+    nc = Ac.shape[0]
+    if Ac.shape != (nc, nc) or Bc.shape != (nc, 2) or Cc.shape != (nc,) or Dc.shape != (2,):
+        raise ParameterError(f"the controller's matrices do not fit one another: Ac {Ac.shape}, Bc {Bc.shape} "
+                             f"(nc x 2), Cc {Cc.shape}, Dc {Dc.shape} (2)")
+    r, d = (np.ascontiguousarray(v, dtype=float).reshape(-1) for v in (reference, added))
+    xc0 = np.zeros(nc) if initial_state is None else np.ascontiguousarray(initial_state, dtype=float).reshape(-1)
+    bound = DIVERGENCE_RATIO * max(1.0, float(np.max(np.abs(r))))
+    Y, U = np.empty(r.size), np.empty(r.size)
+    if not plant.compiled:
+        x, xc = plant.x0.copy(), xc0.copy()
+        for k in range(r.size):
+            y = plant.output(x)
+            x, _ = _drive(plant, x, y, d[k] + Dc[0] * r[k] + Dc[1] * y + float(Cc @ xc), -math.inf, math.inf,
+                          bound, k, Y, U)
+            if x is None:
+                break
+            xc = Ac @ xc + Bc @ np.array([r[k], y])
+        return Y, U
+    status = _core.hc_known_loop(*plant.arrays(), Ac, Bc, Cc, Dc, nc, xc0, r, d, r.size, bound, Y, U)
+    if status:
+        raise (MemoryError("no memory for the controller's state") if status == 2 else ParameterError(
+            f"the compiled loop simulator takes plants of order up to {_core.MAX_ORDER} with static blocks that fit "
+            "their families"))
+    return Y, U
 
 
 def discrete_pid_iosys(gains, dt: float, *, bias: float = 0.0, name: str = "pid"):

@@ -597,7 +597,9 @@ class ResidualAnalysis:
             return None
         f = self.findings[0]
         where = "past inputs" if self.closed_loop else "the input"
-        return f"the residuals still depend on {where}: {f.describe()}; {f.advice}"
+        loop = ("" if self.closed_loop else " (if the record was taken in a feedback loop, its input depends on past "
+                "outputs and this open-loop test does not apply: identify(..., closed_loop=True))")
+        return f"the residuals still depend on {where}: {f.describe()}; {f.advice}{loop}"
 
     def colour_verdict(self) -> str | None:
         """Why strongly coloured residuals matter and what may cause them, or ``None`` when they are not."""

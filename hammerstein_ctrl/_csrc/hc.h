@@ -173,6 +173,11 @@ int hc_controller_loop(const double *Ad, const double *Bd, const double *C, cons
                        hc_signed hcode, const double *hp, int64_t hm, const double *hbp, int64_t nhbp,
                        const double *Ac, const double *Bc, const double *Cc, double Dc, int64_t nc, const double *r,
                        int64_t N, double lo, double hi, double bias, double bound, double *Y, double *U);
+int hc_known_loop(const double *Ad, const double *Bd, const double *C, const double *x0, int64_t n, double offset,
+                  hc_signed code, const double *p, int64_t m, const double *bp, int64_t nbp, hc_signed hcode,
+                  const double *hp, int64_t hm, const double *hbp, int64_t nhbp, const double *Ac, const double *Bc,
+                  const double *Cc, const double *Dc, int64_t nc, const double *xc0, const double *r, const double *d,
+                  int64_t N, double bound, double *Y, double *U);
 int hc_delayed_recursion(const double *M, const double *Pa, const double *Pb, const double *Pc, const double *C,
                          double D, int64_t n, const double *x0, const double *w0, const double *w1, int64_t N,
                          double *out);

@@ -195,6 +195,47 @@ int hc_controller_loop(const double *Ad, const double *Bd, const double *C, cons
     return 0;
 }
 
+/* The loop of a record measured under a known sampled controller (hammerstein_ctrl.in_loop.KnownLoop) around the
+ * plant of hc_pid_loops: u[k] = d[k] + Dc [r[k], y[k]] + Cc xc[k], xc[k+1] = Ac xc[k] + Bc [r[k], y[k]] (Bc nc x 2
+ * row-major, Dc two numbers, xc[0] = xc0), no actuator limit.  Y and U (N samples each).  Returns 0; 1 if the plant
+ * or its blocks do not fit; 2 if no memory could be had for the controller's state (nothing written). */
+int hc_known_loop(const double *Ad, const double *Bd, const double *C, const double *x0, int64_t n, double offset,
+                  hc_signed code, const double *p, int64_t m, const double *bp, int64_t nbp, hc_signed hcode,
+                  const double *hp, int64_t hm, const double *hbp, int64_t nhbp, const double *Ac, const double *Bc,
+                  const double *Cc, const double *Dc, int64_t nc, const double *xc0, const double *r, const double *d,
+                  int64_t N, double bound, double *Y, double *U)
+{
+    Plant P = plant_of(Ad, Bd, C, x0, n, offset, code, p, m, bp, nbp, hcode, hp, hm, hbp, nhbp);
+    if (n < 0 || n > MAX_N || !P.g.fits() || !P.h.fits())
+        return 1;
+    double x[MAX_N];
+    double *xc = (double *)std::malloc((size_t)(2 * nc + 1) * sizeof(double)), *xcn = xc + nc;
+    if (xc == nullptr)
+        return 2;
+    std::memcpy(x, x0, (size_t)n * sizeof(double));
+    if (nc > 0)
+        std::memcpy(xc, xc0, (size_t)nc * sizeof(double));
+    for (int64_t k = 0; k < N; k++) {
+        double y = P.output(x);
+        double uc = d[k] + Dc[0] * r[k] + Dc[1] * y;
+        for (int64_t i = 0; i < nc; i++)
+            uc += Cc[i] * xc[i];
+        double u;
+        if (!P.drive(x, y, uc, -INFINITY, INFINITY, bound, k, Y, U, N, &u))
+            break;
+        for (int64_t i = 0; i < nc; i++) {
+            double s = Bc[2 * i] * r[k] + Bc[2 * i + 1] * y;
+            for (int64_t j = 0; j < nc; j++)
+                s += Ac[i * nc + j] * xc[j];
+            xcn[i] = s;
+        }
+        if (nc > 0)
+            std::memcpy(xc, xcn, (size_t)nc * sizeof(double));
+    }
+    std::free(xc);
+    return 0;
+}
+
 /* The exact recursion of a linear block with an input dead time (hammerstein_ctrl.delay): from x0 (n states),
  * out[k] = D w0[k] + C x[k] and x[k+1] = (Pa w0[k] + Pb w1[k] + Pc w0[k+1]) + M x[k] over N samples.  Returns 0, or
  * 1 if no memory could be had for the state (nothing written). */
