@@ -433,7 +433,7 @@ def auto_mimo(cost, x0=None, *, maxfev: int | None = None, seed=None, allow_unst
     restarts around the best while it is unacceptable (unstable or no better
     than constants).  Parameters and return value as :func:`auto_minimize`.
     """
-    from .mimo_fit import completed, mimo_starts, stabilized
+    from .mimo_fit import completed, mimo_starts, spread_weighted, stabilized
 
     started = time.perf_counter()
     s = cost.structure
@@ -458,9 +458,12 @@ def auto_mimo(cost, x0=None, *, maxfev: int | None = None, seed=None, allow_unst
         restarts.append(stabilized(s, _perturbed(anchor, rng)))
         return restarts[-1]
 
-    best, runs = _search(cost, starts, next_restart, budget, merged, allow_unstable, callback)
+    search = spread_weighted(cost)          # outputs in units far apart (mm beside m) searched scale-free
+    best, runs = _search(search, starts, next_restart, budget, merged, allow_unstable, callback)
     if best is None:
         return _unrefined(cost, starts, len(starts), budget, merged, started)
+    if search is not cost:
+        best.fun = float(cost(best.x))
     return _weighted_result(cost, best, budget, runs, len(starts), merged, allow_unstable, started)
 
 

@@ -277,6 +277,10 @@ class _Rows:
         drives = np.concatenate(drives).T
         self.dens = [_arx_denominator(self.Y[:, i], drives, n, data.dt, structure.offset)
                      for i in range(structure.n_outputs)]
+        #: Each output's unit in the start's comparisons: its spread when the spreads differ by more than
+        #: :data:`SPREAD_RATIO` (mm beside m then changes nothing), else 1.
+        spread = np.array([float(np.std(self.Y[:, i])) or 1.0 for i in range(structure.n_outputs)])
+        self.scales = spread if spread.max() > SPREAD_RATIO * spread.min() else np.ones_like(spread)
 
     def columns(self, i: int, signals: list) -> np.ndarray:
         """Regressors of row ``i``: for each input, its signals' responses through every numerator power."""
@@ -293,7 +297,7 @@ class _Rows:
             if w is None:
                 return None, np.inf
             out.append(w)
-            total += sse
+            total += sse / self.scales[i] ** 2
         return out, total
 
 
@@ -334,11 +338,12 @@ def _split_columns(rows: _Rows, coefficients: list, signals: list, structure: MI
     sizes = [sig.shape[0] for sig in signals]
     for j in range(m):
         start = sum(sizes[:j]) * (nb + 1)
-        M = np.stack([c[start:start + sizes[j] * (nb + 1)].reshape(sizes[j], nb + 1).T for c in coefficients])
+        M = np.stack([c[start:start + sizes[j] * (nb + 1)].reshape(sizes[j], nb + 1).T / rows.scales[i]
+                      for i, c in enumerate(coefficients)])                      # each output in its own units
         # M[i, l, k]: row i, numerator power l, basis function k; rank one: b_il w_k
         flat = M.reshape(p * (nb + 1), sizes[j])
         U_, S_, Vt = np.linalg.svd(flat, full_matrices=False)
-        b, w = (U_[:, 0] * S_[0]).reshape(p, nb + 1), Vt[0]
+        b, w = (U_[:, 0] * S_[0]).reshape(p, nb + 1) * rows.scales[:, None], Vt[0]
         num[:, j, :] = b[:, ::-1]                     # descending powers
         weights.append(w)
     if structure.offset:
@@ -351,11 +356,12 @@ def _split_columns(rows: _Rows, coefficients: list, signals: list, structure: MI
 MIN_REFERENCE_SHARE = 0.02
 
 
-def _reference_lead(block: np.ndarray, what: str) -> float:
+def _reference_lead(block: np.ndarray, what: str, scales=None) -> float:
     """The leading coefficient of the reference element ``block[0]`` (numerators, descending powers), checked
-    against the others of ``block``."""
+    against the others of ``block``, each row in units of its output's spread ``scales``."""
     lead = float(block[0, 0])
-    largest = float(np.abs(block[:, 0]).max())
+    relative = np.abs(block[:, 0]) / (1.0 if scales is None else np.asarray(scales, dtype=float))
+    largest = float(relative.max()) * (1.0 if scales is None else float(scales[0]))
     if not np.isfinite(lead) or abs(lead) < MIN_REFERENCE_SHARE * largest:
         share = 0.0 if not largest else abs(lead) / largest
         raise ParameterError(f"{what} ({100 * share:.1f} % of the largest in the linear start): the gain convention "
@@ -364,11 +370,11 @@ def _reference_lead(block: np.ndarray, what: str) -> float:
     return lead
 
 
-def _normalized_inputs(structure, num, weights, shapes):
+def _normalized_inputs(structure, num, weights, shapes, scales=None):
     """Input nonlinearities' parameters with ``B_0j`` monic (its leading coefficient moved into ``g_j``)."""
     params = []
     for j in range(structure.n_inputs):
-        lead = _reference_lead(num[:, j], f"input {j} hardly acts on output 0")
+        lead = _reference_lead(num[:, j], f"input {j} hardly acts on output 0", scales)
         num[:, j] /= lead
         nl = structure.input_nonlinearities[j]
         if shapes[j] is None:
@@ -464,7 +470,7 @@ def mimo_starts(data: IOData, structure: MIMOStructure) -> list[np.ndarray]:
     num, weights, offsets = _split_columns(rows, coefficients, signals, s)
     g_params = None
     if s.input_nonlinearities is not None:
-        g_params = _normalized_inputs(s, num, weights, shapes)
+        g_params = _normalized_inputs(s, num, weights, shapes, rows.scales)
     h_params = None
     if s.output_nonlinearities is not None:
         if g_params is not None:
@@ -569,6 +575,20 @@ def _assemble(s: MIMOStructure, num, dens, g_params, h_params, offsets) -> np.nd
 
 #: Ratio of the outputs' residual standard deviations past which ``auto`` weighs them.
 WEIGHTING_RATIO = 1.5
+#: Ratio of the outputs' spreads past which ``auto`` searches with each output in units of its spread.
+SPREAD_RATIO = 10.0
+
+
+def spread_weighted(cost: MIMOCost) -> MIMOCost:
+    """``cost`` with each output weighted by the inverse of its spread when the spreads differ by more than
+    :data:`SPREAD_RATIO` (outputs in units far apart), else ``cost`` itself (as it is when already weighted)."""
+    if cost.weights is not None:
+        return cost
+    spread = np.array([float(np.std(y)) for y in np.asarray(cost.data.outputs, dtype=float).T])
+    if not (np.all(np.isfinite(spread)) and np.all(spread > 0)) or spread.max() <= SPREAD_RATIO * spread.min():
+        return cost
+    w = 1.0 / spread
+    return cost.weighted(w / np.exp(np.mean(np.log(w))))
 
 
 def noise_weights(cost: MIMOCost, x) -> np.ndarray | None:

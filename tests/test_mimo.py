@@ -642,3 +642,16 @@ def test_channels_matched_by_position_say_so():
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         model.simulate(hc.IOData(U, np.zeros(200), dt=0.05))
+
+
+@pytest.mark.parametrize("scale", [1e-3, 1e3])
+def test_an_output_in_other_units_fits_as_well(scale):
+    """One output in mm (or km) beside one in m: the start and the search compare outputs in their own units, so
+    the fit is the same as with both in m (each output's fit % to 0.01)."""
+    data, s, _ = record("hammerstein", 0)
+    base = hc.identify(data, s, seed=0)
+    scaled = hc.IOData(data.inputs, data.outputs * np.array([1.0, scale]), dt=data.dt)
+    res = hc.identify(scaled, s, seed=0)
+    assert base.success and res.success, res.message
+    for name in base.output_fits:
+        assert res.output_fits[name] == pytest.approx(base.output_fits[name], abs=0.01)
