@@ -60,7 +60,7 @@ from .lure import LureStructure
 from .lure_fit import LureCost
 from .metrics import channel_report, fit_report
 from .mimo import MIMOStructure
-from .mimo_fit import MIMOCost
+from .mimo_fit import MIMOCost, monic_drift_verdicts
 from .nested import significance_verdicts
 from .objective import HammersteinCost
 from .result import IdentificationResult
@@ -501,7 +501,7 @@ def _message(res, key: str, verdicts, checks: _Checks) -> str:
     """The result's message: the failures (with what to do), or the optimiser's own words."""
     message = str(res.message)
     failures = [v.message for v in verdicts if v.severity == FAILURE]
-    if _out_of_budget(res, key):
+    if _out_of_budget(res, key) and not any(v.code == "monic-drift" for v in verdicts):   # more would not help it
         improvement = late_improvement(res.history)
         if improvement > STILL_IMPROVING:       # the budget first: what the fit shows so far may still change
             failures.insert(0, budget_advice(verdicts, checks.maxfev, improvement))
@@ -625,7 +625,8 @@ def _mimo_result(cost, res, key, x0, started, checks: _Checks) -> Identification
     report, fits = _mimo_report(data, Y)
     model = s.model(x, intersample=data.intersample, input_names=data.input_names,
                     output_names=data.output_names) if finite else None
-    verdicts = _mimo_basic_verdicts(cost, res, key, x0, fits, Y)
+    verdicts = _mimo_basic_verdicts(cost, res, key, x0, fits, Y) + (monic_drift_verdicts(s, x, data) if finite
+                                                                   else [])
     unc = analysis = None
     if model is not None and np.all(np.isfinite(Y)):
         weights = getattr(res, "output_weights", None)

@@ -636,3 +636,36 @@ def stabilized(structure: MIMOStructure, beta) -> np.ndarray:
             pos, idx = structure.row_denominator(i)
             x[idx] = np.real(np.poly(r))[pos]
     return x
+
+
+#: A monic reference numerator's zero past this many times its row's fastest pole: the element seems to have a
+#: lower degree than ``num_order``, and its gain drifts into the static block.
+ZERO_DRIFT_RATIO = 100.0
+
+
+def monic_drift_verdicts(structure: MIMOStructure, x, data) -> list:
+    """A failure for each monic reference element whose zero ran off past :data:`ZERO_DRIFT_RATIO` times its row's
+    fastest pole (``p + b0`` with ``|b0|`` huge: the element has a lower degree, the gain convention cannot hold)."""
+    from .diagnostics import FAILURE, Verdict
+
+    if structure.linear.num_order < 1:
+        return []
+    num, den = structure.coefficients(np.asarray(x, dtype=float))
+    out = []
+    for i in range(structure.n_outputs):
+        with np.errstate(all="ignore"):
+            fastest = float(np.max(np.abs(np.roots(den[0][i])), initial=0.0))
+        for j in range(structure.n_inputs):
+            if not structure._monic(i, j):
+                continue
+            zeros = np.roots(num[0][i][j])
+            far = float(np.max(np.abs(zeros), initial=0.0))
+            if fastest > 0 and far > ZERO_DRIFT_RATIO * fastest:
+                out.append(Verdict("monic-drift", FAILURE, (
+                    f"the monic numerator from {data.input_names[j]!r} to {data.output_names[i]!r} has a zero at "
+                    f"{far:.4g} rad/s, {far / fastest:.0f} times beyond its output's fastest pole: that element seems "
+                    f"to have a lower degree than num_order = {structure.linear.num_order}, so the gain convention "
+                    f"(its leading coefficient 1) pushes its gain into the static block and the search drifts; "
+                    f"lower num_order, or reorder the channels so that a reference element has the full degree")))
+    return out
+

@@ -655,3 +655,27 @@ def test_an_output_in_other_units_fits_as_well(scale):
     assert base.success and res.success, res.message
     for name in base.output_fits:
         assert res.output_fits[name] == pytest.approx(base.output_fits[name], abs=0.01)
+
+
+def _staircase(rng, n):
+    lengths = rng.integers(5, 40, size=n)
+    return np.repeat(rng.uniform(-2.0, 2.0, size=n), lengths)[:n]
+
+
+def test_a_reference_numerator_of_too_high_a_degree_is_named_not_blamed_on_the_budget():
+    """Row 0 from input 0 is 1/(p^2 + 1.2 p + 2): with num_order 1 its monic numerator p + b0 can only mimic a
+    constant by b0 -> infinity, the gain draining into g_0.  The failure says so and does not ask for maxfev."""
+    rng = np.random.default_rng(5)
+    t = np.arange(3000) * 0.05
+    u = np.column_stack([_staircase(rng, 3000), _staircase(rng, 3000)])
+    v = np.column_stack([2.0 * np.tanh(1.5 * u[:, 0]), 0.8 * np.tanh(0.7 * u[:, 1])])
+    G = [[ct.tf([1.0], [1.0, 1.2, 2.0]), ct.tf([0.5], [1.0, 1.2, 2.0])],
+         [ct.tf([0.8], [1.0, 1.5]), ct.tf([1.2], [1.0, 1.5])]]
+    y = np.column_stack([sum(ct.forced_response(G[i][j], t, v[:, j]).outputs for j in range(2)) for i in range(2)])
+    data = hc.IOData(u, y + 0.01 * rng.standard_normal(y.shape), dt=0.05)
+    s = MIMOHammersteinStructure(hc.LinearStructure(1, 2), [hc.Tanh(), hc.Tanh()], n_outputs=2)
+    res = _identify(data, s)
+    assert not res.success and res.message.startswith("the monic numerator from 'u[0]' to 'y[0]' has a zero at")
+    assert "lower num_order" in res.message and "maxfev" not in res.message.split("[")[0]
+    ok = _identify(data, MIMOHammersteinStructure(hc.LinearStructure(0, 2), [hc.Tanh(), hc.Tanh()], n_outputs=2))
+    assert not any(v.code == "monic-drift" for v in ok.verdicts)
