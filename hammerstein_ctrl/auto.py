@@ -44,6 +44,9 @@ from .simulate import unstable
 __all__ = ["auto_minimize", "auto_records", "auto_delayed", "auto_mimo", "auto_lure", "auto_known_loop",
            "RESTART_SPREAD", "MAX_RESTARTS"]
 
+#: A budget that never runs out, for work charged to the real budget as a whole afterwards.
+UNCOUNTED = 1 << 62
+
 #: Relative size of the random perturbations of a restart.
 RESTART_SPREAD = 0.3
 #: Smallest parameter scale of a perturbation (for parameters at zero).
@@ -320,8 +323,10 @@ def auto_records(cost, x0=None, *, maxfev: int | None = None, seed=None, allow_u
     if not np.all(np.isfinite(first.x)) or budget.remaining < MIN_REFINE_BUDGET:
         return first            # nothing to share: its message says why
     core = first.x[:rs.n_core]
-    betas = [first.x if k == longest else _nuisance(rec, rs.base, core, budget)
+    side = Budget(UNCOUNTED)        # each record's regression simulates that record alone: together, about one
+    betas = [first.x if k == longest else _nuisance(rec, rs.base, core, side)   # evaluation of all per column
              for k, rec in enumerate(cost.records)]
+    budget.charge(min(int(budget.remaining), rs.base.n_params - rs.n_core + 1))
     merged = _Merged()
     merged.add(first.history, 0)
     joint = _refine(cost, rs.glue(betas), budget, int(budget.remaining), merged)   # never worse than its start

@@ -280,6 +280,11 @@ class RecordsCost:
         """A signal over all records (such as :meth:`residuals`) cut into one piece per record."""
         return [signal[a:b] for a, b in zip(self._bounds[:-1], self._bounds[1:])]
 
+    def pass_evaluations(self) -> int:
+        """Evaluations (simulations of every record) one :meth:`normal_equations` pass costs: a record's pass
+        differences only the shared blocks and its own nuisances, so the pass costs one record's ``p + 1``."""
+        return self.structure.base.n_params + 1
+
     def normal_equations(self, beta, steps=None) -> NormalEquations:
         """``r @ r``, ``J.T @ r`` and ``J.T @ J`` over all records, from each record's compiled pass.
 

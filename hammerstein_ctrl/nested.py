@@ -46,6 +46,7 @@ from .experiments import RecordsCost
 from .initialize import affine_coefficients
 from .lure_fit import LureCost
 from .nonlinearities import Polynomial
+from .optimize import BudgetExhausted
 from .objective import HammersteinCost
 from .significance import NestedTest, nested_f_test
 from .structure import HammersteinStructure, LinearStructure
@@ -115,7 +116,10 @@ def _linear_fit(cost, seed):
     run = (auto_records if isinstance(ncost, RecordsCost) else auto_delayed if isinstance(ncost, DelayedCost)
            else auto_minimize)
     with np.errstate(all="ignore"):
-        res = run(ncost, seed=seed, maxfev=NESTED_MAXFEV)
+        try:
+            res = run(ncost, seed=seed, maxfev=NESTED_MAXFEV)
+        except BudgetExhausted:          # a start that needs more than the whole budget: no linear test
+            return None
         if not np.all(np.isfinite(res.x)):
             return None
         r = ncost.residuals(res.x)

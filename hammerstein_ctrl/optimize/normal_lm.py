@@ -88,6 +88,7 @@ class _Passes:
     def __init__(self, fun, counted):
         self.counted = counted
         self.steps = 0                  # steps tried by the solver (its iterations)
+        self._fun = fun
         self._normal = getattr(fun, "normal_equations", None)
         self._factor = getattr(fun, "normal_factor", None)
         self.factored = False           # True: passes give the Jacobian's QR factor (normal_factor)
@@ -99,6 +100,13 @@ class _Passes:
         self.direct = None if direct_pass is None else direct_pass()    # the compiled loop's pass, or None
         if self.direct is not None and not compiled_loop_wanted():
             self.direct = None
+
+    def _pass_cost(self, n: int) -> int:
+        """Evaluations a pass of ``n`` differences costs: ``n + 1``, or what the objective says one costs when its
+        differences each touch part of the data (several records: a record's pass involves the shared blocks and
+        its own nuisances only, so a pass over all of them costs as many evaluations as one record's)."""
+        own = getattr(self._fun, "pass_evaluations", None)
+        return int(own()) if own is not None else n + 1
 
     def value(self, x) -> float:
         """Sum of squares at ``x`` alone (one evaluation)."""
@@ -117,12 +125,13 @@ class _Passes:
         """Normal equations at ``x`` (``p + 1`` evaluations); a partial budget is spent on ``x`` and the neighbours that
         fit."""
         h = forward_steps(x)
-        if self.counted.remaining < h.size + 1:
+        cost = self._pass_cost(h.size)
+        if self.counted.remaining < cost:
             # spend what is left on the point and the neighbours that fit, as separate differences would
             for row in neighbours(x, h)[:int(self.counted.remaining)]:
                 self.value(row)
             raise BudgetExhausted("evaluation budget exhausted")
-        self.counted.charge(h.size + 1)
+        self.counted.charge(cost)
         if self.factored:
             ne = self._factor(x, h)
         elif self._normal is not None:
