@@ -34,12 +34,13 @@ from . import config
 from ._linalg import single_threaded_blas
 from ._checks import as_count
 from .exceptions import ParameterError
-from .initialize import Budget, check_automatic, initial_points, nuisance_estimate, stabilize
+from .initialize import Budget, check_automatic, initial_points, nuisance_estimate, points_for, stabilize
 from .lure_fit import hammerstein_start, hammerstein_structure_of
 from .objective import HammersteinCost
 from .optimize import (BUDGET_EXHAUSTED, COMPLETED, SOLVER_FAILED, History, OptimizeResult, as_rng, as_x0,
                        levenberg_marquardt)
 from .simulate import unstable
+from .structure import LinearStructure
 
 __all__ = ["auto_minimize", "auto_records", "auto_delayed", "auto_mimo", "auto_lure", "auto_known_loop",
            "RESTART_SPREAD", "MAX_RESTARTS"]
@@ -244,10 +245,109 @@ def auto_minimize(cost, x0=None, *, maxfev: int | None = None, seed=None, allow_
             restarts.append(_restart_points(anchor, rng, cost.structure.linear))
         return next(restarts[0], None)
 
-    best, runs = _search(cost, starts, next_restart, budget, merged, allow_unstable, callback)
+    reserve = int(RESCUE_SHARE * budget.remaining) if _may_drift(cost.structure) else 0
+    search = Budget(max(1, int(budget.remaining) - reserve))
+    best, runs = _search(cost, starts, next_restart, search, merged, allow_unstable, callback)
+    budget.charge(search.nfev)
     if best is None:
         return _unrefined(cost, starts, found, budget, merged, started)
+    if drifted(cost.structure, best.x) and budget.remaining >= 2 * MIN_REFINE_BUDGET:
+        best, more = _rescue(cost, best, budget, merged, allow_unstable, rng)
+        runs += more
+    elif reserve and best.status == BUDGET_EXHAUSTED and budget.remaining >= MIN_REFINE_BUDGET:
+        best = _refine(cost, best.x, budget, int(budget.remaining), merged)     # the reserve, not needed for a
+        runs += 1                                                               # rescue, continues the search
     return _result(cost, best, budget, runs, len(starts), merged, allow_unstable, started)
+
+
+#: Share of ``auto``'s budget kept back from the search of a block with a monic numerator of degree >= 1, for a
+#: rescue should the search drift (:func:`drifted`); otherwise it continues the best refinement.
+RESCUE_SHARE = 0.25
+
+
+def _may_drift(structure) -> bool:
+    """Whether the search can slide along the gain convention's degenerate direction (a zero running off)."""
+    lin = structure.linear
+    return bool(lin.num_order >= 1 and lin.monic_numerator and structure.linear_counterpart() is not None)
+
+
+#: A pole or zero of the fitted linear block past this many times the median of its poles' sizes has run off:
+#: the search slid toward a lower-order block (the gain convention's degenerate direction).
+DRIFT_RATIO = 100.0
+
+
+def drifted(structure, x) -> bool:
+    """Whether the linear block of ``x`` has a pole or zero past :data:`DRIFT_RATIO` times its poles' median size.
+
+    >>> from hammerstein_ctrl import HammersteinStructure, LinearStructure, Tanh
+    >>> s = HammersteinStructure(LinearStructure(1, 2), Tanh())
+    >>> drifted(s, [2.0, 3.0, 1.5, 2.0, 0.8]), drifted(s, [-8e4, 3.0, 1.5, 2.0, 0.8])
+    (False, True)
+    """
+    lin = structure.linear
+    x = np.asarray(x, dtype=float)
+    if not np.all(np.isfinite(x)):
+        return False
+    num, den = lin.coefficients(x[:lin.n_params])
+    with np.errstate(all="ignore"):
+        poles = np.abs(np.roots(den[0]))
+        roots = np.concatenate([poles, np.abs(np.roots(np.trim_zeros(num[0], "f")))])
+    size = float(np.median(poles[poles > 0])) if np.any(poles > 0) else 0.0
+    return bool(size > 0 and np.max(roots, initial=0.0) > DRIFT_RATIO * size)
+
+
+def _rescue(cost, best, budget: Budget, merged: _Merged, allow_unstable: bool, rng):
+    """``(best, refinements run)`` after refinements from linear blocks that did not drift, tried in turn until
+    one does not drift: the block with one numerator degree less (fitted with the same static blocks) with a zero
+    put back at its fastest pole, then the linear model of the same order; the static blocks fitted to each
+    (:func:`~hammerstein_ctrl.initialize.points_for`).  Never worse than ``best``."""
+    s, data = cost.structure, cost.data
+    key, runs = (_acceptable(cost, best.x, best.fun, allow_unstable), -best.fun), 0
+    for sub in _rescue_structures(s):
+        share = int(budget.remaining // 2)
+        if share < MIN_REFINE_BUDGET:
+            break
+        fit = auto_minimize(HammersteinCost(data, sub), maxfev=share, seed=rng, allow_unstable=True)
+        budget.charge(min(int(fit.nfev), int(budget.remaining)))
+        if not np.all(np.isfinite(fit.x)):
+            continue
+        points = points_for(data, s, _rescue_thetas(s.linear, sub.linear, fit.x[:sub.linear.n_params]), budget)
+        for x in points:
+            if budget.remaining < MIN_REFINE_BUDGET:
+                break
+            x = x.copy()
+            x[:s.linear.n_params] = stabilize(s.linear, x[:s.linear.n_params])
+            res = _refine(cost, x, budget, int(budget.remaining // len(points)), merged)
+            runs += 1
+            new = (_acceptable(cost, res.x, res.fun, allow_unstable), -res.fun)
+            if new > key:
+                best, key = res, new
+        if not drifted(s, best.x):
+            break
+    return best, runs
+
+
+def _rescue_structures(s) -> list:
+    """For a monic numerator of degree >= 1, ``s`` with one degree less; then the linear counterpart of ``s``."""
+    out = []
+    lin = s.linear
+    if lin.num_order >= 1 and lin.monic_numerator and set(lin.fixed) <= {f"b{lin.num_order}"} and not lin.delay:
+        out.append(s.with_linear(LinearStructure(lin.num_order - 1, lin.den_order)))
+    return out + ([] if s.linear_counterpart() is None else [s.linear_counterpart()])
+
+
+def _rescue_thetas(linear, sub, theta) -> list:
+    """``linear``'s parameters for the block ``sub(theta)``: the same (same orders) or with a zero at its fastest
+    pole put back (one numerator degree less)."""
+    if sub.num_order == linear.num_order:
+        return [np.asarray(theta, dtype=float)]
+    num, den = sub.coefficients(theta)
+    with np.errstate(all="ignore"):
+        fastest = float(np.max(np.abs(np.roots(den[0])), initial=0.0))
+    if not (np.isfinite(fastest) and fastest > 0):
+        return []
+    full = np.polymul(num[0], [1.0, fastest])          # monic numerator of one degree more
+    return [np.concatenate([full[::-1][:-1], den[0][::-1][:-1]])]
 
 
 def _unrefined(cost, starts, found, budget, merged, started):

@@ -457,8 +457,28 @@ def _trust_verdicts(cost, x, r, model, checks: _Checks):
     if analysis.findings:
         verdicts.append(Verdict("inadequate", WARNING, analysis.verdict()))
     if analysis.coloured:
-        verdicts.append(Verdict("coloured", WARNING, analysis.colour_verdict()))
+        verdicts.append(_poor_fit(r, data.y, analysis) or Verdict("coloured", WARNING, analysis.colour_verdict()))
     return verdicts, unc, analysis
+
+
+#: A fit below this fit % whose residuals are more than :data:`POOR_FIT_RATIO` times their unpredictable part
+#: misses most of an output it could have followed: it fails.
+POOR_FIT_PERCENT = 25.0
+POOR_FIT_RATIO = 100.0
+
+
+def _poor_fit(r, y, analysis) -> Verdict | None:
+    """A failure for a fit that explains little (:data:`POOR_FIT_PERCENT`) of an output whose misfit is
+    predictable (:data:`POOR_FIT_RATIO`): a poor optimum or a wrong structure, not noise."""
+    y = np.asarray(y, dtype=float).reshape(-1)
+    spread = float(np.linalg.norm(y - y.mean()))
+    fit = 100.0 * (1.0 - float(np.linalg.norm(r)) / spread) if spread > 0 else 0.0
+    if fit >= POOR_FIT_PERCENT or analysis.predictability <= POOR_FIT_RATIO:
+        return None
+    return Verdict("poor-fit", FAILURE, (
+        f"the model misses most of the output (fit {fit:.1f} %) and what it misses is predictable (the residuals' "
+        f"power is {analysis.predictability:.3g} times their unpredictable part): a poor local optimum or a wrong "
+        f"structure, not noise; try another seed or start, another family, or another structure"))
 
 
 #: Codes of the failures of a fit that a simpler model matches: more evaluations would not help.

@@ -55,7 +55,7 @@ from .streamed_lstsq import (constant_column, factor_of_blocks, factor_of_column
                              held_whole, independent, orthogonal_part, residual, residual_of_columns,
                              solve_minimum_norm, solve_scaled, triangular_factor)
 
-__all__ = ["check_automatic", "initial_points", "stabilize", "continuous_poles", "nuisance_estimate",
+__all__ = ["check_automatic", "initial_points", "points_for", "stabilize", "continuous_poles", "nuisance_estimate",
            "estimate_initial_state",
            "static_affine_sse", "static_affine_sse_columns", "affine_coefficients",
            "Budget", "POLE_PATTERNS"]
@@ -798,6 +798,27 @@ def initial_points(data, structure, budget: Budget, *, count: int = REFINED_CAND
                 points.append(_assemble(structure, theta, *fitted))
     except BudgetExhausted:
         pass  # the points completed so far
+    budget.charge(own.nfev)
+    return points
+
+
+def points_for(data, structure, thetas, budget: Budget) -> list[np.ndarray]:
+    """Starting betas with the linear block at each of ``thetas`` (its parameters) and the static blocks (and
+    nuisances) fitted to it, as :func:`initial_points` completes its own candidates; those that fail are left
+    out, and so is what the budget cannot pay for."""
+    u = np.asarray(data.u, dtype=float)
+    check_automatic(structure, u)
+    own = Budget(int(budget.remaining) if np.isfinite(budget.remaining) else None)
+    reg = _Regression(structure, data, own, affine_output=structure.output_nonlinearity is not None)
+    reg.constant = structure.offset
+    points = []
+    try:
+        for theta in thetas:
+            fitted = _static_blocks(reg, np.asarray(theta, dtype=float), u)
+            if fitted is not None:
+                points.append(_assemble(structure, np.asarray(theta, dtype=float), *fitted))
+    except BudgetExhausted:
+        pass
     budget.charge(own.nfev)
     return points
 

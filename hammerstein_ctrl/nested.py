@@ -66,10 +66,6 @@ SYSTEMATIC_GAIN = 0.01
 NESTED_MAXFEV = 800
 
 
-def _is_gain(nl) -> bool:
-    return isinstance(nl, Polynomial) and nl.n_params == 1
-
-
 def nested_linear_structure(structure):
     """The linear model of the same order nested in ``structure`` (``None`` when it is linear itself).
 
@@ -80,11 +76,9 @@ def nested_linear_structure(structure):
     ('b0', 'a0', 'a1', 'd1', 'y0')
     """
     base = getattr(structure, "base", structure)          # a joint fit of several records: its blocks
-    linear = base.linear
-    if getattr(base, "kind", "") == "lure":               # not nested exactly: the loop's linear closure
-        linear = LinearStructure(linear.num_order, linear.den_order, delay=linear.delay)
-    elif base.output_nonlinearity is None and (base.input_nonlinearity is None or _is_gain(base.input_nonlinearity)):
-        return None
+    if getattr(base, "kind", "") != "lure":
+        return base.linear_counterpart()
+    linear = LinearStructure(base.linear.num_order, base.linear.den_order, delay=base.linear.delay)
     return HammersteinStructure(linear, Polynomial(1), offset=base.offset, initial_state=base.initial_state)
 
 

@@ -407,6 +407,28 @@ class BlockStructure:
         return type(self)(self.linear.with_delay(delay), *self._block_args()[1:], offset=self.offset,
                           initial_state=self.initial_state)
 
+    def with_linear(self, linear: "LinearStructure"):
+        """The same static blocks and options around another linear block."""
+        return type(self)(linear, *self._block_args()[1:], offset=self.offset, initial_state=self.initial_state)
+
+    def linear_counterpart(self):
+        """The linear model of the same order: the static blocks replaced by a gain (``Polynomial(1)`` on the
+        input), same offset, initial state and dead time; ``None`` for a structure that is linear already.
+
+        Examples
+        --------
+        >>> from hammerstein_ctrl import LinearStructure, WienerStructure, Tanh
+        >>> WienerStructure(LinearStructure(1, 2), Tanh(), offset=True).linear_counterpart().param_names
+        ('b0', 'a0', 'a1', 'd1', 'y0')
+        """
+        from .nonlinearities import Polynomial
+
+        g, h = self.input_nonlinearity, self.output_nonlinearity
+        if h is None and (g is None or (isinstance(g, Polynomial) and g.n_params == 1)):
+            return None
+        return HammersteinStructure(self.linear, Polynomial(1), offset=self.offset,
+                                    initial_state=self.initial_state)
+
     # -- beta <-> blocks ----------------------------------------------------
     def check_beta(self, beta) -> np.ndarray:
         """Return beta as a float array of shape ``(n,)`` or ``(B, n)``.
