@@ -328,12 +328,15 @@ def _rescue(cost, best, budget: Budget, merged: _Merged, allow_unstable: bool, r
 
 
 def _rescue_structures(s) -> list:
-    """For a monic numerator of degree >= 1, ``s`` with one degree less; then the linear counterpart of ``s``."""
-    out = []
+    """The linear counterpart of ``s`` and, for a monic numerator of degree >= 1, ``s`` with one degree less: the
+    linear counterpart first without an output map (the best linear approximation of a Hammerstein plant has its
+    linear block's dynamics), last with one (an output map bends them)."""
     lin = s.linear
+    lower = []
     if lin.num_order >= 1 and lin.monic_numerator and set(lin.fixed) <= {f"b{lin.num_order}"} and not lin.delay:
-        out.append(s.with_linear(LinearStructure(lin.num_order - 1, lin.den_order)))
-    return out + ([] if s.linear_counterpart() is None else [s.linear_counterpart()])
+        lower.append(s.with_linear(LinearStructure(lin.num_order - 1, lin.den_order)))
+    linear = [] if s.linear_counterpart() is None else [s.linear_counterpart()]
+    return linear + lower if s.output_nonlinearity is None else lower + linear
 
 
 def _rescue_thetas(linear, sub, theta) -> list:
