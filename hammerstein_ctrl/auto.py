@@ -245,19 +245,38 @@ def auto_minimize(cost, x0=None, *, maxfev: int | None = None, seed=None, allow_
             restarts.append(_restart_points(anchor, rng, cost.structure.linear))
         return next(restarts[0], None)
 
-    reserve = int(RESCUE_SHARE * budget.remaining) if _may_drift(cost.structure) else 0
-    search = Budget(max(1, int(budget.remaining) - reserve))
-    best, runs = _search(cost, starts, next_restart, search, merged, allow_unstable, callback)
-    budget.charge(search.nfev)
+    reserve = int(RESCUE_SHARE * budget.remaining) if found and _may_drift(cost.structure) else 0
+    search = Budget(int(budget.nfev) + max(1, int(budget.remaining) - reserve))   # the same count, less the reserve
+    search.charge(budget.nfev)
+    stopped = []
+
+    def watched(res):                   # the user's callback, and whether it stopped the search
+        if callback is not None and callback(res):
+            stopped.append(True)
+            return True
+        return False
+
+    best, runs = _search(cost, starts, next_restart, search, merged, allow_unstable, watched)
+    budget.charge(search.nfev - budget.nfev)
     if best is None:
         return _unrefined(cost, starts, found, budget, merged, started)
-    if drifted(cost.structure, best.x) and budget.remaining >= 2 * MIN_REFINE_BUDGET:
-        best, more = _rescue(cost, best, budget, merged, allow_unstable, rng)
+    if reserve and not stopped:
+        best, more = _spend_reserve(cost, best, budget, merged, allow_unstable, rng)
         runs += more
-    elif reserve and best.status == BUDGET_EXHAUSTED and budget.remaining >= MIN_REFINE_BUDGET:
-        best = _refine(cost, best.x, budget, int(budget.remaining), merged)     # the reserve, not needed for a
-        runs += 1                                                               # rescue, continues the search
     return _result(cost, best, budget, runs, len(starts), merged, allow_unstable, started)
+
+
+def _spend_reserve(cost, best, budget: Budget, merged: _Merged, allow_unstable: bool, rng):
+    """``(best, refinements run)``: the rescue of a drifted search, else the best refinement continued where the
+    search's budget ended it."""
+    if drifted(cost.structure, best.x) and budget.remaining >= 2 * MIN_REFINE_BUDGET:
+        try:
+            return _rescue(cost, best, budget, merged, allow_unstable, rng)
+        except ParameterError:          # a structure the rescue cannot start (no automatic start for its maps)
+            return best, 0
+    if best.status == BUDGET_EXHAUSTED and budget.remaining >= MIN_REFINE_BUDGET:
+        return _refine(cost, best.x, budget, int(budget.remaining), merged), 1
+    return best, 0
 
 
 #: Share of ``auto``'s budget kept back from the search of a block with a monic numerator of degree >= 1, for a
@@ -430,6 +449,8 @@ def auto_records(cost, x0=None, *, maxfev: int | None = None, seed=None, allow_u
     betas = [first.x if k == longest else _nuisance(rec, rs.base, core, side)   # evaluation of all per column
              for k, rec in enumerate(cost.records)]
     budget.charge(min(int(budget.remaining), rs.base.n_params - rs.n_core + 1))
+    if budget.remaining < MIN_REFINE_BUDGET:
+        return first            # no budget left to refine jointly: the longest record's fit, as its message says
     merged = _Merged()
     merged.add(first.history, 0)
     joint = _refine(cost, rs.glue(betas), budget, int(budget.remaining), merged)   # never worse than its start
@@ -541,7 +562,7 @@ def auto_mimo(cost, x0=None, *, maxfev: int | None = None, seed=None, allow_unst
     restarts around the best while it is unacceptable (unstable or no better
     than constants).  Parameters and return value as :func:`auto_minimize`.
     """
-    from .mimo_fit import completed, mimo_starts, spread_weighted, stabilized
+    from .mimo_fit import completed, mimo_starts, noise_weights, spread_weighted, stabilized
 
     started = time.perf_counter()
     s = cost.structure
@@ -570,8 +591,12 @@ def auto_mimo(cost, x0=None, *, maxfev: int | None = None, seed=None, allow_unst
     best, runs = _search(search, starts, next_restart, budget, merged, allow_unstable, callback)
     if best is None:
         return _unrefined(cost, starts, len(starts), budget, merged, started)
-    if search is not cost:
-        best.fun = float(cost(best.x))
+    if search is not cost:          # the spread weights only guided the search: the estimate is the unweighted or
+        if noise_weights(cost, best.x) is None and budget.remaining >= MIN_REFINE_BUDGET:
+            best = _refine(cost, best.x, budget, int(budget.remaining), merged)
+            runs += 1
+        else:
+            best.fun = float(cost(best.x))          # the noise-weighted one (_weighted_result)
     return _weighted_result(cost, best, budget, runs, len(starts), merged, allow_unstable, started)
 
 

@@ -62,13 +62,14 @@ from .metrics import channel_report, fit_report
 from .mimo import MIMOStructure
 from .mimo_fit import MIMOCost, monic_drift_verdicts
 from .nested import significance_verdicts
+from .significance import ROUNDING_LEVEL
 from .objective import HammersteinCost
 from .result import IdentificationResult
 from .optimize import BUDGET_EXHAUSTED, COMPLETED, DIVERGED, SCIPY_METHODS, canonical_method, minimize
 from .optimize.normal_lm import _cosine     # MINPACK's gtol measure, as LM's own convergence test
 from .residual_analysis import residual_analysis
 from .structure import BlockStructure
-from .uncertainty import (channel_uncertainty, estimate_uncertainty, _check_noise)
+from .uncertainty import (channel_uncertainty, estimate_uncertainty, fit_noise_model, _check_noise)
 
 __all__ = ["identify", "IdentificationResult", "AUTO"]   # the result type lives in hammerstein_ctrl.result
 
@@ -340,10 +341,6 @@ def _duplicate_verdicts(cost) -> list[Verdict]:
                     "once")]
 
 
-#: Residuals below this share of the output's spread (RMS, 180 dB) are rounding: their tests say nothing of the model.
-ROUNDING_LEVEL = 1e-9
-
-
 def _at_rounding_level(r, y) -> bool:
     """Whether the residuals ``r`` are at the arithmetic's level against the output ``y`` (:data:`ROUNDING_LEVEL`).
 
@@ -443,14 +440,15 @@ def _trust_verdicts(cost, x, r, model, checks: _Checks):
     explained = {n for v in verdicts for n in v.params}
     verdicts = identifiability_verdicts(structure, x, unc, model=model, data=data, exempt=explained) + verdicts
     verdicts += _duplicate_verdicts(cost)
-    simpler, _ = significance_verdicts(cost, r, noise=unc.noise, seed=checks.seed)
+    noise = unc.noise if checks.noise == "colored" else fit_noise_model(r, cost.n_params)   # noise= is the SEs'
+    simpler, _ = significance_verdicts(cost, r, noise=noise, seed=checks.seed, x=x)
     if any(v.code == "not-significant" for v in simpler):   # its failures stand, warnings on details would be noise
         return [v for v in verdicts if v.severity == FAILURE] + simpler, unc, None
     verdicts += simpler
     offset = offset_verdict(structure, r, unc)
     if offset is not None:
         verdicts.append(offset)
-    analysis = residual_analysis(r, data.u, dt=data.dt, output=data.y, name=data.name, noise=unc.noise,
+    analysis = residual_analysis(r, data.u, dt=data.dt, output=data.y, name=data.name, noise=noise,
                                  closed_loop=checks.closed_loop)
     if _at_rounding_level(r, data.y):   # an exact fit: what structure the residuals have is the arithmetic's
         return verdicts, unc, analysis
@@ -504,7 +502,10 @@ def _offset_probe(cost, res, verdicts, checks: _Checks, seed) -> Verdict | None:
         return None
     probe = HammersteinCost(cost.data, structure.with_options(offset=True), reject_unstable=cost.reject_unstable)
     with np.errstate(all="ignore"):
-        alt = auto_minimize(probe, maxfev=checks.maxfev, seed=seed, allow_unstable=checks.allow_unstable)
+        try:
+            alt = auto_minimize(probe, maxfev=checks.maxfev, seed=seed, allow_unstable=checks.allow_unstable)
+        except ParameterError:          # maps with no automatic start (custom ones): the probe says nothing
+            return None
     if not (alt.success and alt.fun < OFFSET_PROBE_GAIN * res.fun):
         return None
     fit = fit_report(cost.data.y, probe.simulate(alt.x))["fit_percent"]

@@ -345,6 +345,12 @@ def simulate_known_loop(plant: SampledPlant, controller, reference, added, *, in
                              f"(nc x 2), Cc {Cc.shape}, Dc {Dc.shape} (2)")
     r, d = (np.ascontiguousarray(v, dtype=float).reshape(-1) for v in (reference, added))
     xc0 = np.zeros(nc) if initial_state is None else np.ascontiguousarray(initial_state, dtype=float).reshape(-1)
+    if d.size != r.size or xc0.shape != (nc,):
+        raise ParameterError(f"the added signal must have the reference's {r.size} samples and the initial state "
+                             f"the controller's {nc} states; got {d.size} and {xc0.size}")
+    if not (np.all(np.isfinite(r)) and np.all(np.isfinite(d)) and np.all(np.isfinite(xc0))
+            and all(np.all(np.isfinite(M)) for M in (Ac, Bc, Cc, Dc))):
+        raise ParameterError("the reference, the added signal, the controller and its initial state must be finite")
     bound = DIVERGENCE_RATIO * max(1.0, float(np.max(np.abs(r))))
     Y, U = np.empty(r.size), np.empty(r.size)
     if not plant.compiled:

@@ -46,14 +46,18 @@ from .experiments import RecordsCost
 from .initialize import affine_coefficients
 from .lure_fit import LureCost
 from .nonlinearities import Polynomial
-from .optimize import BudgetExhausted
+from .initialize import points_for
+from .optimize import Budget, BudgetExhausted, levenberg_marquardt
+
 from .objective import HammersteinCost
-from .significance import NestedTest, nested_f_test
+from .significance import ROUNDING_LEVEL, NestedTest, nested_f_test
 from .structure import HammersteinStructure, LinearStructure
 from .uncertainty import COLOURED_RATIO, fit_noise_model
 
 __all__ = ["nested_linear_structure", "nested_tests", "significance_verdicts", "delay_scan_count"]
 
+#: Records longer than this fit the nested linear model from the fit's own block (bounded memory), not by auto.
+NESTED_AUTO_SAMPLES = 200_000
 #: Relative margin by which the nested linear model must beat a fit for the fit to be a poor optimum.
 WORSE_MARGIN = 1e-6
 #: Residuals mostly a systematic error (:data:`~hammerstein_ctrl.uncertainty.COLOURED_RATIO`) make the
@@ -99,8 +103,11 @@ def _nested_cost(cost, nested):
     return HammersteinCost(cost.data, nested)
 
 
-def _linear_fit(cost, seed):
-    """``(residuals, n_params)`` of the nested linear model fitted by ``auto`` (``None`` when there is none)."""
+def _linear_fit(cost, seed, x=None):
+    """``(residuals, n_params)`` of the nested linear model fitted by ``auto`` (``None`` when there is none); on a
+    record past :data:`NESTED_AUTO_SAMPLES` (one record, no dead time) by Levenberg-Marquardt from the fit's own
+    linear block ``x`` instead, whose passes run in bounded memory where ``auto``'s start scan holds its
+    candidates' responses whole."""
     from .auto import auto_delayed, auto_minimize, auto_records
 
     nested = nested_linear_structure(cost.structure)
@@ -111,16 +118,29 @@ def _linear_fit(cost, seed):
            else auto_minimize)
     with np.errstate(all="ignore"):
         try:
-            res = run(ncost, seed=seed, maxfev=NESTED_MAXFEV)
+            if x is not None and type(ncost) is HammersteinCost and len(ncost.data) > NESTED_AUTO_SAMPLES:
+                res = _warm_linear_fit(ncost, np.asarray(x, dtype=float)[:nested.linear.n_params])
+            else:
+                res = run(ncost, seed=seed, maxfev=NESTED_MAXFEV)
         except BudgetExhausted:          # a start that needs more than the whole budget: no linear test
             return None
-        if not np.all(np.isfinite(res.x)):
+        if res is None or not np.all(np.isfinite(res.x)):
             return None
         r = ncost.residuals(res.x)
     return (r, ncost.n_params) if np.all(np.isfinite(r)) else None
 
 
-def nested_tests(cost, residuals, *, noise=None, seed=None, linear: bool = True) -> list[NestedTest]:
+def _warm_linear_fit(ncost, theta):
+    """Levenberg-Marquardt on the nested linear model from the linear block ``theta`` (its gain, offset and state
+    by least squares), or ``None`` when that start cannot be formed."""
+    budget = Budget(NESTED_MAXFEV)
+    starts = points_for(ncost.data, ncost.structure, [theta], budget)
+    if not starts or budget.remaining < 2:
+        return None
+    return levenberg_marquardt(ncost, starts[0], maxfev=int(budget.remaining))
+
+
+def nested_tests(cost, residuals, *, noise=None, seed=None, linear: bool = True, x=None) -> list[NestedTest]:
     """The F-tests of a fit (``residuals`` at the fitted parameters, their ``noise`` model) against its nested
     models, in order: constant, static affine gain, and (``linear``) the linear model of the same order."""
     data, p = cost.data, cost.n_params
@@ -134,7 +154,7 @@ def nested_tests(cost, residuals, *, noise=None, seed=None, linear: bool = True)
         k, c = affine_coefficients(u, y)
         out.append(nested_f_test(r, lambda a, b: y[a:b] - (k * u[a:b] + c), n, p, 2, noise=noise,
                                  nested="the static affine gain y = k u + c"))
-    fitted = _linear_fit(cost, seed) if linear and isinstance(cost, (HammersteinCost, DelayedCost, RecordsCost,
+    fitted = _linear_fit(cost, seed, x) if linear and isinstance(cost, (HammersteinCost, DelayedCost, RecordsCost,
                                                                       LureCost)) else None
     if fitted is not None:
         rl, pl = fitted
@@ -151,7 +171,7 @@ def _adjusted(test: NestedTest, scans: int) -> NestedTest:
     return test if scans <= 1 else test._replace(p_value=min(1.0, test.p_value * scans))
 
 
-def significance_verdicts(cost, residuals, *, noise=None, seed=None, linear: bool = True
+def significance_verdicts(cost, residuals, *, noise=None, seed=None, linear: bool = True, x=None
                           ) -> tuple[list[Verdict], list]:
     """``(verdicts, tests)``: a failure for the first nested model the fit does not beat significantly, or that
     beats the fit outright (:func:`nested_tests`; p-values Bonferroni-adjusted for a dead-time scan).  Nothing
@@ -162,8 +182,12 @@ def significance_verdicts(cost, residuals, *, noise=None, seed=None, linear: boo
     r = np.asarray(residuals, dtype=float).reshape(-1)
     noise = fit_noise_model(r, cost.n_params) if noise is None else noise
     systematic = noise.predictability(r) > COLOURED_RATIO
-    tests = [_adjusted(t, scans) for t in nested_tests(cost, r, noise=noise, seed=seed, linear=linear)]
+    tests = [_adjusted(t, scans) for t in nested_tests(cost, r, noise=noise, seed=seed, linear=linear, x=x)]
+    y = np.asarray(cost.data.y, dtype=float).reshape(-1)
+    exact = ROUNDING_LEVEL ** 2 * float(np.sum((y - y.mean()) ** 2))   # below it an SSE is rounding
     for t in tests:
+        if t.nested_sse <= exact:       # the nested model is exact: nothing is left to be significant, and the
+            return [Verdict("not-significant", FAILURE, _not_significant(t, scans))], tests   # fit's rounding
         if t.nested_sse < t.sse * (1.0 - WORSE_MARGIN) and t.nested.startswith("the linear"):
             return [Verdict("worse-than-nested", FAILURE,
                             f"a poor optimum: {t.nested}, which this structure contains, fits better (J = "
@@ -172,13 +196,17 @@ def significance_verdicts(cost, residuals, *, noise=None, seed=None, linear: boo
                             f"take the shape the data need); try another family or structure, or start from the "
                             f"linear model's fit")], tests
         if not t.significant and not (systematic and t.sse < t.nested_sse * (1.0 - SYSTEMATIC_GAIN)):
-            return [Verdict("not-significant", FAILURE, _not_significant(t, scans))], tests
+            return [Verdict("not-significant", FAILURE, _not_significant(t, scans, systematic))], tests
     return [], tests
 
 
-def _not_significant(t: NestedTest, scans: int) -> str:
+def _not_significant(t: NestedTest, scans: int, systematic: bool = False) -> str:
     why = (f"{t.describe()}{f', adjusted for {scans} dead times scanned' if scans > 1 else ''}; "
            f"J = {t.sse:.6g} against {t.nested_sse:.6g}")
+    if t.nested.startswith("the linear") and systematic:
+        return (f"the nonlinearity as fitted adds nothing: {t.nested} fits as well ({why}), and both miss a "
+                f"predictable part of the output (the residuals are mostly a signal, not noise): this family or its "
+                f"place seems wrong, or the search stopped short; try another family or structure")
     if t.nested.startswith("the linear"):
         return (f"the nonlinearity is not significant: {t.nested} fits as well ({why}): use the linear model, or "
                 "a record that drives the nonlinearity harder")

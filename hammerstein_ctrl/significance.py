@@ -42,7 +42,11 @@ from . import config
 from .exceptions import ParameterError
 from .uncertainty import fit_noise_model
 
-__all__ = ["NestedTest", "nested_f_test", "whitened_sse"]
+__all__ = ["NestedTest", "nested_f_test", "whitened_sse", "ROUNDING_LEVEL"]
+
+#: Residuals below this share of the output's spread (RMS, 180 dB) are rounding: an exact fit, whose residuals'
+#: tests (and F-tests between two exact fits) say nothing of the model.
+ROUNDING_LEVEL = 1e-9
 
 
 class NestedTest(NamedTuple):

@@ -413,7 +413,8 @@ class BlockStructure:
 
     def linear_counterpart(self):
         """The linear model of the same order: the static blocks replaced by a gain (``Polynomial(1)`` on the
-        input), same offset, initial state and dead time; ``None`` for a structure that is linear already.
+        input), same offset, initial state and dead time; ``None`` for a structure that is linear already, or
+        with a custom map (which need not contain a gain).
 
         Examples
         --------
@@ -421,11 +422,13 @@ class BlockStructure:
         >>> WienerStructure(LinearStructure(1, 2), Tanh(), offset=True).linear_counterpart().param_names
         ('b0', 'a0', 'a1', 'd1', 'y0')
         """
-        from .nonlinearities import Polynomial
+        from .nonlinearities import CustomNonlinearity, Polynomial
 
         g, h = self.input_nonlinearity, self.output_nonlinearity
         if h is None and (g is None or (isinstance(g, Polynomial) and g.n_params == 1)):
             return None
+        if isinstance(g, CustomNonlinearity) or isinstance(h, CustomNonlinearity):
+            return None                 # a map of the user's may not contain a gain: no linear model is nested
         return HammersteinStructure(self.linear, Polynomial(1), offset=self.offset,
                                     initial_state=self.initial_state)
 

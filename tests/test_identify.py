@@ -4,6 +4,7 @@ import control as ct
 import numpy as np
 import pytest
 
+import hammerstein_ctrl as hc
 from hammerstein_ctrl import (
     Coulomb, HammersteinStructure, IOData, LinearStructure, ParameterError, Polynomial, identify,
 )
@@ -170,3 +171,32 @@ def test_auto_does_not_say_the_budget_ran_out_with_half_of_it_left(trs_case):
     r = identify(trs_case.data, trs_case.structure, method="auto", maxfev=60, seed=0)
     if r.model is None and "exhausted" in r.message:
         assert r.nfev > 60 - MIN_REFINE_BUDGET, r.message
+
+
+def test_a_custom_map_given_x0_is_fitted_even_where_the_search_drifts():
+    """A block with a zero whose search drifts is rescued from automatic starts, which a custom map has none of:
+    the rescue (and the offset probe) step aside instead of refusing the user's x0."""
+    rng = np.random.default_rng(0)
+    t = np.arange(1500) * 0.05
+    u = np.repeat(rng.uniform(-2, 2, 50), 30)
+    y = hc.HammersteinModel(([3.0], [1.0, 1.5, 2.0]), hc.Tanh(), [1.0, 1.0]).simulate(t, u)
+    data = hc.IOData(u, y + 0.01 * rng.standard_normal(t.size), dt=0.05)
+    custom = hc.CustomNonlinearity(lambda v, p: p[0] * np.tanh(p[1] * v), 2)
+    s = hc.HammersteinStructure(hc.LinearStructure(1, 2), custom)
+    for x0 in ([50.0, 2.0, 1.5, 0.06, 1.0], [1e4, 2.0, 1.5, 3e-4, 1.0]):
+        res = hc.identify(data, s, x0=x0, seed=0)           # the truth has no zero: b0 runs off, honestly
+        assert np.isfinite(res.fun) and res.fit_percent > 98.5
+
+
+def test_a_callback_that_stops_auto_stops_it():
+    from hammerstein_ctrl.auto import auto_minimize
+
+    rng = np.random.default_rng(0)
+    t = np.arange(1500) * 0.05
+    u = np.repeat(rng.uniform(-2, 2, 50), 30)
+    y = hc.HammersteinModel(([3.0], [1.0, 1.5, 2.0]), hc.Tanh(), [1.0, 1.0]).simulate(t, u)
+    data = hc.IOData(u, y + 0.01 * rng.standard_normal(t.size), dt=0.05)
+    calls = []
+    res = auto_minimize(HammersteinCost(data, hc.HammersteinStructure(hc.LinearStructure(1, 2), hc.Tanh())), seed=0,
+                        callback=lambda r: calls.append(r.nfev) or True)
+    assert len(calls) == 1 and res.nit == 1 and res.nfev < 3000

@@ -255,3 +255,14 @@ def test_residual_tests_for_a_closed_loop_record_fitted_in_open_loop():
         assert closed.success and closed.verdicts == [], closed.warnings
     opened = hc.identify(data, _block_structure(), seed=0)
     assert any("closed_loop=True" in w for w in opened.warnings)
+
+
+def test_the_known_loop_simulator_refuses_signals_of_other_lengths():
+    from hammerstein_ctrl.loop_sim import sampled_plant, simulate_known_loop
+
+    plant = sampled_plant(_block_structure().model(BLOCK_TRUTH, intersample="zoh"), BLOCK_DT)
+    controller = KnownLoop(BLOCK_PI, np.ones(50))._matrices
+    with pytest.raises(ParameterError, match="the added signal must have the reference's 50 samples"):
+        simulate_known_loop(plant, controller, np.ones(50), np.zeros(1))
+    with pytest.raises(ParameterError, match="the controller's 1 states; got 50 and 3"):
+        simulate_known_loop(plant, controller, np.ones(50), np.zeros(50), initial_state=[0.0, 0.0, 0.0])

@@ -133,3 +133,27 @@ def test_the_nested_tests_can_be_switched_off_for_monte_carlo_studies(trs_case):
     finally:
         hc.config.reset_defaults()
     assert res.success and not any(v.code == "not-significant" for v in res.verdicts)
+
+
+@pytest.mark.parametrize("family", [hc.Polynomial(2), hc.Coulomb()])
+def test_a_nonlinearity_on_exactly_linear_data_is_never_significant(family):
+    """Noise-free linear data: both fits are exact to rounding, so no F-test between them means anything; the
+    nested linear model is exact and the verdict is always not significant (never a 'poor optimum')."""
+    t = np.arange(800) * 0.05
+    truth = hc.HammersteinModel(([2.0], [1.0, 3.0, 2.0]), hc.Polynomial(1), [1.0])
+    for seed in range(6):
+        u = np.repeat(np.random.default_rng(seed).uniform(-1, 1, 40), 20)
+        res = hc.identify(hc.IOData(u, truth.simulate(t, u), dt=0.05),
+                          hc.HammersteinStructure(hc.LinearStructure(0, 2), family), seed=0)
+        assert [v.code for v in res.verdicts] == ["not-significant"], (seed, res.message)
+
+
+def test_the_white_noise_option_does_not_switch_off_the_verdicts():
+    """noise= describes the standard errors; the verdicts whiten by the residuals' own AR model either way: AR(1)
+    noise (pole 0.97) unrelated to the input is not a model with noise='white' either."""
+    s = hc.HammersteinStructure(hc.LinearStructure(0, 2), hc.Tanh())
+    for seed in range(5):
+        rng = np.random.default_rng(seed)
+        u = np.repeat(rng.uniform(-1, 1, 40), 20)
+        y = scipy.signal.lfilter([1.0], [1.0, -0.97], rng.standard_normal(800))
+        assert not hc.identify(hc.IOData(u, y, dt=0.1), s, seed=0, noise="white").success
