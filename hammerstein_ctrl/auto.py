@@ -173,6 +173,19 @@ def _restart_points(anchor, rng, linear):
         yield _restart_point(anchor, rng, linear)
 
 
+def _restarts_around_first(rng, linear):
+    """:func:`_search`'s ``next_restart``: :func:`_restart_points` around the best at the first restart, then the
+    next of them (``None`` when they are spent)."""
+    restarts = []
+
+    def next_restart(anchor):
+        if not restarts:
+            restarts.append(_restart_points(anchor, rng, linear))
+        return next(restarts[0], None)
+
+    return next_restart
+
+
 def _search(cost, starts, next_restart, budget: Budget, merged: _Merged, allow_unstable: bool, callback):
     """``(best refinement or None, refinements run)``: each start refined in turn, the budget shared out over
     those still to run, then restarts (``next_restart(best x)``, ``None`` when there are no more) while the best
@@ -238,12 +251,7 @@ def auto_minimize(cost, x0=None, *, maxfev: int | None = None, seed=None, allow_
     found = len(starts)                   # data-driven starts; the user's x0 comes after them
     if x0 is not None:
         starts.append(_user_start(cost, x0, budget))
-    merged, restarts = _Merged(), []
-
-    def next_restart(anchor):           # perturbations of the best start at the first restart
-        if not restarts:
-            restarts.append(_restart_points(anchor, rng, cost.structure.linear))
-        return next(restarts[0], None)
+    merged, next_restart = _Merged(), _restarts_around_first(rng, cost.structure.linear)
 
     reserve = int(RESCUE_SHARE * budget.remaining) if found and _may_drift(cost.structure) else 0
     search = Budget(int(budget.nfev) + max(1, int(budget.remaining) - reserve))   # the same count, less the reserve
@@ -686,12 +694,7 @@ def auto_lure(cost, x0=None, *, maxfev: int | None = None, seed=None, allow_unst
         starts.append(cost.structure.check_beta(as_x0(x0)).copy())
     if not starts:
         return first
-    merged, restarts = _Merged(), []
-
-    def next_restart(anchor):
-        if not restarts:
-            restarts.append(_restart_points(anchor, rng, cost.structure.linear))
-        return next(restarts[0], None)
+    merged, next_restart = _Merged(), _restarts_around_first(rng, cost.structure.linear)
 
     best, runs = _search(cost, starts, next_restart, budget, merged, allow_unstable, callback)
     if best is None:
@@ -711,12 +714,7 @@ def auto_known_loop(cost, starts, *, maxfev: int | None = None, seed=None, allow
     starts = [cost.structure.check_beta(as_x0(x)).copy() for x in starts]
     if not starts:
         raise ParameterError("the open-loop fit that starts a loop fit found no finite parameters")
-    merged, restarts = _Merged(), []
-
-    def next_restart(anchor):
-        if not restarts:
-            restarts.append(_restart_points(anchor, rng, cost.structure.linear))
-        return next(restarts[0], None)
+    merged, next_restart = _Merged(), _restarts_around_first(rng, cost.structure.linear)
 
     best, runs = _search(cost, starts, next_restart, budget, merged, allow_unstable, callback)
     if best is None:

@@ -58,11 +58,11 @@ from .exceptions import IdentificationWarning, ParameterError
 from .initialize import static_affine_sse, static_affine_sse_columns
 from .lure import LureStructure
 from .lure_fit import LureCost
-from .metrics import channel_report, fit_report
+from .metrics import channel_report, fit_percent, fit_report
 from .mimo import MIMOStructure
 from .mimo_fit import MIMOCost, monic_drift_verdicts
 from .nested import significance_verdicts
-from .significance import ROUNDING_LEVEL
+from .significance import rounding_sse
 from .objective import HammersteinCost
 from .result import IdentificationResult
 from .optimize import BUDGET_EXHAUSTED, COMPLETED, DIVERGED, SCIPY_METHODS, canonical_method, minimize
@@ -341,17 +341,6 @@ def _duplicate_verdicts(cost) -> list[Verdict]:
                     "once")]
 
 
-def _at_rounding_level(r, y) -> bool:
-    """Whether the residuals ``r`` are at the arithmetic's level against the output ``y`` (:data:`ROUNDING_LEVEL`).
-
-    >>> _at_rounding_level(np.full(4, 1e-13), np.arange(4.0)), _at_rounding_level(np.full(4, 1e-3), np.arange(4.0))
-    (True, False)
-    """
-    y = np.asarray(y, dtype=float).reshape(-1)
-    r = np.asarray(r, dtype=float).reshape(-1)
-    return bool(np.sqrt(np.mean(r * r)) <= ROUNDING_LEVEL * np.std(y))
-
-
 def _no_model(res) -> list[Verdict]:
     """The failure of a fit that gave no finite parameters or no finite output (else nothing)."""
     if not np.all(np.isfinite(np.asarray(res.x, dtype=float))):
@@ -450,7 +439,7 @@ def _trust_verdicts(cost, x, r, model, checks: _Checks):
         verdicts.append(offset)
     analysis = residual_analysis(r, data.u, dt=data.dt, output=data.y, name=data.name, noise=noise,
                                  closed_loop=checks.closed_loop)
-    if _at_rounding_level(r, data.y):   # an exact fit: what structure the residuals have is the arithmetic's
+    if float(r @ r) <= rounding_sse(data.y):   # an exact fit: what structure the residuals have is the arithmetic's
         return verdicts, unc, analysis
     if analysis.findings:
         verdicts.append(Verdict("inadequate", WARNING, analysis.verdict()))
@@ -468,10 +457,11 @@ POOR_FIT_RATIO = 100.0
 def _poor_fit(r, y, analysis) -> Verdict | None:
     """A failure for a fit that explains little (:data:`POOR_FIT_PERCENT`) of an output whose misfit is
     predictable (:data:`POOR_FIT_RATIO`): a poor optimum or a wrong structure, not noise."""
+    if analysis.predictability <= POOR_FIT_RATIO:
+        return None
     y = np.asarray(y, dtype=float).reshape(-1)
-    spread = float(np.linalg.norm(y - y.mean()))
-    fit = 100.0 * (1.0 - float(np.linalg.norm(r)) / spread) if spread > 0 else 0.0
-    if fit >= POOR_FIT_PERCENT or analysis.predictability <= POOR_FIT_RATIO:
+    fit = fit_percent(y, y - r)                 # a constant output is refused before any fit
+    if fit >= POOR_FIT_PERCENT:
         return None
     return Verdict("poor-fit", FAILURE, (
         f"the model misses most of the output (fit {fit:.1f} %) and what it misses is predictable (the residuals' "

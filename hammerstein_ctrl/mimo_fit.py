@@ -279,8 +279,8 @@ class _Rows:
                      for i in range(structure.n_outputs)]
         #: Each output's unit in the start's comparisons: its spread when the spreads differ by more than
         #: :data:`SPREAD_RATIO` (mm beside m then changes nothing), else 1.
-        spread = np.array([float(np.std(self.Y[:, i])) or 1.0 for i in range(structure.n_outputs)])
-        self.scales = spread if spread.max() > SPREAD_RATIO * spread.min() else np.ones_like(spread)
+        w = _inverse_levels(np.std(self.Y, axis=0), SPREAD_RATIO)
+        self.scales = np.ones(structure.n_outputs) if w is None else 1.0 / w
 
     def columns(self, i: int, signals: list) -> np.ndarray:
         """Regressors of row ``i``: for each input, its signals' responses through every numerator power."""
@@ -584,11 +584,18 @@ def spread_weighted(cost: MIMOCost) -> MIMOCost:
     :data:`SPREAD_RATIO` (outputs in units far apart), else ``cost`` itself (as it is when already weighted)."""
     if cost.weights is not None:
         return cost
-    spread = np.array([float(np.std(y)) for y in np.asarray(cost.data.outputs, dtype=float).T])
-    if not (np.all(np.isfinite(spread)) and np.all(spread > 0)) or spread.max() <= SPREAD_RATIO * spread.min():
-        return cost
-    w = 1.0 / spread
-    return cost.weighted(w / np.exp(np.mean(np.log(w))))
+    w = _inverse_levels(np.std(np.asarray(cost.data.outputs, dtype=float), axis=0), SPREAD_RATIO)
+    return cost if w is None else cost.weighted(w)
+
+
+def _inverse_levels(levels, ratio: float) -> np.ndarray | None:
+    """Each output's weight ``1/level`` scaled to a geometric mean of 1, or ``None`` when the levels are within
+    ``ratio`` of each other (or not all finite and positive)."""
+    levels = np.asarray(levels, dtype=float)
+    if not (np.all(np.isfinite(levels)) and np.all(levels > 0)) or levels.max() <= ratio * levels.min():
+        return None
+    w = 1.0 / levels
+    return w / np.exp(np.mean(np.log(w)))
 
 
 def noise_weights(cost: MIMOCost, x) -> np.ndarray | None:
@@ -596,10 +603,7 @@ def noise_weights(cost: MIMOCost, x) -> np.ndarray | None:
     ``None`` when the outputs' noise levels are within :data:`WEIGHTING_RATIO` of each other."""
     with np.errstate(all="ignore"):
         sigma = np.array([np.sqrt(np.mean(e * e)) for e in cost.split(cost.unweighted_residuals(x))])
-    if not (np.all(np.isfinite(sigma)) and np.all(sigma > 0)) or sigma.max() <= WEIGHTING_RATIO * sigma.min():
-        return None
-    w = 1.0 / sigma
-    return w / np.exp(np.mean(np.log(w)))
+    return _inverse_levels(sigma, WEIGHTING_RATIO)
 
 
 def completed(cost: "MIMOCost", x0) -> np.ndarray:

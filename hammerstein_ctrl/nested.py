@@ -50,7 +50,7 @@ from .initialize import points_for
 from .optimize import Budget, BudgetExhausted, levenberg_marquardt
 
 from .objective import HammersteinCost
-from .significance import ROUNDING_LEVEL, NestedTest, nested_f_test
+from .significance import NestedTest, nested_f_test, rounding_sse
 from .structure import HammersteinStructure, LinearStructure
 from .uncertainty import COLOURED_RATIO, fit_noise_model
 
@@ -183,8 +183,7 @@ def significance_verdicts(cost, residuals, *, noise=None, seed=None, linear: boo
     noise = fit_noise_model(r, cost.n_params) if noise is None else noise
     systematic = noise.predictability(r) > COLOURED_RATIO
     tests = [_adjusted(t, scans) for t in nested_tests(cost, r, noise=noise, seed=seed, linear=linear, x=x)]
-    y = np.asarray(cost.data.y, dtype=float).reshape(-1)
-    exact = ROUNDING_LEVEL ** 2 * float(np.sum((y - y.mean()) ** 2))   # below it an SSE is rounding
+    exact = rounding_sse(cost.data.y)
     for t in tests:
         if t.nested_sse <= exact:       # the nested model is exact: nothing is left to be significant, and the
             return [Verdict("not-significant", FAILURE, _not_significant(t, scans))], tests   # fit's rounding

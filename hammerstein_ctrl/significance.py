@@ -42,11 +42,23 @@ from . import config
 from .exceptions import ParameterError
 from .uncertainty import fit_noise_model
 
-__all__ = ["NestedTest", "nested_f_test", "whitened_sse", "ROUNDING_LEVEL"]
+__all__ = ["NestedTest", "nested_f_test", "whitened_sse", "ROUNDING_LEVEL", "rounding_sse"]
 
 #: Residuals below this share of the output's spread (RMS, 180 dB) are rounding: an exact fit, whose residuals'
 #: tests (and F-tests between two exact fits) say nothing of the model.
 ROUNDING_LEVEL = 1e-9
+
+
+def rounding_sse(y) -> float:
+    """The sum of squared residuals at or below which a fit of ``y`` is exact (:data:`ROUNDING_LEVEL` of its
+    spread, RMS).
+
+    >>> e = rounding_sse(np.arange(4.0))
+    >>> bool(4 * 1e-13 ** 2 <= e), bool(4 * 1e-3 ** 2 <= e)
+    (True, False)
+    """
+    y = np.asarray(y, dtype=float).reshape(-1)
+    return ROUNDING_LEVEL ** 2 * float(np.sum((y - y.mean()) ** 2))
 
 
 class NestedTest(NamedTuple):

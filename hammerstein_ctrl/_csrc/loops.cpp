@@ -115,6 +115,44 @@ Plant plant_of(const double *Ad, const double *Bd, const double *C, const double
     return P;
 }
 
+/* A discrete controller's state (nc numbers, on the heap with room for its next value) in the loops below. */
+struct ControllerState {
+    double *xc = nullptr, *next = nullptr;
+    int64_t nc = 0;
+
+    /* nc states from xc0 (zeros for nullptr); false if no memory could be had. */
+    bool open(int64_t count, const double *xc0)
+    {
+        nc = count;
+        xc = (double *)std::malloc((size_t)(2 * nc + 1) * sizeof(double));
+        if (xc == nullptr)
+            return false;
+        next = xc + nc;
+        for (int64_t i = 0; i < nc; i++)
+            xc[i] = xc0 == nullptr ? 0.0 : xc0[i];
+        return true;
+    }
+    ~ControllerState() { std::free(xc); }
+    /* uc + Cc xc, the states added in order. */
+    inline double output(const double *Cc, double uc) const
+    {
+        for (int64_t i = 0; i < nc; i++)
+            uc += Cc[i] * xc[i];
+        return uc;
+    }
+    /* xc <- Ac xc + b: row i starts from drive(i), its input's share, then adds Ac's products in order. */
+    template <class Drive> inline void step(const double *Ac, Drive drive)
+    {
+        for (int64_t i = 0; i < nc; i++) {
+            double s = drive(i);
+            for (int64_t j = 0; j < nc; j++)
+                s += Ac[i * nc + j] * xc[j];
+            next[i] = s;
+        }
+        std::memcpy(xc, next, (size_t)nc * sizeof(double));
+    }
+};
+
 }  // namespace
 
 extern "C" {
@@ -168,30 +206,18 @@ int hc_controller_loop(const double *Ad, const double *Bd, const double *C, cons
     if (n < 0 || n > MAX_N || !P.g.fits() || !P.h.fits())
         return 1;
     double x[MAX_N];
-    double *xc = (double *)std::malloc((size_t)(2 * nc + 1) * sizeof(double)), *xcn = xc + nc;
-    if (xc == nullptr)
+    ControllerState K;
+    if (!K.open(nc, nullptr))
         return 2;
     std::memcpy(x, x0, (size_t)n * sizeof(double));
-    for (int64_t i = 0; i < nc; i++)
-        xc[i] = 0.0;
     for (int64_t k = 0; k < N; k++) {
         double y = P.output(x);
         double e = r[k] - y;
-        double uc = bias + Dc * e;
-        for (int64_t i = 0; i < nc; i++)
-            uc += Cc[i] * xc[i];
-        double u;
+        double u, uc = K.output(Cc, bias + Dc * e);
         if (!P.drive(x, y, uc, lo, hi, bound, k, Y, U, N, &u))
             break;
-        for (int64_t i = 0; i < nc; i++) {
-            double s = Bc[i] * e;
-            for (int64_t j = 0; j < nc; j++)
-                s += Ac[i * nc + j] * xc[j];
-            xcn[i] = s;
-        }
-        std::memcpy(xc, xcn, (size_t)nc * sizeof(double));
+        K.step(Ac, [&](int64_t i) { return Bc[i] * e; });
     }
-    std::free(xc);
     return 0;
 }
 
@@ -209,30 +235,17 @@ int hc_known_loop(const double *Ad, const double *Bd, const double *C, const dou
     if (n < 0 || n > MAX_N || !P.g.fits() || !P.h.fits())
         return 1;
     double x[MAX_N];
-    double *xc = (double *)std::malloc((size_t)(2 * nc + 1) * sizeof(double)), *xcn = xc + nc;
-    if (xc == nullptr)
+    ControllerState K;
+    if (!K.open(nc, xc0))
         return 2;
     std::memcpy(x, x0, (size_t)n * sizeof(double));
-    if (nc > 0)
-        std::memcpy(xc, xc0, (size_t)nc * sizeof(double));
     for (int64_t k = 0; k < N; k++) {
         double y = P.output(x);
-        double uc = d[k] + Dc[0] * r[k] + Dc[1] * y;
-        for (int64_t i = 0; i < nc; i++)
-            uc += Cc[i] * xc[i];
-        double u;
+        double u, uc = K.output(Cc, d[k] + Dc[0] * r[k] + Dc[1] * y);
         if (!P.drive(x, y, uc, -INFINITY, INFINITY, bound, k, Y, U, N, &u))
             break;
-        for (int64_t i = 0; i < nc; i++) {
-            double s = Bc[2 * i] * r[k] + Bc[2 * i + 1] * y;
-            for (int64_t j = 0; j < nc; j++)
-                s += Ac[i * nc + j] * xc[j];
-            xcn[i] = s;
-        }
-        if (nc > 0)
-            std::memcpy(xc, xcn, (size_t)nc * sizeof(double));
+        K.step(Ac, [&](int64_t i) { return Bc[2 * i] * r[k] + Bc[2 * i + 1] * y; });
     }
-    std::free(xc);
     return 0;
 }
 
