@@ -36,6 +36,7 @@ from ._checks import as_count
 from .exceptions import ParameterError
 from .initialize import Budget, check_automatic, initial_points, nuisance_estimate, points_for, stabilize
 from .lure_fit import hammerstein_start, hammerstein_structure_of
+from .wh_fit import bla_structure, split_starts
 from .objective import HammersteinCost
 from .optimize import (BUDGET_EXHAUSTED, COMPLETED, SOLVER_FAILED, History, OptimizeResult, as_rng, as_x0,
                        levenberg_marquardt)
@@ -43,6 +44,7 @@ from .simulate import unstable
 from .structure import LinearStructure
 
 __all__ = ["auto_minimize", "auto_records", "auto_delayed", "auto_mimo", "auto_lure", "auto_known_loop",
+           "auto_wiener_hammerstein",
            "RESTART_SPREAD", "MAX_RESTARTS"]
 
 #: A budget that never runs out, for work charged to the real budget as a whole afterwards.
@@ -104,6 +106,8 @@ def _acceptable(cost, x, fun, allow_unstable: bool) -> bool:
         trivial = float(np.sum((y - y.mean(axis=0)) ** 2))
     if not (np.isfinite(fun) and fun < trivial):
         return False
+    if hasattr(cost.structure, "block_layout"):        # a Wiener-Hammerstein structure: both blocks
+        return allow_unstable or not cost.structure.unstable(x)[0] or _marginal(cost, x)
     if hasattr(cost.structure, "unstable"):            # a MIMO structure: every row's denominator
         return allow_unstable or not cost.structure.unstable(x)[0] or _marginal_rows(cost, x)
     num, den = cost.structure.linear.coefficients(x[:cost.structure.linear.n_params])
@@ -737,3 +741,66 @@ def _explore(cost, best, rng, budget: Budget, merged: _Merged, allow_unstable: b
         if new > key:
             best, key = res, new
     return best, runs
+
+
+#: Share of the budget given to the linear model that starts a Wiener-Hammerstein fit.
+WH_BLA_SHARE = 0.4
+
+
+def _stabilized_blocks(structure, x) -> np.ndarray:
+    """``x`` with each linear block of a Wiener-Hammerstein structure stabilised."""
+    x = np.array(x, dtype=float)
+    for linear, at in structure.block_layout:
+        x[at:at + linear.n_params] = stabilize(linear, x[at:at + linear.n_params])
+    return x
+
+
+def _block_restarts(rng, structure):
+    """:func:`_search`'s ``next_restart`` for a structure of several linear blocks: seeded perturbations of the
+    best, each block stabilised (:data:`MAX_RESTARTS` of them)."""
+    spent = [0]
+
+    def next_restart(anchor):
+        if spent[0] >= MAX_RESTARTS:
+            return None
+        spent[0] += 1
+        return _stabilized_blocks(structure, _perturbed(anchor, rng))
+
+    return next_restart
+
+
+@single_threaded_blas()
+def auto_wiener_hammerstein(cost, x0=None, *, maxfev: int | None = None, seed=None, allow_unstable: bool = False,
+                            callback=None):
+    """:func:`auto_minimize` for a Wiener-Hammerstein structure (a
+    :class:`~hammerstein_ctrl.wh_fit.WienerHammersteinCost`).
+
+    A linear model of the whole order is fitted first (``auto`` on
+    :func:`~hammerstein_ctrl.wh_fit.bla_structure`, :data:`WH_BLA_SHARE` of the
+    budget); the splits of its poles and zeros between the blocks are scored by
+    the least-squares fit of the map (:func:`~hammerstein_ctrl.wh_fit.split_starts`,
+    one evaluation each); Levenberg-Marquardt refines the best splits and the
+    user's ``x0``, restarts perturb the best while it is not acceptable.
+    Parameters and return value as :func:`auto_minimize`; the default budget is
+    ``config.defaults["auto.wh_maxfev"]``.
+    """
+    started = time.perf_counter()
+    budget = Budget(config.get("auto.wh_maxfev") if maxfev is None else _total(maxfev))
+    rng = as_rng(seed)
+    s = cost.structure
+    bla = auto_minimize(HammersteinCost(cost.data, bla_structure(s)), seed=rng, allow_unstable=True,
+                        maxfev=max(MIN_REFINE_BUDGET, int(WH_BLA_SHARE * budget.maxfev)))
+    budget.charge(min(int(bla.nfev), budget.remaining))
+    starts, scored = split_starts(cost, bla.x) if np.all(np.isfinite(bla.x)) else ([], 0)
+    budget.charge(min(scored, budget.remaining))
+    starts = [_stabilized_blocks(s, x) for x in starts]
+    if x0 is not None:
+        starts.append(_stabilized_blocks(s, s.check_beta(as_x0(x0))))
+    if not starts:
+        raise ParameterError(f"no automatic start for the map {s.nonlinearity!r} of a Wiener-Hammerstein structure "
+                             "(it has neither a basis nor a scale parameter): give x0")
+    merged = _Merged()
+    best, runs = _search(cost, starts, _block_restarts(rng, s), budget, merged, allow_unstable, callback)
+    if best is None:
+        return _unrefined(cost, starts, len(starts), budget, merged, started)
+    return _result(cost, best, budget, runs, len(starts), merged, allow_unstable, started)

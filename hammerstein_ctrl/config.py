@@ -9,6 +9,8 @@ key                           default  meaning
 ============================  =======  ==============================================================
 ``auto.maxfev``                 3000   evaluations of ``identify(method="auto")`` without ``maxfev`` (a
                                        quarter kept back for a drift rescue where the block has a zero)
+``auto.wh_maxfev``             10000   the same for a Wiener-Hammerstein structure (its linear start
+                                       takes up to 40 %: a whole-order linear model converges slowly)
 ``auto.records_joint_share``    0.25   share of that budget kept for the joint refinement of several records
 ``auto.delay_joint_share``      0.25   share kept for the continuous refinement of a dead time
 ``delay.max_samples``            500   longest dead time (in samples) the ``auto`` scan considers
@@ -58,6 +60,7 @@ __all__ = ["defaults", "set_defaults", "reset_defaults"]
 #: "bool" or "choice" (one of the strings ``low``).
 _SPEC = {
     "auto.maxfev": (3000, "int", 1, None),
+    "auto.wh_maxfev": (10000, "int", 1, None),
     "auto.records_joint_share": (0.25, "float", 0.0, 1.0),
     "auto.delay_joint_share": (0.25, "float", 0.0, 1.0),
     "delay.max_samples": (500, "int", 0, None),

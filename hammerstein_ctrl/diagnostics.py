@@ -151,6 +151,8 @@ def _static_blocks(structure, model, data) -> list:
     static block."""
     if model is None or data is None:
         return []
+    if hasattr(structure, "static_blocks"):
+        return structure.static_blocks(model, data)
     blocks = []
     if structure.input_nonlinearity is not None:
         blocks.append((structure.input_nonlinearity, model.input_params,
@@ -273,9 +275,16 @@ def _poorly_determined(names, x, se, corr, poor) -> Verdict:
         "beyond)", tuple(names[i] for i in poor))
 
 
+def _linear_names(structure) -> tuple[str, ...]:
+    """The beta names of the linear blocks' coefficients (both blocks of a Wiener-Hammerstein structure)."""
+    if hasattr(structure, "block_layout"):
+        return tuple(n for lin, at in structure.block_layout for n in structure.param_names[at:at + lin.n_params])
+    return structure.linear.param_names
+
+
 def _state_partners(structure) -> set:
-    """Names of the linear block's constant-term coefficient, which trades off with an offset and x(0)."""
-    return {n for n in structure.linear.param_names if n == "a0"}
+    """Names of the linear blocks' constant-term coefficients, which trade off with an offset and x(0)."""
+    return {n for n in _linear_names(structure) if n == "a0" or n.endswith("_a0")}
 
 
 def _undetermined(group: list, nuisance_only: bool, hints: dict, zero: bool) -> Verdict:
@@ -345,7 +354,7 @@ def linear_verdicts(structure, x, unc: ParameterUncertainty | None, dt: float, *
                 f"the pole at {_complex(v)} is within its uncertainty (± {se_re:.2g}) of the imaginary axis: taken "
                 f"as {'an integrator' if real else 'an undamped oscillation'}, "
                 f"not as unstable; {_fix_hint(structure, v)}",
-                ("a0",) if real and "a0" in structure.linear.param_names else ()))
+                ("a0",) if real and "a0" in _linear_names(structure) else ()))
             continue
         stable = False
         verdicts.append(Verdict(
@@ -431,7 +440,7 @@ def _complex(v: complex) -> str:
 
 
 def _fix_hint(structure, pole: complex) -> str:
-    if "a0" in structure.linear.param_names and abs(pole.imag) <= 1e-12 * max(1.0, abs(pole)):
+    if "a0" in _linear_names(structure) and abs(pole.imag) <= 1e-12 * max(1.0, abs(pole)):
         return ("to make it an exact integrator, fix a0 = 0 (LinearStructure(..., fixed={'a0': 0.0}), "
                 "--fix a0=0)")
     return "fix the coefficient that places it, if the plant is known to be marginal"

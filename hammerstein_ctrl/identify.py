@@ -58,6 +58,8 @@ from .exceptions import IdentificationWarning, ParameterError
 from .initialize import static_affine_sse, static_affine_sse_columns
 from .lure import LureStructure
 from .lure_fit import LureCost
+from .wh_fit import WienerHammersteinCost
+from .wiener_hammerstein import WienerHammersteinStructure
 from .metrics import channel_report, fit_percent, fit_report
 from .mimo import MIMOStructure
 from .mimo_fit import MIMOCost, monic_drift_verdicts
@@ -238,6 +240,12 @@ def _cost(records, structure, reject_unstable):
             raise ParameterError("several records in one Lur'e fit are not supported yet: fit one record")
         records[0].check_identifiable(structure.n_params)
         return LureCost(records[0], structure, reject_unstable=reject_unstable)
+    if isinstance(structure, WienerHammersteinStructure):
+        if len(records) > 1:
+            raise ParameterError("several records in one Wiener-Hammerstein fit are not supported yet: fit one "
+                                 "record")
+        records[0].check_identifiable(structure.n_params)
+        return WienerHammersteinCost(records[0], structure, reject_unstable=reject_unstable)
     if len(records) == 1:
         records[0].check_identifiable(structure.n_params)
         if structure.linear.delay:
@@ -266,7 +274,7 @@ def _resolve_structure(data, structure, method, x0):
         raise ParameterError(f"structure must be a HammersteinStructure, WienerStructure or "
                              f"HammersteinWienerStructure, got the name {structure!r}; the paper's cases are "
                              f"hc.presets.trs() and hc.presets.emps() (their .structure and .x0)")
-    if not isinstance(structure, (BlockStructure, MIMOStructure, LureStructure)):
+    if not isinstance(structure, (BlockStructure, MIMOStructure, LureStructure, WienerHammersteinStructure)):
         raise ParameterError("structure must be a HammersteinStructure, WienerStructure or "
                              f"HammersteinWienerStructure (or a MIMO structure), got {type(structure).__name__}")
     return structure, x0
@@ -294,7 +302,7 @@ def _starting_point(structure, x0, bounds):
 
 
 def _run_auto(cost, x0, maxfev, seed, options, bounds, maxiter, callback, allow_unstable):
-    from .auto import auto_delayed, auto_lure, auto_mimo, auto_minimize, auto_records
+    from .auto import auto_delayed, auto_lure, auto_mimo, auto_minimize, auto_records, auto_wiener_hammerstein
 
     unused = [name for name, value in (("options", options), ("bounds", bounds), ("maxiter", maxiter))
               if value is not None]
@@ -304,6 +312,9 @@ def _run_auto(cost, x0, maxfev, seed, options, bounds, maxiter, callback, allow_
         return auto_delayed(cost, x0, maxfev=maxfev, seed=seed, allow_unstable=allow_unstable, callback=callback)
     if isinstance(cost, MIMOCost):
         return auto_mimo(cost, x0, maxfev=maxfev, seed=seed, allow_unstable=allow_unstable, callback=callback)
+    if isinstance(cost, WienerHammersteinCost):
+        return auto_wiener_hammerstein(cost, x0, maxfev=maxfev, seed=seed, allow_unstable=allow_unstable,
+                                       callback=callback)
     if isinstance(cost, LureCost):
         return auto_lure(cost, x0, maxfev=maxfev, seed=seed, allow_unstable=allow_unstable, callback=callback)
     if isinstance(cost, RecordsCost):

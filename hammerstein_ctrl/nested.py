@@ -45,6 +45,7 @@ from .diagnostics import FAILURE, Verdict
 from .experiments import RecordsCost
 from .initialize import affine_coefficients
 from .lure_fit import LureCost
+from .wh_fit import WienerHammersteinCost
 from .nonlinearities import Polynomial
 from .initialize import points_for
 from .optimize import Budget, BudgetExhausted, levenberg_marquardt
@@ -89,7 +90,7 @@ def nested_linear_structure(structure):
 def delay_scan_count(structure, n_samples: int) -> int:
     """Whole-sample dead times the ``auto`` scan compares when ``structure`` estimates one (else 1)."""
     base = getattr(structure, "base", structure)
-    if not getattr(base.linear, "estimates_delay", False):
+    if not getattr(getattr(base, "linear", None), "estimates_delay", False):
         return 1
     return min(config.get("delay.max_samples"), max(0, n_samples // 4)) + 1
 
@@ -119,7 +120,10 @@ def _linear_fit(cost, seed, x=None):
     with np.errstate(all="ignore"):
         try:
             if x is not None and type(ncost) is HammersteinCost and len(ncost.data) > NESTED_AUTO_SAMPLES:
-                res = _warm_linear_fit(ncost, np.asarray(x, dtype=float)[:nested.linear.n_params])
+                x = np.asarray(x, dtype=float)
+                theta = (cost.structure.linear_theta(x) if hasattr(cost.structure, "linear_theta")
+                         else x[:nested.linear.n_params])
+                res = _warm_linear_fit(ncost, theta)
             else:
                 res = run(ncost, seed=seed, maxfev=NESTED_MAXFEV)
         except BudgetExhausted:          # a start that needs more than the whole budget: no linear test
@@ -155,7 +159,7 @@ def nested_tests(cost, residuals, *, noise=None, seed=None, linear: bool = True,
         out.append(nested_f_test(r, lambda a, b: y[a:b] - (k * u[a:b] + c), n, p, 2, noise=noise,
                                  nested="the static affine gain y = k u + c"))
     fitted = _linear_fit(cost, seed, x) if linear and isinstance(cost, (HammersteinCost, DelayedCost, RecordsCost,
-                                                                      LureCost)) else None
+                                                                      LureCost, WienerHammersteinCost)) else None
     if fitted is not None:
         rl, pl = fitted
         name = "the linear model of the same order"

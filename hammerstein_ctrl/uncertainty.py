@@ -827,18 +827,20 @@ def linear_roots(structure, x) -> list[tuple[str, complex, np.ndarray]]:
      ('zero', (-3+0j), [-1.0, 0.0, 0.0, 0.0, 0.0])]
     """
     x = np.asarray(x, dtype=float)
-    num, den = structure.linear.coefficients(x[:structure.linear.n_params])
-    _, _, num_pos, den_pos = structure.linear.coefficient_template()
     out = []
-    for kind, coeffs, pos, idx in (("pole", den[0], den_pos, num_pos.size + np.arange(den_pos.size)),
-                                   ("zero", num[0], num_pos, np.arange(num_pos.size))):
-        lead = int(np.flatnonzero(coeffs)[0]) if np.any(coeffs) else coeffs.size
-        keep = pos >= lead
-        roots, grads = root_gradients(coeffs[lead:], pos[keep] - lead)
-        for root, g in zip(roots, grads):
-            full = np.zeros(x.size, dtype=complex)
-            full[idx[keep]] = g
-            out.append((kind, complex(root), full))
+    layout = structure.block_layout if hasattr(structure, "block_layout") else ((structure.linear, 0),)
+    for linear, at in layout:
+        num, den = linear.coefficients(x[at:at + linear.n_params])
+        _, _, num_pos, den_pos = linear.coefficient_template()
+        for kind, coeffs, pos, idx in (("pole", den[0], den_pos, at + num_pos.size + np.arange(den_pos.size)),
+                                       ("zero", num[0], num_pos, at + np.arange(num_pos.size))):
+            lead = int(np.flatnonzero(coeffs)[0]) if np.any(coeffs) else coeffs.size
+            keep = pos >= lead
+            roots, grads = root_gradients(coeffs[lead:], pos[keep] - lead)
+            for root, g in zip(roots, grads):
+                full = np.zeros(x.size, dtype=complex)
+                full[idx[keep]] = g
+                out.append((kind, complex(root), full))
     return out
 
 
