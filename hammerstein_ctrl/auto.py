@@ -35,7 +35,8 @@ from ._linalg import single_threaded_blas
 from ._checks import as_count
 from .exceptions import ParameterError
 from .initialize import Budget, check_automatic, initial_points, nuisance_estimate, points_for, stabilize
-from .lure_fit import hammerstein_start, hammerstein_structure_of
+from .lure import sign_map
+from .lure_fit import hammerstein_start, hammerstein_structure_of, linear_structure_of, map_starts
 from .wh_fit import bla_structure, split_starts
 from .objective import HammersteinCost
 from .optimize import (BUDGET_EXHAUSTED, COMPLETED, SOLVER_FAILED, History, OptimizeResult, as_rng, as_x0,
@@ -682,6 +683,8 @@ def auto_lure(cost, x0=None, *, maxfev: int | None = None, seed=None, allow_unst
     started = time.perf_counter()
     budget = Budget(_total(maxfev))
     rng = as_rng(seed)
+    if not sign_map(cost.structure.nonlinearity):
+        return _auto_map_loop(cost, x0, budget, rng, allow_unstable, callback, started)
     hs = hammerstein_structure_of(cost.structure)
     first = auto_minimize(HammersteinCost(cost.data, hs), maxfev=max(MIN_REFINE_BUDGET,
                                                                      int(LURE_START_SHARE * budget.maxfev)),
@@ -724,6 +727,45 @@ def auto_known_loop(cost, starts, *, maxfev: int | None = None, seed=None, allow
     if best is None:
         return _unrefined(cost, starts, len(starts), budget, merged, started)
     return _result(cost, best, budget, runs, len(starts), merged, allow_unstable, started)
+
+
+#: Best-scoring map candidates of a Lur'e loop's linear start handed to the refinement.
+LURE_MAP_STARTS = 3
+
+
+def _auto_map_loop(cost, x0, budget: Budget, rng, allow_unstable: bool, callback, started):
+    """:func:`auto_lure` for a map that is not sign-type: ``auto`` on the linear model of the same orders, its
+    loop with the map's candidates (:func:`~hammerstein_ctrl.lure_fit.map_starts`) scored by J, the best
+    :data:`LURE_MAP_STARTS` and the user's ``x0`` refined."""
+    s = cost.structure
+    ls = linear_structure_of(s)
+    first = auto_minimize(HammersteinCost(cost.data, ls), maxfev=max(MIN_REFINE_BUDGET,
+                                                                       int(LURE_START_SHARE * budget.maxfev)),
+                          seed=rng, allow_unstable=True)
+    budget.charge(min(int(first.nfev), budget.remaining))
+    starts = map_starts(s, ls, first.x, cost.data) if np.all(np.isfinite(first.x)) else []
+    if starts:
+        scores = cost.batch(np.array(starts))
+        budget.charge(min(len(starts), budget.remaining))
+        starts = [starts[i] for i in np.argsort(scores, kind="stable")[:LURE_MAP_STARTS] if np.isfinite(scores[i])]
+    starts = [_stabilized(s.linear, x) for x in starts]
+    if x0 is not None:
+        starts.append(_stabilized(s.linear, s.check_beta(as_x0(x0))))
+    if not starts:
+        raise ParameterError(f"no automatic start for the map {s.nonlinearity!r} of a Lur'e loop (it has neither a "
+                             "basis nor a scale parameter, or the linear model found none): give x0")
+    merged = _Merged()
+    best, runs = _search(cost, starts, _restarts_around_first(rng, s.linear), budget, merged, allow_unstable,
+                         callback)
+    if best is None:
+        return _unrefined(cost, starts, len(starts), budget, merged, started)
+    return _result(cost, best, budget, runs, len(starts), merged, allow_unstable, started)
+
+
+def _stabilized(linear, x) -> np.ndarray:
+    x = np.array(x, dtype=float)
+    x[:linear.n_params] = stabilize(linear, x[:linear.n_params])
+    return x
 
 
 def _explore(cost, best, rng, budget: Budget, merged: _Merged, allow_unstable: bool):

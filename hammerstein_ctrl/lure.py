@@ -47,6 +47,7 @@ import numpy as np
 
 from ._checks import as_real_array, check_intersample
 from ._discretize import companion_realization
+from ._lure_map import loop_setup, map_slope, run
 from ._lure_sim import FEEDBACK_CODES, lure_run, lure_setup
 from .exceptions import ParameterError
 from .nonlinearities import Coulomb, Friction, Nonlinearity
@@ -54,13 +55,24 @@ from .simulate import _check_pair
 from .model import _check_linear, _finite_scalar, _state_vector
 from .structure import INITIAL_STATES, STATE_PREFIX, LinearStructure
 
-__all__ = ["LureStructure", "LureModel", "LoopParts", "lure_structure", "simulate_parts", "FEEDBACKS",
-           "FEEDBACK_FAMILIES"]
+__all__ = ["LureStructure", "LureModel", "LoopParts", "lure_structure", "simulate_parts", "sign_map", "FEEDBACKS",
+           "FEEDBACK_FAMILIES", "DERIVATIVES", "MAX_SUBSTEPS"]
+
+#: Most substeps per sample of a loop with a map that is not sign-type.
+MAX_SUBSTEPS = 64
 
 #: Signals the friction may act on, and the relative degree of ``B/A`` each needs.
 FEEDBACKS = {"velocity": 2, "output": 1}
-#: Feedback families: each maps to ``(slope, Coulomb level, constant)`` of ``g`` from its parameters.
+#: The signals any map may act on, as the derivative of the output each is (``B/A`` needs a higher relative degree).
+DERIVATIVES = {"output": 0, "velocity": 1, "acceleration": 2}
+#: Feedback families simulated exactly through sticking: each maps to ``(slope, Coulomb level, constant)`` of ``g``
+#: from its parameters.  Any other map is simulated by :mod:`~hammerstein_ctrl._lure_map`.
 FEEDBACK_FAMILIES = (Friction, Coulomb)
+
+
+def sign_map(nonlinearity) -> bool:
+    """Whether a map is a sign-type friction map (simulated exactly through sticking)."""
+    return isinstance(nonlinearity, FEEDBACK_FAMILIES)
 
 
 def _affine_parts(nonlinearity: Nonlinearity, P: np.ndarray):
@@ -79,21 +91,29 @@ def _numerator_degree(linear: LinearStructure) -> int:
 
 
 def _check_feedback(linear: LinearStructure, nonlinearity, feedback: str):
-    if not isinstance(feedback, str) or feedback not in FEEDBACKS:
-        raise ParameterError(f"feedback must be one of {tuple(FEEDBACKS)}, got {feedback!r}")
-    if not isinstance(nonlinearity, FEEDBACK_FAMILIES):
-        raise ParameterError(
-            f"a Lur'e loop takes a {' or '.join(f.__name__ for f in FEEDBACK_FAMILIES)} map in its feedback "
-            f"(simulated exactly through sticking), got {type(nonlinearity).__name__}")
+    if not isinstance(feedback, str) or feedback not in DERIVATIVES:
+        raise ParameterError(f"feedback must be one of {tuple(DERIVATIVES)}, got {feedback!r}")
+    if not isinstance(nonlinearity, Nonlinearity):
+        raise ParameterError(f"the feedback map must be a Nonlinearity, got {type(nonlinearity).__name__}")
     top = _numerator_degree(linear)
-    degree, need = linear.den_order - top, FEEDBACKS[feedback]
-    if degree != need:
-        den_order = max(linear.den_order, need)
-        zeros = (f" (b{linear.num_order} is fixed at 0, so the numerator's degree is {top})"
-                 if top < linear.num_order else "")
+    degree = linear.den_order - top
+    zeros = (f" (b{linear.num_order} is fixed at 0, so the numerator's degree is {top})"
+             if top < linear.num_order else "")
+    if sign_map(nonlinearity):
+        if feedback not in FEEDBACKS:
+            raise ParameterError(f"friction acts on the output or the velocity, got {feedback!r}")
+        need = FEEDBACKS[feedback]
+        if degree != need:
+            den_order = max(linear.den_order, need)
+            raise ParameterError(
+                f"friction on the {feedback} needs a linear block of relative degree {need} (den_order - "
+                f"num_order), got {degree}{zeros}: e.g. LinearStructure({den_order - need}, {den_order}, "
+                "monic_numerator=False)")
+    elif degree <= DERIVATIVES[feedback]:
+        need = DERIVATIVES[feedback] + 1
         raise ParameterError(
-            f"friction on the {feedback} needs a linear block of relative degree {need} (den_order - num_order), "
-            f"got {degree}{zeros}: e.g. LinearStructure({den_order - need}, {den_order}, monic_numerator=False)")
+            f"a map on the {feedback} needs a linear block of relative degree at least {need} (den_order - "
+            f"num_order), so that the {feedback} does not jump with the input, got {degree}{zeros}")
     if linear.monic_numerator:
         raise ParameterError("a Lur'e loop carries its gain in the linear block: use "
                              "LinearStructure(..., monic_numerator=False)")
@@ -101,23 +121,45 @@ def _check_feedback(linear: LinearStructure, nonlinearity, feedback: str):
         raise ParameterError("a Lur'e loop with a dead time is not supported yet")
 
 
+def _check_substeps(substeps) -> int:
+    if isinstance(substeps, bool) or not isinstance(substeps, (int, np.integer)) or not 1 <= substeps <= MAX_SUBSTEPS:
+        raise ParameterError(f"substeps must be a whole number from 1 to {MAX_SUBSTEPS}, got {substeps!r}")
+    return int(substeps)
+
+
+def _map_loop_outputs(nonlinearity, num, den, P, y0, x0, u, dt, hold, substeps, feedback) -> np.ndarray:
+    """Outputs ``(B, N)`` of loops with a map that is not sign-type (:mod:`~hammerstein_ctrl._lure_map`)."""
+    loop = loop_setup(num, den, float(dt), substeps, nonlinearity, P, DERIVATIVES[feedback])
+    return run(nonlinearity, loop, P, np.asarray(y0, dtype=float), np.asarray(x0, dtype=float), u, hold == "zoh")
+
+
 class LureStructure:
-    """A Lur'e loop to identify: a linear block with a friction map fed back on its velocity or output.
+    """A Lur'e loop to identify: a linear block with a static map fed back on its output or a derivative.
 
     Parameters
     ----------
     linear : LinearStructure
         ``B(p)/A(p)`` from the net force ``w`` to the output, with its gain
-        (``monic_numerator=False``); relative degree 2 for ``feedback="velocity"``, 1 for ``"output"``.
-    nonlinearity : Friction or Coulomb, default Friction()
-        The feedback map ``g(z)``.
-    feedback : {"velocity", "output"}, default "velocity"
+        (``monic_numerator=False``).  Friction maps need relative degree 2 for
+        ``feedback="velocity"`` and 1 for ``"output"`` exactly; any other map a
+        relative degree above the derivative it reads (any degree >= 1 on the output).
+    nonlinearity : Nonlinearity, default Friction()
+        The feedback map ``g(z)``: :class:`~hammerstein_ctrl.nonlinearities.Friction`
+        and :class:`~hammerstein_ctrl.nonlinearities.Coulomb` are simulated exactly
+        through sticking; any other map (polynomial spring, tanh friction,
+        saturation, dead zone, piecewise-linear, sigmoid, custom) by
+        :mod:`~hammerstein_ctrl._lure_map`, exact for its slope at 0 and with
+        ``substeps`` for the rest.
+    feedback : {"output", "velocity", "acceleration"}, default "velocity"
         The signal ``z`` the map reads.
     offset : bool, default False
         Estimate a constant output offset ``y0``.
     initial_state : {"zero", "estimate"}, default "zero"
         Start at rest, or estimate ``x(0)`` of the block's companion
         realisation (parameters ``xi0``, ``xi1``, ...).
+    substeps : int, default 1
+        Instants per sample at which a map that is not sign-type is computed
+        (the error falls with their square; ignored for friction maps, which are exact).
 
     Examples
     --------
@@ -125,6 +167,8 @@ class LureStructure:
     >>> lin = hc.LinearStructure(0, 2, monic_numerator=False, fixed={"a0": 0.0})
     >>> LureStructure(lin, hc.Friction(), offset=True).param_names
     ('b0', 'a1', 'fc', 'c', 'y0')
+    >>> LureStructure(lin, hc.Polynomial(3), feedback="output").param_names   # a Duffing oscillator
+    ('b0', 'a1', 'd1', 'd2', 'd3')
     """
 
     kind = "lure"
@@ -134,7 +178,7 @@ class LureStructure:
     _fixed_gain = None
 
     def __init__(self, linear: LinearStructure, nonlinearity: Nonlinearity | None = None, *,
-                 feedback: str = "velocity", offset: bool = False, initial_state: str = "zero"):
+                 feedback: str = "velocity", offset: bool = False, initial_state: str = "zero", substeps: int = 1):
         if not isinstance(linear, LinearStructure):
             raise ParameterError(f"linear must be a LinearStructure, got {type(linear).__name__}")
         nonlinearity = Friction() if nonlinearity is None else nonlinearity
@@ -149,6 +193,7 @@ class LureStructure:
             raise ParameterError(f"initial_state must be one of {INITIAL_STATES}, got {initial_state!r}")
         self.linear, self.nonlinearity, self.feedback = linear, nonlinearity, feedback
         self.offset, self.initial_state = bool(offset), initial_state
+        self.substeps = _check_substeps(substeps)
         self.param_names: tuple[str, ...] = (
             linear.param_names + tuple(nonlinearity.param_names) + (("y0",) if self.offset else ())
             + (tuple(f"{STATE_PREFIX}{i}" for i in range(linear.den_order)) if initial_state == "estimate" else ()))
@@ -164,14 +209,36 @@ class LureStructure:
 
     @property
     def level_index(self) -> int:
-        """Position of the Coulomb level (``fc``, or ``Coulomb``'s ``d1``) in beta."""
+        """Position of the Coulomb level (``fc``, or ``Coulomb``'s ``d1``) in beta (a friction map only)."""
+        if not sign_map(self.nonlinearity):
+            raise ParameterError(f"the map {self.nonlinearity!r} has no Coulomb level")
         return self.linear.n_params + (0 if isinstance(self.nonlinearity, Friction) else 1)
 
-    def with_options(self, *, offset: bool | None = None, initial_state: str | None = None) -> "LureStructure":
+    def with_options(self, *, offset: bool | None = None, initial_state: str | None = None,
+                     substeps: int | None = None) -> "LureStructure":
         """The same loop with other real-data options (``None`` keeps the current one)."""
         return LureStructure(self.linear, self.nonlinearity, feedback=self.feedback,
                              offset=self.offset if offset is None else offset,
-                             initial_state=self.initial_state if initial_state is None else initial_state)
+                             initial_state=self.initial_state if initial_state is None else initial_state,
+                             substeps=self.substeps if substeps is None else substeps)
+
+    def simulate_rows(self, betas, u, dt: float, hold: str, y=None) -> np.ndarray:
+        """Outputs ``(B, N)`` of the loops of rows ``betas`` driven by ``u``, or with ``y`` their SSEs ``(B,)``."""
+        B = np.atleast_2d(self.check_beta(betas))
+        if sign_map(self.nonlinearity):
+            return simulate_parts(self.parts(B), u, dt, hold, y=y)
+        num, den = self.linear.coefficients(B[:, :self.linear.n_params])
+        P = self.map_params(B)
+        at = self.n_core
+        y0 = B[:, at] if self.offset else np.zeros(B.shape[0])
+        n = self.linear.den_order
+        x0 = B[:, at + self.offset:at + self.offset + n] if self.initial_state == "estimate" else np.zeros((len(B), n))
+        Y = _map_loop_outputs(self.nonlinearity, num, den, P, y0, x0, u, dt, hold, self.substeps, self.feedback)
+        if y is None:
+            return Y
+        with np.errstate(all="ignore"):
+            E = Y - np.asarray(y, dtype=float)
+            return np.einsum("ij,ij->i", E, E)
 
     def check_beta(self, beta) -> np.ndarray:
         """``beta`` as a float array ``(n_params,)`` or ``(B, n_params)``; a wrong length is refused."""
@@ -203,9 +270,14 @@ class LureStructure:
         return LoopParts.of(num, den, slope, fc, c, y0, x0, self.feedback)
 
     def normalize(self, beta) -> np.ndarray:
-        """``beta`` with the Coulomb level non-negative (``fc`` and ``-fc`` are one model)."""
+        """``beta`` with the map's parameters in canonical form (a Coulomb level non-negative: ``fc`` and ``-fc``
+        are one model)."""
         b = np.array(self.check_beta(beta), dtype=float)
-        b[..., self.level_index] = np.abs(b[..., self.level_index])
+        if sign_map(self.nonlinearity):
+            b[..., self.level_index] = np.abs(b[..., self.level_index])
+        else:
+            k = self.linear.n_params
+            b[..., k:self.n_core] = self.nonlinearity.normalize(b[..., k:self.n_core])
         return b
 
     def beta(self, model: "LureModel") -> np.ndarray:
@@ -225,11 +297,13 @@ class LureStructure:
         b = self.normalize(self.check_beta(beta))
         if b.ndim != 1:
             raise ParameterError("model() takes one beta vector")
-        parts = self.parts(b)
-        return LureModel((parts.num[0], parts.den[0]), self.nonlinearity, self.map_params(b), feedback=self.feedback,
-                         offset=float(parts.y0[0]),
-                         initial_state=parts.x0[0] if self.initial_state == "estimate" else None,
-                         intersample=intersample, name=name)
+        num, den = self.linear.coefficients(self.linear_params(b))
+        at = self.n_core
+        n = self.linear.den_order
+        return LureModel((num[0], den[0]), self.nonlinearity, self.map_params(b), feedback=self.feedback,
+                         offset=float(b[at]) if self.offset else 0.0,
+                         initial_state=b[at + self.offset:at + self.offset + n] if self.initial_state == "estimate"
+                         else None, intersample=intersample, name=name, substeps=self.substeps)
 
     def describe(self) -> str:
         return (f"Lur'e loop: w = u - {self.nonlinearity.name}({self.feedback}), linear block "
@@ -237,7 +311,8 @@ class LureStructure:
 
     def __repr__(self):
         return (f"LureStructure({self.linear!r}, {self.nonlinearity!r}, feedback={self.feedback!r}, "
-                f"offset={self.offset}, initial_state={self.initial_state!r})")
+                f"offset={self.offset}, initial_state={self.initial_state!r}"
+                + (f", substeps={self.substeps})" if self.substeps != 1 else ")"))
 
 
 def lure_structure(num_order: int = 0, den_order: int = 2, nonlinearity: Nonlinearity | None = None, *,
@@ -290,21 +365,24 @@ def simulate_parts(parts: LoopParts, u, dt: float, hold: str, y=None) -> np.ndar
 
 
 class LureModel:
-    """An identified (or given) Lur'e loop: ``y = B/A (u - g(z)) + offset``, ``z`` the velocity or the output.
+    """An identified (or given) Lur'e loop: ``y = B/A (u - g(z)) + offset``, ``z`` the output or a derivative.
 
     Parameters
     ----------
     linear : (num, den) or control.TransferFunction
         The linear block from the net force to the output.
-    nonlinearity : Friction or Coulomb
+    nonlinearity : Nonlinearity
+        The feedback map (see :class:`LureStructure`).
     params : array_like
         The map's parameters.
-    feedback : {"velocity", "output"}
+    feedback : {"output", "velocity", "acceleration"}
     offset : float
     initial_state : array_like, optional
         ``x(0)`` of the companion realisation of ``num/den``.
     intersample : {"foh", "zoh"}
     name : str, optional
+    substeps : int, default 1
+        See :class:`LureStructure`.
     """
 
     kind = "lure"
@@ -313,7 +391,7 @@ class LureModel:
     output_nonlinearity = None
 
     def __init__(self, linear, nonlinearity, params, *, feedback: str = "velocity", offset: float = 0.0,
-                 initial_state=None, intersample: str = "foh", name: str | None = None):
+                 initial_state=None, intersample: str = "foh", name: str | None = None, substeps: int = 1):
         _, num, den = _check_linear(linear if not isinstance(linear, list) else tuple(linear))
         if not np.any(num):
             raise ParameterError("the linear block's gain is zero: the input cannot move the loop")
@@ -328,6 +406,7 @@ class LureModel:
         self.name = "lure" if name is None else str(name)
         self.intersample = check_intersample(intersample)
         self.initial_state = _state_vector(initial_state, self.order)
+        self.substeps = _check_substeps(substeps)
 
     @property
     def order(self) -> int:
@@ -368,7 +447,12 @@ class LureModel:
         t, u, hold = time_and_input(t, u, self.intersample)
         hold = check_intersample(hold if intersample is None else intersample)
         dt, u = _check_pair(t, u, "u")
-        return simulate_parts(self._parts(initial_state), u, dt, hold)[0]
+        if sign_map(self.nonlinearity):
+            return simulate_parts(self._parts(initial_state), u, dt, hold)[0]
+        x0 = self.initial_state if initial_state is None else _state_vector(initial_state, self.order)
+        x0 = np.zeros((1, self.order)) if x0 is None else np.reshape(x0, (1, self.order))
+        return _map_loop_outputs(self.nonlinearity, self._num[None, :], self._den[None, :], self.params[None, :],
+                                 [self.offset], x0, u, dt, hold, self.substeps, self.feedback)[0]
 
     def to_iosys(self, name: str | None = None):
         """The loop as a python-control ``interconnect`` of the linear block and the feedback map.
@@ -383,7 +467,7 @@ class LureModel:
         import control as ct
 
         A, B, C, _ = (m[0] for m in companion_realization(self._num, self._den))
-        Cz = C @ A if self.feedback == "velocity" else C
+        Cz = C @ np.linalg.matrix_power(A, DERIVATIVES[self.feedback])
         plant = ct.ss(A, B[:, None], np.vstack([C, Cz]), np.zeros((2, 1)), inputs="w", outputs=["ylin", "z"],
                       name="linear")
         fmap = ct.nlsys(None, lambda t, x, u, p: np.atleast_1d(self.g(u[0])), inputs="z", outputs="f",
@@ -401,7 +485,8 @@ class LureModel:
         disturbance of ``-(fc sign(z) + c)``), and only a viscous slope ``k``
         of the map (``Coulomb``'s ``d0``) acts on the dynamics:
         ``B / (A + k p B)`` on velocity, ``B / (A + k B)`` on the output.  At
-        rest the loop sticks: no linear model describes it there.
+        rest the loop sticks: no linear model describes it there.  Any other
+        map acts through its slope at 0 (the loop linearised about rest).
 
         Examples
         --------
@@ -411,8 +496,11 @@ class LureModel:
         """
         import control
 
-        slope = float(_affine_parts(self.nonlinearity, self.params[None, :])[0][0])
-        term = np.polymul(self._num, [1.0, 0.0]) if self.feedback == "velocity" else self._num
+        if sign_map(self.nonlinearity):
+            slope = float(_affine_parts(self.nonlinearity, self.params[None, :])[0][0])
+        else:
+            slope = float(map_slope(self.nonlinearity, self.params[None, :])[0])
+        term = np.polymul(self._num, np.eye(DERIVATIVES[self.feedback] + 1)[0])
         return control.tf(self._num, np.polyadd(self._den, slope * term))
 
     def motion_model(self):

@@ -49,7 +49,7 @@ class WienerHammersteinCost:
     --------
     >>> import numpy as np, hammerstein_ctrl as hc
     >>> from hammerstein_ctrl.wiener_hammerstein import wiener_hammerstein_structure
-    >>> s = wiener_hammerstein_structure((0, 1), None, (0, 1)); truth = [2.0, 5.0, 1.0, 0.1, -0.3]
+    >>> s = wiener_hammerstein_structure((0, 1), None, (0, 1), time_unit=1.0); truth = [0.5, 0.2, 1.0, 0.1, -0.3]
     >>> t = np.arange(2000) * 0.01; u = np.sin(0.7 * t) + np.sin(2.3 * t)
     >>> data = hc.IOData(u, s.model(truth).simulate(t, u), dt=0.01)
     >>> float(WienerHammersteinCost(data, s)(truth))
@@ -60,6 +60,7 @@ class WienerHammersteinCost:
         if not isinstance(structure, WienerHammersteinStructure):
             raise ParameterError(f"structure must be a WienerHammersteinStructure, got {type(structure).__name__}")
         data.require_siso("a Wiener-Hammerstein structure")
+        structure = structure.for_record(float(data.dt))
         self.data, self.structure, self.reject_unstable = data, structure, bool(reject_unstable)
         self._u = np.ascontiguousarray(np.asarray(data.u, dtype=float).reshape(-1))
         self._y = np.ascontiguousarray(np.asarray(data.y, dtype=float).reshape(-1))
@@ -175,7 +176,7 @@ def splits(structure: WienerHammersteinStructure, num, den) -> list[tuple[np.nda
     Examples
     --------
     >>> from hammerstein_ctrl.wiener_hammerstein import wiener_hammerstein_structure
-    >>> s = wiener_hammerstein_structure((0, 1), None, (0, 1))
+    >>> s = wiener_hammerstein_structure((0, 1), None, (0, 1), time_unit=1.0)
     >>> [(a.tolist(), b.tolist()) for a, b in splits(s, [1.0], [1.0, 3.0, 2.0])[:2]]   # poles -1, -2
     [([1.0], [0.5]), ([0.5], [1.0])]
     """
@@ -211,23 +212,30 @@ def _map_columns(nl, x):
         return [(p, nl(x, p)[None, :]) for p in np.atleast_2d(grid)]
 
 
+def _time_scale(den) -> float:
+    """``w0 = |A(0)|^(1/n)`` of a monic denominator row: the block's frequency scale, which keeps the columns of
+    :func:`_through_second` of one size."""
+    n = den.size - 1
+    w0 = abs(den[-1]) ** (1.0 / n) if n else 1.0
+    return w0 if np.isfinite(w0) and w0 > 0 else 1.0
+
+
 def _through_second(structure, theta2, V, dt):
-    """``(columns (N, k m), m)``: each signal of ``V`` (k, N) through ``p^j / A2(p)`` for ``j < m`` (``m`` the
-    numerator's free powers: ``G2``'s zeros are fitted with the map), or through ``G2`` itself (``m = 1``)."""
+    """``(columns (N, k m), m, w0)``: each signal of ``V`` (k, N) through ``A2(0) (p/w0)^j / A2(p)`` for ``j < m``
+    (``m`` the numerator's powers: ``G2``'s zeros are fitted with the map; ``w0`` :func:`_time_scale`), or through
+    ``G2`` itself (``m = 1``)."""
     lin = structure.second
-    num2, den2 = lin.monic(theta2)
-    k = V.shape[0]
     if lin.num_order == 0:
-        cols = simulate_batch(np.repeat(num2, k, 0), np.repeat(den2, k, 0), V, dt)
-        return cols.T, 1
-    m = lin.num_order + 1
-    powers = np.eye(m)                                              # rows p^(m-1) ... p^0 (descending coefficients)
-    num = np.tile(powers, (k, 1))
-    cols = simulate_batch(num, np.repeat(den2, k * m, 0), np.repeat(V, m, 0), dt)
-    return cols.T, m
+        return _simulate_second(structure, theta2, V, dt), 1, 1.0
+    _, den2 = lin.monic(theta2)
+    k, m = V.shape[0], lin.num_order + 1
+    w0 = _time_scale(den2[0])
+    powers = np.diag(den2[0, -1] * w0 ** -np.arange(m - 1, -1, -1.0))   # rows (p/w0)^(m-1) ... 1, descending
+    cols = simulate_batch(np.tile(powers, (k, 1)), np.repeat(den2, k * m, 0), np.repeat(V, m, 0), dt)
+    return cols.T, m, w0
 
 
-def _rank_one(structure, theta2, w, m, k):
+def _rank_one(structure, theta2, w, m, k, w0):
     """``(G2's parameters, map coefficients)`` from the coefficients ``w`` of the columns of
     :func:`_through_second`: the nearest product ``B(p) c`` (a rank-one factor), ``B`` monic, ``G2`` at unit gain."""
     lin = structure.second
@@ -235,13 +243,53 @@ def _rank_one(structure, theta2, w, m, k):
         return theta2, w
     W = w.reshape(k, m)                                             # rows: map coefficients; columns: powers
     U, S, Vt = np.linalg.svd(W, full_matrices=False)
-    b, c = Vt[0], U[:, 0] * S[0]
+    b, c = Vt[0] * w0 ** -np.arange(m - 1, -1, -1.0), U[:, 0] * S[0]
     if b[0] == 0 or b[-1] == 0:
         return None
     c, b = c * b[0], b / b[0]
     _, den2 = lin.monic(theta2)
-    theta = lin.free_parameters(b, den2[0])
-    return theta, c * b[-1] / den2[0, -1]
+    return lin.free_parameters(b, den2[0]), c * b[-1]
+
+
+def _least_squares(cols, y):
+    """``(coefficients, sse)`` of ``y`` on the columns ``cols`` (N, k) and a constant (the last coefficient), the
+    columns brought to one size first (none lost to the solver's rank cut-off); ``None`` if not finite."""
+    A = np.column_stack([cols, np.ones(y.size)])
+    if not np.all(np.isfinite(A)):
+        return None
+    size = np.sqrt(np.mean(A * A, axis=0))
+    size[size == 0] = 1.0
+    w, *_ = np.linalg.lstsq(A / size, y, rcond=None)
+    w /= size
+    r = y - A @ w
+    return w, float(r @ r)
+
+
+def _fit_map(structure, theta2, V, y, dt):
+    """``(sse, G2's parameters, map coefficients, offset)`` for the map's regressors ``V`` (k, N): ``G2``'s zeros
+    from the rank-one factor of the joint fit (:func:`_through_second`), then the coefficients refitted through
+    that ``G2``; ``None`` when a fit fails."""
+    with np.errstate(all="ignore"):
+        cols, m, w0 = _through_second(structure, theta2, V, dt)
+        if m > 1:
+            joint = _least_squares(cols, y)
+            factored = None if joint is None else _rank_one(structure, theta2, joint[0][:-1], m, V.shape[0], w0)
+            if factored is None or not np.all(np.isfinite(factored[0])):
+                return None
+            theta2 = factored[0]
+            cols = _simulate_second(structure, theta2, V, dt)
+        fitted = _least_squares(cols, y)
+    if fitted is None:
+        return None
+    w, sse = fitted
+    return sse, theta2, w[:-1], float(w[-1])
+
+
+def _simulate_second(structure, theta2, V, dt):
+    """Each signal of ``V`` (k, N) through ``G2`` at ``theta2``, as columns (N, k)."""
+    num2, den2 = structure.second.monic(theta2)
+    k = V.shape[0]
+    return simulate_batch(np.repeat(num2, k, 0), np.repeat(den2, k, 0), V, dt).T
 
 
 def _fit_split(structure, theta1, theta2, u, y, dt, hold):
@@ -255,23 +303,14 @@ def _fit_split(structure, theta1, theta2, u, y, dt, hold):
         return None
     best = None
     for p, V in _map_columns(nl, x):
-        with np.errstate(all="ignore"):
-            cols, m = _through_second(structure, theta2, np.ascontiguousarray(V), dt)
-        A = np.column_stack([cols, np.ones(y.size)])
-        if not np.all(np.isfinite(A)):
+        fitted = _fit_map(structure, theta2, np.ascontiguousarray(V), y, dt)
+        if fitted is None or (best is not None and fitted[0] >= best[0]):
             continue
-        w, *_ = np.linalg.lstsq(A, y, rcond=None)
-        r = y - A @ w
-        sse = float(r @ r)
-        if best is not None and sse >= best[0]:
-            continue
-        factored = _rank_one(structure, theta2, w[:-1], m, V.shape[0])
-        if factored is None or not np.all(np.isfinite(factored[0])):
-            continue
-        params = factored[1].copy() if p is None else np.array(p, dtype=float)
+        sse, theta, coefficients, offset = fitted
+        params = coefficients.copy() if p is None else np.array(p, dtype=float)
         if p is not None:
-            params[nl.scale_index] = factored[1][0]
-        best = (sse, factored[0], params, float(w[-1]))
+            params[nl.scale_index] = coefficients[0]
+        best = (sse, theta, params, offset)
     return best
 
 

@@ -32,7 +32,7 @@ give fits equal to three digits.
 Examples
 --------
 >>> import numpy as np, hammerstein_ctrl as hc
->>> s = WienerHammersteinStructure((0, 1), hc.Polynomial(3), (0, 2))   # G1: 1/(1 + a1 p), G2: 2nd order
+>>> s = WienerHammersteinStructure((0, 1), hc.Polynomial(3), (0, 2), time_unit=1.0)  # G1 = 1/(1 + a1 p)
 >>> s.param_names
 ('g1_a1', 'g2_a1', 'g2_a2', 'd1', 'd2', 'd3')
 >>> m = s.model([0.5, 1.0, 0.25, 1.0, 0.0, -0.2])
@@ -68,18 +68,23 @@ MAX_SUBSTEPS = 64
 
 
 class UnitGainBlock:
-    """A linear block in static-gain form, ``G(p) = (1 + b1 p + ... + bl p^l) / (1 + a1 p + ... + an p^n)``.
+    """A linear block in static-gain form, ``G(p) = (1 + b1 q + ... + bl q^l) / (1 + a1 q + ... + an q^n)``,
+    ``q = time_unit p``.
 
     Its static gain is 1 whatever the parameters; a zero or a pole leaves to
     infinity smoothly (its coefficient through 0), which the usual monic form
     reaches only as a coefficient grows without bound.  The coefficients are
     those of the block's time constants (``a1`` is the sum of the poles' time
-    constants), in seconds to the power of their index.
+    constants) in units of ``time_unit`` (seconds) to the power of their
+    index: a unit near the block's time constants keeps them near 1, where a
+    least-squares search's difference steps are relative.
 
     Parameters
     ----------
     num_order, den_order : int
         Degrees ``l <= n`` of the numerator and the denominator, ``n >= 1``.
+    time_unit : float, default 1.0
+        The unit of time of the coefficients, in seconds.
 
     Examples
     --------
@@ -97,7 +102,10 @@ class UnitGainBlock:
     fixed: dict = {}
     delay = None
 
-    def __init__(self, num_order: int, den_order: int):
+    def __init__(self, num_order: int, den_order: int, time_unit: float = 1.0):
+        self.time_unit = _finite_scalar(time_unit, "time_unit")
+        if not self.time_unit > 0:
+            raise ParameterError(f"time_unit must be > 0 (seconds), got {time_unit!r}")
         for label, v in (("num_order", num_order), ("den_order", den_order)):
             if isinstance(v, bool) or int(v) != v or v < 0:
                 raise ParameterError(f"{label} must be a whole number >= 0, got {v!r}")
@@ -111,6 +119,7 @@ class UnitGainBlock:
         num0, den0 = np.zeros(l + 1), np.zeros(n + 1)
         num0[-1] = den0[-1] = 1.0
         self._template = (num0, den0, np.arange(l - 1, -1, -1), np.arange(n - 1, -1, -1))
+        self._units = (self.time_unit ** np.arange(1, l + 1), self.time_unit ** np.arange(1, n + 1))
 
     @property
     def n_params(self) -> int:
@@ -125,8 +134,8 @@ class UnitGainBlock:
         T = np.atleast_2d(np.asarray(theta, dtype=float))
         num0, den0, num_pos, den_pos = self._template
         num, den = np.tile(num0, (T.shape[0], 1)), np.tile(den0, (T.shape[0], 1))
-        num[:, num_pos] = T[:, :self.num_order]
-        den[:, den_pos] = T[:, self.num_order:]
+        num[:, num_pos] = T[:, :self.num_order] * self._units[0]
+        den[:, den_pos] = T[:, self.num_order:] * self._units[1]
         return num, den
 
     def monic(self, theta):
@@ -144,24 +153,25 @@ class UnitGainBlock:
         den = np.concatenate([np.zeros(self.den_order + 1 - den.size), den])[-(self.den_order + 1):]
         with np.errstate(all="ignore"):
             num, den = num / num[-1], den / den[-1]
-        return np.concatenate([num[self._template[2]], den[self._template[3]]])
+        return np.concatenate([num[self._template[2]] / self._units[0], den[self._template[3]] / self._units[1]])
 
     def describe(self) -> str:
         def poly(letter, order):
-            return " + ".join(["1"] + [f"{letter}{i} p" + (f"^{i}" if i > 1 else "") for i in range(1, order + 1)])
-        return f"({poly('b', self.num_order)})/({poly('a', self.den_order)})"
+            return " + ".join(["1"] + [f"{letter}{i} q" + (f"^{i}" if i > 1 else "") for i in range(1, order + 1)])
+        return f"({poly('b', self.num_order)})/({poly('a', self.den_order)}), q = {self.time_unit:.6g} s p"
 
     def __repr__(self):
-        return f"UnitGainBlock({self.num_order}, {self.den_order})"
+        unit = "" if self.time_unit == 1.0 else f", time_unit={self.time_unit!r}"
+        return f"UnitGainBlock({self.num_order}, {self.den_order}{unit})"
 
 
-def _check_block(block, label: str) -> UnitGainBlock:
-    """A :class:`UnitGainBlock` from one, from orders ``(num_order, den_order)``, or from a plain
-    :class:`~hammerstein_ctrl.structure.LinearStructure` (its orders)."""
+def _check_block(block, label: str, time_unit: float) -> UnitGainBlock:
+    """A :class:`UnitGainBlock` in ``time_unit`` from one (its orders), from orders ``(num_order, den_order)``, or
+    from a plain :class:`~hammerstein_ctrl.structure.LinearStructure` (its orders)."""
     if isinstance(block, UnitGainBlock):
-        return block
+        return UnitGainBlock(block.num_order, block.den_order, time_unit)
     if isinstance(block, tuple) and len(block) == 2:
-        return UnitGainBlock(*block)
+        return UnitGainBlock(*block, time_unit)
     if not isinstance(block, LinearStructure):
         raise ParameterError(f"{label} must be a LinearStructure, a UnitGainBlock or (num_order, den_order), got "
                              f"{type(block).__name__}")
@@ -173,7 +183,7 @@ def _check_block(block, label: str) -> UnitGainBlock:
                              "Wiener-Hammerstein structure writes both linear blocks with static gain 1, "
                              "(1 + b1 p + ...)/(1 + a1 p + ...), and lets the map carry the gain; give the orders "
                              "only")
-    return UnitGainBlock(block.num_order, block.den_order)
+    return UnitGainBlock(block.num_order, block.den_order, time_unit)
 
 
 class WHParts(NamedTuple):
@@ -238,6 +248,10 @@ class WienerHammersteinStructure:
         (``xi0 ...`` of ``G1``'s then ``G2``'s companion realisation).
     substeps : int, default 1
         Instants per sample at which the middle signal is computed (module docstring).
+    time_unit : float, optional
+        The unit of time of the blocks' coefficients (:class:`UnitGainBlock`),
+        in seconds; by default the sample time of the record it is fitted to
+        (``identify`` sets it; :meth:`model` needs it set).
 
     Examples
     --------
@@ -253,9 +267,14 @@ class WienerHammersteinStructure:
     _fixed_gain = None
 
     def __init__(self, first, nonlinearity: Nonlinearity, second, *,
-                 offset: bool = False, initial_state: str = "zero", substeps: int = 1):
-        self.first = _check_block(first, "first")
-        self.second = _check_block(second, "second")
+                 offset: bool = False, initial_state: str = "zero", substeps: int = 1, time_unit: float | None = None):
+        if time_unit is not None:
+            time_unit = _finite_scalar(time_unit, "time_unit")
+            if not time_unit > 0:
+                raise ParameterError(f"time_unit must be > 0 (seconds), got {time_unit!r}")
+        self.time_unit = time_unit
+        self.first = _check_block(first, "first", 1.0 if time_unit is None else time_unit)
+        self.second = _check_block(second, "second", 1.0 if time_unit is None else time_unit)
         if not isinstance(nonlinearity, Nonlinearity):
             raise ParameterError(f"nonlinearity must be a Nonlinearity, got {type(nonlinearity).__name__}")
         if not isinstance(offset, (bool, np.bool_)):
@@ -335,12 +354,23 @@ class WienerHammersteinStructure:
         return slice(0, k1), slice(k1, k1 + k2), slice(k1 + k2, self.n_core)
 
     def with_options(self, *, offset: bool | None = None, initial_state: str | None = None,
-                     substeps: int | None = None) -> "WienerHammersteinStructure":
+                     substeps: int | None = None, time_unit: float | None = None) -> "WienerHammersteinStructure":
         """The same blocks with other options (``None`` keeps the current one)."""
         return WienerHammersteinStructure(
             self.first, self.nonlinearity, self.second, offset=self.offset if offset is None else offset,
             initial_state=self.initial_state if initial_state is None else initial_state,
-            substeps=self.substeps if substeps is None else substeps)
+            substeps=self.substeps if substeps is None else substeps,
+            time_unit=self.time_unit if time_unit is None else time_unit)
+
+    def for_record(self, dt: float) -> "WienerHammersteinStructure":
+        """This structure with its time unit set: the record's sample time ``dt`` when none was given."""
+        return self if self.time_unit is not None else self.with_options(time_unit=dt)
+
+    def _resolved(self) -> None:
+        if self.time_unit is None:
+            raise ParameterError("this Wiener-Hammerstein structure has no time unit yet (the unit of its blocks' "
+                                 "coefficients): give time_unit=..., or use the structure of an identification "
+                                 "result (identify sets it to the record's sample time)")
 
     def check_beta(self, beta) -> np.ndarray:
         """``beta`` as a float array ``(n_params,)`` or ``(B, n_params)``; a wrong length is refused."""
@@ -360,6 +390,7 @@ class WienerHammersteinStructure:
 
     def coefficients(self, beta):
         """``(num1, den1, num2, den2)`` rows of the blocks of a beta or batch (monic denominators, static gain 1)."""
+        self._resolved()
         B = np.atleast_2d(self.check_beta(beta))
         p1, p2, _ = self.block_params(B)
         return self.first.monic(p1) + self.second.monic(p2)
@@ -401,6 +432,7 @@ class WienerHammersteinStructure:
         """The beta vector of a model that has this structure."""
         if not isinstance(model, WienerHammersteinModel) or type(model.nonlinearity) is not type(self.nonlinearity):
             raise ParameterError(f"the model {model!r} does not have this structure {self!r}")
+        self._resolved()
         parts = []
         for lin, (num, den) in zip(self.linear_blocks, model._blocks):
             parts.append(lin.free_parameters(num, den))
@@ -420,7 +452,8 @@ class WienerHammersteinStructure:
     def __repr__(self):
         opts = (", offset=True" if self.offset else "") + (
             f", initial_state={self.initial_state!r}" if self.initial_state != "zero" else "") + (
-            f", substeps={self.substeps}" if self.substeps != 1 else "")
+            f", substeps={self.substeps}" if self.substeps != 1 else "") + (
+            f", time_unit={self.time_unit!r}" if self.time_unit is not None else "")
         return f"WienerHammersteinStructure({self.first!r}, {self.nonlinearity!r}, {self.second!r}{opts})"
 
 

@@ -217,7 +217,9 @@ def test_friction_level_is_reported_non_negative():
 
 
 @pytest.mark.parametrize("make, match", [
-    (lambda: LureStructure(LinearStructure(0, 2, monic_numerator=False), Tanh()), "Friction or Coulomb"),
+    (lambda: LureStructure(LinearStructure(1, 2, monic_numerator=False), Tanh()), "relative degree at least 2"),
+    (lambda: LureStructure(LinearStructure(0, 2, monic_numerator=False), "tanh"), "must be a Nonlinearity"),
+    (lambda: lure_structure(nonlinearity=Tanh(), substeps=0), "substeps"),
     (lambda: LureStructure(LinearStructure(1, 2, monic_numerator=False), Friction()), "relative degree 2"),
     (lambda: LureStructure(LinearStructure(0, 2, monic_numerator=False), Friction(), feedback="output"),
      "relative degree 1"),

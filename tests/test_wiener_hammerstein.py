@@ -53,7 +53,7 @@ def _ode_reference(maps, t, u, hold="foh"):
 
 
 def _structure(nl, **options):
-    return WienerHammersteinStructure((0, 2), nl, (1, 2), **options)
+    return WienerHammersteinStructure((0, 2), nl, (1, 2), time_unit=1.0, **options)
 
 
 def _beta(params):
@@ -134,7 +134,7 @@ def test_blocks_without_a_unit_static_gain_are_refused(first, why):
 
 
 def test_splits_give_every_assignment_of_the_roots():
-    s = WienerHammersteinStructure(hc.LinearStructure(0, 1), hc.Polynomial(3), hc.LinearStructure(0, 2))
+    s = WienerHammersteinStructure((0, 1), hc.Polynomial(3), (0, 2), time_unit=1.0)
     found = splits(s, [1.0], np.poly([-1.0, -2.0 + 1j, -2.0 - 1j]).real)
     assert np.allclose(found[0][0], [1.0])                         # the real pole in G1: 1/(1 + p)
     assert np.allclose(found[0][1], [0.8, 0.2])                    # the pair in G2: 5/(p^2 + 4 p + 5)
@@ -146,7 +146,7 @@ TRUTH_BLOCKS = (UnitGainBlock(0, 2).free_parameters([1.0], [1.0, 1.2, 4.0]),
 
 
 def _known_truth(nl, truth, seed, n=3000, dt=0.05):
-    s = WienerHammersteinStructure((0, 2), nl, (1, 3), offset=True)
+    s = WienerHammersteinStructure((0, 2), nl, (1, 3), offset=True, time_unit=1.0)
     rng = np.random.default_rng(100 + seed)
     t = np.arange(n) * dt
     u = np.repeat(rng.uniform(-2.0, 2.0, n // 5), 5)
@@ -165,6 +165,21 @@ def test_known_truths_are_found_without_x0_within_four_standard_errors(nl, shape
         assert r.success, r.message
         z = np.abs(r.x - truth) / np.sqrt(np.diag(r.uncertainty.covariance))
         assert np.all(z < 4.0), dict(zip(s.param_names, np.round(z, 2)))
+
+
+def test_the_time_unit_defaults_to_the_records_sample_time():
+    s = WienerHammersteinStructure((0, 1), hc.Tanh(), (0, 1))
+    with pytest.raises(ParameterError, match="no time unit"):
+        s.model([1.0, 1.0, 1.0, 1.0])
+    t = np.arange(400) * 0.05
+    u = np.sin(0.8 * t) + 0.5 * np.sin(2.9 * t)
+    truth = s.with_options(time_unit=0.05)
+    data = hc.IOData(u, truth.model([20.0, 10.0, 1.5, 0.7]).simulate(t, u), dt=0.05)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        r = hc.identify(data, s, seed=0)
+    assert r.structure.time_unit == 0.05
+    np.testing.assert_allclose(r.x, [20.0, 10.0, 1.5, 0.7], rtol=1e-5)
 
 
 def test_pure_noise_is_not_called_a_model():

@@ -173,6 +173,15 @@ int hc_controller_loop(const double *Ad, const double *Bd, const double *C, cons
                        hc_signed hcode, const double *hp, int64_t hm, const double *hbp, int64_t nhbp,
                        const double *Ac, const double *Bc, const double *Cc, double Dc, int64_t nc, const double *r,
                        int64_t N, double lo, double hi, double bias, double bound, double *Y, double *U);
+/* ---- lure_map.cpp: Lur'e loops with a built-in map of any kind in the feedback ----
+ * Rows b of a batch: the substep recursion Ad (n x n), B0, B1 of A - slope B Cz at dt/sub, C, Cz (n), the map's
+ * code, parameters P (m per row) and fixed data extra (nx), its slope at 0, the offset y0 and the initial state X0;
+ * writes out (batch x N), NaN rows for loops that could not be simulated.  Returns 0, or 1 for bad sizes. */
+int hc_lure_map_run(const double *Ad, const double *B0, const double *B1, const double *C, const double *Cz,
+                    int64_t batch, int64_t n, int64_t code, const double *P, int64_t m, const double *extra,
+                    int64_t nx, const double *slope, const double *y0, const double *X0, const double *u, int64_t N,
+                    int64_t sub, int64_t zoh, double *out);
+
 int hc_known_loop(const double *Ad, const double *Bd, const double *C, const double *x0, int64_t n, double offset,
                   hc_signed code, const double *p, int64_t m, const double *bp, int64_t nbp, hc_signed hcode,
                   const double *hp, int64_t hm, const double *hbp, int64_t nhbp, const double *Ac, const double *Bc,
