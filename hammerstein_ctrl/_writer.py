@@ -120,8 +120,26 @@ def _lure_model_to_dict(model) -> dict:
            "linear": {"num": model._num.tolist(), "den": model._den.tolist()}, "feedback": model.feedback,
            "feedback_nonlinearity": _block_to_dict(model.nonlinearity, model.params), "offset": model.offset,
            "initial_state": None if x0 is None or not np.any(x0) else x0.tolist(), "intersample": model.intersample}
+    if model.substeps != 1:             # only then: files of friction loops stay as they were
+        out["substeps"] = model.substeps
     numbers = (out["linear"]["num"] + out["linear"]["den"] + list(out["feedback_nonlinearity"]["params"].values())
                + [out["offset"]] + (out["initial_state"] or []))
+    if not all(math.isfinite(v) for v in numbers):
+        raise ParameterError("cannot save a model with non-finite coefficients or parameters")
+    return out
+
+
+def _wh_model_to_dict(model) -> dict:
+    """The ``"model"`` object of a Wiener-Hammerstein model: both blocks, the map, offset, states and substeps."""
+    (n1, d1), (n2, d2) = model._blocks
+    x0 = model.initial_state
+    out = {"name": str(model.name), "kind": "wiener-hammerstein",
+           "first": {"num": n1.tolist(), "den": d1.tolist()}, "second": {"num": n2.tolist(), "den": d2.tolist()},
+           "nonlinearity": _block_to_dict(model.nonlinearity, model.params), "offset": model.offset,
+           "initial_state": None if x0 is None else [x0[0].tolist(), x0[1].tolist()],
+           "intersample": model.intersample, "substeps": model.substeps}
+    numbers = (n1.tolist() + d1.tolist() + n2.tolist() + d2.tolist() + list(out["nonlinearity"]["params"].values())
+               + [model.offset] + ([] if x0 is None else x0[0].tolist() + x0[1].tolist()))
     if not all(math.isfinite(v) for v in numbers):
         raise ParameterError("cannot save a model with non-finite coefficients or parameters")
     return out
@@ -139,6 +157,8 @@ def model_to_dict(model) -> dict:
         return _mimo_model_to_dict(model)
     if getattr(model, "kind", "") == "lure":
         return _lure_model_to_dict(model)
+    if getattr(model, "kind", "") == "wiener-hammerstein":
+        return _wh_model_to_dict(model)
     settings = model_settings(model)
     num, den = (np.trim_zeros(c, "f") for c in model.coefficients())
     x0 = settings["initial_state"]

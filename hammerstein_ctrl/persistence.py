@@ -248,26 +248,83 @@ def _mimo_structure_to_dict(structure) -> dict:
 def _lure_structure_to_dict(structure) -> dict:
     return {"kind": "lure", "linear": _linear_structure_to_dict(structure.linear),
             "feedback": structure.feedback, "feedback_nonlinearity": _nonlinearity_to_dict(structure.nonlinearity),
-            "offset": structure.offset, "initial_state": structure.initial_state}
+            "offset": structure.offset, "initial_state": structure.initial_state,
+            **({"substeps": structure.substeps} if structure.substeps != 1 else {})}
+
+
+def _wh_structure_to_dict(structure) -> dict:
+    return {"kind": "wiener-hammerstein",
+            "first": [structure.first.num_order, structure.first.den_order],
+            "second": [structure.second.num_order, structure.second.den_order],
+            "nonlinearity": _nonlinearity_to_dict(structure.nonlinearity), "offset": structure.offset,
+            "initial_state": structure.initial_state, "substeps": structure.substeps,
+            "time_unit": structure.time_unit}
+
+
+def _orders(obj, where: str) -> tuple:
+    if not isinstance(obj, list) or len(obj) != 2:
+        raise ParameterError(f"{where} must be [num_order, den_order], got {obj!r}")
+    return tuple(_integer(v, f"{where}[{i}]", minimum=0) for i, v in enumerate(obj))
+
+
+def _wh_structure_from_dict(obj, where: str):
+    from .wiener_hammerstein import WienerHammersteinStructure
+
+    _keys(obj, where, ("kind", "first", "second", "nonlinearity", "offset", "initial_state", "substeps", "time_unit"))
+    key = f"{where}.nonlinearity"
+    nl = _nonlinearity_from_dict(_keys(obj["nonlinearity"], key, ("family", "options")), key)
+    unit = obj["time_unit"]
+    return WienerHammersteinStructure(
+        _orders(obj["first"], f"{where}.first"), nl, _orders(obj["second"], f"{where}.second"),
+        offset=_boolean(obj["offset"], f"{where}.offset"),
+        initial_state=_string(obj["initial_state"], f"{where}.initial_state"),
+        substeps=_integer(obj["substeps"], f"{where}.substeps", minimum=1),
+        time_unit=None if unit is None else _number(unit, f"{where}.time_unit"))
+
+
+def _wh_model_from_dict(obj, where: str):
+    from .wiener_hammerstein import WienerHammersteinModel
+
+    _keys(obj, where, ("name", "kind", "first", "second", "nonlinearity", "offset", "initial_state", "intersample",
+                       "substeps"))
+    blocks = []
+    for key in ("first", "second"):
+        lin = _keys(obj[key], f"{where}.{key}", ("num", "den"))
+        blocks.append(check_transfer_function(_numbers(lin["num"], f"{where}.{key}.num"),
+                                              _numbers(lin["den"], f"{where}.{key}.den"), f"{where}.{key}",
+                                              advice="this file is not a usable model"))
+    nl, params = _block_from_dict(obj["nonlinearity"], f"{where}.nonlinearity")
+    if nl is None:
+        raise ParameterError(f"{where}.nonlinearity must be an object")
+    x0 = obj["initial_state"]
+    if x0 is not None and (not isinstance(x0, list) or len(x0) != 2):
+        raise ParameterError(f"{where}.initial_state must be null or [G1's state, G2's state]")
+    return WienerHammersteinModel(
+        blocks[0], nl, params, blocks[1], offset=_number(obj["offset"], f"{where}.offset"),
+        initial_state=None if x0 is None else [_numbers(x, f"{where}.initial_state") for x in x0],
+        intersample=_string(obj["intersample"], f"{where}.intersample"),
+        substeps=_integer(obj["substeps"], f"{where}.substeps", minimum=1), name=_string(obj["name"], f"{where}.name"))
 
 
 def _lure_structure_from_dict(obj, where: str):
     from .lure import LureStructure
 
-    _keys(obj, where, ("kind", "linear", "feedback", "feedback_nonlinearity", "offset", "initial_state"))
+    _keys(obj, where, ("kind", "linear", "feedback", "feedback_nonlinearity", "offset", "initial_state"),
+          ("substeps",))
     linear = _linear_structure_from_dict(obj["linear"], f"{where}.linear", delay=False)
     key = f"{where}.feedback_nonlinearity"
     nl = _nonlinearity_from_dict(_keys(obj["feedback_nonlinearity"], key, ("family", "options")), key)
     return LureStructure(linear, nl, feedback=_string(obj["feedback"], f"{where}.feedback"),
                          offset=_boolean(obj["offset"], f"{where}.offset"),
-                         initial_state=_string(obj["initial_state"], f"{where}.initial_state"))
+                         initial_state=_string(obj["initial_state"], f"{where}.initial_state"),
+                         substeps=_integer(obj.get("substeps", 1), f"{where}.substeps", minimum=1))
 
 
 def _lure_model_from_dict(obj, where: str):
     from .lure import LureModel
 
     _keys(obj, where, ("name", "kind", "linear", "feedback", "feedback_nonlinearity", "offset", "initial_state",
-                       "intersample"))
+                       "intersample"), ("substeps",))
     lin = _keys(obj["linear"], f"{where}.linear", ("num", "den"))
     num, den = _numbers(lin["num"], f"{where}.linear.num"), _numbers(lin["den"], f"{where}.linear.den")
     num, den = check_transfer_function(num, den, f"{where}.linear", advice="this file is not a usable model")
@@ -279,7 +336,8 @@ def _lure_model_from_dict(obj, where: str):
                      offset=_number(obj["offset"], f"{where}.offset"),
                      initial_state=None if x0 is None else _numbers(x0, f"{where}.initial_state"),
                      intersample=_string(obj["intersample"], f"{where}.intersample"),
-                     name=_string(obj["name"], f"{where}.name"))
+                     name=_string(obj["name"], f"{where}.name"),
+                     substeps=_integer(obj.get("substeps", 1), f"{where}.substeps", minimum=1))
 
 
 def _structure_to_dict(structure) -> dict:
@@ -288,6 +346,8 @@ def _structure_to_dict(structure) -> dict:
         return _mimo_structure_to_dict(structure)
     if structure.kind == "lure":
         return _lure_structure_to_dict(structure)
+    if structure.kind == "wiener-hammerstein":
+        return _wh_structure_to_dict(structure)
     base = getattr(structure, "base", None)
     if base is not None and hasattr(structure, "n_records"):
         return {**_block_structure_to_dict(base), "n_records": int(structure.n_records)}
@@ -381,6 +441,8 @@ def _structure_from_dict(obj, where: str):
         return _mimo_structure_from_dict(obj, where)
     if isinstance(obj, dict) and obj.get("kind") == "lure":
         return _lure_structure_from_dict(obj, where)
+    if isinstance(obj, dict) and obj.get("kind") == "wiener-hammerstein":
+        return _wh_structure_from_dict(obj, where)
     from .structure import INITIAL_STATES, HammersteinStructure, HammersteinWienerStructure, WienerStructure
 
     _keys(obj, where, ("kind", "linear", "input_nonlinearity", "output_nonlinearity", "offset", "initial_state"),
@@ -430,6 +492,8 @@ def model_from_dict(obj, where: str = "model"):
         return _mimo_model_from_dict(obj, where)
     if isinstance(obj, dict) and obj.get("kind") == "lure":
         return _lure_model_from_dict(obj, where)
+    if isinstance(obj, dict) and obj.get("kind") == "wiener-hammerstein":
+        return _wh_model_from_dict(obj, where)
     _keys(obj, where, _MODEL_KEYS, ("delay",))
     _check_kind(obj, where)
     lin = _keys(obj["linear"], f"{where}.linear", ("num", "den"))

@@ -584,6 +584,12 @@ class WienerHammersteinModel:
         return ct.interconnect([blocks[0], fmap, blocks[1], offset], inputs="u", outputs="y",
                                name=name or self.name or "wiener_hammerstein")
 
+    def save(self, path) -> None:
+        """Write the model to a JSON model file (:func:`~hammerstein_ctrl.persistence.load_model` reads it)."""
+        from ._writer import save_model
+
+        save_model(self, path)
+
     def describe(self) -> str:
         (n1, d1), (n2, d2) = self._blocks
         return (f"Wiener-Hammerstein: G1 = {n1.tolist()} / {d1.tolist()}, f = {self.nonlinearity.describe(self.params)}"

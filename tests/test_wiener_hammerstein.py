@@ -182,6 +182,24 @@ def test_the_time_unit_defaults_to_the_records_sample_time():
     np.testing.assert_allclose(r.x, [20.0, 10.0, 1.5, 0.7], rtol=1e-5)
 
 
+def test_models_and_results_survive_a_save_and_load(tmp_path, tanh_case):
+    from hammerstein_ctrl.persistence import load_model, load_result, save_result
+
+    t, u, y, p = tanh_case
+    s = _structure(hc.Tanh(), offset=True, initial_state="estimate", substeps=4)
+    m = s.model(np.r_[_beta(p), 0.2, 0.1, -0.1, 0.05, 0.0])
+    m.save(tmp_path / "wh.json")
+    back = load_model(tmp_path / "wh.json")
+    np.testing.assert_array_equal(back.simulate(t, u), m.simulate(t, u))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        r = hc.identify(hc.IOData(u, y, dt=0.1), _structure(hc.Tanh()), seed=0)
+    save_result(r, tmp_path / "result.json")
+    loaded = load_result(tmp_path / "result.json")
+    assert loaded.structure.param_names == r.structure.param_names and loaded.structure.time_unit == 1.0
+    np.testing.assert_array_equal(loaded.model.simulate(t, u), r.model.simulate(t, u))
+
+
 def test_pure_noise_is_not_called_a_model():
     rng = np.random.default_rng(0)
     data = hc.IOData(rng.standard_normal(2000), rng.standard_normal(2000), dt=0.05)
