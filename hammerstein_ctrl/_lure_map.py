@@ -13,7 +13,8 @@ The map's slope at zero, ``s = g'(0)``, is moved into the linear part
 which it is computed: ``substeps`` per sample, the input between them by its
 own hold (exact).  Each step is the exact first-order-hold recursion of the
 linear part with the implicit end value of ``r``: one scalar equation
-``z + beta r(z) = a``, solved by Newton's method inside a bracket.  A map with
+``z + beta r(z) = a``, solved by the secant method (Newton's inside a bracket
+where that does not settle).  A map with
 no rest (an affine one) is therefore simulated exactly; the error of the rest's
 approximation falls with the square of the substeps.  The loop is C in the
 compiled core (``lure_map.cpp``) for the built-in families; a custom map runs
@@ -103,11 +104,48 @@ def run(nonlinearity, loop: MapLoop, P, y0, X0, u, zoh: bool) -> np.ndarray:
     return out
 
 
-def _solve(rest, a: float, beta: float) -> float:
-    """The root of ``z + beta rest(z) = a`` (as the compiled loop: Newton inside a bracket)."""
-    if beta == 0.0:
-        return a
+def _secant(rest, a: float, beta: float, m: float):
+    """The secant iteration of the compiled loop: ``(root, rest at it, slope)``, the root NaN when it does not
+    settle in 8 steps."""
+    z0, r0 = a, rest(a)
+    f0 = beta * r0
+    scale = abs(a) + abs(f0) + 1e-300
+    if abs(f0) <= 4e-16 * scale:
+        return a, r0, m
+    z1 = a - f0 / m
+    r1 = rest(z1)
+    f1 = z1 + beta * r1 - a
+    for _ in range(8):
+        if abs(f1) <= 4e-16 * scale:
+            return z1, r1, m
+        den = f1 - f0
+        if den == 0.0 or not np.isfinite(den):
+            return np.nan, np.nan, m
+        slope = den / (z1 - z0)
+        if slope > 0.0 and np.isfinite(slope):
+            m = slope
+        z2 = z1 - f1 * (z1 - z0) / den
+        z0, f0, z1 = z1, f1, z2
+        r1 = rest(z1)
+        f1 = z1 + beta * r1 - a
+        if abs(z1 - z0) <= 1e-15 * scale:
+            return z1, r1, m
+    return np.nan, np.nan, m
 
+
+def _solve(rest, a: float, beta: float, m: float):
+    """The root of ``z + beta rest(z) = a`` as the compiled loop finds it: ``(root, rest at it, slope)``."""
+    if beta == 0.0:
+        return a, rest(a), m
+    z, rz, m = _secant(rest, a, beta, m)
+    if np.isfinite(z):
+        return z, rz, m
+    z = _bracketed(rest, a, beta)
+    return z, rest(z), 1.0
+
+
+def _bracketed(rest, a: float, beta: float) -> float:
+    """Newton's method on a central-difference slope inside a bracket (the compiled loop's fallback)."""
     def phi(z):
         return z + beta * rest(z) - a
 
@@ -161,7 +199,7 @@ def python_run(nonlinearity, loop: MapLoop, b: int, p, y0: float, x0, u, zoh: bo
 
     x = np.array(x0, dtype=float)
     beta = float(cz @ b1)
-    rz = rest(float(cz @ x))
+    rz, slope = rest(float(cz @ x)), 1.0
     y = np.empty(u.size)
     y[0] = y0 + c @ x
     for k in range(1, u.size):
@@ -169,8 +207,7 @@ def python_run(nonlinearity, loop: MapLoop, b: int, p, y0: float, x0, u, zoh: bo
         for j in range(m):
             us, ue = u[k - 1] + du * j, u[k - 1] + (0.0 if zoh else du * (j + 1))
             v = Ad @ x + b0 * (us - rz) + b1 * ue
-            z = _solve(rest, float(cz @ v), beta)
-            rz = rest(z)
+            _, rz, slope = _solve(rest, float(cz @ v), beta, slope)
             x = v - b1 * rz
         y[k] = y0 + c @ x
         if not np.isfinite(y[k]):

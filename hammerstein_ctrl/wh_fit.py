@@ -23,9 +23,8 @@ import numpy as np
 
 from ._batch import simulate_batch
 from .exceptions import ParameterError
-from .nonlinearities import Polynomial
 from .normal_equations import NONFINITE_RESIDUAL
-from .structure import HammersteinStructure, LinearStructure
+from .structure import HammersteinStructure
 from .wiener_hammerstein import WienerHammersteinStructure, simulate_wh
 
 __all__ = ["WienerHammersteinCost", "bla_structure", "splits", "split_starts", "PAD_FACTOR", "MAX_SPLITS",

@@ -115,11 +115,11 @@ class UnitGainBlock:
         self.num_order, self.den_order = int(num_order), int(den_order)
         self.param_names: tuple[str, ...] = tuple(f"b{i}" for i in range(1, self.num_order + 1)) + tuple(
             f"a{i}" for i in range(1, self.den_order + 1))
-        l, n = self.num_order, self.den_order
-        num0, den0 = np.zeros(l + 1), np.zeros(n + 1)
+        m, n = self.num_order, self.den_order
+        num0, den0 = np.zeros(m + 1), np.zeros(n + 1)
         num0[-1] = den0[-1] = 1.0
-        self._template = (num0, den0, np.arange(l - 1, -1, -1), np.arange(n - 1, -1, -1))
-        self._units = (self.time_unit ** np.arange(1, l + 1), self.time_unit ** np.arange(1, n + 1))
+        self._template = (num0, den0, np.arange(m - 1, -1, -1), np.arange(n - 1, -1, -1))
+        self._units = (self.time_unit ** np.arange(1, m + 1), self.time_unit ** np.arange(1, n + 1))
 
     @property
     def n_params(self) -> int:

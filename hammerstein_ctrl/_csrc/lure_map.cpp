@@ -4,8 +4,8 @@
  * linear part (A - s B Cz: exact), so that only the rest r(z) = g(z) - s z is approximated: it is taken as linear
  * between the instants where it is computed (sub of them per sample), the input by its own hold (exact).  Each
  * step is the exact first-order-hold recursion x1 = Ad x0 + B0 w0 + B1 w1 with w1 = u1 - r(z1), z1 = Cz x1: one
- * scalar equation z + beta r(z) = a (beta = Cz B1 >= 0 small), solved by Newton's method on a central-difference
- * slope, falling back to bisection when Newton leaves its bracket.  Sums run left to right; no fused multiply-add.
+ * scalar equation z + beta r(z) = a (beta = Cz B1 >= 0 small), solved by the secant method, or where that does not
+ * settle by Newton's method on a central-difference slope, falling back to bisection when Newton leaves its bracket.  Sums run left to right; no fused multiply-add.
  */
 #include <cmath>
 #include <cstdint>
@@ -32,17 +32,66 @@ struct Rest {
     }
 };
 
-/* The root of z + beta r(z) = a near a (beta >= 0): Newton on a central-difference slope inside a bracket that
- * bisection keeps when a Newton step leaves it or the slope is not positive. */
-double solve(const Rest &r, double a, double beta)
+/* The secant iteration on z + beta r(z) = a from a, its first step along the slope m of the last sample's equation
+ * (1 + beta r', updated here): a few evaluations of the map where beta r' is small (the usual case: beta shrinks with
+ * the step).  Returns the root and r at it in *rz, or NaN when it does not settle in MAX_SECANT steps. */
+constexpr int MAX_SECANT = 8;
+
+double secant(const Rest &r, double a, double beta, double &m, double &rz)
 {
-    if (beta == 0.0)
+    double z0 = a, r0 = r(a), f0 = beta * r0;
+    double scale = std::fabs(a) + std::fabs(f0) + 1e-300;   /* the size of the terms: rounding is relative to it */
+    if (std::fabs(f0) <= 4e-16 * scale) {
+        rz = r0;
         return a;
+    }
+    double z1 = a - f0 / m, r1 = r(z1);
+    double f1 = z1 + beta * r1 - a;
+    for (int it = 0; it < MAX_SECANT; it++) {
+        if (std::fabs(f1) <= 4e-16 * scale) {
+            rz = r1;
+            return z1;
+        }
+        double den = f1 - f0;
+        if (den == 0.0 || !is_finite(den))
+            return NAN;
+        double slope = den / (z1 - z0);
+        if (slope > 0.0 && is_finite(slope))
+            m = slope;
+        double z2 = z1 - f1 * (z1 - z0) / den;
+        z0 = z1;
+        f0 = f1;
+        z1 = z2;
+        r1 = r(z1);
+        f1 = z1 + beta * r1 - a;
+        if (std::fabs(z1 - z0) <= 1e-15 * scale) {
+            rz = r1;
+            return z1;
+        }
+    }
+    return NAN;
+}
+
+/* The root of z + beta r(z) = a near a (beta >= 0): the secant iteration, else Newton on a central-difference
+ * slope inside a bracket that bisection keeps when a Newton step leaves it or the slope is not positive. */
+double solve(const Rest &r, double a, double beta, double &m, double &rz)
+{
+    if (beta == 0.0) {
+        rz = r(a);
+        return a;
+    }
+    double quick = secant(r, a, beta, m, rz);
+    if (is_finite(quick))
+        return quick;
+    m = 1.0;
     auto phi = [&](double z) { return z + beta * r(z) - a; };
     double z = a - beta * r(a);
     double f = phi(z);
-    if (f == 0.0 || !is_finite(f))
+    rz = NAN;
+    if (f == 0.0 || !is_finite(f)) {
+        rz = r(z);
         return f == 0.0 ? z : NAN;
+    }
     /* a bracket: step away from z until phi changes sign */
     double step = 1e-3 * (1.0 + std::fabs(z)) + std::fabs(f);
     double lo = z, hi = z, flo = f, fhi = f;
@@ -74,8 +123,10 @@ double solve(const Rest &r, double a, double beta)
         if (!(next > lo && next < hi))
             next = 0.5 * (lo + hi);
         double fn = phi(next);
-        if (fn == 0.0)
+        if (fn == 0.0) {
+            rz = r(next);
             return next;
+        }
         if ((fn > 0.0) == (fhi > 0.0)) {
             hi = next;
             fhi = fn;
@@ -83,11 +134,14 @@ double solve(const Rest &r, double a, double beta)
             lo = next;
             flo = fn;
         }
-        if (std::fabs(next - z) <= 1e-15 * (1.0 + std::fabs(next)) || hi - lo <= 1e-15 * (1.0 + std::fabs(next)))
+        if (std::fabs(next - z) <= 1e-15 * (1.0 + std::fabs(next)) || hi - lo <= 1e-15 * (1.0 + std::fabs(next))) {
+            rz = r(next);
             return next;
+        }
         z = next;
         f = fn;
     }
+    rz = r(z);
     return z;
 }
 
@@ -113,7 +167,7 @@ extern "C" int hc_lure_map_run(const double *Ad, const double *B0, const double 
             z += cz[i] * x[i];
             yk += c[i] * x[i];
         }
-        double rz = r(z);
+        double rz = r(z), m = 1.0;
         y[0] = yk;
         bool ok = is_finite(yk);
         for (int64_t k = 1; k < N && ok; k++) {
@@ -128,8 +182,7 @@ extern "C" int hc_lure_map_run(const double *Ad, const double *B0, const double 
                     v[i] = acc + b0[i] * w0 + b1[i] * ue;
                     a += cz[i] * v[i];
                 }
-                z = solve(r, a, beta);
-                rz = r(z);
+                z = solve(r, a, beta, m, rz);
                 for (int64_t i = 0; i < n; i++)
                     x[i] = v[i] - b1[i] * rz;
             }
