@@ -266,7 +266,9 @@ def _structure_from_args(args):
                                           ("--output-nonlinearity", args.output_nonlinearity),
                                           ("--fix", args.fix), ("--degree", args.degree is not None),
                                           ("--breakpoints", args.breakpoints), ("--free-gain", args.free_gain),
-                                          ("--delay", args.delay is not None), ("--feedback", args.feedback))
+                                          ("--delay", args.delay is not None), ("--feedback", args.feedback),
+                                          ("--second-orders", args.second_orders),
+                                          ("--substeps", args.substeps is not None))
                  if given]
         if extra:
             raise HammersteinError(f"{', '.join(extra)} cannot be combined with --structure {args.structure} "
@@ -290,6 +292,11 @@ def _structure_from_args(args):
             raise HammersteinError(f"--fix {item!r}: {value!r} is not a number") from None
     if args.feedback:
         return _lure_structure_from_args(args, fixed), None
+    if args.second_orders:
+        return _wh_structure_from_args(args, fixed), None
+    if args.substeps is not None:
+        raise HammersteinError("--substeps applies to a Wiener-Hammerstein model (--second-orders) or a Lur'e loop "
+                               "(--feedback)")
     linear = LinearStructure(args.orders[0], args.orders[1], monic_numerator=not args.free_gain, fixed=fixed,
                              delay=args.delay)
     g = h = None
@@ -310,13 +317,35 @@ def _lure_structure_from_args(args, fixed):
     from .structure import LinearStructure
 
     extra = [flag for flag, given in (("--output-nonlinearity", args.output_nonlinearity),
-                                      ("--delay", args.delay is not None), ("--degree", args.degree is not None),
-                                      ("--breakpoints", args.breakpoints), ("--free-gain", args.free_gain))
+                                      ("--delay", args.delay is not None), ("--free-gain", args.free_gain),
+                                      ("--second-orders", args.second_orders))
              if given]
     if extra:
         raise HammersteinError(f"{', '.join(extra)} cannot be combined with --feedback (a Lur'e loop)")
+    if not args.nonlinearity:
+        raise HammersteinError("--feedback needs --nonlinearity NAME (the map fed back)")
     linear = LinearStructure(args.orders[0], args.orders[1], monic_numerator=False, fixed=fixed)
-    return LureStructure(linear, nonlinearity_from_name(args.nonlinearity), feedback=args.feedback)
+    nl = nonlinearity_from_name(args.nonlinearity, **_family_options(args.degree, args.breakpoints))
+    return LureStructure(linear, nl, feedback=args.feedback,
+                         substeps=1 if args.substeps is None else args.substeps)
+
+
+def _wh_structure_from_args(args, fixed):
+    """``--orders`` (G1), ``--nonlinearity`` (the map) and ``--second-orders`` (G2): a Wiener-Hammerstein model."""
+    from .nonlinearities import nonlinearity_from_name
+    from .wiener_hammerstein import WienerHammersteinStructure
+
+    extra = [flag for flag, given in (("--output-nonlinearity", args.output_nonlinearity),
+                                      ("--delay", args.delay is not None), ("--free-gain", args.free_gain),
+                                      ("--fix", fixed)) if given]
+    if extra:
+        raise HammersteinError(f"{', '.join(extra)} cannot be combined with --second-orders (a Wiener-Hammerstein "
+                               "model: both blocks of static gain 1, the gain in the map)")
+    if not args.nonlinearity:
+        raise HammersteinError("--second-orders needs --nonlinearity NAME (the map between the blocks)")
+    nl = nonlinearity_from_name(args.nonlinearity, **_family_options(args.degree, args.breakpoints))
+    return WienerHammersteinStructure(tuple(args.orders), nl, tuple(args.second_orders),
+                                      substeps=1 if args.substeps is None else args.substeps)
 
 
 def _family_options(degree, breakpoints) -> dict:
@@ -438,9 +467,16 @@ def _add_identify_arguments(ide):
                      help="numerator and denominator degrees of H(p)")
     ide.add_argument("--nonlinearity", help="tanh, coulomb, polynomial, saturation, deadzone, piecewise_linear, "
                                             "sigmoid, friction")
-    ide.add_argument("--feedback", choices=["velocity", "output"],
-                     help="a Lur'e loop: the nonlinearity (friction or coulomb) fed back on the output's derivative "
-                          "or on the output; --orders L M with M - L = 2 or 1, the gain in H(p)")
+    ide.add_argument("--feedback", choices=["output", "velocity", "acceleration"],
+                     help="a Lur'e loop: the nonlinearity fed back on the output or a derivative of it; the gain in "
+                          "H(p); friction or coulomb need M - L = 1 (output) or 2 (velocity), any other map M - L "
+                          "above the derivative")
+    ide.add_argument("--second-orders", type=_count(0), nargs=2, metavar=("L", "M"),
+                     help="a Wiener-Hammerstein model: the degrees of G2(p); --orders are G1's and --nonlinearity "
+                          "the map between them (both blocks of static gain 1)")
+    ide.add_argument("--substeps", type=_count(1),
+                     help="instants per sample at which a Wiener-Hammerstein middle signal or a Lur'e map (not "
+                          "friction) is computed (default 1)")
     ide.add_argument("--degree", type=_count(0), help="polynomial degree")
     ide.add_argument("--breakpoints", type=_number(), nargs="+", help="piecewise-linear breakpoints")
     ide.add_argument("--output-nonlinearity", metavar="NAME",

@@ -470,11 +470,15 @@ def _bode_band(mag, phase, result, line, u0, level, method, seed):
 
 #: Per static block: evaluating method, x-axis name, y-axis label.
 _BLOCKS = {"input": ("g", "input u", "g(u) (input of H)"),
-           "output": ("h", "output of H, z", "h(z) (model output before the offset)")}
+           "output": ("h", "output of H, z", "h(z) (model output before the offset)"),
+           "middle": ("f", "middle signal x = G1 u", "f(x) (input of G2)")}
 
 
 def _has_block(model, block: str) -> bool:
-    """Whether ``model`` has that static block (models without the attribute are Hammerstein-like)."""
+    """Whether ``model`` has that static block (models without the attribute are Hammerstein-like; only a
+    Wiener-Hammerstein model has a middle one)."""
+    if block == "middle":
+        return getattr(model, "kind", "") == "wiener-hammerstein"
     return getattr(model, f"{block}_nonlinearity", block == "input") is not None
 
 
@@ -487,7 +491,8 @@ def _block_range(models, u_range, block):
     if u_range is None:
         ranges = []
         for r in _results(models):
-            x = r.data.u if block == "input" else _linear_output(r.model, r.data)
+            x = (r.data.u if block == "input" else r.model.middle(r.data) if block == "middle"
+                 else _linear_output(r.model, r.data))
             ranges.append((float(np.nanmin(x)), float(np.nanmax(x))))
         if not ranges:
             raise ParameterError("give u_range=(low, high) (it defaults to the record of an IdentificationResult)")
@@ -518,8 +523,9 @@ def nonlinearity(models, u_range=None, *, block: str = "input", unit_in: str = "
     u_range : (float, float), optional
         Range of the block's input; defaults to the range seen on the records
         of the IdentificationResults passed.
-    block : {"input", "output"}
-        ``g(u)`` before the linear block (Hammerstein) or ``h(z)`` after it (Wiener).
+    block : {"input", "output", "middle"}
+        ``g(u)`` before the linear block (Hammerstein), ``h(z)`` after it (Wiener), or
+        ``f(x)`` between the two blocks of a Wiener-Hammerstein model.
     confidence : float, optional
         Shade the ``confidence`` band (e.g. 0.95) of every result that carries
         a covariance (propagated from it; ``method`` "linear" or seeded "sampling").
@@ -913,7 +919,7 @@ def result_figure(result, *, zoom=None):
         with np.errstate(all="ignore"):
             fit, J = fit_percent(data.y, yhat), float(np.sum((data.y - yhat) ** 2))
         where = f"{data.name} (record 1 of {len(result.records)})"
-    blocks = [b for b in ("input", "output") if _has_block(model, b)]
+    blocks = [b for b in ("input", "output", "middle") if _has_block(model, b)]
     if getattr(model, "feedback", None) is not None:        # a Lur'e loop: its feedback map instead
         blocks = ["feedback"]
     fig, axes = _new_figure(2 + len(blocks), 1, figsize=(_WIDTH, 3.0 + 2.8 * (len(blocks) + 1)))

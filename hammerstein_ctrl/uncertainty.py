@@ -756,6 +756,8 @@ def linear_characteristics(structure, x, covariance, *, level: float | None = No
     roots = linear_roots(structure, x)
     for kind in ("pole", "zero"):
         _root_rows(rows, kind, [r[1] for r in roots if r[0] == kind], [r[2] for r in roots if r[0] == kind], cov, k)
+    if hasattr(structure, "block_layout"):      # blocks of static gain 1 by construction: no DC gain to report
+        return rows
     num, den = structure.linear.coefficients(x[:structure.linear.n_params])
     _, _, num_pos, den_pos = structure.linear.coefficient_template()
     rows.append(_dc_gain_row(num[0], den[0], num_pos, den_pos, x.size, cov, k))

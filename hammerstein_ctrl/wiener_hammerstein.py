@@ -501,6 +501,9 @@ class WienerHammersteinModel:
     """
 
     kind = "wiener-hammerstein"
+    #: Static blocks of the other block-oriented models that this one does not have (for the shared figures).
+    input_nonlinearity = None
+    output_nonlinearity = None
 
     def __init__(self, first, nonlinearity, params, second, *, offset: float = 0.0, initial_state=None,
                  intersample: str = "foh", substeps: int = 1, name: str | None = None):
@@ -538,11 +541,35 @@ class WienerHammersteinModel:
         """The orders of ``G1`` and ``G2``."""
         return tuple(den.size - 1 for _, den in self._blocks)
 
-    def parts(self) -> WHParts:
+    @property
+    def order(self) -> int:
+        """The number of states: ``G1``'s and ``G2``'s orders together."""
+        return sum(self.orders)
+
+    @property
+    def linear(self):
+        """The product ``G1 G2`` (static gain 1) as a ``control.TransferFunction``: the model's linear dynamics about
+        an operating point, up to the map's local slope (for Bode plots)."""
+        import control
+
+        (n1, d1), (n2, d2) = self._blocks
+        return control.tf(np.polymul(n1, n2), np.polymul(d1, d2))
+
+    def parts(self, initial_state=None) -> WHParts:
+        """The model as one row of :class:`WHParts` (from ``initial_state``, both blocks' states together, if
+        given)."""
         (num1, den1), (num2, den2) = ((n[None, :] / d[0], d[None, :] / d[0]) for n, d in self._blocks)
-        x1, x2 = self.initial_state or (np.zeros(den1.shape[1] - 1), np.zeros(den2.shape[1] - 1))
+        if initial_state is not None:
+            x = _state_vector(initial_state, self.order)
+            x1, x2 = x[:self.orders[0]], x[self.orders[0]:]
+        else:
+            x1, x2 = self.initial_state or (np.zeros(den1.shape[1] - 1), np.zeros(den2.shape[1] - 1))
         return WHParts(num1, den1, self.params[None, :], num2, den2, np.array([self.offset]),
                        np.asarray(x1, float)[None, :], np.asarray(x2, float)[None, :])
+
+    def f(self, x) -> np.ndarray:
+        """The static map ``f(x)`` between the blocks."""
+        return self.nonlinearity(x, self.params)
 
     def _input(self, t, u, intersample):
         from .iodata import time_and_input
@@ -558,11 +585,12 @@ class WienerHammersteinModel:
         p = self.parts()
         return simulate_batch(p.num1, p.den1, u, dt, x0=p.x1, intersample=hold)[0]
 
-    def simulate(self, t, u=None, *, intersample: str | None = None) -> np.ndarray:
+    def simulate(self, t, u=None, *, initial_state=None, intersample: str | None = None) -> np.ndarray:
         """The output at the instants ``t`` (uniform grid, or a record: its ``t``, ``u`` and hold) for the input
-        ``u``; see the module docstring for the intersample behaviour."""
+        ``u``, from the model's initial state or ``initial_state`` (``G1``'s then ``G2``'s); see the module
+        docstring for the intersample behaviour."""
         dt, u, hold = self._input(t, u, intersample)
-        return simulate_wh(self.nonlinearity, self.parts(), u, dt, hold, self.substeps)[0]
+        return simulate_wh(self.nonlinearity, self.parts(initial_state), u, dt, hold, self.substeps)[0]
 
     def to_iosys(self, name: str | None = None):
         """The model as a python-control ``interconnect`` of ``G1``, ``f`` and ``G2``.

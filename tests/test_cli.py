@@ -291,3 +291,48 @@ def test_workers_end_with_a_killed_run_and_the_resumed_run_matches(capsys, tmp_p
     a, b = resumed.summary()["nspsa"], reference.summary()["nspsa"]
     for key in ("n", "mean", "best", "worst", "std", "median", "nfev", "diverged"):
         assert a[key] == b[key], key
+
+
+def _wh_csv(tmp_path):
+    """A record of a Wiener-Hammerstein system ``G1 -> 1.5 tanh(0.8 x) -> G2`` from the package's own model."""
+    import numpy as np
+
+    import hammerstein_ctrl as hc
+
+    s = hc.WienerHammersteinStructure((0, 2), hc.Tanh(), (1, 2), time_unit=1.0)
+    rng = np.random.default_rng(0)
+    u = np.repeat(rng.uniform(-2.0, 2.0, 200), 10)
+    t = 0.05 * np.arange(u.size)
+    y = s.model([0.3, 0.25, 0.33, 0.33, 0.17, 1.5, 0.8]).simulate(t, u)
+    return hc.IOData(u, y + 0.01 * rng.standard_normal(u.size), t).to_csv(tmp_path / "wh.csv")
+
+
+def test_identify_a_wiener_hammerstein_model_from_the_command_line(capsys, tmp_path):
+    code, out, err = run(capsys, "identify", "--data", str(_wh_csv(tmp_path)), "--orders", "0", "2",
+                         "--second-orders", "1", "2", "--nonlinearity", "tanh", "--out", str(tmp_path / "r.json"),
+                         "--plot", str(tmp_path / "r.png"))
+    assert code == 0, err
+    assert "[ok" in out and "G2(p) = (1 + b1 q)/(1 + a1 q + a2 q^2)" in out
+    assert (tmp_path / "r.png").stat().st_size > 0
+    import hammerstein_ctrl as hc
+
+    r = hc.load_result(tmp_path / "r.json")
+    assert r.structure.kind == "wiener-hammerstein" and r.fit_percent > 99
+
+
+@pytest.mark.parametrize("extra, match", [
+    (["--fix", "a0=1"], "--fix cannot be combined with --second-orders"),
+    (["--free-gain"], "--free-gain cannot be combined with --second-orders"),
+    (["--feedback", "output"], "--second-orders cannot be combined with --feedback"),
+])
+def test_wiener_hammerstein_options_that_do_not_apply_are_refused_in_one_line(capsys, tmp_path, extra, match):
+    code, out, err = run(capsys, "identify", "--data", str(_wh_csv(tmp_path)), "--orders", "0", "2",
+                         "--second-orders", "1", "2", "--nonlinearity", "tanh", *extra)
+    assert code == 2 and match in err and len(err.strip().splitlines()) == 1
+
+
+def test_a_lure_loop_with_a_cubic_spring_from_the_command_line(capsys, tmp_path):
+    code, out, err = run(capsys, "identify", "--data", str(_wh_csv(tmp_path)), "--orders", "0", "2", "--feedback",
+                         "output", "--nonlinearity", "polynomial", "--degree", "3", "--fix", "a0=0", "--substeps", "2")
+    assert code == 0, err
+    assert "g = polynomial" in out

@@ -13,16 +13,16 @@ ROOT = Path(__file__).resolve().parents[1]
 NOTEBOOKS = sorted((ROOT / "notebooks").glob("*.ipynb"))
 
 
-#: Notebooks that read the EMPS benchmark record.
+#: Notebooks that read the benchmark records (the EMPS, and the public benchmarks beside it).
 NEEDS_EMPS = {"03_emps_reproduction.ipynb", "05_pid_tuning.ipynb", "06_block_structures.ipynb",
-              "07_trust.ipynb", "09_lure_emps.ipynb"}
+              "07_trust.ipynb", "09_lure_emps.ipynb", "10_public_benchmarks.ipynb"}
 
 
 def test_all_notebooks_are_present():
     assert [p.name for p in NOTEBOOKS] == [
         "01_quickstart.ipynb", "02_trs_reproduction.ipynb", "03_emps_reproduction.ipynb",
         "04_numerical_example.ipynb", "05_pid_tuning.ipynb", "06_block_structures.ipynb", "07_trust.ipynb",
-        "08_mimo.ipynb", "09_lure_emps.ipynb",
+        "08_mimo.ipynb", "09_lure_emps.ipynb", "10_public_benchmarks.ipynb",
     ]
 
 
