@@ -46,7 +46,7 @@ from .structure import LinearStructure
 
 __all__ = ["auto_minimize", "auto_records", "auto_delayed", "auto_mimo", "auto_lure", "auto_known_loop",
            "auto_wiener_hammerstein",
-           "RESTART_SPREAD", "MAX_RESTARTS"]
+           "RESTART_SPREAD", "MAX_RESTARTS", "distinct_minima", "SAME_MINIMUM"]
 
 #: A budget that never runs out, for work charged to the real budget as a whole afterwards.
 UNCOUNTED = 1 << 62
@@ -72,6 +72,7 @@ class _Merged:
         self.history = History()
         self.best = np.inf
         self.rows = 0
+        self.ends: list[float] = []          # J where each refinement ended
 
     def add(self, hist: dict, offset: int):
         for nfev, fun in zip(hist["nfev"], hist["fun"]):
@@ -154,8 +155,28 @@ def _marginal_rows(cost, x) -> bool:
 def _refine(cost, start, budget: Budget, share: int, merged: _Merged):
     res = levenberg_marquardt(cost, start, maxfev=share, ftol=REFINE_TOL, xtol=REFINE_TOL, gtol=REFINE_TOL)
     merged.add(res.history, budget.nfev)
+    merged.ends.append(float(res.fun))
     budget.charge(res.nfev)
     return res
+
+
+#: Refinements ending within this relative difference of J are counted as one minimum.
+SAME_MINIMUM = 1e-6
+
+
+def distinct_minima(ends) -> np.ndarray:
+    """The different J values where refinements ended (ascending; within :data:`SAME_MINIMUM` relative: one).
+
+    Examples
+    --------
+    >>> distinct_minima([2.0, 1.0, 1.0 + 1e-9, np.inf]).tolist()
+    [1.0, 2.0]
+    """
+    out: list[float] = []
+    for v in sorted(float(e) for e in ends if np.isfinite(e)):
+        if not out or v > out[-1] * (1.0 + SAME_MINIMUM) + np.finfo(float).tiny:
+            out.append(v)
+    return np.array(out)
 
 
 def _perturbed(anchor, rng) -> np.ndarray:
@@ -429,6 +450,7 @@ def _result(cost, best, budget, runs, n_starts, merged, allow_unstable, started)
                           status=status, message=message,
                           history=merged.history.as_dict(), method="auto", starts=n_starts,
                           best_x=x.copy(), best_fun=float(best.fun), nfev_monitor=0,
+                          minima=distinct_minima(merged.ends + [float(best.fun)]),
                           elapsed=time.perf_counter() - started)
 
 

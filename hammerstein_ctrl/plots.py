@@ -543,10 +543,11 @@ def nonlinearity(models, u_range=None, *, block: str = "input", unit_in: str = "
     attr, xname, ylabel = _BLOCKS[block]
     lo, hi = _block_range(models, u_range, block)
     items = labelled(models)
-    models = as_models(models, need=(attr,))
-    for label, m in models.items():
+    for label, obj in items.items():
+        m = obj.model if is_identification_result(obj) else obj
         if not _has_block(m, block):
             raise ParameterError(f"model {label!r} has no {block} nonlinearity")
+    models = as_models(models, need=(attr,))
     x = np.linspace(lo, hi, int(n))
     fig, a = _single_axes(ax)
     for label, m in models.items():

@@ -350,16 +350,27 @@ class IdentificationResult(UncertainParameters):
                                        names=(self.model.input_names, self.model.output_names))
         return linear_characteristics(self.structure, self.x, self.covariance, level=level, dof=self.dof)
 
+    @property
+    def minima(self) -> np.ndarray:
+        """The different J values at which the automatic method's refinements ended (ascending; empty for other
+        methods): more than one means the starts found different local minima, and :attr:`fun` is the lowest."""
+        found = None if self.optimize_result is None else self.optimize_result.get("minima")
+        return np.asarray([] if found is None else found, dtype=float)
+
     def summary(self) -> str:
-        """A short human-readable report: figures, parameters with standard errors, warnings."""
+        """A short human-readable report: figures, parameters with standard errors, warnings, and the spread of the
+        minima the starts ended in (when they ended in more than one)."""
         se = self.stderr if self.covariance is not None else {}
         names = ", ".join(f"{k} = {v:.6g}" + (f" ± {se[k]:.2g}" if k in se else "") for k, v in self.params.items())
         status = "ok" if self.success else "FAILED"
         warned = "".join(f"\n  warning: {w}" for w in self.warnings if w not in self.message)
+        minima = self.minima
+        spread = (f"\n  starts: {minima.size} different minima, J = {minima[0]:.6g} (kept) to {minima[-1]:.6g}"
+                  if minima.size > 1 else "")
         return (
             f"{self.method} on {self.record_name!r}: J = {self.fun:.6g}, fit = {self.fit_percent:.2f} %, "
             f"RMSE = {self.rmse:.4g}, nfev = {self.nfev}, {self.elapsed:.2f} s [{status}: {self.message}]\n"
-            f"  {self.structure.describe()}\n  {names}\n  model: {self.model!r}{warned}"
+            f"  {self.structure.describe()}\n  {names}\n  model: {self.model!r}{warned}{spread}"
         )
 
     def to_dict(self) -> dict:

@@ -92,4 +92,4 @@ def test_emps_lure_gives_one_optimum_for_every_seed(emps_dir):
     assert all(r.success for r in fits)
     assert np.ptp(J) <= 1e-6 * J.min()
     y = fits[0].model.simulate(val)
-    assert hc.fit_percent(val.y, y) >= 92.0                                               # 92.47 measured
+    assert hc.fit_percent(val.y, y) >= 92.0                                               # 92.46 measured

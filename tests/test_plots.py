@@ -313,8 +313,10 @@ def test_wiener_blocks_plot_their_output_nonlinearity(trs_case, trs_result):
     assert fig.axes[0].get_ylabel().startswith("h(z)")
     with pytest.raises(ParameterError, match="has no input nonlinearity"):
         plots.nonlinearity(wiener, (-1, 1))
-    with pytest.raises(ParameterError, match="block must be one of"):
+    with pytest.raises(ParameterError, match="has no middle nonlinearity"):
         plots.nonlinearity(wiener, (-1, 1), block="middle")
+    with pytest.raises(ParameterError, match="block must be one of"):
+        plots.nonlinearity(wiener, (-1, 1), block="sideways")
     fake = dataclasses.replace(trs_result, model=wiener)  # a result holding a Wiener model
     fig = plots.result_figure(fake)
     assert len(fig.axes) == 3 and fig.axes[2].get_ylabel().startswith("h(z)")
