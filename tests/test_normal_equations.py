@@ -447,7 +447,7 @@ def test_auto_leaves_the_advice_to_identify(trs_case):
     from hammerstein_ctrl.optimize import SOLVER_FAILED, History
 
     x = np.asarray(trs_case.true_beta, dtype=float)
-    merged = SimpleNamespace(history=History())
+    merged = SimpleNamespace(history=History(), ends=[])
     for status in (SOLVER_FAILED, BUDGET_EXHAUSTED):
         best = OptimizeResult(x=x, fun=trs_case.cost(x), status=status, message="the solver's own words")
         r = _result(trs_case.cost, best, Budget(500), 2, 3, merged, False, 0.0)
