@@ -778,6 +778,10 @@ def _siso_model(model, what: str):
         raise ParameterError(f"{what} takes a block-oriented model; for a Lur'e loop use model.motion_model() (the "
                              f"loop in motion, friction as a constant disturbance) and check the controller "
                              f"through sticking with hammerstein_ctrl.in_loop.KnownLoop(controller, r).simulate(model)")
+    if getattr(inner, "kind", "") == "wiener-hammerstein":
+        raise ParameterError(f"{what} takes a Hammerstein, Wiener or Hammerstein-Wiener model; for a "
+                             "Wiener-Hammerstein model use model.linearize(u0) (the model about the steady input u0, "
+                             "a control.TransferFunction) or model.motion_model(u0)")
     return model
 
 

@@ -42,7 +42,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .nonlinearities import constant_level
-from .uncertainty import ParameterUncertainty, linear_roots, scaled_eigen, t_factor
+from .uncertainty import ParameterUncertainty, linear_roots_by_block, scaled_eigen, t_factor
 
 __all__ = ["Verdict", "identifiability_verdicts", "linear_verdicts", "row_pole_verdicts", "offset_verdict",
            "budget_advice", "late_improvement", "STILL_IMPROVING", "LATE_SHARE",
@@ -336,7 +336,7 @@ def linear_verdicts(structure, x, unc: ParameterUncertainty | None, dt: float, *
     axis (at :data:`VERDICT_LEVEL`) is marginal: an integrator the noise put
     on the wrong side, accepted with a warning.
     """
-    rows = [{"kind": k, "value": v, "gradient": g} for k, v, g in linear_roots(structure, x)]
+    rows = [{"kind": k, "value": v, "gradient": g, "block": b} for k, v, g, b in linear_roots_by_block(structure, x)]
     cov = None if unc is None else unc.covariance
     k = t_factor(VERDICT_LEVEL, unc.dof if unc is not None else 10**9)
     verdicts, stable = [], True
@@ -419,7 +419,7 @@ def _cancellations(poles, zeros, cov, k) -> list[Verdict]:
     out, used = [], set()
     for p in poles:
         for j, z in enumerate(zeros):
-            if j in used:
+            if j in used or z["block"] != p["block"]:     # a pole and a zero with a map between them never cancel
                 continue
             d = p["value"] - z["value"]
             se_re, se_im = _component_se(p["gradient"] - z["gradient"], cov)

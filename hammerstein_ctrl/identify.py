@@ -296,7 +296,7 @@ def _starting_point(structure, x0, bounds):
     x0 = structure.check_beta(x0)
     if x0.ndim != 1:
         raise ParameterError("x0 must be one beta vector")
-    if getattr(structure.linear, "estimates_delay", False) and not x0[structure.n_core - 1] >= 0:
+    if getattr(getattr(structure, "linear", None), "estimates_delay", False) and not x0[structure.n_core - 1] >= 0:
         raise ParameterError(f"x0's delay must be a dead time >= 0 (seconds), got {x0[structure.n_core - 1]!r}")
     return x0
 

@@ -45,7 +45,7 @@ from ._checks import as_real_array
 from ._lure_sim import lure_loop_run
 from .exceptions import DataError, ParameterError
 from .loop_sim import sampled_plant, simulate_known_loop
-from .lure import LoopParts, LureModel, LureStructure
+from .lure import LoopParts, LureModel, LureStructure, sign_map
 from .model import BlockModel
 from .normal_equations import NONFINITE_RESIDUAL
 from .structure import BlockStructure
@@ -156,8 +156,17 @@ class KnownLoop:
         if not isinstance(model, LureModel):
             raise ParameterError(f"model must be a LureModel or a block model (Hammerstein, Wiener, "
                                  f"Hammerstein-Wiener), got {type(model).__name__}")
+        _friction_only(model.nonlinearity)
         Y, U = self.simulate_parts(model._parts())
         return Y[0], U[0]
+
+
+def _friction_only(nonlinearity) -> None:
+    """Refuse a Lur'e plant whose map is not friction: its loop inside a known controller is not simulated yet."""
+    if not sign_map(nonlinearity):
+        raise ParameterError(f"a Lur'e plant inside a known loop takes a friction map (Friction or Coulomb) for now, "
+                             f"got {type(nonlinearity).__name__}: fit the plant open loop (identify(record, "
+                             "structure)), or approximate its map by friction")
 
 
 class LoopCost:
@@ -173,6 +182,8 @@ class LoopCost:
                                  f"Hammerstein-Wiener), got {type(structure).__name__}")
         if isinstance(structure, BlockStructure) and structure.linear.delay:
             raise ParameterError("a block structure in a known loop cannot have a dead time yet: fit without it")
+        if isinstance(structure, LureStructure):
+            _friction_only(structure.nonlinearity)
         if match not in MATCHES:
             raise ParameterError(f"match must be one of {MATCHES}, got {match!r}")
         data.require_siso("a loop fit")

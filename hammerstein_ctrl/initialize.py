@@ -917,8 +917,10 @@ def estimate_initial_state(model, data, *, offset: bool = False):
     fit = _StateFit(model, data, offset)
     with np.errstate(all="ignore"):
         starts = [fit.linear_start(), np.zeros(fit.size)]
-        if getattr(model, "initial_state", None) is not None:
-            starts.append(np.append(model.initial_state, [fit.own_offset] if offset else []))
+        own = getattr(model, "initial_state", None)
+        if own is not None:
+            own = np.concatenate([np.ravel(x) for x in own]) if isinstance(own, tuple) else own   # blocks' states
+            starts.append(np.append(own, [fit.own_offset] if offset else []))
         best = min(starts, key=fit.sse)
         if not fit.linear:
             best = fit.refine(best)
@@ -934,7 +936,8 @@ class _StateFit:
         self.n = model.order
         self.size = self.n + self.offset
         self.own_offset = float(getattr(model, "offset", 0.0) or 0.0)
-        self.linear = (getattr(model, "output_nonlinearity", None) is None and not hasattr(model, "feedback"))
+        self.linear = getattr(model, "state_enters_linearly",
+                              getattr(model, "output_nonlinearity", None) is None and not hasattr(model, "feedback"))
 
     def simulate(self, beta) -> np.ndarray:
         y = self.model.simulate(self.data, initial_state=beta[:self.n])

@@ -541,12 +541,12 @@ def nonlinearity(models, u_range=None, *, block: str = "input", unit_in: str = "
     if block not in _BLOCKS:
         raise ParameterError(f"block must be one of {sorted(_BLOCKS)}, got {block!r}")
     attr, xname, ylabel = _BLOCKS[block]
-    lo, hi = _block_range(models, u_range, block)
     items = labelled(models)
     for label, obj in items.items():
         m = obj.model if is_identification_result(obj) else obj
         if not _has_block(m, block):
             raise ParameterError(f"model {label!r} has no {block} nonlinearity")
+    lo, hi = _block_range(models, u_range, block)
     models = as_models(models, need=(attr,))
     x = np.linspace(lo, hi, int(n))
     fig, a = _single_axes(ax)

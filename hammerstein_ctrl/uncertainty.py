@@ -56,8 +56,8 @@ from .exceptions import ParameterError
 
 __all__ = ["NoiseModel", "ParameterUncertainty", "Propagated", "UncertainParameters", "CharacteristicsTable",
            "channel_uncertainty", "fit_noise_model", "parameter_covariance", "white_covariance", "residual_jacobian",
-           "estimate_uncertainty", "propagate", "t_factor", "root_gradients", "linear_roots", "scaled_eigen",
-           "linear_characteristics",
+           "estimate_uncertainty", "propagate", "t_factor", "root_gradients", "linear_roots", "linear_roots_by_block",
+           "scaled_eigen", "linear_characteristics",
            "NOISE_MODELS", "MAX_NOISE_ORDER", "RANK_TOLERANCE", "JACOBIAN_MAX_BYTES"]
 
 #: Noise descriptions for the covariance: ``"colored"`` (an autoregressive model of the residuals, order
@@ -828,21 +828,30 @@ def linear_roots(structure, x) -> list[tuple[str, complex, np.ndarray]]:
     [('pole', (-2+0j), [0.0, 1.0, -2.0, 0.0, 0.0]), ('pole', (-1+0j), [0.0, -1.0, 1.0, 0.0, 0.0]),
      ('zero', (-3+0j), [-1.0, 0.0, 0.0, 0.0, 0.0])]
     """
+    return [row[:3] for row in linear_roots_by_block(structure, x)]
+
+
+def linear_roots_by_block(structure, x) -> list[tuple[str, complex, np.ndarray, int]]:
+    """:func:`linear_roots` with the index of the linear block each root belongs to (0 but for a Wiener-Hammerstein
+    structure's second block).  A block whose coefficients are its parameters times a scale
+    (:meth:`~hammerstein_ctrl.wiener_hammerstein.UnitGainBlock.parameter_scales`) has its gradients scaled back
+    to the parameters."""
     x = np.asarray(x, dtype=float)
     out = []
     layout = structure.block_layout if hasattr(structure, "block_layout") else ((structure.linear, 0),)
-    for linear, at in layout:
+    for block, (linear, at) in enumerate(layout):
         num, den = linear.coefficients(x[at:at + linear.n_params])
         _, _, num_pos, den_pos = linear.coefficient_template()
-        for kind, coeffs, pos, idx in (("pole", den[0], den_pos, at + num_pos.size + np.arange(den_pos.size)),
-                                       ("zero", num[0], num_pos, at + np.arange(num_pos.size))):
+        scales = linear.parameter_scales() if hasattr(linear, "parameter_scales") else np.ones(linear.n_params)
+        for kind, coeffs, pos, idx in (("pole", den[0], den_pos, num_pos.size + np.arange(den_pos.size)),
+                                       ("zero", num[0], num_pos, np.arange(num_pos.size))):
             lead = int(np.flatnonzero(coeffs)[0]) if np.any(coeffs) else coeffs.size
             keep = pos >= lead
             roots, grads = root_gradients(coeffs[lead:], pos[keep] - lead)
             for root, g in zip(roots, grads):
                 full = np.zeros(x.size, dtype=complex)
-                full[idx[keep]] = g
-                out.append((kind, complex(root), full))
+                full[at + idx[keep]] = g * scales[idx[keep]]
+                out.append((kind, complex(root), full, block))
     return out
 
 

@@ -23,8 +23,9 @@ import numpy as np
 
 from ._batch import simulate_batch
 from .exceptions import ParameterError
+from .nonlinearities import Polynomial
 from .normal_equations import NONFINITE_RESIDUAL
-from .structure import HammersteinStructure
+from .structure import HammersteinStructure, LinearStructure
 from .wiener_hammerstein import WienerHammersteinStructure, simulate_wh
 
 __all__ = ["WienerHammersteinCost", "bla_structure", "splits", "split_starts", "PAD_FACTOR", "MAX_SPLITS",
@@ -137,7 +138,9 @@ def bla_structure(structure: WienerHammersteinStructure) -> HammersteinStructure
     >>> bla_structure(wiener_hammerstein_structure((0, 3), None, (2, 3))).linear.describe()
     '(p^2 + b1 p + b0)/(p^6 + a5 p^5 + a4 p^4 + a3 p^3 + a2 p^2 + a1 p + a0)'
     """
-    return structure.linear_counterpart().with_options(offset=True, initial_state="zero")
+    f, s = structure.first, structure.second
+    return HammersteinStructure(LinearStructure(f.num_order + s.num_order, f.den_order + s.den_order), Polynomial(1),
+                                offset=True)
 
 
 def _groups(roots: np.ndarray) -> list[np.ndarray]:

@@ -12,8 +12,9 @@ them are fixed: both linear blocks have static gain 1, written
 (:class:`UnitGainBlock`), and the map ``f`` carries the whole gain.  A block
 therefore has no integrator and no zero at ``p = 0``.  With this convention the
 signal ``x`` has the input's units and size, so ``f``'s parameters are those of
-a map of the input; and a zero or pole that a fit does not need leaves to
-infinity through a coefficient of 0 rather than one growing without bound.
+a map of the input; and a zero that a fit does not need leaves to infinity
+through a coefficient of 0 rather than one growing without bound (a pole
+cannot: the highest denominator coefficient must stay non-zero).
 
 **Intersample behaviour.**  ``G1`` is simulated exactly at the sample instants
 for the input's hold (first-order hold, ``"foh"``, or zero-order hold,
@@ -50,7 +51,7 @@ from typing import NamedTuple
 import numpy as np
 
 from ._batch import simulate_batch
-from ._checks import as_real_array, check_intersample
+from ._checks import MAX_ORDER, as_real_array, check_intersample
 from ._discretize import companion_realization
 from .exceptions import ParameterError
 from .model import _check_block as _check_map, _check_linear, _finite_scalar, _state_vector
@@ -71,9 +72,9 @@ class UnitGainBlock:
     """A linear block in static-gain form, ``G(p) = (1 + b1 q + ... + bl q^l) / (1 + a1 q + ... + an q^n)``,
     ``q = time_unit p``.
 
-    Its static gain is 1 whatever the parameters; a zero or a pole leaves to
-    infinity smoothly (its coefficient through 0), which the usual monic form
-    reaches only as a coefficient grows without bound.  The coefficients are
+    Its static gain is 1 whatever the parameters; a zero leaves to infinity
+    smoothly (its coefficient through 0), which the usual monic form reaches
+    only as a coefficient grows without bound.  The coefficients are
     those of the block's time constants (``a1`` is the sum of the poles' time
     constants) in units of ``time_unit`` (seconds) to the power of their
     index: a unit near the block's time constants keeps them near 1, where a
@@ -128,6 +129,10 @@ class UnitGainBlock:
     def coefficient_template(self):
         """``(num0, den0, num_pos, den_pos)``: the constant terms, and where the free coefficients go."""
         return self._template
+
+    def parameter_scales(self) -> np.ndarray:
+        """``d coefficient / d parameter`` of each parameter: ``time_unit`` to the power of its index."""
+        return np.concatenate(self._units)
 
     def coefficients(self, theta):
         """``(num, den)`` rows (descending powers, constant terms 1) of a parameter vector or batch."""
@@ -273,8 +278,16 @@ class WienerHammersteinStructure:
             if not time_unit > 0:
                 raise ParameterError(f"time_unit must be > 0 (seconds), got {time_unit!r}")
         self.time_unit = time_unit
+        for label, block in (("first", first), ("second", second)):
+            if isinstance(block, UnitGainBlock) and block.time_unit != 1.0 and block.time_unit != time_unit:
+                raise ParameterError(f"the {label} block's time_unit {block.time_unit!r} differs from the "
+                                     f"structure's {time_unit!r}: give time_unit=... to the structure (the blocks "
+                                     "share it)")
         self.first = _check_block(first, "first", 1.0 if time_unit is None else time_unit)
         self.second = _check_block(second, "second", 1.0 if time_unit is None else time_unit)
+        if self.first.den_order + self.second.den_order > MAX_ORDER:
+            raise ParameterError(f"G1 and G2 have {self.first.den_order + self.second.den_order} poles together; at "
+                                 f"most {MAX_ORDER} (the linear model of the whole order starts the fit)")
         if not isinstance(nonlinearity, Nonlinearity):
             raise ParameterError(f"nonlinearity must be a Nonlinearity, got {type(nonlinearity).__name__}")
         if not isinstance(offset, (bool, np.bool_)):
@@ -433,15 +446,31 @@ class WienerHammersteinStructure:
         if not isinstance(model, WienerHammersteinModel) or type(model.nonlinearity) is not type(self.nonlinearity):
             raise ParameterError(f"the model {model!r} does not have this structure {self!r}")
         self._resolved()
+        if tuple(model.nonlinearity.param_names) != tuple(self.nonlinearity.param_names):
+            raise ParameterError(f"the model's map {model.nonlinearity!r} does not match {self.nonlinearity!r}")
         parts = []
-        for lin, (num, den) in zip(self.linear_blocks, model._blocks):
+        for label, lin, (num, den) in zip(("G1", "G2"), self.linear_blocks, model._blocks):
+            num = np.trim_zeros(num, "f")
+            if num.size - 1 > lin.num_order or den.size - 1 != lin.den_order:
+                raise ParameterError(f"the model's {label} has orders {num.size - 1}/{den.size - 1}, the structure's "
+                                     f"{lin.num_order}/{lin.den_order}")
+            with np.errstate(all="ignore"):
+                gain = num[-1] / den[-1]
+            if not (np.isfinite(gain) and abs(gain - 1.0) <= 1e-9):
+                raise ParameterError(f"the model's {label} has static gain {gain:.6g}: a Wiener-Hammerstein structure "
+                                     "writes both blocks with static gain 1 (move the gain into the map)")
             parts.append(lin.free_parameters(num, den))
         parts.append(model.params)
         if self.offset:
             parts.append([model.offset])
+        elif model.offset != 0.0:
+            raise ParameterError(f"the model has an offset {model.offset:.6g}; the structure none (offset=True)")
+        states = model.initial_state
         if self.initial_state == "estimate":
-            x1, x2 = model.initial_state or (np.zeros(self.first.den_order), np.zeros(self.second.den_order))
-            parts += [x1, x2]
+            parts += list(states or (np.zeros(self.first.den_order), np.zeros(self.second.den_order)))
+        elif states is not None and any(np.any(x) for x in states):
+            raise ParameterError("the model has an initial state; the structure starts at rest "
+                                 "(initial_state='estimate')")
         return np.concatenate(parts)
 
     def describe(self) -> str:
@@ -504,10 +533,14 @@ class WienerHammersteinModel:
     #: Static blocks of the other block-oriented models that this one does not have (for the shared figures).
     input_nonlinearity = None
     output_nonlinearity = None
+    #: ``G1``'s state reaches the output through the map: an initial state is fitted by iteration, not in one step.
+    state_enters_linearly = False
 
     def __init__(self, first, nonlinearity, params, second, *, offset: float = 0.0, initial_state=None,
                  intersample: str = "foh", substeps: int = 1, name: str | None = None):
         self.nonlinearity, self.params = _check_map(nonlinearity, params, "map")
+        if self.nonlinearity is None:
+            raise ParameterError("a Wiener-Hammerstein model needs its map (a Nonlinearity)")
         self._blocks = tuple(_check_linear(b)[1:] for b in (first, second))
         self.offset = _finite_scalar(offset, "offset")
         self.intersample = check_intersample(intersample)
@@ -516,11 +549,11 @@ class WienerHammersteinModel:
         self.substeps = int(substeps)
         self.initial_state = None
         if initial_state is not None:
-            if len(initial_state) != 2:
-                raise ParameterError("initial_state must be a pair (G1's state, G2's state)")
+            if not isinstance(initial_state, (tuple, list)) or len(initial_state) != 2:
+                raise ParameterError(f"initial_state must be a pair (G1's state, G2's state), got {initial_state!r}")
             self.initial_state = tuple(_state_vector(x, den.size - 1)
                                        for x, (_, den) in zip(initial_state, self._blocks))
-        self.name = name
+        self.name = "wiener_hammerstein" if name is None else str(name)
 
     @property
     def first(self):
@@ -554,6 +587,34 @@ class WienerHammersteinModel:
 
         (n1, d1), (n2, d2) = self._blocks
         return control.tf(np.polymul(n1, n2), np.polymul(d1, d2))
+
+    def linearize(self, u0: float = 0.0):
+        """The model about the steady input ``u0`` as a ``control.TransferFunction``: ``f'(x0) G1 G2`` with
+        ``x0 = u0`` (``G1`` has static gain 1).
+
+        Examples
+        --------
+        >>> import hammerstein_ctrl as hc
+        >>> m = WienerHammersteinModel(([1.0], [1.0, 1.0]), hc.Polynomial(3), [2.0, 0.0, 1.0], ([2.0], [1.0, 2.0]))
+        >>> float(m.linearize(1.0).dcgain())          # f'(1) = 2 + 3
+        5.0
+        """
+        import control
+
+        x0 = _finite_scalar(u0, "u0")
+        h = 1e-6 * max(1.0, abs(x0))
+        slope = float((self.f(np.array([x0 + h]))[0] - self.f(np.array([x0 - h]))[0]) / (2 * h))
+        lin = self.linear
+        return control.tf(slope * np.asarray(lin.num[0][0], float), lin.den[0][0])
+
+    def motion_model(self, u0: float = 0.0):
+        """:meth:`linearize` as a :class:`~hammerstein_ctrl.model.HammersteinModel` (unit gain) for the linear tools
+        (``tune_pid``, ``analyze_loop``): a design about ``u0``; check it on the model itself with
+        :meth:`simulate`."""
+        from .model import HammersteinModel
+        from .nonlinearities import Polynomial
+
+        return HammersteinModel(self.linearize(u0), Polynomial(1), [1.0], name=self.name)
 
     def parts(self, initial_state=None) -> WHParts:
         """The model as one row of :class:`WHParts` (from ``initial_state``, both blocks' states together, if

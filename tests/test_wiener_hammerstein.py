@@ -10,7 +10,7 @@ from scipy.integrate import solve_ivp
 
 import hammerstein_ctrl as hc
 from hammerstein_ctrl.exceptions import ParameterError
-from hammerstein_ctrl.wiener_hammerstein import UnitGainBlock, WienerHammersteinStructure
+from hammerstein_ctrl.wiener_hammerstein import UnitGainBlock, WienerHammersteinModel, WienerHammersteinStructure
 from hammerstein_ctrl.wh_fit import WienerHammersteinCost, splits
 
 # G1 = a0 / (p^2 + a1 p + a0), G2 = a0 (p + b0) / (b0 (p^2 + a1 p + a0)) as coefficient pairs, static gain 1 each
@@ -236,3 +236,121 @@ def test_cost_scores_hostile_candidates_without_raising():
     nan[2] = np.nan
     assert cost(nan) == np.inf
     assert np.all(np.isfinite(cost.residuals_batch(np.vstack([bad, nan]))))
+
+
+@pytest.fixture(scope="module")
+def wh_fit():
+    """A Wiener-Hammerstein fit in a time unit of 0.01 s (its coefficients scale with its powers)."""
+    s = WienerHammersteinStructure((0, 2), hc.Tanh(), (1, 2), offset=True, initial_state="estimate")
+    truth = WienerHammersteinStructure((0, 2), hc.Tanh(), (1, 2), offset=True, time_unit=0.01)
+    rng = np.random.default_rng(4)
+    t = np.arange(3000) * 0.01
+    u = np.repeat(rng.uniform(-2, 2, 300), 10)
+    beta = np.r_[UnitGainBlock(0, 2, 0.01).free_parameters([1.0], [1.0, 4.0, 40.0]),
+                 UnitGainBlock(1, 2, 0.01).free_parameters([1.0, 30.0], [1.0, 6.0, 60.0]), 1.5, 0.8, 0.1]
+    y = truth.model(beta).simulate(t, u) + 0.01 * rng.standard_normal(t.size)
+    data = hc.IOData(u, y, dt=0.01)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return hc.identify(data, s, seed=0), data
+
+
+def test_pole_standard_errors_follow_the_time_unit(wh_fit):
+    """The delta method on the poles, by differences of the parameters themselves, agrees with characteristics()."""
+    r, _ = wh_fit
+    s, x, cov = r.structure, r.x, r.covariance
+    rows = {q: (v, se) for q, v, se, *_ in r.characteristics()}
+
+    def pole_real(beta):
+        num, den = s.first.coefficients(beta[:2])
+        return np.sort(np.roots(den[0]).real)[0]
+
+    grad = np.zeros(x.size)
+    for j in range(2):
+        h = 1e-6 * abs(x[j])
+        up, down = x.copy(), x.copy()
+        up[j] += h
+        down[j] -= h
+        grad[j] = (pole_real(up) - pole_real(down)) / (2 * h)
+    se = float(np.sqrt(grad @ cov @ grad))
+    assert rows["pole 1 real part"][1] == pytest.approx(se, rel=0.02)
+
+
+def test_a_clean_fit_has_no_cancellation_warnings(wh_fit):
+    r, _ = wh_fit
+    assert r.success, r.message
+    assert not [v for v in r.verdicts if v.code == "cancellation"]
+
+
+def test_the_other_methods_take_a_wiener_hammerstein_structure(wh_fit):
+    r, data = wh_fit
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        lm = hc.identify(data, r.structure, method="lm", x0=r.x * 1.01)
+    assert lm.fun == pytest.approx(r.fun, rel=1e-6)
+
+
+def test_validation_re_estimates_both_blocks_states(wh_fit):
+    r, data = wh_fit
+    assert r.validate(data)["fit_percent"] == pytest.approx(r.fit_percent, abs=1e-6)
+    assert r.validate(data, initial_state="estimate")["fit_percent"] >= r.fit_percent - 1e-6
+
+
+def test_a_custom_map_fits_from_x0_and_asks_for_it_without(wh_fit):
+    r, data = wh_fit
+    custom = hc.CustomNonlinearity(lambda x, p: p[0] * np.tanh(p[1] * x), 2, ["k", "w"])
+    s = WienerHammersteinStructure((0, 2), custom, (1, 2), offset=True, initial_state="estimate")
+    with pytest.raises(ParameterError, match="give x0"):
+        hc.identify(data, s)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        fit = hc.identify(data, s, x0=r.x * 1.01)
+    assert fit.fun == pytest.approx(r.fun, rel=1e-5)
+
+
+@pytest.mark.parametrize("change, match", [
+    (lambda m: WienerHammersteinModel(([2.0], [1.0, 1.0, 1.0]), m.nonlinearity, m.params, m._blocks[1]),
+     "static gain 2"),
+    (lambda m: WienerHammersteinModel(([1.0], [1.0, 1.0]), m.nonlinearity, m.params, m._blocks[1]), "orders 0/1"),
+    (lambda m: WienerHammersteinModel(m._blocks[0], hc.Polynomial(3), [1.0, 0.0, 0.1], m._blocks[1]),
+     "does not have this structure"),
+    (lambda m: WienerHammersteinModel(m._blocks[0], m.nonlinearity, m.params, m._blocks[1], offset=0.5), "offset"),
+])
+def test_beta_refuses_a_model_of_another_structure(change, match):
+    s = _structure(hc.Tanh())
+    with pytest.raises(ParameterError, match=match):
+        s.beta(change(s.model(_beta([1.0, 1.0]))))
+
+
+def test_control_design_points_to_the_linearisation(wh_fit):
+    r, _ = wh_fit
+    with pytest.raises(ParameterError, match="model.linearize"):
+        hc.control_design.tune_pid(r.model)
+    lin = r.model.linearize(0.0)
+    assert float(lin.dcgain()) == pytest.approx(r.model.params[0] * r.model.params[1], rel=1e-6)
+    motion = r.model.motion_model(0.0)
+    assert isinstance(motion, hc.HammersteinModel)
+    assert float(motion.linear.dcgain()) == pytest.approx(float(lin.dcgain()), rel=1e-12)
+
+
+def test_orders_beyond_the_starting_model_are_refused():
+    with pytest.raises(ParameterError, match="12 poles together"):
+        WienerHammersteinStructure((0, 6), hc.Tanh(), (0, 6))
+
+
+def test_a_block_time_unit_that_differs_from_the_structures_is_refused():
+    with pytest.raises(ParameterError, match="differs from the structure's"):
+        WienerHammersteinStructure(UnitGainBlock(0, 2, 0.5), hc.Tanh(), (0, 1), time_unit=0.1)
+
+
+def test_the_middle_map_is_plotted_and_other_models_say_they_have_none(wh_fit, trs_case):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    r, _ = wh_fit
+    fig = hc.plots.nonlinearity(r, block="middle", confidence=0.95)
+    x = fig.axes[0].lines[0].get_xdata()
+    np.testing.assert_allclose(fig.axes[0].lines[0].get_ydata(), r.model.f(x))
+    hammerstein = hc.identify(trs_case.data, trs_case.structure)
+    with pytest.raises(ParameterError, match="has no middle nonlinearity"):
+        hc.plots.nonlinearity(hammerstein, block="middle")
