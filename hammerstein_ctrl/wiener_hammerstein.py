@@ -602,8 +602,7 @@ class WienerHammersteinModel:
         import control
 
         x0 = _finite_scalar(u0, "u0")
-        h = 1e-6 * max(1.0, abs(x0))
-        slope = float((self.f(np.array([x0 + h]))[0] - self.f(np.array([x0 - h]))[0]) / (2 * h))
+        slope = float(self.nonlinearity.derivative(np.array([x0]), self.params)[0])
         lin = self.linear
         return control.tf(slope * np.asarray(lin.num[0][0], float), lin.den[0][0])
 
