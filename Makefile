@@ -8,6 +8,8 @@
 #   make bench      the speed benchmark, then the tests marked timing (wall-clock bounds: never in make test)
 #   make lint       ruff under the project's configuration (pyproject.toml); .ci/run runs it first
 #   make notebooks  execute notebooks/*.ipynb in place, saving their outputs (figures)
+#   make docs       the documentation site into docs/_build/html (Sphinx, warnings and broken references are
+#                   errors; the notebooks shown with their committed outputs)
 #
 # The package has one compiled extension (hammerstein_ctrl._core, sources in hammerstein_ctrl/_csrc), built when it
 # is installed, so the tests always run against the installed package: an edited source is built again (only what
@@ -23,7 +25,7 @@ SOURCES := pyproject.toml meson.build data/trs_reconstruction.csv \
            $(shell find hammerstein_ctrl -type f ! -path '*/__pycache__/*' ! -name '*.pyc')
 PYTEST := $(BIN)/pytest -q -n auto --dist loadfile tests --pyargs hammerstein_ctrl
 
-.PHONY: demo test test-slow lint bench notebooks install wheel clean
+.PHONY: demo test test-slow lint bench notebooks docs install wheel clean
 
 $(TOOLS):
 	$(PYTHON) -m venv $(VENV)
@@ -58,9 +60,19 @@ lint: $(STAMP)
 notebooks: $(STAMP)
 	$(BIN)/python notebooks/run_notebooks.py
 
+DOCS_STAMP := $(VENV)/.docs-installed
+$(DOCS_STAMP): $(STAMP) pyproject.toml
+	$(BIN)/python -m pip install --quiet "sphinx>=7.2" "pydata-sphinx-theme>=0.15" "numpydoc>=1.6" "myst-nb>=1.0"
+	touch $@
+
+docs: $(DOCS_STAMP)
+	rm -rf docs/_build docs/api/generated
+	cd docs && $(abspath $(BIN))/python -m sphinx -b html -W --keep-going -q . _build/html
+	@echo "docs: $$(find docs/_build/html -name '*.html' | wc -l) pages in docs/_build/html"
+
 bench: $(STAMP)
 	$(BIN)/hammerstein-ctrl bench --methods nspsa nlspsa spsa amvo-sca
 	$(BIN)/pytest -q tests --pyargs hammerstein_ctrl -m timing
 
 clean:
-	rm -rf $(VENV) build dist results .pytest_cache
+	rm -rf $(VENV) build dist results .pytest_cache docs/_build docs/api/generated

@@ -186,5 +186,14 @@ def write_json(obj: dict, path) -> None:
 
 
 def save_model(model, path) -> None:
-    """Write ``model`` to ``path`` as a model file (:func:`hammerstein_ctrl.persistence.load_model` reads it)."""
+    """Write ``model`` to ``path`` as a model file (:func:`hammerstein_ctrl.persistence.load_model` reads it).
+
+    Examples
+    --------
+    >>> import os, tempfile, hammerstein_ctrl as hc
+    >>> path = os.path.join(tempfile.mkdtemp(), "model.json")
+    >>> save_model(hc.HammersteinModel(([1.0], [1.0, 2.0]), hc.Tanh(), [1.0, 0.5]), path)
+    >>> hc.load_model(path).linear.den[0][0].tolist()
+    [1.0, 2.0]
+    """
     write_json({"format": MODEL_FORMAT, "schema_version": SCHEMA_VERSION, "model": model_to_dict(model)}, path)

@@ -170,6 +170,17 @@ def identify(
     ------
     ParameterError, UnknownNameError, DataError
         On a bad structure, method, initial point or record.
+
+    Examples
+    --------
+    >>> import numpy as np, hammerstein_ctrl as hc
+    >>> s = hc.HammersteinStructure(hc.LinearStructure(0, 1), hc.Tanh())
+    >>> t = np.arange(1000) * 0.05
+    >>> u = 2 * np.sin(0.4 * t) + np.sin(1.3 * t)
+    >>> data = hc.IOData(u, s.model([1.0, 2.0, 0.8]).simulate(t, u), dt=0.05)
+    >>> res = identify(data, s)
+    >>> res.success, np.round(res.x, 4).tolist()
+    (True, [1.0, 2.0, 0.8])
     """
     started = time.perf_counter()
     noise = _check_noise(noise)

@@ -383,6 +383,14 @@ class LureModel:
     name : str, optional
     substeps : int, default 1
         See :class:`LureStructure`.
+
+    Examples
+    --------
+    >>> import numpy as np, hammerstein_ctrl as hc
+    >>> m = LureModel(([2.0], [1.0, 0.6, 0.0]), hc.Polynomial(3), [4.0, 0.0, 3.0], feedback="output")
+    >>> y = m.simulate(np.arange(2000) * 0.05, np.full(2000, 1.0))
+    >>> round(float(y[-1]), 4)                           # at rest: 4 y + 3 y^3 = 1
+    0.2397
     """
 
     kind = "lure"

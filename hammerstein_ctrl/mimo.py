@@ -773,6 +773,14 @@ class MIMOModel:
     delays : array_like, shape (m,), optional
         Each input's dead time in seconds (default none), simulated exactly;
         :meth:`to_iosys` carries it as a Pade approximant.
+
+    Examples
+    --------
+    >>> import numpy as np, hammerstein_ctrl as hc
+    >>> s = hc.mimo_structure(hc.LinearStructure(0, 1), [hc.Polynomial(1)] * 2, n_outputs=1)
+    >>> m = s.model(np.ones(s.n_params))
+    >>> isinstance(m, MIMOModel), (m.n_inputs, m.n_outputs)
+    (True, (2, 1))
     """
 
     def __init__(self, numerators, denominators, *, input_nonlinearities=None, input_params=None,

@@ -145,6 +145,15 @@ class BlockModel:
         simulated exactly (:mod:`~hammerstein_ctrl.delay`); python-control
         exports carry it as a Pade approximant of order ``pade_order``
         (:func:`pade_order_of`).
+
+    Examples
+    --------
+    >>> import numpy as np, hammerstein_ctrl as hc
+    >>> m = hc.HammersteinModel(([1.0], [1.0, 1.0]), hc.Tanh(), [2.0, 1.0])
+    >>> isinstance(m, BlockModel), m.order
+    (True, 1)
+    >>> float(m.simulate(np.arange(400) * 0.05, np.ones(400))[-1]).__round__(4)      # 2 tanh(1) at rest
+    1.5232
     """
 
     #: Short name of the structure family.
@@ -497,6 +506,13 @@ class HammersteinModel(BlockModel):
     nonlinearity, params
         ``g`` and its parameters (the same objects as ``input_nonlinearity``
         and ``input_params``).
+
+    Examples
+    --------
+    >>> import numpy as np, hammerstein_ctrl as hc
+    >>> m = HammersteinModel(([1.0], [1.0, 2.0]), hc.Polynomial(2), [1.0, 0.5])
+    >>> round(float(m.simulate(np.arange(200) * 0.05, np.full(200, 2.0))[-1]), 4)       # g(2) = 4, then H(0) = 1/2
+    2.0
     """
 
     kind = "hammerstein"
@@ -544,7 +560,16 @@ class WienerModel(BlockModel):
 
 
 class HammersteinWienerModel(BlockModel):
-    """``y = h(H(p) g(u)) + offset``: input nonlinearity, linear block, output nonlinearity."""
+    """``y = h(H(p) g(u)) + offset``: input nonlinearity, linear block, output nonlinearity.
+
+    Examples
+    --------
+    >>> import numpy as np, hammerstein_ctrl as hc
+    >>> m = HammersteinWienerModel(([1.0], [1.0, 1.0]), hc.DeadZone(), [1.0, 0.5], hc.Saturation(), [1.0, 1.0])
+    >>> y = m.simulate(np.arange(400) * 0.05, np.full(400, 3.0))
+    >>> round(float(y[-1]), 4)                           # dead zone: 3 - 0.5, then saturated at 1
+    1.0
+    """
 
     kind = "hammerstein-wiener"
 

@@ -60,6 +60,16 @@ class Nonlinearity:
     output map after it): it runs as fast as numpy evaluates it.  A family
     whose formula cannot be written in vectorised form overrides
     :meth:`_evaluate` instead.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> class Cube(Nonlinearity):
+    ...     name = "cube"
+    ...     param_names = ("k",)
+    ...     formula = staticmethod(lambda z, p, extra: p[0] * z**3)
+    >>> Cube()(np.array([1.0, 2.0]), [0.5]).tolist()
+    [0.5, 4.0]
     """
 
     #: Short name used in reprs, the CLI and :func:`nonlinearity_from_name`.

@@ -142,6 +142,16 @@ class HammersteinCost:
     ----------
     n_params : int
     param_names : tuple of str
+
+    Examples
+    --------
+    >>> import numpy as np, hammerstein_ctrl as hc
+    >>> s = hc.HammersteinStructure(hc.LinearStructure(0, 1), hc.Polynomial(1))
+    >>> t = np.arange(100) * 0.1
+    >>> data = hc.IOData(np.sin(t), s.model([2.0, 3.0]).simulate(t, np.sin(t)), dt=0.1)
+    >>> cost = HammersteinCost(data, s)
+    >>> float(cost([2.0, 3.0])), cost.batch([[2.0, 3.0], [2.0, 3.5]])[1] > 0
+    (0.0, np.True_)
     """
 
     def __init__(self, data, structure: BlockStructure, *, reject_unstable: bool = False):

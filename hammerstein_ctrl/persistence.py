@@ -590,6 +590,14 @@ def load_model(path):
         With a message naming the offending field.
     FileNotFoundError
         If ``path`` does not exist.
+
+    Examples
+    --------
+    >>> import os, tempfile, hammerstein_ctrl as hc
+    >>> path = os.path.join(tempfile.mkdtemp(), "model.json")
+    >>> hc.HammersteinModel(([1.0], [1.0, 2.0]), hc.Tanh(), [1.0, 0.5]).save(path)
+    >>> load_model(path).params.tolist()
+    [1.0, 0.5]
     """
     return _model_from_file(_read(path), path)
 
@@ -780,12 +788,38 @@ def _records_from(obj, structure, where: str) -> tuple:
 
 
 def save_result(result, path) -> None:
-    """Write an identification result to ``path`` (see :func:`result_to_dict`)."""
+    """Write an identification result to ``path`` (see :func:`result_to_dict`).
+
+    Examples
+    --------
+    >>> import os, tempfile, numpy as np, hammerstein_ctrl as hc
+    >>> s = hc.HammersteinStructure(hc.LinearStructure(0, 1), hc.Polynomial(1))
+    >>> t = np.arange(300) * 0.1
+    >>> y = s.model([2.0, 3.0]).simulate(t, np.sin(t)) + 1e-3 * np.cos(7 * t)
+    >>> res = hc.identify(hc.IOData(np.sin(t), y, dt=0.1), s)
+    >>> path = os.path.join(tempfile.mkdtemp(), "result.json")
+    >>> save_result(res, path)
+    >>> load_result(path).structure.param_names
+    ('a0', 'd1')
+    """
     _write(result_to_dict(result), path)
 
 
 def load_result(path) -> IdentificationResult:
-    """Read a result written by :func:`save_result`."""
+    """Read a result written by :func:`save_result`.
+
+    Examples
+    --------
+    >>> import os, tempfile, numpy as np, hammerstein_ctrl as hc
+    >>> s = hc.HammersteinStructure(hc.LinearStructure(0, 1), hc.Polynomial(1))
+    >>> t = np.arange(300) * 0.1
+    >>> y = s.model([2.0, 3.0]).simulate(t, np.sin(t)) + 1e-3 * np.cos(7 * t)
+    >>> res = hc.identify(hc.IOData(np.sin(t), y, dt=0.1), s)
+    >>> path = os.path.join(tempfile.mkdtemp(), "result.json")
+    >>> save_result(res, path)
+    >>> np.allclose(load_result(path).x, res.x)
+    True
+    """
     return result_from_dict(_read(path), str(path))
 
 

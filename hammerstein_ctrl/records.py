@@ -513,6 +513,16 @@ def read_record(
         Naming the file and the problem: unknown format or column, an
         undecodable, truncated or empty file, text, object, complex or
         matrix-shaped data, or any problem :class:`IOData` detects.
+
+    Examples
+    --------
+    >>> import numpy as np, tempfile, os, hammerstein_ctrl as hc
+    >>> path = os.path.join(tempfile.mkdtemp(), "rig.csv")
+    >>> t = np.arange(5) * 0.1
+    >>> np.savetxt(path, np.column_stack([t, np.sin(t), np.cos(t)]), delimiter=",", header="t,u,y", comments="")
+    >>> rec = read_record(path)
+    >>> len(rec), rec.dt
+    (5, 0.1)
     """
     if not isinstance(path, (str, os.PathLike)):
         raise DataError(f"path must be a file name or path, got {path!r}")

@@ -148,6 +148,18 @@ class SelectionResult:
     criterion : str
     best : IdentificationResult
         The first successful candidate (else the first).
+
+    Examples
+    --------
+    >>> import numpy as np, hammerstein_ctrl as hc
+    >>> t = np.arange(600) * 0.05
+    >>> u = np.sin(0.7 * t) + 0.5 * np.sin(2.1 * t)
+    >>> s = hc.HammersteinStructure(hc.LinearStructure(0, 1), hc.Polynomial(1))
+    >>> y = s.model([2.0, 3.0]).simulate(t, u) + 0.01 * np.random.default_rng(1).standard_normal(600)
+    >>> data = hc.IOData(u, y, dt=0.05)
+    >>> sel = hc.select_structure(data, [s], seed=0)
+    >>> isinstance(sel, SelectionResult), len(sel.results)
+    (True, 1)
     """
 
     def __init__(self, rows: list, results: list, criterion: str):
@@ -236,6 +248,18 @@ def select_structure(data, candidates, validation=None, criterion: str = "aic", 
     Returns
     -------
     SelectionResult
+
+    Examples
+    --------
+    >>> import numpy as np, hammerstein_ctrl as hc
+    >>> t = np.arange(1500) * 0.05
+    >>> u = 2 * np.sin(0.4 * t) + np.sin(1.3 * t)
+    >>> truth = hc.HammersteinStructure(hc.LinearStructure(0, 1), hc.Tanh()).model([1.0, 2.0, 0.8])
+    >>> rng = np.random.default_rng(0)
+    >>> data = hc.IOData(u, truth.simulate(t, u) + 0.01 * rng.standard_normal(t.size), dt=0.05)
+    >>> sel = select_structure(data, hc.candidate_structures([(0, 1), (0, 2)], [hc.Tanh(), hc.Polynomial(3)]), seed=0)
+    >>> sel.best.structure.describe()
+    'H(p) = (1)/(p + a0); g = tanh(d0, d1)'
     """
     from .display import as_iodata
     from .executors import make_executor

@@ -1,6 +1,6 @@
 """Exact, fast sampled simulation of Hammerstein models.
 
-The semantics (DESIGN.md section 1) are those of
+The semantics are those of
 ``control.forced_response(H, t, g(u)).outputs``: the nonlinearity is applied to
 the sampled input, the intermediate signal ``v = g(u)`` is interpolated
 linearly between samples (first-order hold), and ``H`` is simulated exactly

@@ -344,6 +344,13 @@ class BlockStructure:
 
     Subclasses: :class:`HammersteinStructure`, :class:`WienerStructure`,
     :class:`HammersteinWienerStructure`; a new structure is a new subclass.
+
+    Examples
+    --------
+    >>> from hammerstein_ctrl import HammersteinWienerStructure, LinearStructure, Tanh, Saturation
+    >>> s = HammersteinWienerStructure(LinearStructure(0, 1), Tanh(), Saturation(), offset=True)
+    >>> isinstance(s, BlockStructure), s.param_names
+    (True, ('a0', 'd1', 'gain', 'limit', 'y0'))
     """
 
     #: Short name of the structure family.

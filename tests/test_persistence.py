@@ -27,7 +27,7 @@ def test_emps_round_trip_reproduces_J_exactly(emps_case, tmp_path):
     assert loaded.params.tolist() == model.params.tolist()
     assert _simulated_sse(loaded, emps_case.data) == _simulated_sse(model, emps_case.data)
     assert emps_case.cost(emps_case.structure.beta(loaded)) == emps_case.cost(np.array(EMPS_OPT))
-    assert abs(emps_case.cost(np.array(EMPS_OPT)) - 0.208517) < 1e-6  # DESIGN.md's oracle
+    assert abs(emps_case.cost(np.array(EMPS_OPT)) - 0.208517) < 1e-6  # the EMPS optimum of the paper's protocol
 
 
 def test_emps_result_round_trip(emps_case, tmp_path):

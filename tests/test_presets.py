@@ -1,4 +1,4 @@
-"""DESIGN.md section 2 oracles on the presets."""
+"""The presets against the oracles of the paper's TRS and EMPS cases."""
 
 import pytest
 

@@ -1,4 +1,4 @@
-"""The fast path must equal control.forced_response (DESIGN.md section 1)."""
+"""The fast path must equal control.forced_response (the sampled first-order-hold semantics)."""
 
 import warnings
 

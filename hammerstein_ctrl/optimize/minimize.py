@@ -146,6 +146,13 @@ def minimize(fun, x0, method: str | None = None, *, args=(), maxfev: int | None 
     objectives here do small dense linear algebra, for which threads only spin
     against other work (entering the limit costs a few microseconds per call
     of ``minimize``, not per evaluation).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> r = minimize(lambda x: float(np.sum((x - 3.0) ** 2)), [0.0, 0.0], method="nelder-mead", maxfev=400)
+    >>> r.success, np.round(r.x, 3).tolist()
+    (True, [3.0, 3.0])
     """
     if method is None:
         method = "lm" if callable(getattr(fun, "residuals", None)) else ("l-bfgs-b" if bounds is not None else "bfgs")

@@ -205,7 +205,7 @@ def make_trs_reconstruction(
     noise_std: float = 0.17,
     noise_sse: float | None = 178.5,
 ) -> IOData:
-    """Generate the TRS reconstruction (DESIGN.md section 2 recipe).
+    """Generate the TRS reconstruction by this recipe.
 
     1. ``u``: i.i.d. uniform on [-1, 1] V, one value per sample (drawn first);
     2. ``y_true``: the true model :data:`TRS_TRUE_BETA` simulated with the

@@ -4,7 +4,7 @@ Table 6 (EMPS) is garbled in the source text: it prints ``c(k) = 0.2/(k+1)^(1/3)
 and no norm limit.  With the exponent 1/3 N-SPSA's mean J over 25 runs is about
 37 and NL-SPSA's about 18, against the paper's 0.536 and 1.855; with 1/6 (the
 TRS value of Table 2 for SPSA and NL-SPSA) they are 0.57 and 1.90.  The EMPS
-presets therefore use ``gamma = 1/6`` and ``delta = 0.01`` (DESIGN.md section 3).
+presets therefore use ``gamma = 1/6`` and ``delta = 0.01``.
 
 The paper scores a run by its last iterate, so the SPSA family's presets ask
 for ``estimate="last"`` (the library's default returns the best point evaluated).
