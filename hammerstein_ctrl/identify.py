@@ -246,17 +246,14 @@ def _cost(records, structure, reject_unstable):
         return MIMOCost(records[0], structure, reject_unstable=reject_unstable)
     for rec in records:
         rec.require_siso(f"a {structure.kind} structure")
-    if isinstance(structure, LureStructure):
+    whole = {LureStructure: (LureCost, "Lur'e"), WienerHammersteinStructure: (WienerHammersteinCost,
+                                                                            "Wiener-Hammerstein")}
+    if type(structure) in whole:                   # structures simulated as a whole: one record
+        cost, name = whole[type(structure)]
         if len(records) > 1:
-            raise ParameterError("several records in one Lur'e fit are not supported yet: fit one record")
+            raise ParameterError(f"several records in one {name} fit are not supported yet: fit one record")
         records[0].check_identifiable(structure.n_params)
-        return LureCost(records[0], structure, reject_unstable=reject_unstable)
-    if isinstance(structure, WienerHammersteinStructure):
-        if len(records) > 1:
-            raise ParameterError("several records in one Wiener-Hammerstein fit are not supported yet: fit one "
-                                 "record")
-        records[0].check_identifiable(structure.n_params)
-        return WienerHammersteinCost(records[0], structure, reject_unstable=reject_unstable)
+        return cost(records[0], structure, reject_unstable=reject_unstable)
     if len(records) == 1:
         records[0].check_identifiable(structure.n_params)
         if structure.linear.delay:

@@ -14,10 +14,10 @@ from __future__ import annotations
 
 import numpy as np
 
+from ._output_error import OutputErrorCost
 from .exceptions import ParameterError
 from .lure import DERIVATIVES, LureStructure
 from .nonlinearities import Coulomb, Friction, Polynomial
-from .normal_equations import NONFINITE_RESIDUAL
 from .simulate import unstable
 from .structure import HammersteinStructure, LinearStructure
 
@@ -25,7 +25,7 @@ __all__ = ["LureCost", "hammerstein_structure_of", "hammerstein_start", "linear_
            "MAP_SHARE"]
 
 
-class LureCost:
+class LureCost(OutputErrorCost):
     """``J(beta) = sum (y - y_hat(beta))^2`` of a Lur'e loop on one SISO record.
 
     Never raises for a hostile candidate: one that cannot be simulated scores
@@ -42,71 +42,24 @@ class LureCost:
     0.0
     """
 
+    what = "a Lur'e structure"
+
     def __init__(self, data, structure: LureStructure, *, reject_unstable: bool = False):
         if not isinstance(structure, LureStructure):
             raise ParameterError(f"structure must be a LureStructure, got {type(structure).__name__}")
-        data.require_siso("a Lur'e structure")
-        self.data, self.structure, self.reject_unstable = data, structure, bool(reject_unstable)
-        self._u = np.ascontiguousarray(np.asarray(data.u, dtype=float).reshape(-1))
-        self._y = np.ascontiguousarray(np.asarray(data.y, dtype=float).reshape(-1))
-        self._dt, self._hold = float(data.dt), data.intersample
-
-    @property
-    def n_params(self) -> int:
-        return self.structure.n_params
-
-    @property
-    def param_names(self) -> tuple[str, ...]:
-        return self.structure.param_names
-
-    @property
-    def n_samples(self) -> int:
-        return self._u.size
+        super().__init__(data, structure, reject_unstable=reject_unstable)
 
     def _rejected(self, B: np.ndarray) -> np.ndarray:
         if not self.reject_unstable:
             return np.zeros(B.shape[0], dtype=bool)
         return unstable(self.structure.linear.coefficients(B[:, :self.structure.linear.n_params])[1])
 
-    def batch(self, betas) -> np.ndarray:
-        """``J`` of each row of ``betas``."""
-        B = np.atleast_2d(self.structure.check_beta(betas))
-        J = self.structure.simulate_rows(B, self._u, self._dt, self._hold, y=self._y)
-        J[~np.isfinite(J) | self._rejected(B)] = np.inf
-        return J
-
-    def __call__(self, beta) -> float:
-        b = self.structure.check_beta(beta)
-        if b.ndim != 1:
-            raise ParameterError("cost(beta) takes one vector; use cost.batch for a batch")
-        return float(self.batch(b)[0])
+    def _sse_batch(self, B: np.ndarray) -> np.ndarray:
+        return self.structure.simulate_rows(B, self._u, self._dt, self._hold, y=self._y)
 
     def simulate_batch(self, betas) -> np.ndarray:
         """Simulated outputs ``(B, N)``."""
-        B = np.atleast_2d(self.structure.check_beta(betas))
-        return self.structure.simulate_rows(B, self._u, self._dt, self._hold)
-
-    def simulate(self, beta) -> np.ndarray:
-        return self.simulate_batch(beta)[0]
-
-    def residuals_batch(self, betas) -> np.ndarray:
-        """``y - y_hat`` for each row, non-finite values (and rejected rows) replaced by :data:`NONFINITE_RESIDUAL`."""
-        B = np.atleast_2d(self.structure.check_beta(betas))
-        R = self.simulate_batch(B)
-        with np.errstate(all="ignore"):
-            np.subtract(self._y, R, out=R)
-        R[~np.isfinite(R)] = NONFINITE_RESIDUAL
-        R[self._rejected(B)] = NONFINITE_RESIDUAL
-        return R
-
-    def residuals(self, beta) -> np.ndarray:
-        b = self.structure.check_beta(beta)
-        if b.ndim != 1:
-            raise ParameterError("residuals(beta) takes one vector; use residuals_batch for a batch")
-        return self.residuals_batch(b)[0]
-
-    def __repr__(self):
-        return f"LureCost({self.structure!r}, N={self.n_samples})"
+        return self.structure.simulate_rows(self._rows(betas), self._u, self._dt, self._hold)
 
 
 def hammerstein_structure_of(structure: LureStructure) -> HammersteinStructure:

@@ -32,7 +32,7 @@ from .exceptions import ParameterError
 from .nonlinearities import Nonlinearity
 
 __all__ = ["LinearStructure", "BlockStructure", "HammersteinStructure", "WienerStructure",
-           "HammersteinWienerStructure", "INITIAL_STATES", "fill_coefficients"]
+           "HammersteinWienerStructure", "INITIAL_STATES", "fill_coefficients", "checked_beta"]
 
 
 class LinearStructure:
@@ -316,6 +316,27 @@ DELAY_NAME = "delay"
 STATE_PREFIX = "xi"
 
 
+def checked_beta(beta, names) -> np.ndarray:
+    """``beta`` as a float array ``(n,)`` or ``(B, n)`` for the parameter ``names`` of a structure.
+
+    Raises
+    ------
+    ParameterError
+        On a wrong length, naming the expected parameters, or values that are not real numbers.
+
+    Examples
+    --------
+    >>> checked_beta([1, 2], ("a0", "d1")).tolist()
+    [1.0, 2.0]
+    """
+    b = beta if type(beta) is np.ndarray and beta.dtype == np.float64 else as_real_array(beta, "beta")
+    if b.ndim not in (1, 2) or b.shape[-1] != len(names):
+        got = b.shape[-1] if b.ndim else "a scalar"
+        raise ParameterError(f"beta must have {len(names)} entries {list(names)}, got {got}"
+                             + (f" (array of shape {b.shape})" if b.ndim != 1 else ""))
+    return b
+
+
 def _check_nonlinearity(value, label: str):
     if not isinstance(value, Nonlinearity):
         raise ParameterError(f"{label} must be a Nonlinearity, got {type(value).__name__}")
@@ -448,14 +469,7 @@ class BlockStructure:
         ParameterError
             On a wrong length, naming the expected parameters, or values that are not real numbers.
         """
-        b = beta if type(beta) is np.ndarray and beta.dtype == np.float64 else as_real_array(beta, "beta")
-        if b.ndim not in (1, 2) or b.shape[-1] != self.n_params:
-            got = b.shape[-1] if b.ndim else "a scalar"
-            raise ParameterError(
-                f"beta must have {self.n_params} entries {list(self.param_names)}, got {got}"
-                + (f" (array of shape {b.shape})" if b.ndim != 1 else "")
-            )
-        return b
+        return checked_beta(beta, self.param_names)
 
     def linear_params(self, beta) -> np.ndarray:
         """The free coefficients of ``H``."""

@@ -22,9 +22,9 @@ import itertools
 import numpy as np
 
 from ._batch import simulate_batch
+from ._output_error import OutputErrorCost
 from .exceptions import ParameterError
 from .nonlinearities import Polynomial
-from .normal_equations import NONFINITE_RESIDUAL
 from .structure import HammersteinStructure, LinearStructure
 from .wiener_hammerstein import WienerHammersteinStructure, simulate_wh
 
@@ -39,11 +39,12 @@ MAX_SPLITS = 256
 SPLIT_STARTS = 3
 
 
-class WienerHammersteinCost:
+class WienerHammersteinCost(OutputErrorCost):
     """``J(beta) = sum (y - y_hat(beta))^2`` of a Wiener-Hammerstein structure on one SISO record.
 
     Never raises for a hostile candidate: one that cannot be simulated scores
-    ``inf`` (its residuals :data:`NONFINITE_RESIDUAL`).
+    ``inf`` (its residuals :data:`NONFINITE_RESIDUAL`).  A structure without a
+    time unit takes the record's sample time.
 
     Examples
     --------
@@ -56,76 +57,17 @@ class WienerHammersteinCost:
     0.0
     """
 
+    what = "a Wiener-Hammerstein structure"
+
     def __init__(self, data, structure: WienerHammersteinStructure, *, reject_unstable: bool = False):
         if not isinstance(structure, WienerHammersteinStructure):
             raise ParameterError(f"structure must be a WienerHammersteinStructure, got {type(structure).__name__}")
-        data.require_siso("a Wiener-Hammerstein structure")
-        structure = structure.for_record(float(data.dt))
-        self.data, self.structure, self.reject_unstable = data, structure, bool(reject_unstable)
-        self._u = np.ascontiguousarray(np.asarray(data.u, dtype=float).reshape(-1))
-        self._y = np.ascontiguousarray(np.asarray(data.y, dtype=float).reshape(-1))
-        self._dt, self._hold = float(data.dt), data.intersample
-
-    @property
-    def n_params(self) -> int:
-        return self.structure.n_params
-
-    @property
-    def param_names(self) -> tuple[str, ...]:
-        return self.structure.param_names
-
-    @property
-    def n_samples(self) -> int:
-        return self._u.size
-
-    def _rejected(self, B: np.ndarray) -> np.ndarray:
-        if not self.reject_unstable:
-            return np.zeros(B.shape[0], dtype=bool)
-        return self.structure.unstable(B)
+        super().__init__(data, structure.for_record(float(data.dt)), reject_unstable=reject_unstable)
 
     def simulate_batch(self, betas) -> np.ndarray:
         """Simulated outputs ``(B, N)``."""
         s = self.structure
-        B = np.atleast_2d(s.check_beta(betas))
-        return simulate_wh(s.nonlinearity, s.parts(B), self._u, self._dt, self._hold, s.substeps)
-
-    def simulate(self, beta) -> np.ndarray:
-        return self.simulate_batch(beta)[0]
-
-    def residuals_batch(self, betas) -> np.ndarray:
-        """``y - y_hat`` for each row, non-finite values (and rejected rows) replaced by :data:`NONFINITE_RESIDUAL`."""
-        B = np.atleast_2d(self.structure.check_beta(betas))
-        R = self.simulate_batch(B)
-        with np.errstate(all="ignore"):
-            np.subtract(self._y, R, out=R)
-        R[~np.isfinite(R)] = NONFINITE_RESIDUAL
-        R[self._rejected(B)] = NONFINITE_RESIDUAL
-        return R
-
-    def residuals(self, beta) -> np.ndarray:
-        b = self.structure.check_beta(beta)
-        if b.ndim != 1:
-            raise ParameterError("residuals(beta) takes one vector; use residuals_batch for a batch")
-        return self.residuals_batch(b)[0]
-
-    def batch(self, betas) -> np.ndarray:
-        """``J`` of each row of ``betas``."""
-        B = np.atleast_2d(self.structure.check_beta(betas))
-        R = self.simulate_batch(B)
-        with np.errstate(all="ignore"):
-            np.subtract(self._y, R, out=R)
-            J = np.einsum("ij,ij->i", R, R)
-        J[~np.isfinite(J) | self._rejected(B)] = np.inf
-        return J
-
-    def __call__(self, beta) -> float:
-        b = self.structure.check_beta(beta)
-        if b.ndim != 1:
-            raise ParameterError("cost(beta) takes one vector; use cost.batch for a batch")
-        return float(self.batch(b)[0])
-
-    def __repr__(self):
-        return f"WienerHammersteinCost({self.structure!r}, N={self.n_samples})"
+        return simulate_wh(s.nonlinearity, s.parts(self._rows(betas)), self._u, self._dt, self._hold, s.substeps)
 
 
 def bla_structure(structure: WienerHammersteinStructure) -> HammersteinStructure:

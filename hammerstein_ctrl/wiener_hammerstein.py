@@ -51,13 +51,13 @@ from typing import NamedTuple
 import numpy as np
 
 from ._batch import simulate_batch
-from ._checks import MAX_ORDER, as_real_array, check_intersample
+from ._checks import MAX_ORDER, check_intersample
 from ._discretize import companion_realization
 from .exceptions import ParameterError
 from .model import _check_block as _check_map, _check_linear, _finite_scalar, _state_vector
 from .nonlinearities import Nonlinearity
 from .simulate import _check_pair, unstable
-from .structure import INITIAL_STATES, OFFSET_NAME, STATE_PREFIX, LinearStructure
+from .structure import INITIAL_STATES, OFFSET_NAME, STATE_PREFIX, LinearStructure, checked_beta
 
 __all__ = ["WienerHammersteinStructure", "WienerHammersteinModel", "WHParts", "wiener_hammerstein_structure",
            "simulate_wh", "UnitGainBlock", "BLOCK_PREFIXES", "MAX_SUBSTEPS"]
@@ -387,11 +387,7 @@ class WienerHammersteinStructure:
 
     def check_beta(self, beta) -> np.ndarray:
         """``beta`` as a float array ``(n_params,)`` or ``(B, n_params)``; a wrong length is refused."""
-        b = beta if type(beta) is np.ndarray and beta.dtype == np.float64 else as_real_array(beta, "beta")
-        if b.ndim not in (1, 2) or b.shape[-1] != self.n_params:
-            raise ParameterError(f"beta must have {self.n_params} entries [{', '.join(self.param_names)}], "
-                                 f"got shape {b.shape}")
-        return b
+        return checked_beta(beta, self.param_names)
 
     def block_params(self, beta):
         """``(G1's parameters, G2's parameters, f's parameters)`` of a beta or batch."""
