@@ -63,6 +63,7 @@ _LAZY_NAMES = {
     "save_result": "persistence",
     "StudyResult": "paper.study", "run_study": "paper.study",
     "select_structure": "selection", "candidate_structures": "selection", "SelectionResult": "selection",
+    "tune_pid": "control_design", "identify_in_loop": "in_loop",
 }
 
 #: The documented front door: records, structures, models, nonlinearities, identification and its result,
@@ -79,6 +80,7 @@ __all__ = [
     "Friction",
     "CustomNonlinearity", "nonlinearity_from_name",
     "identify", "IdentificationResult", "select_structure", "candidate_structures", "SelectionResult",
+    "identify_in_loop", "tune_pid",
     "minimize", "HammersteinCost", "fit_percent", "fit_report", "nrmse", "rmse", "sse",
     "load_model", "save_model", "load_result", "save_result",
     "DataError", "HammersteinError", "ParameterError", "UnknownNameError", "IdentificationWarning",

@@ -741,7 +741,7 @@ def auto_lure(cost, x0=None, *, maxfev: int | None = None, seed=None, allow_unst
 
 def auto_known_loop(cost, starts, *, maxfev: int | None = None, seed=None, allow_unstable: bool = False,
                     callback=None):
-    """Levenberg-Marquardt on a known loop's residuals (a :class:`~hammerstein_ctrl.in_loop.LoopCost` of a block
+    """Levenberg-Marquardt on a known loop's residuals (a :class:`~hammerstein_ctrl.in_loop.KnownLoopCost` of a block
     structure) from ``starts`` (the open-loop fit), restarts from seeded perturbations of the best while it is not
     acceptable.  Parameters and return value as :func:`auto_minimize`."""
     started = time.perf_counter()

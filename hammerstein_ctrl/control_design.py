@@ -77,7 +77,7 @@ from .robust_pid import (FILTER_RATIO, constraints, default_bandwidth, frequency
                          ms_constrained_pid, pid_polynomials)
 
 __all__ = ["PIDResult", "DiscretePID", "tune_pid", "closed_loop", "analyze_loop", "approximate", "pid_controller",
-           "LoopCost", "loop_figure", "RULES", "CRITERIA", "TRACKING_TOLERANCE"]
+           "TuningCost", "loop_figure", "RULES", "CRITERIA", "TRACKING_TOLERANCE"]
 
 #: Tuning rules accepted by :func:`tune_pid` (the first is the default).
 RULES = ("robust", "simc", "imc", "nspsa", "auto")
@@ -537,7 +537,7 @@ def _default_step(model, op: OperatingPoint, limits, kp: float | None) -> float:
     return dy if math.isfinite(dy) and dy != 0 else 1.0
 
 
-class LoopCost:
+class TuningCost:
     """Closed-loop cost of PID gains on the nonlinear sampled loop started at the operating point.
 
     ``cost(theta)`` with gains ``[kp, ki, kd] = scale * theta`` (a P, PI or PID
@@ -717,6 +717,14 @@ def tune_pid(model, rule: str = "robust", *, kind: str = "pid", max_sensitivity:
     ParameterError, UnknownNameError, DataError
         Unstable or non-finite model, unknown rule or criterion, a reference
         shorter than two samples, ``lo >= hi``, an unreachable operating point.
+
+    Examples
+    --------
+    >>> import hammerstein_ctrl as hc
+    >>> model = hc.HammersteinModel(([1.0], [1.0, 3.0, 2.0]), hc.Tanh(), [2.0, 1.0])
+    >>> pid = tune_pid(model)
+    >>> [round(v, 2) for v in (pid.kp, pid.ki, pid.kd)]
+    [8.52, 21.18, 1.71]
     """
     model = _siso_model(model, "tune_pid")
     key, crit = _check_rule(rule), _check_criterion(criterion)
@@ -961,7 +969,7 @@ def _tune_model_based(model, key, start, op, *, dt, u_limit, reference, step, t_
     dt_sim, horizon = _tuning_grid(_with_filter(start if start[0] else robust[:3]), op, num, den, dt, t_final)
     step = _default_step(model, op, check_limits(u_limit), start[0] or robust[0]) if step is None else float(step)
     r, is_step = _reference(reference, step, dt_sim, horizon)
-    cost = LoopCost(model, r, dt_sim, u_limit=u_limit, criterion=criterion, scale=scale, is_step=is_step,
+    cost = TuningCost(model, r, dt_sim, u_limit=u_limit, criterion=criterion, scale=scale, is_step=is_step,
                     max_overshoot=max_overshoot, op=op, max_sensitivity=ms, kind=kind, bandwidth=bandwidth)
     x0 = np.asarray(start, dtype=float) / scale
     if key == "nspsa":
@@ -1285,3 +1293,14 @@ def loop_figure(reports: dict, *, u_limit=None, title: str | None = None):
     ax_y.legend(fontsize=8)
     ax_y.set_title(title or "closed loop on the nonlinear model")
     return fig
+
+
+def __getattr__(name):
+    """``LoopCost``, the old name of :class:`TuningCost`, for one release with a DeprecationWarning."""
+    if name == "LoopCost":
+        import warnings
+
+        warnings.warn("hammerstein_ctrl.control_design.LoopCost is now TuningCost (in_loop has a cost of its own)",
+                      DeprecationWarning, stacklevel=2)
+        return TuningCost
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -50,7 +50,7 @@ from .model import BlockModel
 from .normal_equations import NONFINITE_RESIDUAL
 from .structure import BlockStructure
 
-__all__ = ["KnownLoop", "LoopCost", "identify_in_loop", "MATCHES"]
+__all__ = ["KnownLoop", "KnownLoopCost", "identify_in_loop", "MATCHES"]
 
 #: The signals a loop fit can match.
 MATCHES = ("output", "input", "both")
@@ -169,7 +169,7 @@ def _friction_only(nonlinearity) -> None:
                              "structure)), or approximate its map by friction")
 
 
-class LoopCost:
+class KnownLoopCost:
     """Weighted least squares of the loop's simulated output and/or control signal against the record.
 
     ``residuals`` stacks ``w_y (y - y_hat)`` and ``w_u (u - u_hat)`` (the
@@ -260,7 +260,7 @@ class LoopCost:
                          for w, v in zip(self.weights, (self._y if s == "y" else self._u for s in self.signals))))
 
 
-def _fits(cost: LoopCost, x) -> dict:
+def _fits(cost: KnownLoopCost, x) -> dict:
     """Fit per cent of the loop's output and control signal against the record."""
     from .metrics import fit_report
 
@@ -303,13 +303,24 @@ def identify_in_loop(data, structure, loop: KnownLoop, *, match: str = "both", w
     The starts come from the open-loop fit of ``(u, y)`` (``identify`` with
     the same structure), then Levenberg-Marquardt refines on the loop's
     residuals, with restarts from perturbations of the best.
+
+    Examples
+    --------
+    >>> import numpy as np, control, hammerstein_ctrl as hc
+    >>> s = hc.HammersteinStructure(hc.LinearStructure(0, 1), hc.Polynomial(1))
+    >>> r = np.repeat(np.random.default_rng(0).uniform(-1, 1, 20), 50)
+    >>> loop = KnownLoop(control.ss([], [], [], [[1.5]], dt=0.05), r)          # a proportional controller
+    >>> y, u = loop.simulate(s.model([2.0, 3.0], intersample="zoh"))
+    >>> res = identify_in_loop(hc.IOData(u, y, dt=0.05, intersample="zoh"), s, loop)
+    >>> res.success, np.round(res.x, 4).tolist()
+    (True, [2.0, 3.0])
     """
     from .auto import auto_known_loop, auto_lure, auto_minimize
     from .lure_fit import LureCost
     from .objective import HammersteinCost
 
     started = time.perf_counter()
-    cost = LoopCost(data, structure, loop, match=match, weights=weights)
+    cost = KnownLoopCost(data, structure, loop, match=match, weights=weights)
     share = None if maxfev is None else max(1, maxfev // 3)
     if isinstance(structure, LureStructure):
         open_loop = auto_lure(LureCost(data, structure), maxfev=share, seed=seed)
@@ -324,7 +335,7 @@ def identify_in_loop(data, structure, loop: KnownLoop, *, match: str = "both", w
     return _result(cost, res, noise, started)
 
 
-def _result(cost: LoopCost, res, noise: str, started: float):
+def _result(cost: KnownLoopCost, res, noise: str, started: float):
     """The :class:`~hammerstein_ctrl.result.IdentificationResult` of a loop fit: fits per signal, uncertainty,
     verdicts (no better than a constant; parameters the loop record does not determine)."""
     from .diagnostics import FAILURE, Verdict, identifiability_verdicts
@@ -360,3 +371,14 @@ def _result(cost: LoopCost, res, noise: str, started: float):
         covariance=None if unc is None else unc.covariance, warnings=[v.message for v in verdicts],
         verdicts=verdicts, uncertainty=unc, analysis=None, data=cost.data,
         output_fits={"y (in loop)": fits["y"], "u (in loop)": fits["u"]})
+
+
+def __getattr__(name):
+    """``LoopCost``, the old name of :class:`KnownLoopCost`, for one release with a DeprecationWarning."""
+    if name == "LoopCost":
+        import warnings
+
+        warnings.warn("hammerstein_ctrl.in_loop.LoopCost is now KnownLoopCost (control_design has a cost of its own)",
+                      DeprecationWarning, stacklevel=2)
+        return KnownLoopCost
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -8,7 +8,7 @@ import pytest
 
 import hammerstein_ctrl as hc
 from hammerstein_ctrl import DataError, ParameterError
-from hammerstein_ctrl.in_loop import KnownLoop, LoopCost, identify_in_loop
+from hammerstein_ctrl.in_loop import KnownLoop, KnownLoopCost, identify_in_loop
 from hammerstein_ctrl.lure import lure_structure
 
 DT = 0.01
@@ -70,7 +70,7 @@ def test_residuals_stack_the_matched_signals_weighted(match, n_signals):
     loop = KnownLoop(PI, r)
     y, u = loop.simulate(lure_structure().model(TRUTH))
     data = hc.IOData(u + 1.0, y + 2.0, dt=DT, intersample="zoh")
-    cost = LoopCost(data, lure_structure(), loop, match=match, weights=[3.0] * n_signals)
+    cost = KnownLoopCost(data, lure_structure(), loop, match=match, weights=[3.0] * n_signals)
     R = cost.residuals(TRUTH)
     assert R.shape == (n_signals * 300,)
     expected = {"output": [6.0], "input": [3.0], "both": [6.0, 3.0]}[match]
@@ -98,7 +98,7 @@ def test_bad_loops_are_refused_in_one_line(make, error, match):
     r = _reference(100)
     data = hc.IOData(np.zeros(100), np.zeros(100), dt=DT)
     with pytest.raises(error, match=match) as err:
-        LoopCost(data, lure_structure(), make(r))
+        KnownLoopCost(data, lure_structure(), make(r))
     assert "\n" not in str(err.value)
 
 
@@ -106,15 +106,15 @@ def test_bad_match_and_weights_are_refused():
     r = _reference(100)
     data = hc.IOData(np.zeros(100), np.zeros(100), dt=DT)
     with pytest.raises(ParameterError, match="match must be one of"):
-        LoopCost(data, lure_structure(), KnownLoop(PI, r), match="force")
+        KnownLoopCost(data, lure_structure(), KnownLoop(PI, r), match="force")
     with pytest.raises(ParameterError, match="2 number.s. between 1e-100 and 1e100"):
-        LoopCost(data, lure_structure(), KnownLoop(PI, r), weights=[1.0])
+        KnownLoopCost(data, lure_structure(), KnownLoop(PI, r), weights=[1.0])
     with pytest.raises(ParameterError, match="between 1e-100 and 1e100"):
-        LoopCost(data, lure_structure(), KnownLoop(PI, r), weights=[1e-300, 1e-300])     # J would underflow
+        KnownLoopCost(data, lure_structure(), KnownLoop(PI, r), weights=[1e-300, 1e-300])     # J would underflow
     with pytest.raises(DataError, match="measured output and control signal is constant"):
-        LoopCost(data, lure_structure(), KnownLoop(PI, r))
+        KnownLoopCost(data, lure_structure(), KnownLoop(PI, r))
     with pytest.raises(DataError, match="reference has 100 samples, the record 50"):
-        LoopCost(data[:50], lure_structure(), KnownLoop(PI, r))
+        KnownLoopCost(data[:50], lure_structure(), KnownLoop(PI, r))
 
 
 def test_emps_controller_reproduces_the_recorded_force(emps_dir):
@@ -266,3 +266,12 @@ def test_the_known_loop_simulator_refuses_signals_of_other_lengths():
         simulate_known_loop(plant, controller, np.ones(50), np.zeros(1))
     with pytest.raises(ParameterError, match="the controller's 1 states; got 50 and 3"):
         simulate_known_loop(plant, controller, np.ones(50), np.zeros(50), initial_state=[0.0, 0.0, 0.0])
+
+
+def test_the_old_cost_names_still_import_with_a_deprecation_warning():
+    from hammerstein_ctrl import control_design, in_loop
+
+    with pytest.warns(DeprecationWarning, match="KnownLoopCost"):
+        assert in_loop.LoopCost is in_loop.KnownLoopCost
+    with pytest.warns(DeprecationWarning, match="TuningCost"):
+        assert control_design.LoopCost is control_design.TuningCost

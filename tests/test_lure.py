@@ -551,7 +551,7 @@ def test_loop_known_truths_are_found_without_x0_within_four_standard_errors_over
 def test_a_map_loop_inside_a_known_controller_is_refused_in_one_line():
     import control
 
-    from hammerstein_ctrl.in_loop import KnownLoop, LoopCost
+    from hammerstein_ctrl.in_loop import KnownLoop, KnownLoopCost
 
     s = LureStructure(LinearStructure(0, 2, monic_numerator=False, fixed={"a0": 0.0}), hc.Polynomial(3),
                       feedback="output")
@@ -559,4 +559,4 @@ def test_a_map_loop_inside_a_known_controller_is_refused_in_one_line():
     with pytest.raises(ParameterError, match="takes a friction map"):
         loop.simulate(s.model([2.0, 0.6, 4.0, 0.0, 3.0]))
     with pytest.raises(ParameterError, match="takes a friction map"):
-        LoopCost(hc.IOData(np.ones(100), np.arange(100.0), dt=0.05), s, loop)
+        KnownLoopCost(hc.IOData(np.ones(100), np.arange(100.0), dt=0.05), s, loop)
