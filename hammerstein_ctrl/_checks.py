@@ -415,7 +415,7 @@ def _jitter_message(t, dev, dt, tolerance, name) -> str:
         i = int(bad_steps[0])
         first = f"; the first irregular step is from sample {i} to {i + 1} ({steps[i]:.3g}*dt)"
     hint = f"pass {_RESAMPLE_HINT}"
-    if worst < MAX_GRID_TOLERANCE:
+    if _round_up(worst) < MAX_GRID_TOLERANCE:     # only a tolerance the check accepts is suggested
         hint = (f"pass tolerance={_round_up(worst)} (--tolerance) to accept the time stamps as a uniform grid "
                 f"(a noisy clock), or {_RESAMPLE_HINT}")
     return (

@@ -500,7 +500,8 @@ def _add_identify_arguments(ide):
     ide.add_argument("--bounds", type=_number(allow_inf=True), nargs="+", metavar="LO HI",
                      help="low high for each parameter")
     ide.add_argument("--maxfev", type=_count(1),
-                     help="evaluation budget (default: 2000 for auto, 2501 for the others unless --maxiter)")
+                     help="evaluation budget (default: config auto.maxfev, 3000, for auto; auto.wh_maxfev, 10000, "
+                          "for a Wiener-Hammerstein model; 2501 for the others unless --maxiter)")
     ide.add_argument("--maxiter", type=_count(1), help="iteration limit")
     ide.add_argument("--seed", type=_count(0), default=0, help="seed of the stochastic methods (>= 0)")
     ide.add_argument("--gain-a", type=_number(), nargs="+", metavar="A", help="a [A [alpha]] of a(k) = a/(k+A)^alpha")

@@ -41,7 +41,8 @@ def add_select_parser(subparsers, count, number, writable):
     sel.add_argument("--validation", help="a validation record (same column options as --data)")
     sel.add_argument("--offset", action="store_true", help="estimate an output offset in every candidate")
     sel.add_argument("--initial-state", choices=["zero", "estimate"], default="zero")
-    sel.add_argument("--maxfev", type=count(1), help="evaluation budget of each fit (default 2000)")
+    sel.add_argument("--maxfev", type=count(1), help="evaluation budget of each fit (default: config auto.maxfev, "
+                     "3000)")
     sel.add_argument("--seed", type=count(0), default=0)
     sel.add_argument("--jobs", type=count(1), help="worker processes (default: all cores)")
     sel.add_argument("--table", help="write the ranked table as CSV")

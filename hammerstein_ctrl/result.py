@@ -419,12 +419,18 @@ class IdentificationResult(UncertainParameters):
     def _repr_pretty_(self, printer, cycle):  # IPython's text view: the summary, not the dataclass fields
         printer.text(self.summary())
 
-    def plot(self, **kwargs):
-        """Measured vs simulated output, residual and g(u) (:func:`hammerstein_ctrl.plots.result_figure`)."""
+    def plot(self, data=None, **kwargs):
+        """Measured vs simulated output, residual and g(u) (:func:`hammerstein_ctrl.plots.result_figure`).
+
+        ``data`` is the estimation record, for a result read from a file (which keeps only its description)."""
+        import dataclasses
+
+        from .display import as_iodata
         from .plots import result_figure
 
-        self._record()
-        return result_figure(self, **kwargs)
+        result = self if data is None else dataclasses.replace(self, data=as_iodata(data))
+        result._record()
+        return result_figure(result, **kwargs)
 
     def compare(self, *records, **kwargs):
         """Fit % of this model on each record, one figure (:func:`hammerstein_ctrl.plots.compare`).

@@ -400,3 +400,19 @@ def test_a_list_of_columns_reads_a_record_with_several_channels(tmp_path):
         read_record(path, input=["v_pitch"], output=["pitch", "roll"])
     with pytest.raises(DataError, match="same column is chosen"):
         read_record(path, input=["v_pitch", "pitch"], output=["pitch"])
+
+
+def test_a_jitter_near_half_a_step_suggests_only_what_the_check_accepts():
+    import numpy as np
+
+    from hammerstein_ctrl import DataError, IOData
+
+    t = np.arange(10) * 0.1
+    t[3] += 0.0496                                   # 0.496 of a step: the rounded-up 0.5 would be refused
+    with pytest.raises(DataError) as info:
+        IOData(np.zeros(10), np.zeros(10), t)
+    assert "pass tolerance=" not in str(info.value) and "resample=" in str(info.value)
+    t[3] = 0.3 + 0.046                               # 0.46 of a step: the suggested tolerance is accepted
+    with pytest.raises(DataError, match="pass tolerance=0.46"):
+        IOData(np.zeros(10), np.zeros(10), t)
+    assert len(IOData(np.zeros(10), np.zeros(10), t, tolerance=0.46)) == 10

@@ -354,3 +354,18 @@ def test_the_middle_map_is_plotted_and_other_models_say_they_have_none(wh_fit, t
     hammerstein = hc.identify(trs_case.data, trs_case.structure)
     with pytest.raises(ParameterError, match="has no middle nonlinearity"):
         hc.plots.nonlinearity(hammerstein, block="middle")
+
+
+def test_a_loaded_result_plots_with_its_record(tmp_path, wh_fit):
+    import matplotlib
+
+    from hammerstein_ctrl.persistence import load_result, save_result
+
+    matplotlib.use("Agg")
+    r, data = wh_fit
+    save_result(r, tmp_path / "r.json")
+    loaded = load_result(tmp_path / "r.json")
+    with pytest.raises(ParameterError, match="pass the record itself"):
+        loaded.plot()
+    fig = loaded.plot(data=data)
+    assert len(fig.axes) == 3
