@@ -316,17 +316,12 @@ def _run_auto(cost, x0, maxfev, seed, options, bounds, maxiter, callback, allow_
               if value is not None]
     if unused:
         raise ParameterError(f"method 'auto' does not take {', '.join(unused)}; use maxfev (and x0, seed)")
-    if isinstance(cost, DelayedCost):
-        return auto_delayed(cost, x0, maxfev=maxfev, seed=seed, allow_unstable=allow_unstable, callback=callback)
-    if isinstance(cost, MIMOCost):
-        return auto_mimo(cost, x0, maxfev=maxfev, seed=seed, allow_unstable=allow_unstable, callback=callback)
-    if isinstance(cost, WienerHammersteinCost):
-        return auto_wiener_hammerstein(cost, x0, maxfev=maxfev, seed=seed, allow_unstable=allow_unstable,
-                                       callback=callback)
-    if isinstance(cost, LureCost):
-        return auto_lure(cost, x0, maxfev=maxfev, seed=seed, allow_unstable=allow_unstable, callback=callback)
-    if isinstance(cost, RecordsCost):
-        return auto_records(cost, x0, maxfev=maxfev, seed=seed, allow_unstable=allow_unstable, callback=callback)
+    # the automatic method of each kind of cost (its class, or the first of its bases that has one)
+    methods = {DelayedCost: auto_delayed, MIMOCost: auto_mimo, WienerHammersteinCost: auto_wiener_hammerstein,
+               LureCost: auto_lure, RecordsCost: auto_records}
+    method = next((methods[k] for k in type(cost).__mro__ if k in methods), None)
+    if method is not None:
+        return method(cost, x0, maxfev=maxfev, seed=seed, allow_unstable=allow_unstable, callback=callback)
     if x0 is not None:
         x = np.asarray(x0, dtype=float).reshape(-1)
         if x.size not in (cost.structure.n_core, cost.structure.n_params):
