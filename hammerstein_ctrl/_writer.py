@@ -137,7 +137,8 @@ def _wh_model_to_dict(model) -> dict:
            "first": {"num": n1.tolist(), "den": d1.tolist()}, "second": {"num": n2.tolist(), "den": d2.tolist()},
            "nonlinearity": _block_to_dict(model.nonlinearity, model.params), "offset": model.offset,
            "initial_state": None if x0 is None else [x0[0].tolist(), x0[1].tolist()],
-           "intersample": model.intersample, "substeps": model.substeps}
+           "intersample": model.intersample, "substeps": model.substeps,
+           **({"delay": model.delay} if model.delay else {})}
     numbers = (n1.tolist() + d1.tolist() + n2.tolist() + d2.tolist() + list(out["nonlinearity"]["params"].values())
                + [model.offset] + ([] if x0 is None else x0[0].tolist() + x0[1].tolist()))
     if not all(math.isfinite(v) for v in numbers):

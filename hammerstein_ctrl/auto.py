@@ -37,7 +37,7 @@ from .exceptions import ParameterError
 from .initialize import Budget, check_automatic, initial_points, nuisance_estimate, points_for, stabilize
 from .lure import sign_map
 from .lure_fit import hammerstein_start, hammerstein_structure_of, linear_structure_of, map_starts
-from .wh_fit import bla_structure, split_starts
+from .wh_fit import bla_structure, split_starts, start_record
 from .objective import HammersteinCost
 from .optimize import (BUDGET_EXHAUSTED, COMPLETED, SOLVER_FAILED, History, OptimizeResult, as_rng, as_x0,
                        levenberg_marquardt)
@@ -888,7 +888,7 @@ def auto_wiener_hammerstein(cost, x0=None, *, maxfev: int | None = None, seed=No
     budget = Budget(config.get("auto.wh_maxfev") if maxfev is None else _total(maxfev))
     rng = as_rng(seed)
     s = cost.structure
-    bla = auto_minimize(HammersteinCost(cost.data, bla_structure(s)), seed=rng, allow_unstable=True,
+    bla = auto_minimize(HammersteinCost(start_record(cost), bla_structure(s)), seed=rng, allow_unstable=True,
                         maxfev=max(MIN_REFINE_BUDGET, int(WH_BLA_SHARE * budget.maxfev)))
     budget.charge(min(int(bla.nfev), budget.remaining))
     starts, scored = split_starts(cost, bla.x) if np.all(np.isfinite(bla.x)) else ([], 0)

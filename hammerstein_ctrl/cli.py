@@ -336,16 +336,17 @@ def _wh_structure_from_args(args, fixed):
     from .wiener_hammerstein import WienerHammersteinStructure
 
     extra = [flag for flag, given in (("--output-nonlinearity", args.output_nonlinearity),
-                                      ("--delay", args.delay is not None), ("--free-gain", args.free_gain),
-                                      ("--fix", fixed)) if given]
+                                      ("--delay estimate", isinstance(args.delay, str)),
+                                      ("--free-gain", args.free_gain), ("--fix", fixed)) if given]
     if extra:
         raise HammersteinError(f"{', '.join(extra)} cannot be combined with --second-orders (a Wiener-Hammerstein "
-                               "model: both blocks of static gain 1, the gain in the map)")
+                               "model: both blocks of static gain 1, the gain in the map; a fixed dead time only)")
     if not args.nonlinearity:
         raise HammersteinError("--second-orders needs --nonlinearity NAME (the map between the blocks)")
     nl = nonlinearity_from_name(args.nonlinearity, **_family_options(args.degree, args.breakpoints))
     return WienerHammersteinStructure(tuple(args.orders), nl, tuple(args.second_orders),
-                                      substeps=1 if args.substeps is None else args.substeps)
+                                      substeps=1 if args.substeps is None else args.substeps,
+                                      delay=args.delay or 0.0)
 
 
 def _family_options(degree, breakpoints) -> dict:

@@ -258,7 +258,7 @@ def _wh_structure_to_dict(structure) -> dict:
             "second": [structure.second.num_order, structure.second.den_order],
             "nonlinearity": _nonlinearity_to_dict(structure.nonlinearity), "offset": structure.offset,
             "initial_state": structure.initial_state, "substeps": structure.substeps,
-            "time_unit": structure.time_unit}
+            "time_unit": structure.time_unit, **({"delay": structure.delay} if structure.delay else {})}
 
 
 def _orders(obj, where: str) -> tuple:
@@ -270,7 +270,8 @@ def _orders(obj, where: str) -> tuple:
 def _wh_structure_from_dict(obj, where: str):
     from .wiener_hammerstein import WienerHammersteinStructure
 
-    _keys(obj, where, ("kind", "first", "second", "nonlinearity", "offset", "initial_state", "substeps", "time_unit"))
+    _keys(obj, where, ("kind", "first", "second", "nonlinearity", "offset", "initial_state", "substeps", "time_unit"),
+          ("delay",))
     key = f"{where}.nonlinearity"
     nl = _nonlinearity_from_dict(_keys(obj["nonlinearity"], key, ("family", "options")), key)
     unit = obj["time_unit"]
@@ -279,14 +280,15 @@ def _wh_structure_from_dict(obj, where: str):
         offset=_boolean(obj["offset"], f"{where}.offset"),
         initial_state=_string(obj["initial_state"], f"{where}.initial_state"),
         substeps=_integer(obj["substeps"], f"{where}.substeps", minimum=1),
-        time_unit=None if unit is None else _number(unit, f"{where}.time_unit"))
+        time_unit=None if unit is None else _number(unit, f"{where}.time_unit"),
+        delay=_number(obj.get("delay", 0.0), f"{where}.delay"))
 
 
 def _wh_model_from_dict(obj, where: str):
     from .wiener_hammerstein import WienerHammersteinModel
 
     _keys(obj, where, ("name", "kind", "first", "second", "nonlinearity", "offset", "initial_state", "intersample",
-                       "substeps"))
+                       "substeps"), ("delay",))
     blocks = []
     for key in ("first", "second"):
         lin = _keys(obj[key], f"{where}.{key}", ("num", "den"))
@@ -303,7 +305,8 @@ def _wh_model_from_dict(obj, where: str):
         blocks[0], nl, params, blocks[1], offset=_number(obj["offset"], f"{where}.offset"),
         initial_state=None if x0 is None else [_numbers(x, f"{where}.initial_state") for x in x0],
         intersample=_string(obj["intersample"], f"{where}.intersample"),
-        substeps=_integer(obj["substeps"], f"{where}.substeps", minimum=1), name=_string(obj["name"], f"{where}.name"))
+        substeps=_integer(obj["substeps"], f"{where}.substeps", minimum=1), name=_string(obj["name"], f"{where}.name"),
+        delay=_number(obj.get("delay", 0.0), f"{where}.delay"))
 
 
 def _lure_structure_from_dict(obj, where: str):

@@ -28,8 +28,8 @@ from .nonlinearities import Polynomial
 from .structure import HammersteinStructure, LinearStructure
 from .wiener_hammerstein import WienerHammersteinStructure, simulate_wh
 
-__all__ = ["WienerHammersteinCost", "bla_structure", "splits", "split_starts", "PAD_FACTOR", "MAX_SPLITS",
-           "SPLIT_STARTS"]
+__all__ = ["WienerHammersteinCost", "bla_structure", "splits", "split_starts", "start_record", "PAD_FACTOR",
+           "MAX_SPLITS", "SPLIT_STARTS"]
 
 #: A padded root sits this many times further from the origin than the linear model's fastest root.
 PAD_FACTOR = 3.0
@@ -67,7 +67,8 @@ class WienerHammersteinCost(OutputErrorCost):
     def simulate_batch(self, betas) -> np.ndarray:
         """Simulated outputs ``(B, N)``."""
         s = self.structure
-        return simulate_wh(s.nonlinearity, s.parts(self._rows(betas)), self._u, self._dt, self._hold, s.substeps)
+        return simulate_wh(s.nonlinearity, s.parts(self._rows(betas)), self._u, self._dt, self._hold, s.substeps,
+                           s.delay)
 
 
 def bla_structure(structure: WienerHammersteinStructure) -> HammersteinStructure:
@@ -258,6 +259,35 @@ def _fit_split(structure, theta1, theta2, u, y, dt, hold):
     return best
 
 
+def start_record(cost: WienerHammersteinCost):
+    """The record the starts are computed on: the fit's own, its input delayed by the structure's dead time (its
+    sampled curve read at ``t - delay``, zero before the record), so that the starts need no delay of their own.
+
+    Examples
+    --------
+    >>> import numpy as np, hammerstein_ctrl as hc
+    >>> s = hc.WienerHammersteinStructure((0, 1), hc.Tanh(), (0, 1), delay=0.2, time_unit=1.0)
+    >>> data = hc.IOData(np.arange(5.0), np.zeros(5), dt=0.1)
+    >>> start_record(WienerHammersteinCost(data, s)).u.tolist()
+    [0.0, 0.0, 0.0, 1.0, 2.0]
+    """
+    data, delay = cost.data, cost.structure.delay
+    if not delay:
+        return data
+    t = np.arange(len(data)) * data.dt
+    u = np.asarray(data.u, dtype=float).reshape(-1)
+    whole = round(delay / data.dt)
+    if abs(delay / data.dt - whole) <= 1e-9:          # whole samples: the samples themselves, shifted
+        return type(data)(np.r_[np.zeros(min(whole, u.size)), u[:max(u.size - whole, 0)]], data.y, dt=data.dt,
+                          intersample=data.intersample, name=data.name)
+    if data.intersample == "zoh":
+        k = np.floor((t - delay) / data.dt + 1e-9).astype(int)
+        shifted = np.where(k >= 0, u[np.clip(k, 0, u.size - 1)], 0.0)
+    else:
+        shifted = np.interp(t - delay, t, u, left=0.0)
+    return type(data)(shifted, data.y, dt=data.dt, intersample=data.intersample, name=data.name)
+
+
 def split_starts(cost: WienerHammersteinCost, bla_x, count: int = SPLIT_STARTS) -> tuple[list[np.ndarray], int]:
     """``(starts, splits scored)``: full beta starts from the best ``count`` splits of a linear fit ``bla_x`` (of
     :func:`bla_structure`).
@@ -270,7 +300,7 @@ def split_starts(cost: WienerHammersteinCost, bla_x, count: int = SPLIT_STARTS) 
     s = cost.structure
     lin = bla_structure(s).linear
     num, den = lin.coefficients(np.asarray(bla_x, dtype=float)[:lin.n_params])
-    u, y = cost._u, cost._y
+    u, y = np.asarray(start_record(cost).u, dtype=float), cost._y
     scored, candidates = [], splits(s, num[0], den[0])
     for theta1, theta2 in candidates:
         fitted = _fit_split(s, theta1, theta2, u, y, cost._dt, cost._hold)

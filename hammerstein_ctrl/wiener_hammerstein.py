@@ -51,7 +51,7 @@ from typing import NamedTuple
 import numpy as np
 
 from ._batch import simulate_batch
-from ._checks import MAX_ORDER, check_intersample
+from ._checks import MAX_ORDER, check_delay, check_intersample
 from ._discretize import companion_realization
 from .exceptions import ParameterError
 from .model import _check_block as _check_map, _check_linear, _finite_scalar, _state_vector
@@ -180,9 +180,10 @@ def _check_block(block, label: str, time_unit: float) -> UnitGainBlock:
     if not isinstance(block, LinearStructure):
         raise ParameterError(f"{label} must be a LinearStructure, a UnitGainBlock or (num_order, den_order), got "
                              f"{type(block).__name__}")
-    if block.delay:
-        raise ParameterError(f"{label} has a dead time: a Wiener-Hammerstein structure does not support dead time "
-                             "yet; shift the record instead, or use a Hammerstein structure")
+    if block.estimates_delay:
+        raise ParameterError(f"{label} estimates its dead time: a Wiener-Hammerstein structure takes a fixed one "
+                             "(delay=seconds) for now; scan a few values and compare J, or use a Hammerstein "
+                             "structure")
     if not block.monic_numerator or set(block.fixed) - {f"b{block.num_order}"}:
         raise ParameterError(f"{label} fixes coefficients or carries a gain (monic_numerator=False): a "
                              "Wiener-Hammerstein structure writes both linear blocks with static gain 1, "
@@ -216,20 +217,57 @@ def _fine_input(u: np.ndarray, m: int, hold: str) -> np.ndarray:
     return np.concatenate([fine, u[-1:]])
 
 
+def _shifted_fine_input(u: np.ndarray, m: int, hold: str, shift: int) -> np.ndarray:
+    """The input at ``m`` instants per sample, delayed by ``shift`` of those instants: the record's own hold
+    curve read ``shift h`` earlier (``h = dt / m``), zero before the record (joined to its first sample by the
+    hold, as :mod:`~hammerstein_ctrl.delay` joins it)."""
+    fine = _fine_input(np.r_[0.0, u], m, hold)           # from one sample before the record, where the input is 0
+    start = m - shift                                     # fine index of t = 0 in it, less the shift
+    if start >= 0:
+        return np.ascontiguousarray(fine[start:start + (u.size - 1) * m + 1])
+    return np.ascontiguousarray(np.r_[np.zeros(-start), fine][:(u.size - 1) * m + 1])
+
+
+def _delayed_middle(nonlinearity, parts: WHParts, u, m: int, h: float, hold: str, delay: float) -> np.ndarray:
+    """``f(G1 u(t - delay))`` at the substep instants: the whole substeps of the delay shift the input (exact:
+    the shifted input's breaks fall on instants), the rest by the exact delayed recursion of each candidate."""
+    shift = int(np.floor(delay / h + 1e-9))
+    rest = max(0.0, delay - shift * h)
+    fine = _shifted_fine_input(u, m, hold, shift)
+    if rest <= 1e-12 * h:
+        return simulate_batch(parts.num1, parts.den1, fine, h, x0=parts.x1, intersample=hold,
+                              output_map=(nonlinearity, parts.map_params))
+    from .delay import delayed_response
+
+    W = np.full((parts.num1.shape[0], fine.size), np.nan)
+    for b in range(W.shape[0]):
+        try:
+            x = delayed_response(parts.num1[b], parts.den1[b], fine, h, rest, x0=parts.x1[b], intersample=hold)
+        except ParameterError:          # a candidate that is no block (non-finite coefficients)
+            continue
+        W[b] = nonlinearity(x, parts.map_params[b])
+    return W
+
+
 def simulate_wh(nonlinearity: Nonlinearity, parts: WHParts, u, dt: float, hold: str = "foh",
-                substeps: int = 1) -> np.ndarray:
+                substeps: int = 1, delay: float = 0.0) -> np.ndarray:
     """Outputs ``(B, N)`` of a batch of Wiener-Hammerstein candidates driven by one input ``u``.
 
     Rows of candidates that cannot be simulated hold NaN or inf.  See the module
-    docstring for the intersample behaviour and ``substeps``.
+    docstring for the intersample behaviour and ``substeps``; a dead time
+    ``delay`` (seconds) delays the input exactly, as :mod:`~hammerstein_ctrl.delay`
+    does for a block model (the input is zero before the record).
     """
     u = np.ascontiguousarray(u, dtype=float).reshape(-1)
     m = int(substeps)
     fine = _fine_input(u, m, hold)
     h = dt / m
     with np.errstate(all="ignore"):
-        W = simulate_batch(parts.num1, parts.den1, fine, h, x0=parts.x1, intersample=hold,
-                           output_map=(nonlinearity, parts.map_params))
+        if delay:
+            W = _delayed_middle(nonlinearity, parts, u, m, h, hold, float(delay))
+        else:
+            W = simulate_batch(parts.num1, parts.den1, fine, h, x0=parts.x1, intersample=hold,
+                               output_map=(nonlinearity, parts.map_params))
         Y = simulate_batch(parts.num2, parts.den2, W, h, x0=parts.x2, offset=parts.y0, intersample="foh", out=W)
     return np.ascontiguousarray(Y[:, ::m]) if m > 1 else Y
 
@@ -253,6 +291,9 @@ class WienerHammersteinStructure:
         (``xi0 ...`` of ``G1``'s then ``G2``'s companion realisation).
     substeps : int, default 1
         Instants per sample at which the middle signal is computed (module docstring).
+    delay : float, optional
+        A fixed dead time (seconds) at the chain's input (a ``LinearStructure``
+        block's own ``delay`` is taken too; an estimated one is not supported).
     time_unit : float, optional
         The unit of time of the blocks' coefficients (:class:`UnitGainBlock`),
         in seconds; by default the sample time of the record it is fitted to
@@ -272,7 +313,8 @@ class WienerHammersteinStructure:
     _fixed_gain = None
 
     def __init__(self, first, nonlinearity: Nonlinearity, second, *,
-                 offset: bool = False, initial_state: str = "zero", substeps: int = 1, time_unit: float | None = None):
+                 offset: bool = False, initial_state: str = "zero", substeps: int = 1, time_unit: float | None = None,
+                 delay: float | None = None):
         if time_unit is not None:
             time_unit = _finite_scalar(time_unit, "time_unit")
             if not time_unit > 0:
@@ -285,6 +327,9 @@ class WienerHammersteinStructure:
                                      "share it)")
         self.first = _check_block(first, "first", 1.0 if time_unit is None else time_unit)
         self.second = _check_block(second, "second", 1.0 if time_unit is None else time_unit)
+        # a dead time anywhere in the chain is one at its input (the map commutes with a delay)
+        self.delay = float(sum(getattr(b, "delay", None) or 0.0 for b in (first, second)) if delay is None
+                           else check_delay(delay, estimate=False))
         if self.first.den_order + self.second.den_order > MAX_ORDER:
             raise ParameterError(f"G1 and G2 have {self.first.den_order + self.second.den_order} poles together; at "
                                  f"most {MAX_ORDER} (the linear model of the whole order starts the fit)")
@@ -373,7 +418,7 @@ class WienerHammersteinStructure:
             self.first, self.nonlinearity, self.second, offset=self.offset if offset is None else offset,
             initial_state=self.initial_state if initial_state is None else initial_state,
             substeps=self.substeps if substeps is None else substeps,
-            time_unit=self.time_unit if time_unit is None else time_unit)
+            time_unit=self.time_unit if time_unit is None else time_unit, delay=self.delay)
 
     def for_record(self, dt: float) -> "WienerHammersteinStructure":
         """This structure with its time unit set: the record's sample time ``dt`` when none was given."""
@@ -435,7 +480,7 @@ class WienerHammersteinStructure:
         return WienerHammersteinModel(
             (p.num1[0], p.den1[0]), self.nonlinearity, p.map_params[0], (p.num2[0], p.den2[0]),
             offset=float(p.y0[0]), initial_state=(p.x1[0], p.x2[0]) if self.initial_state == "estimate" else None,
-            intersample=intersample, substeps=self.substeps, name=name)
+            intersample=intersample, substeps=self.substeps, name=name, delay=self.delay)
 
     def beta(self, model: "WienerHammersteinModel") -> np.ndarray:
         """The beta vector of a model that has this structure."""
@@ -470,7 +515,8 @@ class WienerHammersteinStructure:
         return np.concatenate(parts)
 
     def describe(self) -> str:
-        extra = (" + y0" if self.offset else "") + ("; x(0) estimated" if self.initial_state == "estimate" else "")
+        extra = (" + y0" if self.offset else "") + ("; x(0) estimated" if self.initial_state == "estimate" else "") + (
+            f"; dead time {self.delay:.6g} s" if self.delay else "")
         return (f"G1(p) = {self.first.describe()}; f = {self.nonlinearity.name}"
                 f"({', '.join(self.nonlinearity.param_names)}); G2(p) = {self.second.describe()}{extra}")
 
@@ -478,7 +524,8 @@ class WienerHammersteinStructure:
         opts = (", offset=True" if self.offset else "") + (
             f", initial_state={self.initial_state!r}" if self.initial_state != "zero" else "") + (
             f", substeps={self.substeps}" if self.substeps != 1 else "") + (
-            f", time_unit={self.time_unit!r}" if self.time_unit is not None else "")
+            f", time_unit={self.time_unit!r}" if self.time_unit is not None else "") + (
+            f", delay={self.delay!r}" if self.delay else "")
         return f"WienerHammersteinStructure({self.first!r}, {self.nonlinearity!r}, {self.second!r}{opts})"
 
 
@@ -515,6 +562,9 @@ class WienerHammersteinModel:
     substeps : int, default 1
         See the module docstring.
     name : str, optional
+    delay : float, default 0
+        Dead time (seconds) at the input; exports carry it as a Pade
+        approximant (``config.defaults["delay.pade_order"]``).
 
     Examples
     --------
@@ -533,8 +583,9 @@ class WienerHammersteinModel:
     state_enters_linearly = False
 
     def __init__(self, first, nonlinearity, params, second, *, offset: float = 0.0, initial_state=None,
-                 intersample: str = "foh", substeps: int = 1, name: str | None = None):
+                 intersample: str = "foh", substeps: int = 1, name: str | None = None, delay: float = 0.0):
         self.nonlinearity, self.params = _check_map(nonlinearity, params, "map")
+        self.delay = float(check_delay(delay, estimate=False))
         if self.nonlinearity is None:
             raise ParameterError("a Wiener-Hammerstein model needs its map (a Nonlinearity)")
         self._blocks = tuple(_check_linear(b)[1:] for b in (first, second))
@@ -646,27 +697,34 @@ class WienerHammersteinModel:
         ``u``, from the model's initial state or ``initial_state`` (``G1``'s then ``G2``'s); see the module
         docstring for the intersample behaviour."""
         dt, u, hold = self._input(t, u, intersample)
-        return simulate_wh(self.nonlinearity, self.parts(initial_state), u, dt, hold, self.substeps)[0]
+        return simulate_wh(self.nonlinearity, self.parts(initial_state), u, dt, hold, self.substeps, self.delay)[0]
 
     def to_iosys(self, name: str | None = None):
         """The model as a python-control ``interconnect`` of ``G1``, ``f`` and ``G2``.
 
         Its input is ``u`` and its output ``y``; its states are ``G1``'s then
         ``G2``'s companion realisations (as ``initial_state``), which
-        ``control.input_output_response`` takes as ``X0``.
+        ``control.input_output_response`` takes as ``X0``; a dead time is a Pade
+        approximant before ``G1``, whose states come first.
         """
         import control as ct
 
         p = self.parts()
+        first_input = "ud" if self.delay else "u"
         blocks = []
-        for num, den, label, inp, out in ((p.num1, p.den1, "G1", "u", "x"), (p.num2, p.den2, "G2", "w", "v")):
+        for num, den, label, inp, out in ((p.num1, p.den1, "G1", first_input, "x"), (p.num2, p.den2, "G2", "w", "v")):
             A, B, C, D = (m[0] for m in companion_realization(num, den))
             blocks.append(ct.ss(A, B[:, None], C[None, :], np.atleast_2d(D), inputs=inp, outputs=out, name=label))
         nl, params, y0 = self.nonlinearity, self.params.copy(), self.offset
         fmap = ct.nlsys(None, lambda t, x, u, q: np.atleast_1d(nl(u, params)), inputs="x", outputs="w", name="f")
         offset = ct.nlsys(None, lambda t, x, u, q: np.atleast_1d(u[0] + y0), inputs="v", outputs="y", name="offset")
-        return ct.interconnect([blocks[0], fmap, blocks[1], offset], inputs="u", outputs="y",
-                               name=name or self.name or "wiener_hammerstein")
+        parts = [blocks[0], fmap, blocks[1], offset]
+        if self.delay:                  # a Pade approximant of the dead time before G1
+            from .model import pade_order_of
+
+            parts.insert(0, ct.ss(ct.tf(*ct.pade(self.delay, pade_order_of())), inputs="u", outputs="ud",
+                                  name="delay"))
+        return ct.interconnect(parts, inputs="u", outputs="y", name=name or self.name or "wiener_hammerstein")
 
     def save(self, path) -> None:
         """Write the model to a JSON model file (:func:`~hammerstein_ctrl.persistence.load_model` reads it)."""

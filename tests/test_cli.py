@@ -322,6 +322,7 @@ def test_identify_a_wiener_hammerstein_model_from_the_command_line(capsys, tmp_p
 
 @pytest.mark.parametrize("extra, match", [
     (["--fix", "a0=1"], "--fix cannot be combined with --second-orders"),
+    (["--delay", "estimate"], "--delay estimate cannot be combined with --second-orders"),
     (["--free-gain"], "--free-gain cannot be combined with --second-orders"),
     (["--feedback", "output"], "--second-orders cannot be combined with --feedback"),
 ])
@@ -336,3 +337,11 @@ def test_a_lure_loop_with_a_cubic_spring_from_the_command_line(capsys, tmp_path)
                          "output", "--nonlinearity", "polynomial", "--degree", "3", "--fix", "a0=0", "--substeps", "2")
     assert code == 0, err
     assert "g = polynomial" in out
+
+
+
+def test_a_wiener_hammerstein_model_with_a_fixed_dead_time_from_the_command_line(capsys, tmp_path):
+    code, out, err = run(capsys, "identify", "--data", str(_wh_csv(tmp_path)), "--orders", "0", "2",
+                         "--second-orders", "1", "2", "--nonlinearity", "tanh", "--delay", "0.05")
+    assert code in (0, 1), err
+    assert "dead time 0.05 s" in out

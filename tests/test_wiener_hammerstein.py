@@ -123,7 +123,7 @@ def test_beta_and_model_round_trip():
 @pytest.mark.parametrize("first, why", [
     (hc.LinearStructure(0, 2, monic_numerator=False), "carries a gain"),
     (hc.LinearStructure(0, 2, fixed={"a0": 0.0}), "fixes coefficients"),
-    (hc.LinearStructure(0, 2, delay=0.1), "dead time"),
+    (hc.LinearStructure(0, 2, delay="estimate"), "estimates its dead time"),
     ((3, 2), "num_order <= den_order"),
     ("G1", "must be a LinearStructure"),
 ])
@@ -369,3 +369,39 @@ def test_a_loaded_result_plots_with_its_record(tmp_path, wh_fit):
         loaded.plot()
     fig = loaded.plot(data=data)
     assert len(fig.axes) == 3
+
+
+
+def test_a_dead_time_delays_the_input_exactly(tanh_case):
+    """Whole and fractional dead times against the ODE solver driven by the input curve shifted by hand (zero before
+    the record, joined to its first sample over one step); the fractional one on a grid of half steps, where the
+    shifted curve is linear between instants."""
+    t, u, _, p = tanh_case
+    dt = t[1] - t[0]
+    for delay, grid in ((0.3, t), (0.25, np.arange(2 * t.size - 1) * dt / 2)):
+        shifted = np.interp(grid - delay, np.r_[-dt, t], np.r_[0.0, u], left=0.0)
+        ref = _ode_reference(lambda x: p[0] * np.tanh(p[1] * x), grid, shifted)[::round(dt / (grid[1] - grid[0]))]
+        y = _structure(hc.Tanh(), substeps=64, delay=delay).model(_beta(p)).simulate(t, u)
+        assert np.max(np.abs(y - ref)) / np.ptp(ref) <= 1e-6, delay
+
+
+def test_a_fixed_dead_time_is_fitted_without_x0_and_survives_files(tmp_path):
+    from hammerstein_ctrl.persistence import load_model
+
+    s = WienerHammersteinStructure((0, 2), hc.Polynomial(3), (1, 2), offset=True, time_unit=1.0, delay=0.35)
+    truth = np.r_[_beta([1.0, 0.1, -0.15]), 0.2]
+    rng = np.random.default_rng(7)
+    t = np.arange(3000) * 0.05
+    u = np.repeat(rng.uniform(-2.0, 2.0, 600), 5)
+    y = s.model(truth).simulate(t, u) + 0.01 * rng.standard_normal(t.size)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        r = hc.identify(hc.IOData(u, y, dt=0.05), s, seed=0)
+    assert r.success, r.message
+    z = np.abs(r.x - truth) / np.sqrt(np.diag(r.covariance))
+    assert np.all(z < 4.0), dict(zip(s.param_names, np.round(z, 2)))
+    r.model.save(tmp_path / "m.json")
+    back = load_model(tmp_path / "m.json")
+    assert back.delay == 0.35
+    np.testing.assert_array_equal(back.simulate(t, u), r.model.simulate(t, u))
+    assert "dead time 0.35 s" in r.structure.describe()
