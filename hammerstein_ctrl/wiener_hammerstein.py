@@ -377,7 +377,7 @@ class WienerHammersteinStructure:
 
     def linear_counterpart(self):
         """The linear model of the same orders (``G1 G2`` with a gain, as a Hammerstein structure with
-        ``Polynomial(1)``), same offset and initial-state option; ``None`` with a custom map.
+        ``Polynomial(1)``), same offset, initial-state option and dead time; ``None`` with a custom map.
 
         Examples
         --------
@@ -391,7 +391,8 @@ class WienerHammersteinStructure:
         if isinstance(self.nonlinearity, CustomNonlinearity):
             return None
         f, s = self.first, self.second
-        return HammersteinStructure(LinearStructure(f.num_order + s.num_order, f.den_order + s.den_order),
+        return HammersteinStructure(LinearStructure(f.num_order + s.num_order, f.den_order + s.den_order,
+                                                    delay=self.delay or None),
                                     Polynomial(1), offset=self.offset, initial_state=self.initial_state)
 
     def linear_theta(self, beta) -> np.ndarray:
