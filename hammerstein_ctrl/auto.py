@@ -108,12 +108,16 @@ def _acceptable(cost, x, fun, allow_unstable: bool) -> bool:
         trivial = float(np.sum((y - y.mean(axis=0)) ** 2))
     if not (np.isfinite(fun) and fun < trivial):
         return False
-    if hasattr(cost.structure, "block_layout"):        # a Wiener-Hammerstein structure: both blocks
-        return allow_unstable or not cost.structure.unstable(x)[0] or _marginal(cost, x)
-    if hasattr(cost.structure, "unstable"):            # a MIMO structure: every row's denominator
-        return allow_unstable or not cost.structure.unstable(x)[0] or _marginal_rows(cost, x)
-    num, den = cost.structure.linear.coefficients(x[:cost.structure.linear.n_params])
-    return allow_unstable or not unstable(den)[0] or _marginal(cost, x)
+    s = cost.structure
+    if allow_unstable:
+        return True
+    if hasattr(s, "unstable"):          # every linear block of the structure (each row of a MIMO one, both W-H blocks)
+        rejected = s.unstable(x)[0]
+    else:
+        rejected = unstable(s.linear.coefficients(x[:s.linear.n_params])[1])[0]
+    if not rejected:
+        return True
+    return _marginal_rows(cost, x) if str(s.kind).startswith("mimo") else _marginal(cost, x)
 
 
 def _marginal(cost, x) -> bool:

@@ -60,6 +60,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ._deprecation import renamed
 from ._checks import MAX_MAGNITUDE, as_signal, check_dt, require_siso_model
 from . import config
 from .exceptions import DataError, ParameterError, UnknownNameError
@@ -1295,12 +1296,5 @@ def loop_figure(reports: dict, *, u_limit=None, title: str | None = None):
     return fig
 
 
-def __getattr__(name):
-    """``LoopCost``, the old name of :class:`TuningCost`, for one release with a DeprecationWarning."""
-    if name == "LoopCost":
-        import warnings
-
-        warnings.warn("hammerstein_ctrl.control_design.LoopCost is now TuningCost (in_loop has a cost of its own)",
-                      DeprecationWarning, stacklevel=2)
-        return TuningCost
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+#: ``LoopCost``, the old name of :class:`TuningCost`, for one release with a DeprecationWarning.
+__getattr__ = renamed(__name__, {"LoopCost": ("TuningCost", "in_loop has a cost of its own")})

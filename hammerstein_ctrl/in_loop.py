@@ -41,6 +41,7 @@ import time
 
 import numpy as np
 
+from ._deprecation import renamed
 from ._checks import as_real_array
 from ._lure_sim import lure_loop_run
 from .exceptions import DataError, ParameterError
@@ -373,12 +374,5 @@ def _result(cost: KnownLoopCost, res, noise: str, started: float):
         output_fits={"y (in loop)": fits["y"], "u (in loop)": fits["u"]})
 
 
-def __getattr__(name):
-    """``LoopCost``, the old name of :class:`KnownLoopCost`, for one release with a DeprecationWarning."""
-    if name == "LoopCost":
-        import warnings
-
-        warnings.warn("hammerstein_ctrl.in_loop.LoopCost is now KnownLoopCost (control_design has a cost of its own)",
-                      DeprecationWarning, stacklevel=2)
-        return KnownLoopCost
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+#: ``LoopCost``, the old name of :class:`KnownLoopCost`, for one release with a DeprecationWarning.
+__getattr__ = renamed(__name__, {"LoopCost": ("KnownLoopCost", "control_design has a cost of its own")})

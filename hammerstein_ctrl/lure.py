@@ -51,9 +51,9 @@ from ._lure_map import loop_setup, map_slope, run
 from ._lure_sim import FEEDBACK_CODES, lure_run, lure_setup
 from .exceptions import ParameterError
 from .nonlinearities import Coulomb, Friction, Nonlinearity
-from .simulate import _check_pair
+from .simulate import _check_pair, unstable
 from .model import _check_linear, _finite_scalar, _state_vector
-from .structure import INITIAL_STATES, STATE_PREFIX, LinearStructure
+from .structure import INITIAL_STATES, LinearStructure, nuisance_names
 
 __all__ = ["LureStructure", "LureModel", "LoopParts", "lure_structure", "simulate_parts", "sign_map", "FEEDBACKS",
            "FEEDBACK_FAMILIES", "DERIVATIVES", "MAX_SUBSTEPS"]
@@ -194,9 +194,8 @@ class LureStructure:
         self.linear, self.nonlinearity, self.feedback = linear, nonlinearity, feedback
         self.offset, self.initial_state = bool(offset), initial_state
         self.substeps = _check_substeps(substeps)
-        self.param_names: tuple[str, ...] = (
-            linear.param_names + tuple(nonlinearity.param_names) + (("y0",) if self.offset else ())
-            + (tuple(f"{STATE_PREFIX}{i}" for i in range(linear.den_order)) if initial_state == "estimate" else ()))
+        self.param_names: tuple[str, ...] = (linear.param_names + tuple(nonlinearity.param_names)
+                                             + nuisance_names(self.offset, initial_state, linear.den_order))
 
     @property
     def n_params(self) -> int:
@@ -250,6 +249,11 @@ class LureStructure:
 
     def linear_params(self, beta) -> np.ndarray:
         return self.check_beta(beta)[..., :self.linear.n_params]
+
+    def unstable(self, betas) -> np.ndarray:
+        """Whether each row of ``betas`` has a linear block with a pole in the open right half-plane."""
+        B = np.atleast_2d(self.check_beta(betas))
+        return unstable(self.linear.coefficients(B[:, :self.linear.n_params])[1])
 
     def map_params(self, beta) -> np.ndarray:
         """The feedback map's parameters."""

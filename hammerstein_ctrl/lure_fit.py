@@ -18,7 +18,6 @@ from ._output_error import OutputErrorCost
 from .exceptions import ParameterError
 from .lure import DERIVATIVES, LureStructure
 from .nonlinearities import Coulomb, Friction, Polynomial
-from .simulate import unstable
 from .structure import HammersteinStructure, LinearStructure
 
 __all__ = ["LureCost", "hammerstein_structure_of", "hammerstein_start", "linear_structure_of", "map_starts",
@@ -48,11 +47,6 @@ class LureCost(OutputErrorCost):
         if not isinstance(structure, LureStructure):
             raise ParameterError(f"structure must be a LureStructure, got {type(structure).__name__}")
         super().__init__(data, structure, reject_unstable=reject_unstable)
-
-    def _rejected(self, B: np.ndarray) -> np.ndarray:
-        if not self.reject_unstable:
-            return np.zeros(B.shape[0], dtype=bool)
-        return unstable(self.structure.linear.coefficients(B[:, :self.structure.linear.n_params])[1])
 
     def _sse_batch(self, B: np.ndarray) -> np.ndarray:
         return self.structure.simulate_rows(B, self._u, self._dt, self._hold, y=self._y)

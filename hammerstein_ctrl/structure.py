@@ -32,7 +32,8 @@ from .exceptions import ParameterError
 from .nonlinearities import Nonlinearity
 
 __all__ = ["LinearStructure", "BlockStructure", "HammersteinStructure", "WienerStructure",
-           "HammersteinWienerStructure", "INITIAL_STATES", "fill_coefficients", "checked_beta"]
+           "HammersteinWienerStructure", "INITIAL_STATES", "fill_coefficients", "checked_beta",
+           "nuisance_names"]
 
 
 class LinearStructure:
@@ -316,6 +317,19 @@ DELAY_NAME = "delay"
 STATE_PREFIX = "xi"
 
 
+def nuisance_names(offset: bool, initial_state: str, n_states: int) -> tuple[str, ...]:
+    """The real-data parameters that follow a structure's blocks in beta: the output offset ``y0`` and the initial
+    state ``xi0 ...`` of ``n_states`` states, each where asked for.
+
+    Examples
+    --------
+    >>> nuisance_names(True, "estimate", 2)
+    ('y0', 'xi0', 'xi1')
+    """
+    return ((OFFSET_NAME,) if offset else ()) + (
+        tuple(f"{STATE_PREFIX}{i}" for i in range(n_states)) if initial_state == "estimate" else ())
+
+
 def checked_beta(beta, names) -> np.ndarray:
     """``beta`` as a float array ``(n,)`` or ``(B, n)`` for the parameter ``names`` of a structure.
 
@@ -404,9 +418,8 @@ class BlockStructure:
         self._n_g, self._n_h = len(g_names), len(h_names)
         self.core_names: tuple[str, ...] = linear.param_names + g_names + h_names + (
             (DELAY_NAME,) if linear.estimates_delay else ())
-        extra = ((OFFSET_NAME,) if self.offset else ()) + (
-            tuple(f"{STATE_PREFIX}{i}" for i in range(linear.den_order)) if initial_state == "estimate" else ())
-        self.param_names: tuple[str, ...] = self.core_names + extra
+        self.param_names: tuple[str, ...] = self.core_names + nuisance_names(self.offset, initial_state,
+                                                                             linear.den_order)
         if len(set(self.param_names)) != len(self.param_names):
             raise ParameterError(f"parameter names clash: {list(self.param_names)}")
 

@@ -57,7 +57,7 @@ from .exceptions import ParameterError
 from .model import _check_block as _check_map, _check_linear, _finite_scalar, _state_vector
 from .nonlinearities import Nonlinearity
 from .simulate import _check_pair, unstable
-from .structure import INITIAL_STATES, OFFSET_NAME, STATE_PREFIX, LinearStructure, checked_beta
+from .structure import INITIAL_STATES, LinearStructure, checked_beta, nuisance_names
 
 __all__ = ["WienerHammersteinStructure", "WienerHammersteinModel", "WHParts", "wiener_hammerstein_structure",
            "simulate_wh", "UnitGainBlock", "BLOCK_PREFIXES", "MAX_SUBSTEPS"]
@@ -347,8 +347,7 @@ class WienerHammersteinStructure:
         self.core_names: tuple[str, ...] = (
             tuple(BLOCK_PREFIXES[0] + n for n in self.first.param_names)
             + tuple(BLOCK_PREFIXES[1] + n for n in self.second.param_names) + tuple(nonlinearity.param_names))
-        self.param_names: tuple[str, ...] = self.core_names + ((OFFSET_NAME,) if self.offset else ()) + (
-            tuple(f"{STATE_PREFIX}{i}" for i in range(n1 + n2)) if initial_state == "estimate" else ())
+        self.param_names: tuple[str, ...] = self.core_names + nuisance_names(self.offset, initial_state, n1 + n2)
         if len(set(self.param_names)) != len(self.param_names):
             raise ParameterError(f"parameter names clash: {list(self.param_names)}")
 
