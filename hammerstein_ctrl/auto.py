@@ -892,10 +892,11 @@ def auto_wiener_hammerstein(cost, x0=None, *, maxfev: int | None = None, seed=No
     budget = Budget(config.get("auto.wh_maxfev") if maxfev is None else _total(maxfev))
     rng = as_rng(seed)
     s = cost.structure
-    bla = auto_minimize(HammersteinCost(start_record(cost), bla_structure(s)), seed=rng, allow_unstable=True,
+    record = start_record(cost)
+    bla = auto_minimize(HammersteinCost(record, bla_structure(s)), seed=rng, allow_unstable=True,
                         maxfev=max(MIN_REFINE_BUDGET, int(WH_BLA_SHARE * budget.maxfev)))
     budget.charge(min(int(bla.nfev), budget.remaining))
-    starts, scored = split_starts(cost, bla.x) if np.all(np.isfinite(bla.x)) else ([], 0)
+    starts, scored = split_starts(cost, bla.x, record=record) if np.all(np.isfinite(bla.x)) else ([], 0)
     budget.charge(min(scored, budget.remaining))
     starts = [_stabilized_blocks(s, x) for x in starts]
     if x0 is not None:

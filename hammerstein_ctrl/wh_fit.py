@@ -288,19 +288,20 @@ def start_record(cost: WienerHammersteinCost):
     return type(data)(shifted, data.y, dt=data.dt, intersample=data.intersample, name=data.name)
 
 
-def split_starts(cost: WienerHammersteinCost, bla_x, count: int = SPLIT_STARTS) -> tuple[list[np.ndarray], int]:
+def split_starts(cost: WienerHammersteinCost, bla_x, count: int = SPLIT_STARTS, record=None
+                 ) -> tuple[list[np.ndarray], int]:
     """``(starts, splits scored)``: full beta starts from the best ``count`` splits of a linear fit ``bla_x`` (of
     :func:`bla_structure`).
 
     Each split's map is fitted by least squares through ``G2`` (with an offset
     column); the splits are ranked by that fit's J.  Empty when the map has no
     automatic start (a custom map without :meth:`~hammerstein_ctrl.nonlinearities.Nonlinearity.basis`
-    or scale parameter).
+    or scale parameter).  ``record`` is :func:`start_record`'s (computed when not given).
     """
     s = cost.structure
     lin = bla_structure(s).linear
     num, den = lin.coefficients(np.asarray(bla_x, dtype=float)[:lin.n_params])
-    u, y = np.asarray(start_record(cost).u, dtype=float), cost._y
+    u, y = np.asarray((start_record(cost) if record is None else record).u, dtype=float), cost._y
     scored, candidates = [], splits(s, num[0], den[0])
     for theta1, theta2 in candidates:
         fitted = _fit_split(s, theta1, theta2, u, y, cost._dt, cost._hold)
