@@ -560,3 +560,14 @@ def test_a_map_loop_inside_a_known_controller_is_refused_in_one_line():
         loop.simulate(s.model([2.0, 0.6, 4.0, 0.0, 3.0]))
     with pytest.raises(ParameterError, match="takes a friction map"):
         KnownLoopCost(hc.IOData(np.ones(100), np.arange(100.0), dt=0.05), s, loop)
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_pure_noise_through_a_map_loop_is_not_called_a_model(seed):
+    s = LureStructure(LinearStructure(0, 2, monic_numerator=False, fixed={"a0": 0.0}), hc.Polynomial(3),
+                      feedback="output")
+    rng = np.random.default_rng(seed)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        r = hc.identify(hc.IOData(rng.standard_normal(2000), rng.standard_normal(2000), dt=0.05), s, seed=seed)
+    assert not r.success and "not significantly better" in r.message
