@@ -15,8 +15,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 
 from test_known_truth import make_case  # noqa: E402
 
-from hammerstein_ctrl import identify  # noqa: E402
-from hammerstein_ctrl.objective import HammersteinCost  # noqa: E402
+from hammerstein_ctrl import identify
+from hammerstein_ctrl.fit import HammersteinCost  # noqa: E402
 from hammerstein_ctrl.paper.settings import emps_methods, trs_methods  # noqa: E402
 
 SIX = ["tanh_rhp_zero", "coulomb_integrator", "saturation_first_order_10pct", "deadzone_third_order",

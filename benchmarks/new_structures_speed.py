@@ -18,11 +18,11 @@ import warnings
 import numpy as np
 
 import hammerstein_ctrl as hc
-from hammerstein_ctrl.lure import LureStructure
-from hammerstein_ctrl.lure_fit import LureCost
-from hammerstein_ctrl.objective import HammersteinCost
-from hammerstein_ctrl.wh_fit import WienerHammersteinCost
-from hammerstein_ctrl.wiener_hammerstein import WienerHammersteinStructure
+from hammerstein_ctrl.blocks import LureStructure
+from hammerstein_ctrl.fit import LureCost
+from hammerstein_ctrl.fit import HammersteinCost
+from hammerstein_ctrl.fit import WienerHammersteinCost
+from hammerstein_ctrl.blocks import WienerHammersteinStructure
 
 
 def _record(n=24000, dt=1e-3, seed=0):

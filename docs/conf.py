@@ -73,11 +73,11 @@ _api_pages()
 
 
 # -- references to the package's own objects --------------------------------------------------------------------------
-# A docstring may name an object by the module that defines it (hammerstein_ctrl.model.BlockModel) where the
+# A docstring may name an object by the module that defines it (hammerstein_ctrl.blocks.BlockModel) where the
 # reference documents it under its public name (hammerstein_ctrl.BlockModel): such a reference is sent to the public
 # page.  One to an internal helper that exists but has no page is shown as code without a link.  A reference to a
 # name that does not exist stays a warning, which -W makes an error.
-DOCUMENTED_MODULES = ("hammerstein_ctrl.plots", "hammerstein_ctrl.control_design", "hammerstein_ctrl.config",
+DOCUMENTED_MODULES = ("hammerstein_ctrl.plotting", "hammerstein_ctrl.design", "hammerstein_ctrl.config",
                       "hammerstein_ctrl.paper.benchmarks")
 
 
@@ -123,7 +123,7 @@ def _public_names() -> dict:
 
 def _candidates(node) -> list:
     """Where a (possibly relative) target may live: itself, the documented class and module, and every enclosing
-    scope of the docstring it was written in (``docstring of hammerstein_ctrl.model.BlockModel.to_iosys``)."""
+    scope of the docstring it was written in (``docstring of hammerstein_ctrl.blocks.BlockModel.to_iosys``)."""
     target = node.get("reftarget", "")
     module, cls = node.get("py:module") or "", node.get("py:class") or ""
     names = [target]

@@ -28,42 +28,66 @@ import sys
 import types
 import warnings
 
+from ._deprecation import MovedModules
 from .exceptions import (ChannelWarning, DataError, HammersteinError, IdentificationWarning, ParameterError,
                          SimulationWarning, UnknownNameError)
 
 __version__ = "0.2.0"
 
-#: Sub-modules exposed as attributes of the package.
-_SUBMODULES = ("iodata", "metrics", "nonlinearities", "optimize", "plots", "records",
-               "simulate", "control_design", "exact_export", "persistence", "display", "uncertainty",
-               "diagnostics", "residual_analysis", "selection", "config", "paper", "mimo", "lure", "in_loop")
+#: The public subpackages, by role and from the bottom layer up, reached as attributes of the package.
+_SUBMODULES = ("exceptions", "config", "data", "optimize", "simulate", "blocks", "plotting", "assess", "fit",
+               "design", "io", "cli", "paper")
 
-#: Public name -> the sub-module that defines it.
+#: Public name -> the subpackage that exports it.
 _LAZY_NAMES = {
     "load_emps": "paper.datasets", "load_trs": "paper.datasets", "make_trs_reconstruction": "paper.datasets",
-    "IOData": "iodata", "read_record": "records",
-    "IdentificationResult": "result", "identify": "identify",
-    "fit_percent": "metrics", "fit_report": "metrics", "nrmse": "metrics", "rmse": "metrics", "sse": "metrics",
-    "BlockModel": "model", "HammersteinModel": "model", "WienerModel": "model", "HammersteinWienerModel": "model",
-    "Coulomb": "nonlinearities", "CustomNonlinearity": "nonlinearities", "DeadZone": "nonlinearities",
-    "Nonlinearity": "nonlinearities", "PiecewiseLinear": "nonlinearities", "Polynomial": "nonlinearities",
-    "Saturation": "nonlinearities", "Tanh": "nonlinearities", "Sigmoid": "nonlinearities",
-    "Friction": "nonlinearities",
-    "nonlinearity_from_name": "nonlinearities",
-    "HammersteinCost": "objective",
+    "IOData": "data", "read_record": "data",
+    "fit_percent": "data", "fit_report": "data", "nrmse": "data", "rmse": "data", "sse": "data",
+    "BlockModel": "blocks", "HammersteinModel": "blocks", "WienerModel": "blocks", "HammersteinWienerModel": "blocks",
+    "Coulomb": "blocks", "CustomNonlinearity": "blocks", "DeadZone": "blocks", "Nonlinearity": "blocks",
+    "PiecewiseLinear": "blocks", "Polynomial": "blocks", "Saturation": "blocks", "Tanh": "blocks",
+    "Sigmoid": "blocks", "Friction": "blocks", "nonlinearity_from_name": "blocks",
+    "BlockStructure": "blocks", "HammersteinStructure": "blocks", "WienerStructure": "blocks",
+    "HammersteinWienerStructure": "blocks", "LinearStructure": "blocks",
+    "MIMOHammersteinStructure": "blocks", "MIMOWienerStructure": "blocks", "MIMOHammersteinWienerStructure": "blocks",
+    "MIMOModel": "blocks", "mimo_structure": "blocks",
+    "LureStructure": "blocks", "LureModel": "blocks", "lure_structure": "blocks",
+    "WienerHammersteinStructure": "blocks", "WienerHammersteinModel": "blocks",
+    "wiener_hammerstein_structure": "blocks", "UnitGainBlock": "blocks",
     "PerturbationGain": "optimize", "StepGain": "optimize", "minimize": "optimize",
-    "BlockStructure": "structure", "HammersteinStructure": "structure", "WienerStructure": "structure",
-    "HammersteinWienerStructure": "structure", "LinearStructure": "structure",
-    "MIMOHammersteinStructure": "mimo", "MIMOWienerStructure": "mimo", "MIMOHammersteinWienerStructure": "mimo",
-    "MIMOModel": "mimo", "mimo_structure": "mimo",
-    "LureStructure": "lure", "LureModel": "lure", "lure_structure": "lure",
-    "WienerHammersteinStructure": "wiener_hammerstein", "WienerHammersteinModel": "wiener_hammerstein",
-    "wiener_hammerstein_structure": "wiener_hammerstein", "UnitGainBlock": "wiener_hammerstein",
-    "load_model": "persistence", "save_model": "persistence", "load_result": "persistence",
-    "save_result": "persistence",
+    "identify": "fit", "IdentificationResult": "fit", "HammersteinCost": "fit", "identify_in_loop": "fit",
+    "select_structure": "fit", "candidate_structures": "fit", "SelectionResult": "fit",
+    "tune_pid": "design",
+    "load_model": "io", "save_model": "io", "load_result": "io", "save_result": "io",
     "StudyResult": "paper.study", "run_study": "paper.study",
-    "select_structure": "selection", "candidate_structures": "selection", "SelectionResult": "selection",
-    "tune_pid": "control_design", "identify_in_loop": "in_loop",
+}
+
+#: Old module paths, kept for one release: each imports its new module with a DeprecationWarning.
+_MOVED = {
+    **{old: (new, "the package is laid out in subpackages by role") for old, new in {
+        "iodata": "data._iodata", "records": "data._records", "metrics": "data._metrics",
+        "display": "data._display", "safe_io": "_safe_io", "executors": "_executors", "kernels": "_kernels",
+        "normal_equations": "optimize._normal_equations", "streamed_lstsq": "optimize._streamed_lstsq",
+        "optimize.gains": "optimize._gains", "optimize.least_squares": "optimize._least_squares",
+        "optimize.normal_lm": "optimize._normal_lm",
+        "_batch": "simulate._batch", "_discretize": "simulate._discretize", "_normal_pass": "simulate._normal_pass",
+        "delay": "simulate._delay", "_lure_sim": "simulate._lure_sim", "_lure_map": "simulate._lure_map",
+        "loop_sim": "simulate._loop", "exact_export": "simulate._export",
+        "nonlinearities": "blocks._nonlinearities", "structure": "blocks._structure", "model": "blocks._model",
+        "mimo": "blocks._mimo", "lure": "blocks._lure", "wiener_hammerstein": "blocks._wiener_hammerstein",
+        "_writer": "blocks._json", "plots": "plotting._figures",
+        "uncertainty": "assess._uncertainty", "diagnostics": "assess._diagnostics",
+        "residual_analysis": "assess._residuals", "significance": "assess._significance",
+        "objective": "fit._objective", "_output_error": "fit._output_error", "initialize": "fit._initialize",
+        "auto": "fit._auto", "delay_fit": "fit._delay_fit", "experiments": "fit._experiments",
+        "lure_fit": "fit._lure_fit", "mimo_fit": "fit._mimo_fit", "wh_fit": "fit._wh_fit",
+        "identify": "fit._identify", "in_loop": "fit._in_loop", "nested": "fit._nested", "result": "fit._result",
+        "selection": "fit._selection", "control_design": "design._pid", "robust_pid": "design._robust",
+        "operating_point": "design._operating_point", "persistence": "io._persistence",
+        "cli_select": "cli._select", "cli_tune": "cli._tune"}.items()},
+    "bench": (None, "the speed benchmarks are scripts of the source repository (benchmarks/speed.py)"),
+    "bench_structures": (None, "the speed benchmarks are scripts of the source repository "
+                               "(benchmarks/structures_speed.py)"),
 }
 
 #: The documented front door: records, structures, models, nonlinearities, identification and its result,
@@ -109,6 +133,8 @@ def __getattr__(name):
         value = importlib.import_module(f"{__name__}.{_PAPER_MODULES.get(name, name)}")
     elif name in _LAZY_NAMES:
         value = getattr(importlib.import_module(f"{__name__}.{_LAZY_NAMES[name]}"), name)
+    elif name in _MOVED:
+        return importlib.import_module(f"{__name__}.{name}")      # warns
     else:
         raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
     globals()[name] = value
@@ -120,11 +146,11 @@ def __dir__():
 
 
 class _Package(types.ModuleType):
-    """The package's module type: a public *function* wins over a same-named sub-module.
+    """The package's module type: a public name wins over a same-named old module path.
 
-    ``hammerstein_ctrl.identify`` is both the function and the module defining
-    it.  Importing the sub-module binds the module on the package; eagerly, the
-    package rebound the function right after, and this keeps it that way.
+    ``hammerstein_ctrl.identify`` is the function; ``import hammerstein_ctrl.identify``, the module path it had
+    before the re-lay, still imports (with a warning) and would bind the module over the function, which this
+    prevents.
     """
 
     def __setattr__(self, name, value):
@@ -133,3 +159,4 @@ class _Package(types.ModuleType):
 
 
 sys.modules[__name__].__class__ = _Package
+MovedModules(__name__, _MOVED).install()

@@ -5,7 +5,7 @@ from __future__ import annotations
 import sys
 import warnings
 
-__all__ = ["renamed"]
+__all__ = ["renamed", "MovedModules"]
 
 
 def renamed(module: str, renames: dict):
@@ -31,3 +31,71 @@ def renamed(module: str, renames: dict):
         raise AttributeError(f"module {module!r} has no attribute {name!r}")
 
     return __getattr__
+
+
+def _caller():
+    """The first frame outside the import system and this module: where a moved module was imported."""
+    frame = sys._getframe(1)
+    while frame is not None and (frame.f_code.co_filename == __file__ or "importlib" in frame.f_code.co_filename
+                                 or frame.f_code.co_filename.startswith("<frozen")):
+        frame = frame.f_back
+    return frame
+
+
+class MovedModules:
+    """A finder on :data:`sys.meta_path` that gives each moved module of ``package`` its new one, with a warning.
+
+    ``moved`` maps an old path (below ``package``) to ``(new path, why)``.  A new path of ``None`` means the
+    module left the package: importing it raises :class:`ModuleNotFoundError` with ``why``.  The old name is
+    bound to the very module object of its new path, so both give the same classes and functions.
+
+    Examples
+    --------
+    >>> import importlib, types, warnings
+    >>> pkg = types.ModuleType("demo_pkg"); pkg.__path__ = []; sys.modules["demo_pkg"] = pkg
+    >>> new = types.ModuleType("demo_pkg._new"); new.VALUE = 3; sys.modules["demo_pkg._new"] = new
+    >>> finder = MovedModules("demo_pkg", {"old": ("_new", "renamed")}).install()
+    >>> with warnings.catch_warnings(record=True) as caught:
+    ...     warnings.simplefilter("always")
+    ...     module = importlib.import_module("demo_pkg.old")
+    >>> module.VALUE, module.__name__, str(caught[0].message)
+    (3, 'demo_pkg._new', 'demo_pkg.old is deprecated and will be removed: import demo_pkg._new (renamed)')
+    >>> sys.meta_path.remove(finder)
+    """
+
+    def __init__(self, package: str, moved: dict):
+        self.package, self.moved, self._own = package, moved, {}
+
+    def install(self):
+        if self not in sys.meta_path:
+            sys.meta_path.append(self)
+        return self
+
+    def find_spec(self, fullname, path=None, target=None):
+        import importlib.util
+        old = fullname[len(self.package) + 1:] if fullname.startswith(self.package + ".") else None
+        if old not in self.moved:
+            return None
+        return importlib.util.spec_from_loader(fullname, self)
+
+    def create_module(self, spec):
+        import importlib
+        new, why = self.moved[spec.name[len(self.package) + 1:]]
+        if new is None:
+            raise ModuleNotFoundError(f"{spec.name} is no longer part of the package: {why}", name=spec.name)
+        frame = _caller()
+        message = f"{spec.name} is deprecated and will be removed: import {self.package}.{new} ({why})"
+        if frame is None:
+            warnings.warn(message, DeprecationWarning, stacklevel=2)
+        else:
+            warnings.warn_explicit(message, DeprecationWarning, frame.f_code.co_filename, frame.f_lineno,
+                                   module=frame.f_globals.get("__name__", "__main__"),
+                                   registry=frame.f_globals.setdefault("__warningregistry__", {}))
+        module = importlib.import_module(f"{self.package}.{new}")
+        self._own[spec.name] = (module.__spec__, module.__loader__)
+        return module
+
+    def exec_module(self, module):
+        """Nothing to run: :meth:`create_module` returned the new module, already imported.  The import system
+        stamped the old name's spec on it; the module gets its own back."""
+        module.__spec__, module.__loader__ = self._own.pop(module.__spec__.name)

@@ -14,13 +14,12 @@ import numpy as np
 import pytest
 import scipy.signal
 
-from hammerstein_ctrl import (
-    Coulomb, CustomNonlinearity, DeadZone, HammersteinWienerModel, HammersteinWienerStructure, IOData, LinearStructure,
-    ParameterError, Polynomial, Saturation, Tanh, WienerModel, WienerStructure, identify, load_result, read_record,
-)
+from hammerstein_ctrl import (Coulomb, CustomNonlinearity, DeadZone, HammersteinWienerModel, HammersteinWienerStructure,
+                              IOData, LinearStructure, ParameterError, Polynomial, Saturation, Tanh, WienerModel,
+                              WienerStructure, identify, load_result, read_record,)
 from hammerstein_ctrl.cli import main
 from hammerstein_ctrl.exceptions import HammersteinError
-from hammerstein_ctrl.objective import HammersteinCost
+from hammerstein_ctrl.fit import HammersteinCost
 
 from test_known_truth import DT, J_SLACK, K_SIGMA, companion, multilevel_prbs, multisine, standard_errors
 

@@ -142,9 +142,11 @@ def test_reproduce_writes_tables_models_and_figures(capsys, tmp_path):
     assert code == 0 and "9 trials reused" in out
 
 
-def test_bench_prints_ratios(capsys):
-    code, out, err = run(capsys, "bench", "--cases", "trs")
-    assert code == 0
+def test_the_speed_benchmark_prints_ratios(capsys):
+    import speed
+
+    assert speed.main(["--cases", "trs"]) == 0
+    out = capsys.readouterr().out
     assert "forced_response" in out and "x" in out and "evaluations in" in out
 
 

@@ -6,7 +6,7 @@ import pytest
 
 import hammerstein_ctrl as hc
 from hammerstein_ctrl import config
-from hammerstein_ctrl.control_design import tune_pid
+from hammerstein_ctrl.design import tune_pid
 from hammerstein_ctrl.exceptions import ParameterError
 
 

@@ -7,10 +7,10 @@ import numpy as np
 import pytest
 
 import hammerstein_ctrl as hc
-from hammerstein_ctrl import control_design as cd
-from hammerstein_ctrl.exact_export import linear_ss, sampled_iosys
+from hammerstein_ctrl.design import _pid as cd
+from hammerstein_ctrl.simulate import linear_ss, sampled_iosys
 from hammerstein_ctrl.exceptions import DataError, ParameterError, UnknownNameError
-from hammerstein_ctrl.loop_sim import sampled_loop_iosys, simulate_loops
+from hammerstein_ctrl.simulate._loop import sampled_loop_iosys, simulate_loops
 from hammerstein_ctrl.simulate import companion_realization
 
 EMPS_OPT = [3.138764, 0.544501, -0.398365, 0.045066]
@@ -268,7 +268,7 @@ def test_bad_requests_raise_clear_errors(emps_model):
 # CLI
 # ---------------------------------------------------------------------------
 def _run_cli(argv, monkeypatch):
-    from hammerstein_ctrl import cli
+    from hammerstein_ctrl.cli import _main as cli
 
     return cli.main(argv)
 
@@ -437,7 +437,7 @@ def test_a_user_tau_c_is_kept_and_judged(identified):
 # ---------------------------------------------------------------------------
 def test_the_offset_plant_is_regulated_around_its_operating_point(identified):
     """Step figures relative to the operating point agree with a loop built by hand in python-control."""
-    from hammerstein_ctrl.operating_point import rest_model
+    from hammerstein_ctrl.design._operating_point import rest_model
 
     model = identified["output_offset"]
     pid = cd.tune_pid(model, y0=1.7, step=0.2, dt=0.01)
@@ -447,7 +447,7 @@ def test_the_offset_plant_is_regulated_around_its_operating_point(identified):
     dt, n = 0.01, int(round(pid.step["t_final"] / 0.01)) + 1
     plant = rest_model(model, op).to_iosys(dt=dt, inputs="u", outputs="y", intersample="zoh")
     err = ct.summing_junction(inputs=["r", "-y"], output="e", dt=dt)
-    from hammerstein_ctrl.loop_sim import discrete_pid_iosys
+    from hammerstein_ctrl.simulate import discrete_pid_iosys
     loop = ct.interconnect([err, discrete_pid_iosys(pid.gains, dt, bias=op.u0),
                             ct.nlsys(None, lambda t, x, u, p: u[:1], inputs=["uc"], outputs=["u"], dt=dt), plant],
                            inputs=["r"], outputs=["y", "u"], dt=dt)
@@ -473,7 +473,7 @@ def test_an_unreachable_operating_point_is_refused(identified):
 def test_discrete_loops_close_around_the_held_export_and_match_the_compiled_loop(identified, kind):
     """P, PI and PID digital controllers around ``to_iosys(dt, intersample="zoh")``: no algebraic loop in
     python-control, and the package's loop simulation to 1e-9."""
-    from hammerstein_ctrl.loop_sim import simulate_controller_loop
+    from hammerstein_ctrl.simulate import simulate_controller_loop
 
     model = identified["third_order"]
     pid = cd.tune_pid(model, dt=0.02)
@@ -530,7 +530,7 @@ def test_tuning_refuses_models_beyond_numerical_range(num, den, params, message)
 def test_a_sampled_plant_of_mismatched_arrays_is_refused():
     """The compiled loops read Ad, Bd and C at the order x0 gives: arrays that disagree are refused when the plant is
     made, never read past."""
-    from hammerstein_ctrl.loop_sim import IDENTITY, SampledPlant
+    from hammerstein_ctrl.simulate._loop import IDENTITY, SampledPlant
 
     good = dict(Ad=np.eye(2) * 0.5, Bd=np.ones(2), C=np.ones(2), x0=np.zeros(2), offset=0.0, code=IDENTITY,
                 params=np.zeros(1), breakpoints=np.zeros(2), dt=0.1)
@@ -558,7 +558,7 @@ def test_a_design_at_dt_succeeds_only_if_its_digital_loop_does(rule):
 
 
 def test_a_custom_map_runs_the_same_loops_in_python_and_tunes_as_its_builtin_twin():
-    from hammerstein_ctrl.loop_sim import simulate_controller_loop, simulate_loops
+    from hammerstein_ctrl.simulate import simulate_controller_loop, simulate_loops
 
     custom = hc.CustomNonlinearity(lambda v, q: q[0] * np.tanh(q[1] * v), 2, param_names=["k", "s"])
     twin = [hc.HammersteinStructure(hc.LinearStructure(0, 2), g).model([4.0, 2.4, 8.0, 0.8])

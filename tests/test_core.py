@@ -10,7 +10,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from hammerstein_ctrl import _core, kernels
+from hammerstein_ctrl import _core
+from hammerstein_ctrl import _kernels as kernels
 
 SOURCES = Path(__file__).resolve().parents[1] / "hammerstein_ctrl" / "_csrc"
 
@@ -89,7 +90,7 @@ def test_the_kernel_door_takes_only_numbers_of_the_table():
 def test_the_constants_of_the_core_are_the_packages():
     """The core's limits and map codes are the package's: one definition each."""
     from hammerstein_ctrl._checks import MAX_ORDER
-    from hammerstein_ctrl.nonlinearities import NONLINEARITIES
+    from hammerstein_ctrl.blocks import NONLINEARITIES
 
     assert _core.MAX_ORDER == MAX_ORDER
     assert set(kernels.MAP_CODES) == set(NONLINEARITIES)
@@ -137,8 +138,8 @@ def test_the_baseline_and_the_wide_vector_kernels_give_the_same_bits():
     """The vector kernels are built for the platform's baseline and, on x86-64, for AVX2 too; this processor runs the
     widest, and $HAMMERSTEIN_CTRL_VECTOR_ISA=baseline keeps the baseline's.  Batches and normal-equation passes of
     several orders (written out per lane up to order 4, loops over the order above) give the same bits in both."""
-    code = ("import numpy as np\nfrom hammerstein_ctrl import kernels\n"
-            "from hammerstein_ctrl.simulate import sse_basis_batch, normal_pass\n"
+    code = ("import numpy as np\nfrom hammerstein_ctrl import _kernels as kernels\n"
+            "from hammerstein_ctrl.simulate._simulate import sse_basis_batch, normal_pass\n"
             "rng = np.random.default_rng(3); out = [kernels.vector_isa()]\n"
             "for n in (1, 2, 4, 6):\n"
             "    den = np.column_stack([np.ones(11), rng.uniform(0.5, 3.0, (11, n))])\n"

@@ -9,12 +9,12 @@ import pytest
 
 import hammerstein_ctrl as hc
 from hammerstein_ctrl import HammersteinModel, HammersteinStructure, IOData, LinearStructure, Tanh, WienerStructure
-from hammerstein_ctrl.control_design import approximate, tune_pid
-from hammerstein_ctrl.delay import delayed_response, split_delay
-from hammerstein_ctrl.delay_fit import DelayedCost, delay_candidates
+from hammerstein_ctrl.design import approximate, tune_pid
+from hammerstein_ctrl.simulate._delay import delayed_response, split_delay
+from hammerstein_ctrl.fit._delay_fit import DelayedCost, delay_candidates
 from hammerstein_ctrl.exceptions import ParameterError
-from hammerstein_ctrl.nonlinearities import Polynomial
-from hammerstein_ctrl.objective import HammersteinCost
+from hammerstein_ctrl.blocks import Polynomial
+from hammerstein_ctrl.fit import HammersteinCost
 
 FINE = 50          # oracle grid: dt / FINE, on which every delay below falls exactly
 
@@ -238,7 +238,7 @@ def test_a_delayed_step_from_rest_waits_for_the_dead_time(hold):
 
 
 def test_the_compiled_loop_simulator_refuses_a_dead_time_it_cannot_simulate():
-    from hammerstein_ctrl.loop_sim import simulate_loops
+    from hammerstein_ctrl.simulate import simulate_loops
 
     m = HammersteinModel(ct.tf([1.0], [1.0, 1.0]), Tanh(), [2.0, 1.0], delay=0.5, intersample="zoh")
     with pytest.raises(ParameterError, match="compiled loop simulator has no dead time.*without_delay"):
@@ -248,7 +248,7 @@ def test_the_compiled_loop_simulator_refuses_a_dead_time_it_cannot_simulate():
 
 
 def test_bode_draws_the_dead_time():
-    from hammerstein_ctrl import plots
+    from hammerstein_ctrl.plotting import _figures as plots
 
     m = HammersteinModel(ct.tf([1.0], [1.0, 1.0]), Tanh(), [2.0, 1.0], delay=0.37)
     fig = plots.bode(m)

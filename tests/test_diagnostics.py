@@ -20,7 +20,7 @@ import pytest
 import hammerstein_ctrl as hc
 from hammerstein_ctrl import (Coulomb, HammersteinStructure, IOData, LinearStructure, PiecewiseLinear, Tanh,
                               WienerStructure)
-from hammerstein_ctrl.diagnostics import FAILURE, WARNING, Verdict, budget_advice, variance_inflation
+from hammerstein_ctrl.assess._diagnostics import FAILURE, WARNING, Verdict, budget_advice, variance_inflation
 from hammerstein_ctrl.exceptions import IdentificationWarning
 
 DT, N = 0.02, 4000

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 import hammerstein_ctrl as hc
-from hammerstein_ctrl import display
+from hammerstein_ctrl.data import _display as display
 from hammerstein_ctrl.exceptions import DataError, ParameterError
 from hammerstein_ctrl.paper.study import run_study
 
@@ -77,7 +77,7 @@ def test_benchmark_record_becomes_iodata_and_works_everywhere(trs_case):
     np.testing.assert_array_equal(data.t, d.t)
     assert display.as_iodata(d) is d
     model = trs_case.structure.model(trs_case.true_beta)
-    from hammerstein_ctrl import plots
+    from hammerstein_ctrl.plotting import _figures as plots
 
     fits = plots.compare_fits(rec, model)
     assert fits["train TRS"]["hammerstein"] == pytest.approx(hc.fit_percent(d.y, model.simulate(d)))
@@ -226,7 +226,7 @@ def test_figures_returned_to_ipython_render_as_one_png(monkeypatch):
 
     shell = Shell()
     monkeypatch.setattr(IPython, "get_ipython", lambda: shell)
-    fig = hc.plots.input_signal(hc.presets.trs().data)
+    fig = hc.plotting.input_signal(hc.presets.trs().data)
     png = shell.display_formatter.formatters["image/png"](fig)
     assert isinstance(png, bytes) and png.startswith(b"\x89PNG")
     assert Figure in shell.display_formatter.formatters["image/png"].type_printers

@@ -13,9 +13,9 @@ import pytest
 
 import hammerstein_ctrl as hc
 from hammerstein_ctrl import DataError, HammersteinStructure, IOData, LinearStructure, ParameterError, Tanh
-from hammerstein_ctrl.experiments import RecordsCost, RecordsStructure
-from hammerstein_ctrl.normal_equations import from_residuals, neighbours
-from hammerstein_ctrl.objective import HammersteinCost
+from hammerstein_ctrl.fit import RecordsCost, RecordsStructure
+from hammerstein_ctrl.optimize._normal_equations import from_residuals, neighbours
+from hammerstein_ctrl.fit import HammersteinCost
 
 PLANT = ct.tf([2.0], [1.0, 1.2, 1.0])
 #: Truth in the structure's layout: a0, a1 (den s^2 + a1 s + a0), then d0, d1 of d0 tanh(d1 u) with b0 = 1.
@@ -208,7 +208,7 @@ def test_the_joint_normal_equations_refuse_unusable_steps_as_a_single_cost_does(
 def test_three_records_share_an_estimated_dead_time():
     """The plant behind a 0.37 s dead time (dt 0.05 s), three records with their own offsets and states:
     the dead time within 0.1 dt and every shared parameter within 4 standard errors."""
-    from hammerstein_ctrl.delay import delayed_response
+    from hammerstein_ctrl.simulate._delay import delayed_response
 
     rng = np.random.default_rng(4)
     recs = []

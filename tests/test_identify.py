@@ -5,12 +5,11 @@ import numpy as np
 import pytest
 
 import hammerstein_ctrl as hc
-from hammerstein_ctrl import (
-    Coulomb, HammersteinStructure, IOData, LinearStructure, ParameterError, Polynomial, identify,
-)
-from hammerstein_ctrl.auto import MIN_REFINE_BUDGET
+from hammerstein_ctrl import (Coulomb, HammersteinStructure, IOData, LinearStructure, ParameterError, Polynomial,
+                              identify,)
+from hammerstein_ctrl.fit._auto import MIN_REFINE_BUDGET
 from hammerstein_ctrl.exceptions import HammersteinError
-from hammerstein_ctrl.objective import HammersteinCost
+from hammerstein_ctrl.fit import HammersteinCost
 
 DT = 0.01
 
@@ -108,9 +107,9 @@ def test_auto_called_directly_runs_its_start_search_in_one_blas_thread(coulomb_r
     against 43 ms in one thread on this 2-core machine."""
     from threadpoolctl import threadpool_info
 
-    from hammerstein_ctrl import streamed_lstsq
-    from hammerstein_ctrl.auto import auto_minimize
-    from hammerstein_ctrl.objective import HammersteinCost
+    from hammerstein_ctrl.optimize import _streamed_lstsq as streamed_lstsq
+    from hammerstein_ctrl.fit._auto import auto_minimize
+    from hammerstein_ctrl.fit import HammersteinCost
 
     if max(info["num_threads"] for info in threadpool_info() if info["user_api"] == "blas") < 2:
         pytest.skip("BLAS runs one thread here anyway")
@@ -189,7 +188,7 @@ def test_a_custom_map_given_x0_is_fitted_even_where_the_search_drifts():
 
 
 def test_a_callback_that_stops_auto_stops_it():
-    from hammerstein_ctrl.auto import auto_minimize
+    from hammerstein_ctrl.fit._auto import auto_minimize
 
     rng = np.random.default_rng(0)
     t = np.arange(1500) * 0.05

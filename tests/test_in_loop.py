@@ -8,8 +8,8 @@ import pytest
 
 import hammerstein_ctrl as hc
 from hammerstein_ctrl import DataError, ParameterError
-from hammerstein_ctrl.in_loop import KnownLoop, KnownLoopCost, identify_in_loop
-from hammerstein_ctrl.lure import lure_structure
+from hammerstein_ctrl.fit import KnownLoop, KnownLoopCost, identify_in_loop
+from hammerstein_ctrl.blocks import lure_structure
 
 DT = 0.01
 #: A PI controller on the error, sampled: u = 10 e + 6 dt sum(e).
@@ -258,7 +258,7 @@ def test_residual_tests_for_a_closed_loop_record_fitted_in_open_loop():
 
 
 def test_the_known_loop_simulator_refuses_signals_of_other_lengths():
-    from hammerstein_ctrl.loop_sim import sampled_plant, simulate_known_loop
+    from hammerstein_ctrl.simulate._loop import sampled_plant, simulate_known_loop
 
     plant = sampled_plant(_block_structure().model(BLOCK_TRUTH, intersample="zoh"), BLOCK_DT)
     controller = KnownLoop(BLOCK_PI, np.ones(50))._matrices
@@ -269,7 +269,8 @@ def test_the_known_loop_simulator_refuses_signals_of_other_lengths():
 
 
 def test_the_old_cost_names_still_import_with_a_deprecation_warning():
-    from hammerstein_ctrl import control_design, in_loop
+    from hammerstein_ctrl.design import _pid as control_design
+    from hammerstein_ctrl.fit import _in_loop as in_loop
 
     with pytest.warns(DeprecationWarning, match="KnownLoopCost"):
         assert in_loop.LoopCost is in_loop.KnownLoopCost

@@ -14,10 +14,10 @@ from scipy.optimize import least_squares
 from scipy.optimize._numdiff import approx_derivative
 
 import hammerstein_ctrl as hc
-from hammerstein_ctrl.nonlinearities import Coulomb
+from hammerstein_ctrl.blocks import Coulomb
 from hammerstein_ctrl.optimize import levenberg_marquardt
-from hammerstein_ctrl.optimize.least_squares import _BatchedJacobian, _CountedResiduals
-from hammerstein_ctrl.structure import HammersteinStructure, LinearStructure
+from hammerstein_ctrl.optimize._least_squares import _BatchedJacobian, _CountedResiduals
+from hammerstein_ctrl.blocks import HammersteinStructure, LinearStructure
 
 
 class ResidualsOnly:

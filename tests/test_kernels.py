@@ -11,8 +11,9 @@ import math
 import numpy as np
 import pytest
 
-from hammerstein_ctrl import _core, kernels
-from hammerstein_ctrl.nonlinearities import NONLINEARITIES, PiecewiseLinear, Polynomial
+from hammerstein_ctrl import _core
+from hammerstein_ctrl import _kernels as kernels
+from hammerstein_ctrl.blocks import NONLINEARITIES, PiecewiseLinear, Polynomial
 
 OVERFLOW = 1.7e308
 
@@ -365,7 +366,7 @@ def test_the_single_evaluation_from_coefficients_checks_what_the_kernel_reads():
     kernel's order and basis before it runs: a block of another order, a short output, too few basis rows or an
     improper block are refused by name; a row the compiled path cannot take leaves out untouched."""
     from hammerstein_ctrl._linalg import tf_discrete
-    from hammerstein_ctrl.simulate import COMPILED_EXPM_MAX_NORM
+    from hammerstein_ctrl.simulate._simulate import COMPILED_EXPM_MAX_NORM
 
     f = kernels.get_coefficient_kernel(3, "foh", 1)
     num, den = np.ones((1, 1)), np.array([[1.0, 3.0, 3.0, 1.0]])

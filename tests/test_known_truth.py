@@ -16,11 +16,9 @@ import numpy as np
 import pytest
 import scipy.signal
 
-from hammerstein_ctrl import (
-    Coulomb, DeadZone, HammersteinStructure, IOData, LinearStructure, PiecewiseLinear, Polynomial,
-    Saturation, Tanh, identify,
-)
-from hammerstein_ctrl.objective import HammersteinCost
+from hammerstein_ctrl import (Coulomb, DeadZone, HammersteinStructure, IOData, LinearStructure, PiecewiseLinear,
+                              Polynomial, Saturation, Tanh, identify,)
+from hammerstein_ctrl.fit import HammersteinCost
 
 #: Parameters must lie within this many standard errors of the truth.
 K_SIGMA = 5.0

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from hammerstein_ctrl import presets
-from hammerstein_ctrl.kernels import LANE_MIN, LANE_WIDTHS
+from hammerstein_ctrl._kernels import LANE_MIN, LANE_WIDTHS
 from hammerstein_ctrl.simulate import sse_basis_batch, sse_batch
 
 
@@ -138,14 +138,14 @@ def test_single_evaluations_give_the_bits_of_a_batch(kind):
     """cost(beta) takes one compiled call where it can; every route gives what the batch gives (a single
     candidate of a g without a basis passes its evaluated signal as a basis of one, a batch its signals whole)."""
     import hammerstein_ctrl as hc
-    from hammerstein_ctrl.objective import HammersteinCost
+    from hammerstein_ctrl.fit import HammersteinCost
 
     rng = np.random.default_rng(5)
     N = 2000
     u = np.repeat(rng.uniform(-2, 2, N // 20), 20)
     data = hc.IOData(u, np.sin(np.arange(N) * 0.01) + 0.1 * rng.normal(size=N), dt=0.01, name="syn")
     g = None if kind == "no g" else hc.Tanh() if kind.startswith("tanh") else hc.Polynomial(2)
-    from hammerstein_ctrl.structure import BlockStructure
+    from hammerstein_ctrl.blocks import BlockStructure
 
     nuisance = kind.endswith("offset and x0")
     options = {"offset": nuisance, "initial_state": "estimate" if nuisance else "zero"}
@@ -163,8 +163,8 @@ def test_a_single_evaluation_evaluates_g_once_whatever_the_order():
     """A candidate of a g without a basis is evaluated once per cost(beta), past the unrolled kernels' orders too
     (where its signal is read whole, not passed as a basis of one)."""
     import hammerstein_ctrl as hc
-    from hammerstein_ctrl.nonlinearities import CustomNonlinearity
-    from hammerstein_ctrl.objective import HammersteinCost
+    from hammerstein_ctrl.blocks import CustomNonlinearity
+    from hammerstein_ctrl.fit import HammersteinCost
 
     calls = []
     g = CustomNonlinearity(lambda u, p: calls.append(u.size) or p[0] * np.tanh(u), 1)
@@ -205,8 +205,8 @@ def test_reject_unstable_set_after_construction_and_threads_keep_their_own_buffe
 
 def test_one_compiled_version_takes_read_only_and_writeable_arrays():
     """A record's arrays are read-only, a caller's are not: the kernels take both with one compiled version."""
-    from hammerstein_ctrl.kernels import get_coefficient_kernel, get_kernel
-    from hammerstein_ctrl.simulate import COMPILED_EXPM_MAX_NORM, simulate_batch
+    from hammerstein_ctrl._kernels import get_coefficient_kernel, get_kernel
+    from hammerstein_ctrl.simulate._simulate import COMPILED_EXPM_MAX_NORM, simulate_batch
 
     rng = np.random.default_rng(4)
     u, y = rng.normal(size=300), rng.normal(size=300)
@@ -243,8 +243,8 @@ def test_one_compiled_version_takes_read_only_and_writeable_arrays():
 def test_one_compiled_discretisation_and_pass_serves_every_state_dimension_and_basis():
     """Single evaluations discretise and run the pass in one call of the C library, the same for every order and
     basis (the pass is called through its address), with the bits of the batch path."""
-    from hammerstein_ctrl.kernels import get_coefficient_kernel
-    from hammerstein_ctrl.simulate import COMPILED_EXPM_MAX_NORM
+    from hammerstein_ctrl._kernels import get_coefficient_kernel
+    from hammerstein_ctrl.simulate._simulate import COMPILED_EXPM_MAX_NORM
 
     rng = np.random.default_rng(8)
     u, y = rng.normal(size=500), rng.normal(size=500)
@@ -269,8 +269,8 @@ def test_shared_rows_strided_views_and_repeated_lookups_reach_the_one_compiled_v
     """Arrays the kernels' signatures do not take as given (read-only broadcast rows, strided views) are
     converted before the call, and asking for a kernel again does not compile (or refuse) anything."""
     from hammerstein_ctrl import HammersteinStructure, IOData, LinearStructure, Polynomial
-    from hammerstein_ctrl.kernels import get_coefficient_kernel
-    from hammerstein_ctrl.objective import HammersteinCost
+    from hammerstein_ctrl._kernels import get_coefficient_kernel
+    from hammerstein_ctrl.fit import HammersteinCost
     from hammerstein_ctrl.simulate import lsim
 
     rng = np.random.default_rng(5)

@@ -56,11 +56,11 @@ def test_every_public_name_resolves():
 
 def test_identify_is_the_function_even_after_importing_its_module():
     result = fresh("import json, types, importlib; import hammerstein_ctrl as hc\n"
-                   "importlib.import_module('hammerstein_ctrl.identify')\n"
+                   "importlib.import_module('hammerstein_ctrl.fit')\n"
                    "from hammerstein_ctrl import identify\n"
                    "print(json.dumps([type(hc.identify).__name__, identify is hc.identify,"
                    " type(hc.presets).__name__, hc.HammersteinCost.__module__]))")
-    assert result == ["function", True, "module", "hammerstein_ctrl.objective"]
+    assert result == ["function", True, "module", "hammerstein_ctrl.fit._objective"]
 
 
 def test_star_import_gives_all_names():

@@ -8,8 +8,8 @@ from scipy.integrate import solve_ivp
 
 import hammerstein_ctrl as hc
 from hammerstein_ctrl import Coulomb, Friction, LinearStructure, ParameterError, Tanh
-from hammerstein_ctrl.lure import FEEDBACKS as FEEDBACK_DEGREE, LureModel, LureStructure, lure_structure
-from hammerstein_ctrl.lure_fit import LureCost
+from hammerstein_ctrl.blocks._lure import FEEDBACKS as FEEDBACK_DEGREE, LureModel, LureStructure, lure_structure
+from hammerstein_ctrl.fit import LureCost
 
 #: A sliding mass: force to position b / (p^2 + a p), Coulomb level fc and constant force c (input units).
 MASS = (0.4, 2.0, 0.5, 0.05)
@@ -254,7 +254,7 @@ def test_emps_lure_model_from_rest_validates_beyond_the_published_models(emps_di
             warnings.simplefilter("ignore")
             r = hc.identify(data, lure_structure(), seed=0)
         y = r.model.simulate(val)
-        return r, hc.metrics.fit_report(val.y.ravel(), y)
+        return r, hc.data.fit_report(val.y.ravel(), y)
 
     r, rep = validation(est)
     assert r.success
@@ -297,7 +297,7 @@ def test_result_figure_shows_the_feedback_map():
 
 
 def test_linear_tools_take_the_motion_model_and_refuse_the_loop():
-    from hammerstein_ctrl import control_design
+    from hammerstein_ctrl.design import _pid as control_design
 
     model = LureModel(([0.4], [1.0, 1.5, 0.0]), Coulomb(), [1.25, 0.5, 0.05])
     assert model.linearize().den[0][0].tolist() == [1.0, 2.0, 0.0]
@@ -331,7 +331,7 @@ def test_command_line_fits_a_loop(tmp_path):
 
 # -- speed (wall-clock: `make bench` runs these, never `make test`) ------------------------------------------
 def test_the_speed_report_compares_lure_and_hammerstein_on_one_record(emps_case):
-    from hammerstein_ctrl.bench import format_lure_speed, lure_speed
+    from speed import format_lure_speed, lure_speed
 
     r = lure_speed(emps_case, pairs=1, number=2)
     assert r["n_samples"] == len(emps_case.data) and r["lure_s"] > 0 and r["hammerstein_s"] > 0
@@ -340,7 +340,7 @@ def test_the_speed_report_compares_lure_and_hammerstein_on_one_record(emps_case)
 
 @pytest.mark.timing
 def test_a_lure_evaluation_costs_at_most_three_hammerstein_ones(emps_case):
-    from hammerstein_ctrl.bench import lure_speed
+    from speed import lure_speed
 
     r = lure_speed(emps_case)
     assert r["ratio"] <= 3.0, r
@@ -481,7 +481,7 @@ def test_an_affine_map_in_the_loop_is_exact():
 
 
 def test_compiled_map_loop_equals_its_python_twin():
-    from hammerstein_ctrl._lure_map import loop_setup, python_run, run
+    from hammerstein_ctrl.simulate._lure_map import loop_setup, python_run, run
 
     nl, P = hc.Sigmoid(), np.array([[1.5, 4.0, 0.2], [0.8, 9.0, -0.1]])
     num, den = np.array([[1.0, 2.0], [0.5, 1.0]]), np.array([[1.0, 2.0, 3.0, 1.0], [1.0, 1.0, 2.0, 0.5]])
@@ -551,7 +551,7 @@ def test_loop_known_truths_are_found_without_x0_within_four_standard_errors_over
 def test_a_map_loop_inside_a_known_controller_is_refused_in_one_line():
     import control
 
-    from hammerstein_ctrl.in_loop import KnownLoop, KnownLoopCost
+    from hammerstein_ctrl.fit import KnownLoop, KnownLoopCost
 
     s = LureStructure(LinearStructure(0, 2, monic_numerator=False, fixed={"a0": 0.0}), hc.Polynomial(3),
                       feedback="output")

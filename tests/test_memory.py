@@ -4,7 +4,7 @@ Peak memory is measured with ``tracemalloc`` (which sees every numpy array)
 while the cost and ``identify`` run on a synthetic 1e6-sample EMPS record.
 A batch of ``B`` candidates formed at once would take ``8 B`` bytes per sample
 for the signals alone (400 B for AMVO-SCA's 50 universes); the cost forms at
-most :data:`~hammerstein_ctrl.objective.CHUNK_BYTES` of them at a time.
+most :data:`~hammerstein_ctrl.fit._objective.CHUNK_BYTES` of them at a time.
 """
 
 import tracemalloc
@@ -12,8 +12,8 @@ import tracemalloc
 import numpy as np
 import pytest
 
-from hammerstein_ctrl import bench
-from hammerstein_ctrl.objective import CHUNK_BYTES, HammersteinCost
+import speed as bench
+from hammerstein_ctrl.fit._objective import CHUNK_BYTES, HammersteinCost
 from hammerstein_ctrl.paper.presets import emps_structure
 
 N = 10**6
@@ -91,7 +91,7 @@ def test_identify_in_bounded_memory(record, method, bound):
 
 def test_recomputed_basis_gives_the_same_numbers(record, cost, monkeypatch):
     """Past BASIS_MAX_BYTES the basis is rebuilt block by block: same signals, same J, no stored basis."""
-    from hammerstein_ctrl import objective
+    from hammerstein_ctrl.fit import _objective as objective
 
     monkeypatch.setattr(objective, "BASIS_MAX_BYTES", 0)
     monkeypatch.setattr(objective, "BASIS_BLOCK", 7919)  # a prime: blocks end mid-level
@@ -115,7 +115,8 @@ def test_auto_in_bounded_memory(record):
     (25 B measured; holding the drives and their responses took 80 B, and
     forming the regressions whole 192 B/sample at 1e7 samples before).
     """
-    from hammerstein_ctrl import identify, objective
+    from hammerstein_ctrl import identify
+    from hammerstein_ctrl.fit import _objective as objective
 
     structure = emps_structure()
     budget = 300  # every stage runs: scan, reduced LM, static fits, LM refinements
@@ -138,13 +139,15 @@ def test_a_wide_structure_in_bounded_memory(record, method):
     where p + 1 = 17 stored residual vectors alone took 136 and auto's starts
     (which formed the whole basis to see whether there was one) 400.
     """
-    from hammerstein_ctrl import HammersteinStructure, LinearStructure, PiecewiseLinear, identify
+    from hammerstein_ctrl import HammersteinStructure, LinearStructure, PiecewiseLinear
+    from hammerstein_ctrl import identify
 
     s = HammersteinStructure(LinearStructure(1, 3), PiecewiseLinear(np.linspace(-0.9, 0.9, 11)), offset=True)
     kwargs = {"maxfev": 300 if method == "auto" else 60, "seed": 0, "method": method}
     if method == "lm":
         kwargs["x0"] = np.r_[[1.0, 1.0, 3.0, 3.0], np.linspace(-0.9, 0.9, 11), 0.0]     # H = 1 / (p + 1)^3
-    from hammerstein_ctrl import _normal_pass, initialize
+    from hammerstein_ctrl.simulate import _normal_pass
+    from hammerstein_ctrl.fit import _initialize as initialize
 
     with pytest.MonkeyPatch.context() as mp:      # compile outside the measurement, on the long records' routes
         mp.setattr(_normal_pass, "GROUPS_MIN_BYTES", 0)
@@ -160,9 +163,9 @@ def test_normal_equations_of_a_g_without_basis_stream_its_signals(record, inters
     """tanh has no basis: its distinct signals (the point's and one per parameter of g) are evaluated a
     block at a time inside the compiled pass, with the numbers of the stored N x p Jacobian and no p x N array."""
     from hammerstein_ctrl.paper.datasets import IOData
-    from hammerstein_ctrl.nonlinearities import Tanh
-    from hammerstein_ctrl.normal_equations import forward_steps, from_residuals, neighbours
-    from hammerstein_ctrl.structure import HammersteinStructure, LinearStructure
+    from hammerstein_ctrl.blocks import Tanh
+    from hammerstein_ctrl.optimize._normal_equations import forward_steps, from_residuals, neighbours
+    from hammerstein_ctrl.blocks import HammersteinStructure, LinearStructure
 
     data = IOData(record.u, record.y, dt=record.dt, intersample=intersample)
     structure = HammersteinStructure(LinearStructure(1, 2), Tanh(), offset=True)
@@ -197,8 +200,8 @@ def test_normal_factor_streams_its_blocks(cost):
 
 def test_normal_equations_of_a_custom_output_map_stream_the_lanes(record):
     """A custom h (no compiled form) is applied to the lanes' outputs a block at a time: no p + 1 residuals."""
-    from hammerstein_ctrl.nonlinearities import CustomNonlinearity
-    from hammerstein_ctrl.structure import LinearStructure, WienerStructure
+    from hammerstein_ctrl.blocks import CustomNonlinearity
+    from hammerstein_ctrl.blocks import LinearStructure, WienerStructure
 
     cubic = CustomNonlinearity(lambda v, p: p[0] * v + p[1] * v ** 3, n_params=2)
     cost = HammersteinCost(record, WienerStructure(LinearStructure(0, 2), cubic))

@@ -8,9 +8,9 @@ import pytest
 
 import hammerstein_ctrl as hc
 from hammerstein_ctrl.exceptions import DataError, ParameterError
-from hammerstein_ctrl.mimo import (MIMOHammersteinStructure, MIMOHammersteinWienerStructure, MIMOModel,
-                                   MIMOWienerStructure, observable_realization)
-from hammerstein_ctrl.mimo_fit import MIMOCost
+from hammerstein_ctrl.blocks._mimo import (MIMOHammersteinStructure, MIMOHammersteinWienerStructure, MIMOModel,
+                                           MIMOWienerStructure, observable_realization)
+from hammerstein_ctrl.fit import MIMOCost
 
 DT, N, SIGMA = 0.05, 3000, 0.01
 #: The cross-coupled 2 x 2 plant: row 0 shares 1/(s^2 + 1.2 s + 2), row 1 1/(s^2 + 2.5 s + 1.5).
@@ -383,7 +383,7 @@ def test_the_command_line_refuses_what_a_mimo_fit_cannot_take_in_one_line(tmp_pa
 
 # -- speed (wall-clock: `make bench` runs these, never `make test`) ------------------------------------------
 def test_the_speed_report_compares_mimo_and_siso_on_one_record_length():
-    from hammerstein_ctrl.bench import format_mimo_speed, mimo_speed
+    from speed import format_mimo_speed, mimo_speed
 
     r = mimo_speed(2000, batch=3, pairs=1, number=2)
     assert set(r) == {"n_samples", "batch", "single", "batched"} and r["single"]["mimo_s"] > 0
@@ -392,7 +392,7 @@ def test_the_speed_report_compares_mimo_and_siso_on_one_record_length():
 
 @pytest.mark.timing
 def test_a_2x2_evaluation_costs_at_most_four_siso_ones():
-    from hammerstein_ctrl.bench import mimo_speed
+    from speed import mimo_speed
 
     r = mimo_speed(24841)
     assert r["single"]["ratio"] <= 4.0 and r["batched"]["ratio"] <= 4.0, r
@@ -404,7 +404,7 @@ TAUS = [0.37, 0.82]
 
 def delayed_record(seed: int, hold: str):
     """The 2 x 2 Hammerstein plant with dead times 0.37 s and 0.82 s on its inputs, dt 0.1 s."""
-    from hammerstein_ctrl.delay import delayed_response
+    from hammerstein_ctrl.simulate._delay import delayed_response
 
     rng = np.random.default_rng(seed)
     dt, n = 0.1, 3000
@@ -458,7 +458,7 @@ def test_a_model_with_dead_times_saves_loads_and_exports_through_pade(tmp_path):
     u = np.column_stack([np.sin(0.3 * t), 0.5 * np.sin(0.2 * t)])    # smooth from 0: what a Pade form follows
     ref = ct.input_output_response(sys, t, u.T, solve_ivp_kwargs={"rtol": 1e-10, "atol": 1e-12}).outputs.T
     assert np.max(np.abs(model.simulate(t, u) - ref)) < 1e-4 * np.max(np.abs(ref))
-    saved = hc.persistence.result_to_dict(_identify(data, s))
+    saved = hc.io.result_to_dict(_identify(data, s))
     assert saved["structure"]["delays"] == ["estimate", "estimate"]
 
 
@@ -478,15 +478,15 @@ def test_an_element_is_the_siso_model_from_one_input_to_one_output():
     alone = hc.IOData(siso.u, siso.y, dt=DT)
     U = np.column_stack([data.inputs[:, 0], np.zeros(N)])          # the other input held at zero
     assert np.allclose(e.simulate(alone), model.simulate(data.t, U)[:, 1], rtol=1e-12, atol=1e-12)
-    pid = hc.control_design.tune_pid(model.element(0, 0))
+    pid = hc.design.tune_pid(model.element(0, 0))
     assert np.isfinite(pid.kp)
 
 
 @pytest.mark.parametrize("call", [
-    lambda m, d: hc.control_design.tune_pid(m),
-    lambda m, d: hc.plots.bode(m),
-    lambda m, d: hc.plots.time_response(d, m),
-    lambda m, d: hc.plots.psd(d),
+    lambda m, d: hc.design.tune_pid(m),
+    lambda m, d: hc.plotting.bode(m),
+    lambda m, d: hc.plotting.time_response(d, m),
+    lambda m, d: hc.plotting.psd(d),
 ])
 def test_the_siso_tools_refuse_a_mimo_model_or_record_naming_the_way_out(call):
     data, s, truth = record("hammerstein", 0)

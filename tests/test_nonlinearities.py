@@ -2,11 +2,9 @@ import numpy as np
 import pytest
 
 import hammerstein_ctrl as hc
-from hammerstein_ctrl import (
-    Coulomb, CustomNonlinearity, DeadZone, ParameterError, PiecewiseLinear, Polynomial,
-    Saturation, Tanh, UnknownNameError, nonlinearity_from_name,
-)
-from hammerstein_ctrl.nonlinearities import NONLINEARITIES, Friction, Sigmoid
+from hammerstein_ctrl import (Coulomb, CustomNonlinearity, DeadZone, ParameterError, PiecewiseLinear, Polynomial,
+                              Saturation, Tanh, UnknownNameError, nonlinearity_from_name,)
+from hammerstein_ctrl.blocks import NONLINEARITIES, Friction, Sigmoid
 
 U = np.linspace(-2.0, 2.0, 41)
 
@@ -37,7 +35,7 @@ def test_the_compiled_map_is_the_familys_formula(g, p, ref, rng):
     """The compiled core's map of a family (what the Wiener kernels and the loop simulators apply) gives the family's
     values, and NaN for NaN."""
     from hammerstein_ctrl import _core
-    from hammerstein_ctrl.kernels import MAP_CODES
+    from hammerstein_ctrl._kernels import MAP_CODES
 
     z = np.r_[U, rng.normal(scale=3.0, size=50), np.nan]
     P = np.ascontiguousarray(np.atleast_2d(p), dtype=float)
@@ -53,7 +51,7 @@ def test_closed_loop_simulator_uses_the_same_formula(g, p, ref):
     """The compiled loop (P control of g -> 1/(s + 1) under ZOH) against the same loop stepped in Python."""
     import control as ct
 
-    from hammerstein_ctrl.loop_sim import simulate_loops
+    from hammerstein_ctrl.simulate import simulate_loops
 
     model = hc.HammersteinModel(ct.tf([1.0], [1.0, 1.0]), g, p, intersample="zoh")
     dt, kp = 0.05, 0.8
@@ -160,7 +158,7 @@ def test_a_basis_of_the_wrong_shape_is_refused_before_any_pass(family):
     """A basis that is not one real row per parameter would be read past its rows by the compiled
     passes: the cost refuses it when built, naming the family and the shape it needs; identify too.
     (Found by the review of the compiled LM loop, predating it.)"""
-    from hammerstein_ctrl.objective import HammersteinCost
+    from hammerstein_ctrl.fit import HammersteinCost
 
     t = np.arange(200) * 0.01
     data = hc.IOData(np.sin(t), np.cos(t), dt=0.01, name="short basis")

@@ -16,14 +16,18 @@ from scipy.optimize._numdiff import approx_derivative
 
 import hammerstein_ctrl as hc
 from hammerstein_ctrl import identify
-from hammerstein_ctrl import objective
-from hammerstein_ctrl import presets, simulate, streamed_lstsq
-from hammerstein_ctrl.auto import auto_minimize
+from hammerstein_ctrl.fit import _objective as objective
+from hammerstein_ctrl import presets
+from hammerstein_ctrl.simulate import _simulate as simulate
+from hammerstein_ctrl.optimize import _streamed_lstsq as streamed_lstsq
+from hammerstein_ctrl.fit._auto import auto_minimize
 from hammerstein_ctrl.exceptions import HammersteinError, ParameterError
-from hammerstein_ctrl.normal_equations import forward_steps, from_residuals, neighbours
-from hammerstein_ctrl.objective import HammersteinCost
-from hammerstein_ctrl.optimize import BUDGET_EXHAUSTED, COMPLETED, levenberg_marquardt, minimize, normal_lm
-from hammerstein_ctrl.optimize import least_squares as ls
+from hammerstein_ctrl.optimize._normal_equations import forward_steps, from_residuals, neighbours
+from hammerstein_ctrl.fit import HammersteinCost
+from hammerstein_ctrl.optimize import BUDGET_EXHAUSTED, COMPLETED, levenberg_marquardt
+from hammerstein_ctrl.optimize import minimize
+from hammerstein_ctrl.optimize import _normal_lm as normal_lm
+from hammerstein_ctrl.optimize import _least_squares as ls
 
 
 def _stored(cost, x):
@@ -133,7 +137,7 @@ def test_lm_reaches_minpacks_optimum_from_perturbed_starts(case, request):
 
 def test_emps_from_the_nspsa_vector_stays_on_the_normal_equations(emps_case, monkeypatch):
     """A stable start: every step from the fused pass (no hand-over to MINPACK), to the optimum."""
-    from hammerstein_ctrl.optimize import least_squares as ls
+    from hammerstein_ctrl.optimize import _least_squares as ls
 
     def refuse(*args, **kwargs):
         raise AssertionError("handed over to MINPACK")
@@ -169,8 +173,8 @@ def test_a_nan_cosine_never_passes_the_gtol_test():
 
 def test_normal_pass_checks_shapes_and_keeps_a_given_state(emps_case):
     from hammerstein_ctrl.exceptions import DataError, ParameterError
-    from hammerstein_ctrl.normal_equations import from_difference_sums
-    from hammerstein_ctrl.simulate import normal_pass
+    from hammerstein_ctrl.optimize._normal_equations import from_difference_sums
+    from hammerstein_ctrl.simulate._simulate import normal_pass
 
     cost = emps_case.cost
     x = np.asarray(emps_case.paper["nspsa"]["beta"], float)
@@ -203,7 +207,7 @@ def test_normal_pass_checks_shapes_and_keeps_a_given_state(emps_case):
 
 def test_a_nonfinite_last_signal_sample_makes_the_pass_nonfinite():
     """ZOH, strictly proper, no offset: the pass leaves d = 0 out, so the last signal sample must be checked."""
-    from hammerstein_ctrl.simulate import normal_pass
+    from hammerstein_ctrl.simulate._simulate import normal_pass
 
     N = 40
     u = np.full(N, 1e-200)
@@ -222,7 +226,7 @@ def test_up_to_sixteen_lanes_take_the_fused_pass():
     ones: see test_lane_groups_*)."""
     import control
 
-    from hammerstein_ctrl.kernels import MAX_NORMAL_LANES
+    from hammerstein_ctrl._kernels import MAX_NORMAL_LANES
 
     t = 0.01 * np.arange(4000)
     u = np.sin(t) + 0.5 * np.sin(3.3 * t)
@@ -274,8 +278,8 @@ def _lane_group_cases():
 def test_lane_groups_give_the_stored_jacobians_sums(case):
     """Past one pass (more than 16 lanes or 8 basis signals) groups of passes run side by side:
     the sums and the QR factor are the stored forward-difference Jacobian's."""
-    from hammerstein_ctrl.kernels import MAX_LANE_BASIS, MAX_NORMAL_LANES
-    from hammerstein_ctrl._normal_pass import _LaneGroups
+    from hammerstein_ctrl._kernels import MAX_LANE_BASIS, MAX_NORMAL_LANES
+    from hammerstein_ctrl.simulate._normal_pass import _LaneGroups
 
     data, structures = _lane_group_cases()
     s = structures[case]
@@ -291,7 +295,7 @@ def test_lane_groups_give_the_stored_jacobians_sums(case):
         return groups[-1]
     with pytest.MonkeyPatch.context() as mp:
         mp.setattr(_LaneGroups, "prepare", classmethod(spy))
-        mp.setattr("hammerstein_ctrl._normal_pass.GROUPS_MIN_BYTES", 0)    # a short record: groups all the same
+        mp.setattr("hammerstein_ctrl.simulate._normal_pass.GROUPS_MIN_BYTES", 0)    # a short record: same groups
         ne, qr = cost.normal_equations(x, h), cost.normal_factor(x, h)
     assert len(groups) == 2 and all(g is not None and len(g.groups) >= 2 for g in groups)
     f, g, G = _stored(cost, x)
@@ -368,7 +372,7 @@ def test_normal_factor_matches_the_sums_and_the_stored_jacobian(case, request):
 def test_lm_on_the_qr_factor_reaches_minpacks_optimum(case, request, monkeypatch):
     """From the paper's x0 the Gram matrix is too ill-conditioned: below MINPACK_MAX_BYTES MINPACK's lmder
     takes over; past it (forced here) the solver goes on with the streamed QR factor, to the same optimum."""
-    from hammerstein_ctrl.optimize import least_squares as ls
+    from hammerstein_ctrl.optimize import _least_squares as ls
 
     case = request.getfixturevalue(case)
     minpack = levenberg_marquardt(case.cost, case.x0)
@@ -388,7 +392,7 @@ def test_blocks_past_the_unrolled_kernels_take_the_pass():
     applies, with the stored Jacobian's sums, so LM stores no p + 1 residual vectors for it either."""
     import control
 
-    from hammerstein_ctrl.kernels import MAX_PASS_STATES, MAX_UNROLLED_STATES
+    from hammerstein_ctrl._kernels import MAX_PASS_STATES, MAX_UNROLLED_STATES
 
     t = 0.01 * np.arange(3000)
     u = np.sin(t) + 0.5 * np.sin(3.3 * t)
@@ -442,8 +446,8 @@ def test_auto_leaves_the_advice_to_identify(trs_case):
 
     from scipy.optimize import OptimizeResult
 
-    from hammerstein_ctrl.auto import _result
-    from hammerstein_ctrl.initialize import Budget
+    from hammerstein_ctrl.fit._auto import _result
+    from hammerstein_ctrl.fit._initialize import Budget
     from hammerstein_ctrl.optimize import SOLVER_FAILED, History
 
     x = np.asarray(trs_case.true_beta, dtype=float)
@@ -483,7 +487,7 @@ def _lane_outputs_by_hand(E, C, D, X, Y0, P, Phi, hold):
 def test_pass_sums_match_the_recursion_written_out(n, hold, lanes, direct, offset):
     """Both pass layouts against numpy: the sums over two blocks of samples, the carried states, and a
     neighbour equal to the point contributing exact zeros (the point and the neighbours round alike)."""
-    from hammerstein_ctrl.kernels import get_normal_kernel
+    from hammerstein_ctrl._kernels import get_normal_kernel
 
     rng = np.random.default_rng(n * 100 + lanes)
     K, N, split = 3, 400, 157
@@ -518,7 +522,7 @@ def test_pass_sums_match_the_recursion_written_out(n, hold, lanes, direct, offse
 def test_one_pass_serves_every_lane_count_and_refuses_arrays_too_small_for_it():
     """A pass counts its lanes at run time (the length of VP): every count from 2 to 16 is one kernel of the core,
     and arrays too small for the lanes counted are refused, never read past."""
-    from hammerstein_ctrl.kernels import get_normal_kernel
+    from hammerstein_ctrl._kernels import get_normal_kernel
 
     kernel = get_normal_kernel(2, "foh", 5, 3, False, False)
     assert all(get_normal_kernel(2, "foh", lanes, 3, False, False).number == kernel.number for lanes in range(2, 17))
@@ -553,7 +557,7 @@ def _plain_case(name):
 def test_plain_structures_pass_from_the_coefficients_with_the_general_passs_sums(name, emps_case):
     """One compiled call from the coefficients (discretisation and pass) gives the bits of the general
     pass (simulate.normal_pass, the same kernel); a row the compiled Pade cannot take goes the general way."""
-    from hammerstein_ctrl.simulate import normal_pass
+    from hammerstein_ctrl.simulate._simulate import normal_pass
 
     cost, x = (emps_case.cost, np.asarray(emps_case.paper["nspsa"]["beta"])) if name == "emps" else _plain_case(name)
     h = forward_steps(x)
@@ -571,7 +575,7 @@ def test_plain_structures_pass_from_the_coefficients_with_the_general_passs_sums
 
 def test_a_pass_books_its_best_neighbour_as_the_row_of_neighbours():
     """LM's pass books p + 1 evaluations; a neighbour that becomes the best point is the row neighbours() gives."""
-    from hammerstein_ctrl.optimize.least_squares import _CountedResiduals
+    from hammerstein_ctrl.optimize._least_squares import _CountedResiduals
 
     counted = _CountedResiduals(lambda x: x, maxfev=100)
     x = np.array([0.1, -3.0, 7.0])
@@ -593,7 +597,7 @@ def test_a_biproper_block_whose_direct_term_is_fixed_at_zero_passes_with_the_gen
     coefficients.  With the term in, d v = 0 is added to each output, which changes how the compiled
     pass fuses ``r = y - c x`` (one state: a lone product) and so the rounding of the sums.
     Review of 9464198: the direct flag was chosen from the widths alone."""
-    from hammerstein_ctrl.simulate import normal_pass
+    from hammerstein_ctrl.simulate._simulate import normal_pass
 
     linear = hc.LinearStructure(1, 1, monic_numerator=False, fixed={"b1": 0.0})     # b0 / (p + a0)
     cost = HammersteinCost(_synthetic(hold), hc.HammersteinStructure(linear, hc.Polynomial(2)))
@@ -617,7 +621,7 @@ def test_the_compiled_lm_loop_gives_the_python_loops_bits(name, emps_case, monke
     cost's direct_pass hidden): the same x, J, steps, evaluations, message and history, bit for bit,
     from starts that converge and that reject steps (the Python loop takes over after each), with
     budgets that end inside the compiled loop, and with calls of the loop cut short (LOOP_MAX_WORK)."""
-    from hammerstein_ctrl.optimize import least_squares
+    from hammerstein_ctrl.optimize import _least_squares as least_squares
 
     cost, x = (emps_case.cost, np.asarray(emps_case.paper["nspsa"]["beta"])) if name == "emps" else _plain_case(name)
     rng = np.random.default_rng(7)
@@ -943,8 +947,8 @@ def test_the_compiled_loop_refuses_arrays_that_do_not_fit_before_the_c_code_read
     """normal_lm._loop hands sizes to C: a point of another length, logs too short for the evaluations left, a log
     already written, or a pass whose block does not match its kernel's order are a ValueError, never a read or
     write past an array; the arrays _Passes.loop makes pass."""
-    from hammerstein_ctrl.kernels import normal_kernel_number
-    from hammerstein_ctrl.normal_equations import FD_REL_STEP
+    from hammerstein_ctrl._kernels import normal_kernel_number
+    from hammerstein_ctrl.optimize._normal_equations import FD_REL_STEP
 
     cost = _polynomial_cost()
     d = cost.direct_pass()
@@ -993,10 +997,10 @@ def test_the_compiled_loop_runs_from_a_first_fit_and_the_setting_chooses_it(tmp_
     import sys
 
     from hammerstein_ctrl import config
-    from hammerstein_ctrl.optimize import normal_lm
+    from hammerstein_ctrl.optimize import _normal_lm as normal_lm
 
-    code = ("import numpy as np, hammerstein_ctrl as hc; from hammerstein_ctrl.optimize import normal_lm as lm\n"
-            "from hammerstein_ctrl.objective import HammersteinCost\n"
+    code = ("import numpy as np, hammerstein_ctrl as hc; from hammerstein_ctrl.optimize import _normal_lm as lm\n"
+            "from hammerstein_ctrl.fit import HammersteinCost\n"
             "t = np.arange(600) * 0.01; u = np.sin(1.3 * t) + 0.5 * np.sign(np.sin(0.4 * t))\n"
             "y = np.convolve(u ** 3, np.exp(-t[:80]), mode='full')[:t.size] * 0.01\n"
             "cost = HammersteinCost(hc.IOData(u, y, dt=0.01), hc.HammersteinStructure(hc.LinearStructure(0, 2), "

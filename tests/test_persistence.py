@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 import hammerstein_ctrl as hc
-from hammerstein_ctrl import persistence
+from hammerstein_ctrl.io import _persistence as persistence
 from hammerstein_ctrl.exceptions import ParameterError, UnknownNameError
 
 EMPS_OPT = [3.138764, 0.544501, -0.398365, 0.045066]

@@ -10,7 +10,8 @@ import scipy.signal  # noqa: E402
 from matplotlib.figure import Figure  # noqa: E402
 
 import hammerstein_ctrl as hc  # noqa: E402
-from hammerstein_ctrl import minimize, plots  # noqa: E402
+from hammerstein_ctrl import minimize  # noqa: E402
+from hammerstein_ctrl.plotting import _figures as plots
 from hammerstein_ctrl.exceptions import ParameterError  # noqa: E402
 from hammerstein_ctrl.paper.settings import eq8_methods, eq8_objective  # noqa: E402
 from hammerstein_ctrl.paper.study import run_study  # noqa: E402

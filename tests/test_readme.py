@@ -10,7 +10,7 @@ import control as ct
 import numpy as np
 import pytest
 
-from hammerstein_ctrl.bench import identification_comparison
+from speed import identification_comparison
 
 ROOT = Path(__file__).resolve().parents[1]
 README = (ROOT / "README.md").read_text()
@@ -57,12 +57,12 @@ def _cli_examples():
 
 @pytest.mark.slow
 def test_every_cli_example_runs_as_written(rig, emps_dir):
-    """reproduce and bench are run by their own tests; every other example is run here as written."""
+    """reproduce is run by its own tests; every other example is run here as written."""
     (rig / "DATA_EMPS.mat").symlink_to(emps_dir / "DATA_EMPS.mat")
     ran = 0
     for line in _cli_examples():
         words = line.split()
-        if words[1] in ("reproduce", "bench"):
+        if words[1] == "reproduce":
             continue
         proc = subprocess.run([sys.executable, "-m", "hammerstein_ctrl.cli", *words[1:]], cwd=rig,
                               capture_output=True, text=True)

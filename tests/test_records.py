@@ -8,7 +8,7 @@ import scipy.signal
 
 from hammerstein_ctrl import DataError, IOData, load_emps, read_record
 from hammerstein_ctrl.paper.datasets import DataNotFoundError
-from hammerstein_ctrl.records import add_record_arguments, record_from_args
+from hammerstein_ctrl.data._records import add_record_arguments, record_from_args
 
 DT = 1e-3
 N = 1000
@@ -285,8 +285,8 @@ import tracemalloc  # noqa: E402
 from hypothesis import HealthCheck, given, settings  # noqa: E402
 from hypothesis import strategies as st  # noqa: E402
 
-from hammerstein_ctrl import records  # noqa: E402
-from hammerstein_ctrl.safe_io import MAX_BYTES_ENV  # noqa: E402
+from hammerstein_ctrl.data import _records as records  # noqa: E402
+from hammerstein_ctrl._safe_io import MAX_BYTES_ENV  # noqa: E402
 
 
 @pytest.mark.skipif(not hasattr(os, "mkfifo"), reason="needs FIFOs")

@@ -13,9 +13,9 @@ import numpy as np
 import pytest
 import scipy.signal
 
-from hammerstein_ctrl import residual_analysis as RA
+from hammerstein_ctrl.assess import _residuals as RA
 from hammerstein_ctrl.exceptions import ParameterError
-from hammerstein_ctrl.residual_analysis import residual_analysis
+from hammerstein_ctrl.assess import residual_analysis
 
 N = 4000
 

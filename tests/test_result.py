@@ -6,8 +6,8 @@ import pytest
 
 import hammerstein_ctrl as hc
 from hammerstein_ctrl.exceptions import ParameterError
-from hammerstein_ctrl.persistence import SavedResult
-from hammerstein_ctrl.result import IdentificationResult
+from hammerstein_ctrl.io import SavedResult
+from hammerstein_ctrl.fit import IdentificationResult
 
 
 def _record(seed, n=800, name="rig"):

@@ -12,10 +12,10 @@ import numpy as np
 import pytest
 
 from hammerstein_ctrl import load_trs
-from hammerstein_ctrl.cli import REPRODUCE_OUTPUTS, main
+from hammerstein_ctrl.cli._main import REPRODUCE_OUTPUTS, main
 from hammerstein_ctrl.exceptions import DataError, DataNotFoundError
-from hammerstein_ctrl.safe_io import (MAX_BYTES_ENV, UnsafePathError, check_input, open_append, open_lock,
-                                      read_bytes, save_figure, write_bytes, write_text)
+from hammerstein_ctrl._safe_io import (MAX_BYTES_ENV, UnsafePathError, check_input, open_append, open_lock, read_bytes,
+                                       save_figure, write_bytes, write_text)
 
 VICTIM_TEXT = "precious data\n"
 
@@ -74,7 +74,7 @@ def test_every_writer_refuses_a_symbolic_link(tmp_path, victim, writer, dangling
 
 def test_a_link_race_after_the_check_still_cannot_redirect_a_lock(tmp_path, victim, monkeypatch):
     """The check is a courtesy; O_NOFOLLOW is the guarantee: a link planted between the two is refused."""
-    import hammerstein_ctrl.safe_io as safe_io
+    import hammerstein_ctrl._safe_io as safe_io
 
     lock = tmp_path / "r.lock"
 
@@ -186,7 +186,7 @@ def test_saving_a_model_or_result_never_follows_a_link(tmp_path, victim):
     import control
 
     from hammerstein_ctrl import Coulomb, HammersteinModel
-    from hammerstein_ctrl.persistence import save_model
+    from hammerstein_ctrl.io import save_model
 
     link = tmp_path / "m.json"
     os.symlink(victim, link)
@@ -200,7 +200,7 @@ def model_json(tmp_path):
     import control
 
     from hammerstein_ctrl import Coulomb, HammersteinModel
-    from hammerstein_ctrl.persistence import save_model
+    from hammerstein_ctrl.io import save_model
 
     path = tmp_path / "m.json"
     save_model(HammersteinModel(control.tf([1], [1, 3.1, 0]), Coulomb(), [0.5, -0.4, 0.05]), path)

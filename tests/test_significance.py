@@ -14,9 +14,9 @@ import pytest
 import scipy.signal
 
 import hammerstein_ctrl as hc
-from hammerstein_ctrl.nested import delay_scan_count, nested_linear_structure
-from hammerstein_ctrl.significance import nested_f_test, whitened_sse
-from hammerstein_ctrl.uncertainty import NoiseModel
+from hammerstein_ctrl.fit._nested import delay_scan_count, nested_linear_structure
+from hammerstein_ctrl.assess._significance import nested_f_test, whitened_sse
+from hammerstein_ctrl.assess import NoiseModel
 
 
 def _regression_pvalues(seeds, *, ar_pole=0.0, white=False, n=400):
@@ -48,7 +48,7 @@ def test_whitening_keeps_the_test_calibrated_on_coloured_noise_where_the_plain_t
 
 
 def test_whitened_sums_by_blocks_equal_the_whole_filter(monkeypatch):
-    from hammerstein_ctrl import significance
+    from hammerstein_ctrl.assess import _significance as significance
 
     r = np.random.default_rng(1).standard_normal(1000)
     ar = np.array([1.0, -0.5, 0.2])

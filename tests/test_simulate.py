@@ -10,8 +10,8 @@ import hammerstein_ctrl as hc
 from hammerstein_ctrl import DataError, ParameterError
 from hammerstein_ctrl._checks import MAX_ORDER
 from hammerstein_ctrl.exceptions import HammersteinError
-from hammerstein_ctrl.simulate import (MAX_UNROLLED_STATES, free_response, lsim, response_blocks, simulate_batch,
-                                       simulate, sse_batch)
+from hammerstein_ctrl.simulate._simulate import (MAX_UNROLLED_STATES, free_response, lsim, response_blocks,
+                                                 simulate_batch, simulate, sse_batch)
 
 EMPS_BETAS = [
     [3.2870, 0.59130, -0.4448, 0.0486],
@@ -104,8 +104,9 @@ def test_reject_unstable_option(emps_dir):
 
 def test_reject_unstable_reaches_least_squares(emps_dir):
     """Residuals and normal equations see an unstable candidate as the cost does (huge, not a fit)."""
-    from hammerstein_ctrl import identify, presets
-    from hammerstein_ctrl.normal_equations import NONFINITE_RESIDUAL, neighbours
+    from hammerstein_ctrl import presets
+    from hammerstein_ctrl import identify
+    from hammerstein_ctrl.optimize._normal_equations import NONFINITE_RESIDUAL, neighbours
 
     strict, plain = presets.emps(path=emps_dir, reject_unstable=True), presets.emps(path=emps_dir)
     bad, good = np.asarray(strict.x0, float), np.array([3.1, 0.5, -0.4, 0.04])

@@ -23,7 +23,7 @@ busy with vector arithmetic slows the batched kernel's own thread by up to ~1.9x
 import numpy as np
 import pytest
 
-from hammerstein_ctrl import bench
+import speed as bench
 
 #: Largest accepted CPU seconds of the process per wall second while the sibling runs.
 CPU_PER_WALL_BOUND = 1.2

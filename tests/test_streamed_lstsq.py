@@ -14,13 +14,15 @@ import pytest
 import scipy.linalg
 
 from hammerstein_ctrl import (Coulomb, HammersteinStructure, IOData, LinearStructure, PiecewiseLinear, Polynomial,
-                              Saturation, Tanh, identify, streamed_lstsq)
-from hammerstein_ctrl import initialize
+                              Saturation, Tanh, identify)
+from hammerstein_ctrl.optimize import _streamed_lstsq as streamed_lstsq
+from hammerstein_ctrl.fit import _initialize as initialize
 from hammerstein_ctrl.exceptions import DataError
-from hammerstein_ctrl.initialize import Budget, initial_points
-from hammerstein_ctrl.streamed_lstsq import (column_blocks, constant_column, factor_of_columns, factor_of_rows,
-                                             factor_sse, orthogonal_part, rank_tolerance, residual,
-                                             residual_of_columns, solve_minimum_norm, solve_scaled, triangular_factor)
+from hammerstein_ctrl.fit._initialize import Budget, initial_points
+from hammerstein_ctrl.optimize._streamed_lstsq import (column_blocks, constant_column, factor_of_columns,
+                                                       factor_of_rows, factor_sse, orthogonal_part, rank_tolerance,
+                                                       residual, residual_of_columns, solve_minimum_norm, solve_scaled,
+                                                       triangular_factor)
 
 SMALL_BLOCK = 37
 
@@ -227,7 +229,8 @@ def test_auto_finds_a_plant_on_a_long_record():
     """
     import control
 
-    from hammerstein_ctrl import Coulomb, IOData, identify
+    from hammerstein_ctrl import Coulomb, IOData
+    from hammerstein_ctrl import identify
 
     n = 20_000
     rng = np.random.default_rng(1)
@@ -255,7 +258,7 @@ def test_arx_poles_of_a_noisy_oversampled_record_make_a_stable_candidate():
     import control
 
     from hammerstein_ctrl import Coulomb, IOData
-    from hammerstein_ctrl.simulate import unstable
+    from hammerstein_ctrl.simulate._simulate import unstable
 
     n = 10_000
     rng = np.random.default_rng(1)
@@ -720,7 +723,7 @@ def test_the_factor_is_lapacks_to_rounding_at_every_scale(scales):
     subnormal, of mixed scales or zero; a value that is not finite makes R all NaN."""
     from scipy.linalg import lapack
 
-    from hammerstein_ctrl.streamed_lstsq import factor_of_rows
+    from hammerstein_ctrl.optimize._streamed_lstsq import factor_of_rows
 
     rows = np.random.default_rng(len(set(scales))).normal(size=(6, 3000)) * np.array(scales)[:, None]
     R = factor_of_rows(rows.copy())
@@ -737,7 +740,7 @@ def test_the_factor_takes_squares_below_the_normal_range_and_any_block_it_is_giv
     where they must be); a block of another width is refused."""
     from scipy.linalg import lapack
 
-    from hammerstein_ctrl.streamed_lstsq import factor_of_blocks, factor_of_rows
+    from hammerstein_ctrl.optimize._streamed_lstsq import factor_of_blocks, factor_of_rows
 
     v = 1.6810375542488234e-156
     rows = np.vstack([np.r_[0.0, np.full(8192, v)], np.linspace(-1.0, 1.0, 8193)])
@@ -760,7 +763,7 @@ def test_the_rank_check_agrees_with_the_svd_on_clear_and_borderline_factors():
     """_clear_of_rank_loss proves independence from the inverse's norm where it can and asks the SVD otherwise:
     over random unit-column triangular factors, from well conditioned to singular (condition 1e2 to 1e12, around
     the cut of 1e-8), it decides as the singular values say."""
-    from hammerstein_ctrl.streamed_lstsq import _clear_of_rank_loss
+    from hammerstein_ctrl.optimize._streamed_lstsq import _clear_of_rank_loss
 
     rng = np.random.default_rng(11)
     decided = []

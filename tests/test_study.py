@@ -217,7 +217,7 @@ def test_untrustworthy_results_lines_are_set_aside_and_their_trials_rerun(trs_ca
 
 
 def test_jobs_past_the_cores_are_capped_at_their_number():
-    from hammerstein_ctrl.executors import make_executor, usable_cores
+    from hammerstein_ctrl._executors import make_executor, usable_cores
 
     pool, owned = make_executor(None, 10 * usable_cores() + 7)
     try:

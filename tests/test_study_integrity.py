@@ -8,8 +8,8 @@ import pytest
 
 from hammerstein_ctrl import presets
 from hammerstein_ctrl.cli import main
-from hammerstein_ctrl.paper.study import (RECORD_SCHEMA, ResultsFileWarning, StudyLockedError, record_digest,
-                                    run_study, validate_record)
+from hammerstein_ctrl.paper.study import (RECORD_SCHEMA, ResultsFileWarning, StudyLockedError, record_digest, run_study,
+                                          validate_record)
 
 from _processes import cli, lines, wait_for
 
@@ -140,7 +140,7 @@ def test_two_concurrent_runs_one_proceeds_the_other_reports_the_lock(capsys, tmp
 
 _POOL_WITHOUT_PDEATHSIG = """
 import sys, time, concurrent.futures as cf, multiprocessing, os
-import hammerstein_ctrl.executors as executors
+import hammerstein_ctrl._executors as executors
 sys.platform = "not-linux"  # the workers rely on the parent watch alone
 pool = cf.ProcessPoolExecutor(2, mp_context=multiprocessing.get_context("fork"),
                               initializer=executors.worker_init, initargs=(os.getpid(),))
@@ -157,7 +157,7 @@ def test_without_pdeathsig_the_parent_watch_ends_the_workers(tmp_path):
     import subprocess
 
     from _processes import alive, children
-    from hammerstein_ctrl.executors import PARENT_WATCH_INTERVAL
+    from hammerstein_ctrl._executors import PARENT_WATCH_INTERVAL
 
     proc = subprocess.Popen([sys.executable, "-c", _POOL_WITHOUT_PDEATHSIG], stdout=subprocess.PIPE, text=True,
                             env=dict(os.environ))

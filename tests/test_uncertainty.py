@@ -17,7 +17,8 @@ import scipy.signal
 import scipy.stats
 
 import hammerstein_ctrl as hc
-from hammerstein_ctrl import config, uncertainty as U
+from hammerstein_ctrl import config
+from hammerstein_ctrl.assess import _uncertainty as U
 from hammerstein_ctrl.exceptions import ParameterError
 from test_known_truth import DT, SYSTEMS, make_case, simulate_truth
 

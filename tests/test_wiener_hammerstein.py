@@ -10,8 +10,8 @@ from scipy.integrate import solve_ivp
 
 import hammerstein_ctrl as hc
 from hammerstein_ctrl.exceptions import ParameterError
-from hammerstein_ctrl.wiener_hammerstein import UnitGainBlock, WienerHammersteinModel, WienerHammersteinStructure
-from hammerstein_ctrl.wh_fit import WienerHammersteinCost, splits
+from hammerstein_ctrl.blocks import UnitGainBlock, WienerHammersteinModel, WienerHammersteinStructure
+from hammerstein_ctrl.fit._wh_fit import WienerHammersteinCost, splits
 
 # G1 = a0 / (p^2 + a1 p + a0), G2 = a0 (p + b0) / (b0 (p^2 + a1 p + a0)) as coefficient pairs, static gain 1 each
 G1 = ([1.0], [1.0, 1.2, 4.0])
@@ -197,7 +197,7 @@ def test_the_time_unit_defaults_to_the_records_sample_time():
 
 
 def test_models_and_results_survive_a_save_and_load(tmp_path, tanh_case):
-    from hammerstein_ctrl.persistence import load_model, load_result, save_result
+    from hammerstein_ctrl.io import load_model, load_result, save_result
 
     t, u, y, p = tanh_case
     s = _structure(hc.Tanh(), offset=True, initial_state="estimate", substeps=4)
@@ -325,7 +325,7 @@ def test_beta_refuses_a_model_of_another_structure(change, match):
 def test_control_design_points_to_the_linearisation(wh_fit):
     r, _ = wh_fit
     with pytest.raises(ParameterError, match="model.linearize"):
-        hc.control_design.tune_pid(r.model)
+        hc.design.tune_pid(r.model)
     lin = r.model.linearize(0.0)
     assert float(lin.dcgain()) == pytest.approx(r.model.params[0] * r.model.params[1], rel=1e-6)
     motion = r.model.motion_model(0.0)
@@ -348,18 +348,18 @@ def test_the_middle_map_is_plotted_and_other_models_say_they_have_none(wh_fit, t
 
     matplotlib.use("Agg")
     r, _ = wh_fit
-    fig = hc.plots.nonlinearity(r, block="middle", confidence=0.95)
+    fig = hc.plotting.nonlinearity(r, block="middle", confidence=0.95)
     x = fig.axes[0].lines[0].get_xdata()
     np.testing.assert_allclose(fig.axes[0].lines[0].get_ydata(), r.model.f(x))
     hammerstein = hc.identify(trs_case.data, trs_case.structure)
     with pytest.raises(ParameterError, match="has no middle nonlinearity"):
-        hc.plots.nonlinearity(hammerstein, block="middle")
+        hc.plotting.nonlinearity(hammerstein, block="middle")
 
 
 def test_a_loaded_result_plots_with_its_record(tmp_path, wh_fit):
     import matplotlib
 
-    from hammerstein_ctrl.persistence import load_result, save_result
+    from hammerstein_ctrl.io import load_result, save_result
 
     matplotlib.use("Agg")
     r, data = wh_fit
@@ -386,7 +386,7 @@ def test_a_dead_time_delays_the_input_exactly(tanh_case):
 
 
 def test_a_fixed_dead_time_is_fitted_without_x0_and_survives_files(tmp_path):
-    from hammerstein_ctrl.persistence import load_model
+    from hammerstein_ctrl.io import load_model
 
     s = WienerHammersteinStructure((0, 2), hc.Polynomial(3), (1, 2), offset=True, time_unit=1.0, delay=0.35)
     truth = np.r_[_beta([1.0, 0.1, -0.15]), 0.2]

@@ -24,11 +24,11 @@ with a finite ``fun``):
 from ._common import (BUDGET_EXHAUSTED, CALLBACK_STOP, COMPLETED, DIVERGED, NO_FINITE_VALUE, SOLVER_FAILED,
                       STATUS_CODES, Budget, BudgetExhausted, History, OptimizeResult, as_rng, as_x0)
 from ._minpack import MinpackResult, lmder
-from .amvo_sca import amvo_sca
-from .least_squares import levenberg_marquardt
-from .gains import SPALL_ALPHA, SPALL_GAMMA, GainSequence, PerturbationGain, StepGain
-from .minimize import METHODS, SCIPY_METHODS, canonical_method, minimize
-from .spsa import nlspsa, normalized_difference, nspsa, spsa
+from ._amvo_sca import amvo_sca
+from ._least_squares import levenberg_marquardt
+from ._gains import SPALL_ALPHA, SPALL_GAMMA, GainSequence, PerturbationGain, StepGain
+from ._minimize import METHODS, SCIPY_METHODS, canonical_method, minimize
+from ._spsa import nlspsa, normalized_difference, nspsa, spsa
 
 __all__ = [
     "Budget", "BudgetExhausted", "OptimizeResult",

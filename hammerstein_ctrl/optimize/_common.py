@@ -151,7 +151,7 @@ class CountedObjective(Budget):
       that would exceed ``maxfev`` raises :class:`BudgetExhausted` instead.
     * Arithmetic errors (overflow, division by zero) score ``inf``.
     * If ``fun`` has a ``batch`` method (like
-      :class:`~hammerstein_ctrl.objective.HammersteinCost`) batches use it.
+      :class:`~hammerstein_ctrl.fit.HammersteinCost`) batches use it.
     """
 
     def __init__(self, fun, args=(), maxfev: int | None = None):

@@ -31,8 +31,8 @@ from typing import NamedTuple
 import numpy as np
 
 from ..exceptions import DataError, DataNotFoundError
-from ..iodata import IOData
-from ..safe_io import MAX_INPUT_BYTES, check_input
+from ..data._iodata import IOData
+from .._safe_io import MAX_INPUT_BYTES, check_input
 from .datasets import ENV_DATA
 
 __all__ = ["Benchmark", "load_wiener_hammerstein", "load_silverbox", "load_cascaded_tanks", "benchmark_rmse",
@@ -196,8 +196,8 @@ def wh_benchmark_structure(estimation: IOData, knots: int = WH_KNOTS):
     >>> wh_benchmark_structure(rec, knots=5).param_names[:6]
     ('g1_a1', 'g1_a2', 'g1_a3', 'g2_b1', 'g2_b2', 'g2_a1')
     """
-    from ..nonlinearities import PiecewiseLinear
-    from ..wiener_hammerstein import WienerHammersteinStructure
+    from ..blocks._nonlinearities import PiecewiseLinear
+    from ..blocks._wiener_hammerstein import WienerHammersteinStructure
 
     u = np.asarray(estimation.u, dtype=float).reshape(-1)
     knots_at = np.quantile(u, np.linspace(0.005, 0.995, int(knots)))
@@ -215,9 +215,9 @@ def silverbox_structure():
     >>> silverbox_structure().param_names
     ('b0', 'b1', 'b2', 'a1', 'a2', 'a3', 'd1', 'd2', 'd3', 'y0')
     """
-    from ..lure import LureStructure
-    from ..nonlinearities import Polynomial
-    from ..structure import LinearStructure
+    from ..blocks._lure import LureStructure
+    from ..blocks._nonlinearities import Polynomial
+    from ..blocks._structure import LinearStructure
 
     return LureStructure(LinearStructure(2, 4, monic_numerator=False, fixed={"a0": 0.0}), Polynomial(3),
                          feedback="output", offset=True)
@@ -232,9 +232,9 @@ def silverbox_duffing_structure():
     >>> silverbox_duffing_structure().param_names
     ('b0', 'a1', 'd1', 'd2', 'd3', 'y0')
     """
-    from ..lure import LureStructure
-    from ..nonlinearities import Polynomial
-    from ..structure import LinearStructure
+    from ..blocks._lure import LureStructure
+    from ..blocks._nonlinearities import Polynomial
+    from ..blocks._structure import LinearStructure
 
     return LureStructure(LinearStructure(0, 2, monic_numerator=False, fixed={"a0": 0.0}), Polynomial(3),
                          feedback="output", offset=True)

@@ -1,6 +1,6 @@
 """The two case-study datasets, and the record type and reader they use.
 
-* :class:`IOData` (from :mod:`hammerstein_ctrl.iodata`) is a validated
+* :class:`IOData` (from :mod:`hammerstein_ctrl.data`) is a validated
   single-input single-output record on a uniform time grid (``t, u, y, dt,
   name``), in the spirit of ``nonlinear_benchmarks.Input_output_data``: it
   unpacks as ``u, y = data`` and slices as ``data[:12000]``.
@@ -12,7 +12,7 @@
 * :func:`load_trs` returns the bundled TRS *reconstruction* and
   :func:`make_trs_reconstruction` regenerates it (the paper's TRS measurements
   are not public; see ``data/README.md``).
-* :func:`read_record` (from :mod:`hammerstein_ctrl.records`) reads a user's
+* :func:`read_record` (from :mod:`hammerstein_ctrl.data`) reads a user's
   own CSV, text, MAT or NPZ file.
 
 Examples
@@ -32,9 +32,9 @@ from pathlib import Path
 import numpy as np
 
 from ..exceptions import DataError
-from ..iodata import IOData
-from ..records import DataNotFoundError, read_record
-from ..safe_io import MAX_INPUT_BYTES, check_input
+from ..data._iodata import IOData
+from ..data._records import DataNotFoundError, read_record
+from .._safe_io import MAX_INPUT_BYTES, check_input
 
 __all__ = [
     "IOData",
@@ -229,8 +229,8 @@ def make_trs_reconstruction(
     -------
     IOData
     """
-    from ..nonlinearities import Tanh
-    from ..simulate import simulate
+    from ..blocks._nonlinearities import Tanh
+    from ..simulate._simulate import simulate
 
     rng = np.random.default_rng(seed)
     n = int(round(duration / dt)) + 1

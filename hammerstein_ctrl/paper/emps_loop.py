@@ -27,9 +27,9 @@ import numpy as np
 
 from .datasets import _EMPS_FILES, _locate_emps
 from ..exceptions import DataError, ParameterError
-from ..in_loop import KnownLoop
-from ..iodata import IOData
-from ..lure import LureStructure, lure_structure
+from ..fit._in_loop import KnownLoop
+from ..data._iodata import IOData
+from ..blocks._lure import LureStructure, lure_structure
 
 __all__ = ["EMPS_PHYSICAL", "EMPS_LOOP_VARIABLES", "emps_lure_structure", "emps_controller", "load_emps_loop",
            "physical_beta", "physical_parameters"]
@@ -72,7 +72,7 @@ def emps_controller(kp: float, kv: float, dt: float):
 
 def load_emps_loop(kind: str = "estimation", path=None):
     """``(record, loop, gains)`` of an EMPS file: the record (``vir`` in, ``qm`` out, zero-order hold: the
-    drive holds ``vir`` between samples), the :class:`~hammerstein_ctrl.in_loop.KnownLoop` it was measured in
+    drive holds ``vir`` between samples), the :class:`~hammerstein_ctrl.fit.KnownLoop` it was measured in
     (the controller from the stored gains, the reference ``qg``, the pulses), and ``{"kp", "kv", "gtau"}``.
 
     Parameters

@@ -24,9 +24,9 @@ import numpy as np
 
 from .datasets import TRS_TRUE_BETA, IOData, load_emps, load_trs
 from ..exceptions import UnknownNameError
-from ..nonlinearities import Coulomb, Tanh
-from ..objective import HammersteinCost
-from ..structure import HammersteinStructure, LinearStructure
+from ..blocks._nonlinearities import Coulomb, Tanh
+from ..fit._objective import HammersteinCost
+from ..blocks._structure import HammersteinStructure, LinearStructure
 
 __all__ = ["Preset", "trs", "emps", "get", "PRESETS", "STRUCTURES", "X0",
            "trs_structure", "emps_structure"]
@@ -113,7 +113,7 @@ def trs(data: IOData | None = None, *, reject_unstable: bool = False) -> Preset:
     data : IOData, optional
         Another TRS-like record (default: :func:`~hammerstein_ctrl.paper.datasets.load_trs`).
     reject_unstable : bool, default False
-        Passed to :class:`~hammerstein_ctrl.objective.HammersteinCost`.
+        Passed to :class:`~hammerstein_ctrl.fit.HammersteinCost`.
     """
     from .settings import trs_methods
 
@@ -154,7 +154,7 @@ def emps(path=None, *, duration: float = 12.0, reject_unstable: bool = False) ->
     duration : float, default 12.0
         Seconds of the estimation record to use.
     reject_unstable : bool, default False
-        Passed to :class:`~hammerstein_ctrl.objective.HammersteinCost`.  The
+        Passed to :class:`~hammerstein_ctrl.fit.HammersteinCost`.  The
         paper's initial point is unstable (``a1 = -1``), so rejecting unstable
         candidates changes the problem.
     """

@@ -5,12 +5,14 @@ from __future__ import annotations
 import csv
 import io
 import math
+import statistics
+import time
 
 import numpy as np
 
-from ..display import METHOD_LABELS
+from ..data._display import METHOD_LABELS
 
-__all__ = ["study_table", "best_models", "PAPER_TABLES"]
+__all__ = ["study_table", "best_models", "PAPER_TABLES", "time_call", "forced_response_cost"]
 
 #: Where each case's numbers come from in the paper.
 PAPER_TABLES = {"trs": "Table 3", "emps": "Table 7"}
@@ -105,7 +107,7 @@ def best_models(study, validation=None) -> dict:
     "validation"?}}``; ``validation`` (an IOData record) adds ``sse, rmse, nrmse, fit_percent``
     for every method that did not diverge.
     """
-    from ..metrics import fit_report
+    from ..data._metrics import fit_report
 
     out = {}
     for m in study.methods:
@@ -121,3 +123,24 @@ def best_models(study, validation=None) -> dict:
                 entry["validation"] = fit_report(validation.y, model.simulate(validation))
         out[m] = entry
     return out
+
+
+def time_call(fn, *, repeat: int = 5, number: int = 1) -> float:
+    """Median wall time of ``fn()`` in seconds over ``repeat`` runs of ``number`` calls."""
+    fn()  # warm-up (compilation, caches)
+    runs = []
+    for _ in range(repeat):
+        t0 = time.perf_counter()
+        for _ in range(number):
+            fn()
+        runs.append((time.perf_counter() - t0) / number)
+    return statistics.median(runs)
+
+
+def forced_response_cost(case, model):
+    """J of ``model`` on the case's record computed the slow way, through ``control.forced_response``."""
+    import control
+
+    t, u, y = case.data.t, case.data.u, case.data.y
+    yhat = control.forced_response(model.linear, t, model.g(u)).outputs
+    return float(np.sum((y - yhat) ** 2))

@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..optimize.gains import PerturbationGain, StepGain
+from ..optimize._gains import PerturbationGain, StepGain
 
 __all__ = ["trs_methods", "emps_methods", "eq8_objective", "eq8_methods", "TRS_BOUNDS", "EMPS_BOUNDS"]
 
@@ -39,7 +39,7 @@ EMPS_BOUNDS = ((0.0, 10.0), (0.0, 2.0), (-2.0, 2.0), (-0.5, 0.5))
 
 
 def trs_methods() -> dict:
-    """Keyword arguments for :func:`~hammerstein_ctrl.optimize.minimize`, TRS (Table 2)."""
+    """Keyword arguments for :func:`~hammerstein_ctrl.optimize._minimize`, TRS (Table 2)."""
     return {
         "spsa": {"method": "spsa", "maxiter": 1000,
                  "options": {"a": StepGain(0.02, 10, 0.9), "c": PerturbationGain(0.1, 1 / 6), **LAST}},
@@ -55,7 +55,7 @@ def trs_methods() -> dict:
 
 
 def emps_methods() -> dict:
-    """Keyword arguments for :func:`~hammerstein_ctrl.optimize.minimize`, EMPS (Table 6, fixed)."""
+    """Keyword arguments for :func:`~hammerstein_ctrl.optimize._minimize`, EMPS (Table 6, fixed)."""
     c = PerturbationGain(0.2, 1 / 6)
     return {
         "spsa": {"method": "spsa", "maxiter": 1250, "options": {"a": StepGain(2e-4, 24, 0.9), "c": c, **LAST}},

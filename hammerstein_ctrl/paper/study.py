@@ -44,10 +44,10 @@ import scipy.stats
 
 from .._linalg import single_threaded_blas
 from ..exceptions import HammersteinError, ParameterError
-from ..executors import make_executor
-from ..safe_io import MAX_INPUT_BYTES, check_output, open_append, open_lock, read_bytes, write_bytes, write_text
+from .._executors import make_executor
+from .._safe_io import MAX_INPUT_BYTES, check_output, open_append, open_lock, read_bytes, write_bytes, write_text
 from ..optimize import canonical_method, minimize
-from .._writer import encode_float as json_float, json_safe
+from ..blocks._json import encode_float as json_float, json_safe
 
 __all__ = ["run_study", "StudyResult", "trial_seed", "ranksum", "validate_record", "record_digest", "RECORD_SCHEMA",
            "StudyLockedError", "StudyInterrupted", "ResultsFileWarning"]
@@ -537,7 +537,7 @@ class StudyResult:
         return min(rs, key=lambda r: _rank_value(r["fun"]))
 
     def best_model(self, method: str):
-        """The :class:`~hammerstein_ctrl.model.HammersteinModel` of :meth:`best`."""
+        """The :class:`~hammerstein_ctrl.blocks.HammersteinModel` of :meth:`best`."""
         return self.case.structure.model(np.array([_from_json_float(v) for v in self.best(method)["x"]]))
 
     # -- reports ------------------------------------------------------------------
@@ -565,10 +565,11 @@ class StudyResult:
 
     # -- notebook display (logic in display.py) -----------------------------------
     def _repr_html_(self) -> str:
-        from ..display import study_html
+        from ..data._display import study_html
         return study_html(self)
 
     def to_frame(self, trials: bool = False):
-        """Summary per method, or one row per trial, as a DataFrame (:func:`hammerstein_ctrl.display.study_frame`)."""
-        from ..display import study_frame
+        """Summary per method, or one row per trial, as a DataFrame
+        (:func:`hammerstein_ctrl.data._display.study_frame`)."""
+        from ..data._display import study_frame
         return study_frame(self, trials=trials)
