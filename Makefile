@@ -71,7 +71,7 @@ docs: $(DOCS_STAMP)
 	@echo "docs: $$(find docs/_build/html -name '*.html' | wc -l) pages in docs/_build/html"
 
 bench: $(STAMP)
-	$(BIN)/hammerstein-ctrl bench --methods nspsa nlspsa spsa amvo-sca
+	$(BIN)/python benchmarks/speed.py --methods nspsa nlspsa spsa amvo-sca
 	$(BIN)/pytest -q tests --pyargs hammerstein_ctrl -m timing
 
 clean:

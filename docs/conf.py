@@ -59,13 +59,33 @@ def _gallery() -> None:
         shutil.copyfile(nb, target / nb.name)
 
 
+#: The public subpackages, bottom layer first, each with the title of its page.
+SUBPACKAGES = {"data": "Records and measures of fit", "optimize": "Optimisers", "simulate": "Simulation",
+               "blocks": "Structures and models", "plotting": "Figures", "assess": "How far to trust a fit",
+               "fit": "Identification", "design": "Controller design", "io": "Files", "cli": "The command line"}
+
+
 def _api_pages() -> None:
-    """The API reference's list: every name of ``hammerstein_ctrl.__all__`` (but the version string)."""
-    names = [n for n in hc.__all__ if n != "__version__"]
+    """The API reference: a page for every name of ``hammerstein_ctrl.__all__`` (but the version string), and one
+    page for each public subpackage, whose names not at the top level get pages of their own."""
+    import importlib
+
+    top = {id(getattr(hc, n)) for n in hc.__all__}
     lines = [":orphan:", "", ".. currentmodule:: hammerstein_ctrl", "", ".. autosummary::", "   :toctree: generated",
-             ""]
-    lines += [f"   {n}" for n in names]
+             ""] + [f"   {n}" for n in hc.__all__ if n != "__version__"]
+    for sub, title in SUBPACKAGES.items():
+        module = importlib.import_module(f"hammerstein_ctrl.{sub}")
+        own = [n for n in module.__all__ if id(getattr(module, n)) not in top and not n.isupper()]
+        if own:
+            lines += ["", f".. currentmodule:: hammerstein_ctrl.{sub}", "", ".. autosummary::",
+                      "   :toctree: generated", ""] + [f"   {n}" for n in own]
+        heading = f"{title}: ``hc.{sub}``"
+        (HERE / "api" / f"{sub}.rst").write_text("\n".join([
+            heading, "=" * len(heading), "", f".. automodule:: hammerstein_ctrl.{sub}", "   :no-members:", ""]))
     (HERE / "api" / "_names.rst").write_text("\n".join(lines) + "\n")
+    front = [".. currentmodule:: hammerstein_ctrl", "", ".. autosummary::", "   :nosignatures:", ""]
+    (HERE / "api" / "_front_door.rst").write_text(
+        "\n".join(front + [f"   {n}" for n in hc.__all__ if n != "__version__"]) + "\n")
 
 
 _gallery()
@@ -77,8 +97,8 @@ _api_pages()
 # reference documents it under its public name (hammerstein_ctrl.BlockModel): such a reference is sent to the public
 # page.  One to an internal helper that exists but has no page is shown as code without a link.  A reference to a
 # name that does not exist stays a warning, which -W makes an error.
-DOCUMENTED_MODULES = ("hammerstein_ctrl.plotting", "hammerstein_ctrl.design", "hammerstein_ctrl.config",
-                      "hammerstein_ctrl.paper.benchmarks")
+DOCUMENTED_MODULES = tuple(f"hammerstein_ctrl.{sub}" for sub in SUBPACKAGES) + (
+    "hammerstein_ctrl.config", "hammerstein_ctrl.paper.benchmarks")
 
 
 def _lookup(dotted: str):

@@ -508,13 +508,13 @@ class ResidualAnalysis:
     residuals : ndarray
     dt : float
     lags : ndarray
-        ``0 .. M`` for :attr:`autocorrelation`; the cross-correlation has lags ``-M .. M``.
+        ``0, 1, ..., M`` for :attr:`autocorrelation`; the cross-correlation has lags ``-M, ..., M``.
     autocorrelation : ndarray, shape (M + 1,)
         Of the residuals (1 at lag 0).
     autocorrelation_bound : float
         The 99 % bound ``z / sqrt(N)`` of white residuals.
     cross_correlation : ndarray, shape (2M + 1,)
-        Between ``u(t - k)`` and ``e(t)``, ``k = -M .. M`` (positive lags: the input leads).
+        Between ``u(t - k)`` and ``e(t)``, ``k = -M, ..., M`` (positive lags: the input leads).
     cross_correlation_bound : float
         The 99 % bound for residuals independent of the input (Bartlett's, wider when both are coloured).
     whiteness : bool
@@ -566,7 +566,7 @@ class ResidualAnalysis:
 
     @property
     def whiteness(self) -> bool:
-        """Whether the autocorrelation stays inside its bound at lags ``1 .. M``."""
+        """Whether the autocorrelation stays inside its bound at lags 1 to M."""
         return bool(np.all(np.abs(self.autocorrelation[1:]) <= self.autocorrelation_bound))
 
     @property

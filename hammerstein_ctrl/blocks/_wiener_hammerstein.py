@@ -69,8 +69,9 @@ MAX_SUBSTEPS = 64
 
 
 class UnitGainBlock:
-    """A linear block in static-gain form, ``G(p) = (1 + b1 q + ... + bl q^l) / (1 + a1 q + ... + an q^n)``,
-    ``q = time_unit p``.
+    """A linear block in static-gain form: numerator and denominator in ``q = time_unit p``, both with constant term 1.
+
+    ``G(p) = (1 + b1 q + ... + bl q^l) / (1 + a1 q + ... + an q^n)``.
 
     Its static gain is 1 whatever the parameters; a zero leaves to infinity
     smoothly (its coefficient through 0), which the usual monic form reaches

@@ -63,7 +63,7 @@ class MinpackResult(NamedTuple):
 
     @property
     def converged(self) -> bool:
-        """Whether MINPACK reported convergence (:data:`CONVERGED`)."""
+        """Whether MINPACK reported convergence (``info`` in ``CONVERGED``, 1 to 4)."""
         return self.info in CONVERGED
 
 
