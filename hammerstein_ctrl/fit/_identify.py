@@ -50,19 +50,14 @@ import numpy as np
 
 from .._linalg import single_threaded_blas
 from ..data._iodata import IOData
-from ._delay_fit import DelayedCost
 from ._experiments import RecordsCost, duplicated_records
 from ..assess._diagnostics import (FAILURE, STILL_IMPROVING, WARNING, Verdict, budget_advice, identifiability_verdicts,
                                    late_improvement, linear_verdicts, offset_verdict, row_pole_verdicts)
 from ..exceptions import IdentificationWarning, ParameterError
 from ._initialize import static_affine_sse, static_affine_sse_columns
-from ..blocks._lure import LureStructure
-from ._lure_fit import LureCost
-from ._wh_fit import WienerHammersteinCost
-from ..blocks._wiener_hammerstein import WienerHammersteinStructure
 from ..data._metrics import channel_report, fit_percent, fit_report
-from ..blocks._mimo import MIMOStructure
-from ._mimo_fit import MIMOCost, monic_drift_verdicts
+from ._mimo_fit import monic_drift_verdicts
+from ._routes import route
 from ._nested import significance_verdicts
 from ..assess._significance import rounding_sse
 from ._objective import HammersteinCost
@@ -70,7 +65,6 @@ from ._result import IdentificationResult
 from ..optimize import BUDGET_EXHAUSTED, COMPLETED, DIVERGED, SCIPY_METHODS, canonical_method, minimize
 from ..optimize._normal_lm import _cosine     # MINPACK's gtol measure, as LM's own convergence test
 from ..assess._residuals import residual_analysis
-from ..blocks._structure import BlockStructure
 from ..assess._uncertainty import (channel_uncertainty, estimate_uncertainty, fit_noise_model, _check_noise)
 
 __all__ = ["identify", "IdentificationResult", "AUTO"]   # the result type lives in hammerstein_ctrl.fit._result
@@ -189,20 +183,20 @@ def identify(
                         unused=dict(options=options, bounds=bounds, maxiter=maxiter, callback=callback,
                                     offset=offset, initial_state=initial_state))
     records = _as_records(data)
-    structure, x0 = _resolve_structure(records[0], structure, method, x0)
+    way = route(structure, records)
     if offset is not None or initial_state is not None:
         structure = structure.with_options(offset=offset, initial_state=initial_state)
     key = AUTO if str(method).strip().lower() == AUTO else canonical_method(method)
-    cost = _cost(records, structure, reject_unstable)
+    cost = way.make(records, structure, reject_unstable)
     with single_threaded_blas():
         if key == AUTO:
-            res = _run_auto(cost, x0, maxfev, seed, options, bounds, maxiter, callback, allow_unstable)
+            res = _run_auto(way, cost, x0, maxfev, seed, options, bounds, maxiter, callback, allow_unstable)
         else:
             x0 = _starting_point(cost.structure, x0, bounds)
             res = minimize(cost, x0, method=key, maxfev=maxfev, maxiter=maxiter, seed=seed,
                            options=options, callback=callback, bounds=bounds)
         checks = _Checks(allow_unstable, uncertainty, noise, maxfev, seed, bounds is not None, bool(closed_loop))
-        if isinstance(cost, MIMOCost):
+        if way.mimo:
             result = _mimo_result(cost, res, key, x0, started, checks)
         else:
             result = _result(cost, res, key, x0, started, checks)
@@ -235,37 +229,6 @@ def _as_records(data) -> tuple:
     return (_as_record(data),)
 
 
-def _cost(records, structure, reject_unstable):
-    """The cost of one record, or the shared-block cost of several
-    (:class:`~hammerstein_ctrl.fit.RecordsCost`)."""
-    if isinstance(structure, MIMOStructure):
-        if len(records) > 1:
-            raise ParameterError("several records in one MIMO fit are not supported yet: fit one record, or join "
-                                 "records that follow each other")
-        records[0].check_identifiable(structure.n_params)
-        return MIMOCost(records[0], structure, reject_unstable=reject_unstable)
-    for rec in records:
-        rec.require_siso(f"a {structure.kind} structure")
-    whole = {LureStructure: (LureCost, "Lur'e"), WienerHammersteinStructure: (WienerHammersteinCost,
-                                                                            "Wiener-Hammerstein")}
-    if type(structure) in whole:                   # structures simulated as a whole: one record
-        cost, name = whole[type(structure)]
-        if len(records) > 1:
-            raise ParameterError(f"several records in one {name} fit are not supported yet: fit one record")
-        records[0].check_identifiable(structure.n_params)
-        return cost(records[0], structure, reject_unstable=reject_unstable)
-    if len(records) == 1:
-        records[0].check_identifiable(structure.n_params)
-        if structure.linear.delay:
-            return DelayedCost(records[0], structure, reject_unstable=reject_unstable)
-        return HammersteinCost(records[0], structure, reject_unstable=reject_unstable)
-    cost = RecordsCost(records, structure, reject_unstable=reject_unstable)
-    for rec in records:
-        rec.check_identifiable(structure.n_params)
-    cost.data.check_identifiable(cost.n_params)
-    return cost
-
-
 def _as_record(data) -> IOData:
     """An IOData from an IOData or a ``nonlinear_benchmarks``-style record (``u, y, sampling_time``)."""
     from ..data._display import as_iodata
@@ -275,17 +238,6 @@ def _as_record(data) -> IOData:
     except ParameterError:
         raise ParameterError(f"data must be an IOData record (or an object with u, y and sampling_time), "
                              f"got {type(data).__name__}") from None
-
-
-def _resolve_structure(data, structure, method, x0):
-    if isinstance(structure, str):
-        raise ParameterError(f"structure must be a HammersteinStructure, WienerStructure or "
-                             f"HammersteinWienerStructure, got the name {structure!r}; the paper's cases are "
-                             f"hc.presets.trs() and hc.presets.emps() (their .structure and .x0)")
-    if not isinstance(structure, (BlockStructure, MIMOStructure, LureStructure, WienerHammersteinStructure)):
-        raise ParameterError("structure must be a HammersteinStructure, WienerStructure or "
-                             f"HammersteinWienerStructure (or a MIMO structure), got {type(structure).__name__}")
-    return structure, x0
 
 
 def _starting_point(structure, x0, bounds):
@@ -309,24 +261,12 @@ def _starting_point(structure, x0, bounds):
     return x0
 
 
-def _run_auto(cost, x0, maxfev, seed, options, bounds, maxiter, callback, allow_unstable):
-    from ._auto import auto_delayed, auto_lure, auto_mimo, auto_minimize, auto_records, auto_wiener_hammerstein
-
+def _run_auto(way, cost, x0, maxfev, seed, options, bounds, maxiter, callback, allow_unstable):
     unused = [name for name, value in (("options", options), ("bounds", bounds), ("maxiter", maxiter))
               if value is not None]
     if unused:
         raise ParameterError(f"method 'auto' does not take {', '.join(unused)}; use maxfev (and x0, seed)")
-    # the automatic method of each kind of cost (its class, or the first of its bases that has one)
-    methods = {DelayedCost: auto_delayed, MIMOCost: auto_mimo, WienerHammersteinCost: auto_wiener_hammerstein,
-               LureCost: auto_lure, RecordsCost: auto_records}
-    method = next((methods[k] for k in type(cost).__mro__ if k in methods), None)
-    if method is not None:
-        return method(cost, x0, maxfev=maxfev, seed=seed, allow_unstable=allow_unstable, callback=callback)
-    if x0 is not None:
-        x = np.asarray(x0, dtype=float).reshape(-1)
-        if x.size not in (cost.structure.n_core, cost.structure.n_params):
-            cost.structure.check_beta(x)
-    return auto_minimize(cost, x0, maxfev=maxfev, seed=seed, allow_unstable=allow_unstable, callback=callback)
+    return way.auto(cost, x0, maxfev=maxfev, seed=seed, allow_unstable=allow_unstable, callback=callback)
 
 
 @dataclass(frozen=True)

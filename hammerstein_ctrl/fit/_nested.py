@@ -51,6 +51,7 @@ from ._initialize import points_for
 from ..optimize import Budget, BudgetExhausted, levenberg_marquardt
 
 from ._objective import HammersteinCost
+from ._routes import route
 from ..assess._significance import NestedTest, nested_f_test, rounding_sse
 from ..blocks._structure import HammersteinStructure, LinearStructure
 from ..assess._uncertainty import COLOURED_RATIO, fit_noise_model
@@ -95,13 +96,11 @@ def delay_scan_count(structure, n_samples: int) -> int:
     return min(config.get("delay.max_samples"), max(0, n_samples // 4)) + 1
 
 
-def _nested_cost(cost, nested):
-    """The cost of the nested structure on the fit's record(s)."""
-    if isinstance(cost, RecordsCost):
-        return RecordsCost(cost.records, nested)
-    if nested.linear.delay:
-        return DelayedCost(cost.data, nested)
-    return HammersteinCost(cost.data, nested)
+def _nested_route(cost, nested):
+    """The route of the nested structure on the fit's record(s), and its cost there."""
+    records = cost.records if isinstance(cost, RecordsCost) else (cost.data,)
+    way = route(nested, records)
+    return way, way.make(records, nested)
 
 
 def _linear_fit(cost, seed, x=None):
@@ -109,14 +108,10 @@ def _linear_fit(cost, seed, x=None):
     record past :data:`NESTED_AUTO_SAMPLES` (one record, no dead time) by Levenberg-Marquardt from the fit's own
     linear block ``x`` instead, whose passes run in bounded memory where ``auto``'s start scan holds its
     candidates' responses whole."""
-    from ._auto import auto_delayed, auto_minimize, auto_records
-
     nested = nested_linear_structure(cost.structure)
     if nested is None:
         return None
-    ncost = _nested_cost(cost, nested)
-    run = (auto_records if isinstance(ncost, RecordsCost) else auto_delayed if isinstance(ncost, DelayedCost)
-           else auto_minimize)
+    way, ncost = _nested_route(cost, nested)
     with np.errstate(all="ignore"):
         try:
             if x is not None and type(ncost) is HammersteinCost and len(ncost.data) > NESTED_AUTO_SAMPLES:
@@ -125,7 +120,7 @@ def _linear_fit(cost, seed, x=None):
                          else x[:nested.linear.n_params])
                 res = _warm_linear_fit(ncost, theta)
             else:
-                res = run(ncost, seed=seed, maxfev=NESTED_MAXFEV)
+                res = way.auto(ncost, seed=seed, maxfev=NESTED_MAXFEV)
         except BudgetExhausted:          # a start that needs more than the whole budget: no linear test
             return None
         if res is None or not np.all(np.isfinite(res.x)):
