@@ -42,12 +42,33 @@ def _caller():
     return frame
 
 
+def _union(name: str, modules: list):
+    """A module named ``name`` whose every attribute is the one of the first of ``modules`` that has it."""
+    import types
+
+    union = types.ModuleType(name, f"The names of {', '.join(m.__name__ for m in modules)}, under their old path.")
+    union.__all__ = [n for m in modules for n in getattr(m, "__all__", ())]
+
+    def __getattr__(attr):
+        for m in modules:
+            try:
+                return getattr(m, attr)
+            except AttributeError:
+                continue
+        raise AttributeError(f"module {name!r} has no attribute {attr!r}")
+
+    union.__getattr__ = __getattr__
+    return union
+
+
 class MovedModules:
     """A finder on :data:`sys.meta_path` that gives each moved module of ``package`` its new one, with a warning.
 
     ``moved`` maps an old path (below ``package``) to ``(new path, why)``.  A new path of ``None`` means the
     module left the package: importing it raises :class:`ModuleNotFoundError` with ``why``.  The old name is
-    bound to the very module object of its new path, so both give the same classes and functions.
+    bound to the very module object of its new path, so both give the same classes and functions.  A module split
+    in several has a tuple of new paths: the old name is then a module that finds each name in the first of them
+    that has it.
 
     Examples
     --------
@@ -59,7 +80,18 @@ class MovedModules:
     ...     warnings.simplefilter("always")
     ...     module = importlib.import_module("demo_pkg.old")
     >>> module.VALUE, module.__name__, str(caught[0].message)
-    (3, 'demo_pkg._new', 'demo_pkg.old is deprecated and will be removed: import demo_pkg._new (renamed)')
+    (3, 'demo_pkg._new', 'demo_pkg.old is deprecated and will be removed: use demo_pkg._new (renamed)')
+    >>> sys.meta_path.remove(finder)
+
+    A module split in two:
+
+    >>> other = types.ModuleType("demo_pkg._other"); other.MORE = 4; sys.modules["demo_pkg._other"] = other
+    >>> finder = MovedModules("demo_pkg", {"both": (("_new", "_other"), "split")}).install()
+    >>> with warnings.catch_warnings():
+    ...     warnings.simplefilter("ignore")
+    ...     module = importlib.import_module("demo_pkg.both")
+    >>> module.VALUE, module.MORE
+    (3, 4)
     >>> sys.meta_path.remove(finder)
     """
 
@@ -84,13 +116,17 @@ class MovedModules:
         if new is None:
             raise ModuleNotFoundError(f"{spec.name} is no longer part of the package: {why}", name=spec.name)
         frame = _caller()
-        message = f"{spec.name} is deprecated and will be removed: import {self.package}.{new} ({why})"
+        paths = (new,) if isinstance(new, str) else tuple(new)
+        home = paths[0].split(".")[0] if not paths[0].startswith("_") else paths[0]
+        message = f"{spec.name} is deprecated and will be removed: use {self.package}.{home} ({why})"
         if frame is None:
             warnings.warn(message, DeprecationWarning, stacklevel=2)
         else:
             warnings.warn_explicit(message, DeprecationWarning, frame.f_code.co_filename, frame.f_lineno,
                                    module=frame.f_globals.get("__name__", "__main__"),
                                    registry=frame.f_globals.setdefault("__warningregistry__", {}))
+        if len(paths) > 1:
+            return _union(spec.name, [importlib.import_module(f"{self.package}.{p}") for p in paths])
         module = importlib.import_module(f"{self.package}.{new}")
         self._own[spec.name] = (module.__spec__, module.__loader__)
         return module
@@ -98,4 +134,5 @@ class MovedModules:
     def exec_module(self, module):
         """Nothing to run: :meth:`create_module` returned the new module, already imported.  The import system
         stamped the old name's spec on it; the module gets its own back."""
-        module.__spec__, module.__loader__ = self._own.pop(module.__spec__.name)
+        if module.__spec__.name in self._own:
+            module.__spec__, module.__loader__ = self._own.pop(module.__spec__.name)

@@ -7,10 +7,11 @@ import numpy as np
 import pytest
 
 import hammerstein_ctrl as hc
-from hammerstein_ctrl.design import _pid as cd
+from hammerstein_ctrl import design as cd
+from hammerstein_ctrl.design._pid import MS_SLACK
 from hammerstein_ctrl.simulate import linear_ss, sampled_iosys
 from hammerstein_ctrl.exceptions import DataError, ParameterError, UnknownNameError
-from hammerstein_ctrl.simulate._loop import sampled_loop_iosys, simulate_loops
+from hammerstein_ctrl.simulate._loop import check_limits, sampled_loop_iosys, simulate_loops
 from hammerstein_ctrl.simulate import companion_realization
 
 EMPS_OPT = [3.138764, 0.544501, -0.398365, 0.045066]
@@ -133,7 +134,7 @@ def test_continuous_loop_agrees_with_sampled_loop_for_smooth_g():
     pid = cd.tune_pid(model, "simc", tau_c=1.0)
     t = np.arange(0, 10, 0.001)
     r = np.ones_like(t)
-    cont = ct.input_output_response(cd.closed_loop(model, pid, u_limit=(-1, 1)), t, r,
+    cont = ct.input_output_response(hc.design.closed_loop(model, pid, u_limit=(-1, 1)), t, r,
                                     solve_ivp_kwargs={"rtol": 1e-8, "atol": 1e-10}).outputs[0]
     Y, _ = simulate_loops(model, pid.gains, r, 0.001, u_limit=(-1, 1))
     assert _rel(Y[0], cont) < 1e-2  # sampling at 1 ms vs continuous time
@@ -162,7 +163,7 @@ def test_half_rule_and_simc_self_regulating():
     # G = 2/((s+1)(0.2s+1)(0.04s+1)): tau1 = 1, tau2 = 0.2 + 0.02, theta = 0.02 (half rule)
     model = hc.HammersteinModel(ct.tf([1.0], np.polymul(np.polymul([1, 1], [0.2, 1]), [0.04, 1])),
                                 hc.Coulomb(), [2.0, 0.0, 0.0])
-    a = cd.approximate(model, 0.5)
+    a = hc.design.approximate(model, 0.5)
     assert a["kind"] == "self-regulating"
     assert (a["gain"], a["tau1"], a["tau2"], a["theta"]) == pytest.approx((2.0, 1.0, 0.22, 0.02), rel=1e-9)
     pid = cd.tune_pid(model, "simc", tau_c=0.1, u0=0.5)
@@ -173,7 +174,7 @@ def test_half_rule_and_simc_self_regulating():
 def test_imc_first_order_plus_delay():
     # G = 3/(2s+1) with an inverse-response zero (-0.5s+1): theta = 0.5 (half rule)
     model = hc.HammersteinModel(ct.tf([-0.5, 1.0], [2.0, 1.0]), hc.Coulomb(), [1.0, 0.0, 0.0])
-    a = cd.approximate(model, 0.0)
+    a = hc.design.approximate(model, 0.0)
     assert (a["gain"], a["tau1"], a["theta"]) == pytest.approx((1.0, 2.0, 0.5))
     pid = cd.tune_pid(model, "imc", tau_c=1.0)
     tau, th, lam, k = 2.0, 0.5, 1.0, 1.0
@@ -196,9 +197,9 @@ def emps_designs(emps_model, emps_limits):
 def test_emps_pids_are_verified_stable_robust_and_tracking(emps_model, emps_limits, emps_designs):
     for pid in emps_designs + (cd.tune_pid(emps_model, dt=1e-3, u_limit=emps_limits, step=STEP),):
         assert pid.success, pid.message
-        rep = cd.analyze_loop(emps_model, pid, u_limit=emps_limits, step=STEP)
+        rep = hc.design.analyze_loop(emps_model, pid, u_limit=emps_limits, step=STEP)
         assert rep["stable"] and np.all(rep["poles"].real < 0)
-        assert rep["Ms"] <= 1.6 * cd.MS_SLACK and rep["Mt"] <= 1.6 * cd.MS_SLACK
+        assert rep["Ms"] <= 1.6 * MS_SLACK and rep["Mt"] <= 1.6 * MS_SLACK
         assert rep["y"][-1] == pytest.approx(pid.operating_point.y0 + STEP, rel=0.02)
         assert pid.stable == rep["stable"] and pid.Ms == pytest.approx(rep["Ms"])
 
@@ -383,9 +384,9 @@ def _check_verified(model, pid, u_limit=None):
     assert S.max() <= 2.0 and S.max() == pytest.approx(pid.Ms, rel=0.05)
     st = pid.step
     assert st["final_error"] < 0.02
-    lo, hi = cd.check_limits(u_limit)
+    lo, hi = check_limits(u_limit)
     assert lo <= pid.operating_point.u0 + 0 <= hi
-    rep = cd.analyze_loop(model, pid, u_limit=u_limit)
+    rep = hc.design.analyze_loop(model, pid, u_limit=u_limit)
     assert np.all((rep["u"] >= lo) & (rep["u"] <= hi))
     assert abs(rep["y"][-1] - (pid.operating_point.y0 + st["step"])) < 0.02 * abs(st["step"])
     return True
@@ -397,7 +398,7 @@ def test_the_default_tunes_every_identified_plant(identified, name):
     pid = cd.tune_pid(identified[name])
     assert pid.success, pid.message
     assert _check_verified(identified[name], pid)
-    assert pid.rule == "robust" and pid.Ms <= 1.6 * cd.MS_SLACK
+    assert pid.rule == "robust" and pid.Ms <= 1.6 * MS_SLACK
 
 
 @pytest.mark.parametrize("rule", ["robust", "simc", "imc"])

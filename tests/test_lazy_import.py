@@ -54,13 +54,57 @@ def test_every_public_name_resolves():
         hc.nonexistent  # noqa: B018
 
 
-def test_identify_is_the_function_even_after_importing_its_module():
-    result = fresh("import json, types, importlib; import hammerstein_ctrl as hc\n"
-                   "importlib.import_module('hammerstein_ctrl.fit')\n"
+def test_identify_is_the_function_even_after_importing_its_old_module():
+    result = fresh("import json, types, importlib, warnings; import hammerstein_ctrl as hc\n"
+                   "warnings.simplefilter('ignore')\n"
+                   "importlib.import_module('hammerstein_ctrl.identify')\n"
                    "from hammerstein_ctrl import identify\n"
                    "print(json.dumps([type(hc.identify).__name__, identify is hc.identify,"
                    " type(hc.presets).__name__, hc.HammersteinCost.__module__]))")
     assert result == ["function", True, "module", "hammerstein_ctrl.fit._objective"]
+
+
+OLD_PATHS = {      # module paths before the re-lay, one name each that users imported from them
+    "iodata": "IOData", "records": "read_record", "metrics": "fit_percent", "nonlinearities": "Tanh",
+    "structure": "HammersteinStructure", "model": "HammersteinModel", "mimo": "MIMOModel", "lure": "LureStructure",
+    "wiener_hammerstein": "WienerHammersteinStructure", "exact_export": "linear_ss",
+    "loop_sim": "simulate_loops", "delay": "simulate_delayed", "uncertainty": "propagate", "diagnostics": "Verdict",
+    "residual_analysis": "residual_analysis", "significance": "nested_f_test", "objective": "HammersteinCost",
+    "identify": "identify", "in_loop": "identify_in_loop", "selection": "select_structure",
+    "result": "IdentificationResult", "persistence": "save_model", "plots": "bode", "control_design": "tune_pid",
+    "operating_point": "operating_point", "robust_pid": "ms_constrained_pid", "optimize.least_squares":
+    "levenberg_marquardt", "kernels": "get_kernel", "auto": "auto_minimize",
+}
+
+
+def test_old_module_paths_import_their_new_module_with_a_deprecation_warning():
+    """Each moved path of the flat layout still imports, for one release: the same objects, one warning naming the
+    new home (in a fresh interpreter, where nothing is imported yet)."""
+    code = ("import importlib, json, warnings\n"
+            "import hammerstein_ctrl as hc\n"
+            "out = {}\n"
+            f"for old, name in {OLD_PATHS!r}.items():\n"
+            "    with warnings.catch_warnings(record=True) as caught:\n"
+            "        warnings.simplefilter('always')\n"
+            "        module = importlib.import_module('hammerstein_ctrl.' + old)\n"
+            "    obj = getattr(module, name)\n"
+            "    public = [getattr(importlib.import_module(('hammerstein_ctrl.' + sub).rstrip('.')), name, None)\n"
+            "              for sub in ('', 'data', 'blocks', 'simulate', 'assess', 'fit', 'design', 'plotting', 'io',\n"
+            "                          'optimize')]\n"
+            "    out[old] = [[str(w.message) for w in caught if w.category is DeprecationWarning],\n"
+            "                obj.__module__.startswith('hammerstein_ctrl.'), any(p is obj for p in public)]\n"
+            "print(json.dumps(out))")
+    result = fresh(code)
+    for old, (warned, inside, same) in result.items():
+        assert len(warned) == 1 and warned[0].startswith(f"hammerstein_ctrl.{old} is deprecated"), (old, warned)
+        assert "use hammerstein_ctrl." in warned[0] and inside, old
+        if old not in ("kernels", "auto"):           # internals: no public home
+            assert same, f"{old}.{OLD_PATHS[old]} is not the public object"
+
+
+def test_the_benchmarks_left_the_package_with_a_message():
+    with pytest.raises(ModuleNotFoundError, match="benchmarks/speed.py"):
+        import hammerstein_ctrl.bench  # noqa: F401
 
 
 def test_star_import_gives_all_names():

@@ -297,7 +297,7 @@ def test_result_figure_shows_the_feedback_map():
 
 
 def test_linear_tools_take_the_motion_model_and_refuse_the_loop():
-    from hammerstein_ctrl.design import _pid as control_design
+    from hammerstein_ctrl import design as control_design
 
     model = LureModel(([0.4], [1.0, 1.5, 0.0]), Coulomb(), [1.25, 0.5, 0.05])
     assert model.linearize().den[0][0].tolist() == [1.0, 2.0, 0.0]

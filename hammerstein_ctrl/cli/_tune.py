@@ -82,7 +82,8 @@ def _reference(arg: str):
 
 
 def _cmd_tune(args) -> int:
-    from ..design._pid import analyze_loop, loop_figure, tune_pid
+    from ..design._tune import tune_pid
+    from ..design._loops import analyze_loop, loop_figure
 
     model, dt = _model_and_dt(args.model, args.dt)
     reference = _reference(args.reference)
