@@ -248,7 +248,7 @@ def test_the_compiled_loop_simulator_refuses_a_dead_time_it_cannot_simulate():
 
 
 def test_bode_draws_the_dead_time():
-    from hammerstein_ctrl.plotting import _figures as plots
+    from hammerstein_ctrl import plotting as plots
 
     m = HammersteinModel(ct.tf([1.0], [1.0, 1.0]), Tanh(), [2.0, 1.0], delay=0.37)
     fig = plots.bode(m)

@@ -77,7 +77,7 @@ def test_benchmark_record_becomes_iodata_and_works_everywhere(trs_case):
     np.testing.assert_array_equal(data.t, d.t)
     assert display.as_iodata(d) is d
     model = trs_case.structure.model(trs_case.true_beta)
-    from hammerstein_ctrl.plotting import _figures as plots
+    from hammerstein_ctrl import plotting as plots
 
     fits = plots.compare_fits(rec, model)
     assert fits["train TRS"]["hammerstein"] == pytest.approx(hc.fit_percent(d.y, model.simulate(d)))

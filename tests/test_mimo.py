@@ -8,8 +8,9 @@ import pytest
 
 import hammerstein_ctrl as hc
 from hammerstein_ctrl.exceptions import DataError, ParameterError
-from hammerstein_ctrl.blocks._mimo import (MIMOHammersteinStructure, MIMOHammersteinWienerStructure, MIMOModel,
-                                           MIMOWienerStructure, observable_realization)
+from hammerstein_ctrl.blocks._mimo import MIMOHammersteinStructure, MIMOHammersteinWienerStructure, MIMOWienerStructure
+from hammerstein_ctrl.blocks._mimo_model import MIMOModel
+from hammerstein_ctrl.blocks._mimo_sim import observable_realization
 from hammerstein_ctrl.fit import MIMOCost
 
 DT, N, SIGMA = 0.05, 3000, 0.01

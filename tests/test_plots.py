@@ -11,7 +11,8 @@ from matplotlib.figure import Figure  # noqa: E402
 
 import hammerstein_ctrl as hc  # noqa: E402
 from hammerstein_ctrl import minimize  # noqa: E402
-from hammerstein_ctrl.plotting import _figures as plots
+from hammerstein_ctrl import plotting as plots
+from hammerstein_ctrl.plotting._figures import MIN_PEAK_BINS
 from hammerstein_ctrl.exceptions import ParameterError  # noqa: E402
 from hammerstein_ctrl.paper.settings import eq8_methods, eq8_objective  # noqa: E402
 from hammerstein_ctrl.paper.study import run_study  # noqa: E402
@@ -147,7 +148,7 @@ def test_psd_of_the_trs_reconstruction_reports_no_resonance(trs_study):
     # the reconstruction's true H has two real poles: a falling spectrum, no peak (not the first bin)
     peaks = plots.dominant_frequency(trs_study.case.data, trs_study.best_model("nspsa"))
     assert np.isnan(peaks["measured"]) and np.isnan(peaks["hammerstein"])
-    assert peaks["fmin"] == pytest.approx(plots.MIN_PEAK_BINS * 10.0 / 1024)
+    assert peaks["fmin"] == pytest.approx(MIN_PEAK_BINS * 10.0 / 1024)
 
 
 def test_convergence_of_eq8_example_shows_divergence_and_convergence():

@@ -633,7 +633,7 @@ class ResidualAnalysis:
 
     def plot(self, *, title: str | None = None):
         """The autocorrelation and the input cross-correlation with their 99 % bounds (MATLAB ``resid``)."""
-        from ..plotting._figures import residual_figure
+        from ..plotting._results import residual_figure
 
         return residual_figure(self, title=title)
 

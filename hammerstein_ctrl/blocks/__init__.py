@@ -48,7 +48,8 @@ from ._structure import (LinearStructure, BlockStructure, HammersteinStructure, 
                          HammersteinWienerStructure)
 from ._model import BlockModel, HammersteinModel, WienerModel, HammersteinWienerModel
 from ._mimo import (MIMOStructure, mimo_structure, MIMOHammersteinStructure, MIMOWienerStructure,
-                    MIMOHammersteinWienerStructure, MIMOModel)
+                    MIMOHammersteinWienerStructure)
+from ._mimo_model import MIMOModel
 from ._lure import LureStructure, LureModel, lure_structure
 from ._wiener_hammerstein import (WienerHammersteinStructure, WienerHammersteinModel, wiener_hammerstein_structure,
                                   UnitGainBlock)

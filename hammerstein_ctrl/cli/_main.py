@@ -143,7 +143,7 @@ def _cmd_reproduce(args) -> int:
     from pathlib import Path
 
     from ..paper import presets
-    from ..plotting._figures import study_figures
+    from ..plotting._studies import study_figures
     from ..blocks._json import json_safe
     from ..paper.report import best_models
     from .._safe_io import write_text

@@ -40,7 +40,8 @@ import numpy as np
 
 from ..exceptions import DataError, ParameterError
 from ..data._iodata import IOData
-from ..blocks._mimo import MIMOStructure, simulate_mimo_batch
+from ..blocks._mimo import MIMOStructure
+from ..blocks._mimo_sim import simulate_mimo_batch
 from ._objective import NONFINITE_RESIDUAL
 
 __all__ = ["MIMOCost", "mimo_starts", "stabilized", "completed", "noise_weights", "WEIGHTING_RATIO", "delay_shifts",
@@ -566,7 +567,7 @@ def _delayed_starts(data: IOData, s: MIMOStructure) -> list[np.ndarray]:
 
 
 def _assemble(s: MIMOStructure, num, dens, g_params, h_params, offsets) -> np.ndarray:
-    from ..blocks._mimo import MIMOModel
+    from ..blocks._mimo_model import MIMOModel
 
     model = MIMOModel(num, np.asarray(dens), input_nonlinearities=s.input_nonlinearities, input_params=g_params,
                       output_nonlinearities=s.output_nonlinearities, output_params=h_params, offset=offsets)

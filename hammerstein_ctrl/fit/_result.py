@@ -426,7 +426,7 @@ class IdentificationResult(UncertainParameters):
         import dataclasses
 
         from ..data._display import as_iodata
-        from ..plotting._figures import result_figure
+        from ..plotting._results import result_figure
 
         result = self if data is None else dataclasses.replace(self, data=as_iodata(data))
         result._record()
@@ -437,7 +437,7 @@ class IdentificationResult(UncertainParameters):
 
         Without records: the estimation record, or every record of a joint fit.
         """
-        from ..plotting._figures import compare
+        from ..plotting._results import compare
         if not records and self.records and not isinstance(self.data, dict):
             return compare(list(self.records), list(self.models), paired=True, **kwargs)
         return compare(list(records) or [self._record()], self, **kwargs)

@@ -403,7 +403,7 @@ def _mimo_structure_from_dict(obj, where: str):
 
 
 def _mimo_model_from_dict(obj, where: str):
-    from ..blocks._mimo import MIMOModel
+    from ..blocks._mimo_model import MIMOModel
 
     _keys(obj, where, ("name", "kind", "linear", "inputs", "outputs", "input_nonlinearities",
                        "output_nonlinearities", "offset", "intersample"), ("delays",))
