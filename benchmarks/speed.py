@@ -711,7 +711,8 @@ def mimo_speed(n_samples: int, *, batch: int = 15, pairs: int = 7, number: int =
 def lure_speed(case, *, pairs: int = 7, number: int = 50) -> dict:
     """A Lur'e evaluation (friction on velocity, stick-slip resolved) against the Hammerstein one of the
     same order on the case's record, each at its own optimum; interleaved pairs, median ratio."""
-    from hammerstein_ctrl.fit._auto import auto_lure, auto_minimize
+    from hammerstein_ctrl.fit._auto import auto_minimize
+    from hammerstein_ctrl.fit._auto_whole import auto_lure
     from hammerstein_ctrl.blocks import lure_structure
     from hammerstein_ctrl.fit import LureCost
 

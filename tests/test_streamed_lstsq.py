@@ -17,6 +17,8 @@ from hammerstein_ctrl import (Coulomb, HammersteinStructure, IOData, LinearStruc
                               Saturation, Tanh, identify)
 from hammerstein_ctrl.optimize import _streamed_lstsq as streamed_lstsq
 from hammerstein_ctrl.fit import _initialize as initialize
+from hammerstein_ctrl.fit import _linear_starts as linear_starts
+from hammerstein_ctrl.fit import _baselines as baselines
 from hammerstein_ctrl.exceptions import DataError
 from hammerstein_ctrl.fit._initialize import Budget, initial_points
 from hammerstein_ctrl.optimize._streamed_lstsq import (column_blocks, constant_column, factor_of_columns,
@@ -187,7 +189,7 @@ def test_arx_poles_equal_dense_equation_error_fit(small_blocks, streamed):
     z = np.roots(np.r_[1.0, coef[:m]]).astype(complex)
     # a negative real root (an oscillation at the Nyquist rate) stands for its decay rate alone
     ref = np.sort_complex(np.where((z.imag == 0) & (z.real < 0), np.log(np.abs(z)) + 0j, np.log(z)) / data.dt)
-    got = np.sort_complex(initialize._arx_poles(data, drives, m))
+    got = np.sort_complex(linear_starts._arx_poles(data, drives, m))
     np.testing.assert_allclose(got, ref, rtol=1e-7)
     assert np.all(got.real < 0)
 
@@ -197,7 +199,7 @@ def test_static_affine_sse_equals_dense(small_blocks):
     u, y = np.asarray(data.u), np.asarray(data.y)
     X = np.column_stack([u, np.ones_like(u)])
     res = np.linalg.lstsq(X, y, rcond=None)[1]
-    assert initialize.static_affine_sse(data) == pytest.approx(float(res[0]), rel=1e-10)
+    assert baselines.static_affine_sse(data) == pytest.approx(float(res[0]), rel=1e-10)
 
 
 def test_initial_points_do_not_depend_on_the_block_size(monkeypatch, streamed):
@@ -240,8 +242,8 @@ def test_auto_finds_a_plant_on_a_long_record():
     y = control.forced_response(control.tf([0.5, 1.0], [1.0, 1.2, 1.5]), t, g).outputs + 0.3
     y += 0.01 * rng.standard_normal(n)
     s = HammersteinStructure(LinearStructure(1, 2), Coulomb(), offset=True)
-    f = initialize._frequencies(IOData(np.zeros(10 ** 6), np.zeros(10 ** 6), dt=0.01))   # five decades
-    assert f.size >= initialize.SCAN_PER_DECADE * np.log10(f[-1] / f[0]) > initialize.SCAN_FREQUENCIES
+    f = linear_starts._frequencies(IOData(np.zeros(10 ** 6), np.zeros(10 ** 6), dt=0.01))   # five decades
+    assert f.size >= linear_starts.SCAN_PER_DECADE * np.log10(f[-1] / f[0]) > linear_starts.SCAN_FREQUENCIES
     r = identify(IOData(u, y, t), s, seed=0)
     assert r.success, r.message
     # H = 0.5 (p + 2) / (p^2 + 1.2 p + 1.5): b0, a0, a1, then g's coefficients times 0.5, then the offset
@@ -268,7 +270,7 @@ def test_arx_poles_of_a_noisy_oversampled_record_make_a_stable_candidate():
     data = IOData(u, y + 0.3 + 0.01 * rng.standard_normal(n), t)
     s = HammersteinStructure(LinearStructure(1, 2), Coulomb(), offset=True)
     drives = initialize._drives(s.input_nonlinearity, u, initialize._Regression(s, data, None))
-    poles = initialize._arx_poles(data, drives, 2)
+    poles = linear_starts._arx_poles(data, drives, 2)
     np.testing.assert_allclose(np.sort_complex(poles), np.sort_complex(np.conj(poles)), rtol=1e-12)
     assert np.all(poles.real < 0)
     assert not unstable(np.real(np.poly(poles)))[0]
@@ -641,7 +643,7 @@ def test_scan_candidates_are_ranked_by_the_solved_sum_of_squares(offset, initial
     s = HammersteinStructure(LinearStructure(0, 3), Coulomb(), offset=offset, initial_state=initial_state)
     reg = initialize._Regression(s, data, Budget(None))
     drives = initialize._drives(s.input_nonlinearity, np.asarray(data.u, dtype=float), reg)
-    groups = initialize._candidate_linear(s.linear, data, drives)
+    groups = linear_starts._candidate_linear(s.linear, data, drives)
     for theta in next(iter(groups.values())):
         solved = reg.fit(reg.columns(theta, drives))[1]
         np.testing.assert_allclose(initialize._reduced_sse(reg, theta, drives), solved, rtol=1e-9)

@@ -54,7 +54,7 @@ from ._experiments import RecordsCost, duplicated_records
 from ..assess._diagnostics import (FAILURE, STILL_IMPROVING, WARNING, Verdict, budget_advice, identifiability_verdicts,
                                    late_improvement, linear_verdicts, offset_verdict, row_pole_verdicts)
 from ..exceptions import IdentificationWarning, ParameterError
-from ._initialize import static_affine_sse, static_affine_sse_columns
+from ._baselines import static_affine_sse, static_affine_sse_columns
 from ..data._metrics import channel_report, fit_percent, fit_report
 from ._mimo_fit import monic_drift_verdicts
 from ._routes import route
@@ -65,7 +65,7 @@ from ._result import IdentificationResult
 from ..optimize import BUDGET_EXHAUSTED, COMPLETED, DIVERGED, SCIPY_METHODS, canonical_method, minimize
 from ..optimize._normal_lm import _cosine     # MINPACK's gtol measure, as LM's own convergence test
 from ..assess._residuals import residual_analysis
-from ..assess._uncertainty import (channel_uncertainty, estimate_uncertainty, fit_noise_model, _check_noise)
+from ..assess._uncertainty import channel_uncertainty, estimate_uncertainty, fit_noise_model, _check_noise
 
 __all__ = ["identify", "IdentificationResult", "AUTO"]   # the result type lives in hammerstein_ctrl.fit._result
 

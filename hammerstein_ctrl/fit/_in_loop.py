@@ -316,7 +316,8 @@ def identify_in_loop(data, structure, loop: KnownLoop, *, match: str = "both", w
     >>> res.success, np.round(res.x, 4).tolist()
     (True, [2.0, 3.0])
     """
-    from ._auto import auto_known_loop, auto_lure, auto_minimize
+    from ._auto import auto_minimize
+    from ._auto_whole import auto_known_loop, auto_lure
     from ._lure_fit import LureCost
     from ._objective import HammersteinCost
 

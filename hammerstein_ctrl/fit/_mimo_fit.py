@@ -31,7 +31,7 @@ its denominator and the static blocks are fixed:
    (in seconds) start the estimated dead times.
 
 Levenberg-Marquardt on :class:`MIMOCost` then refines everything
-(:func:`hammerstein_ctrl.fit._auto.auto_mimo`).
+(:func:`hammerstein_ctrl.fit._auto_records.auto_mimo`).
 """
 
 from __future__ import annotations
@@ -200,8 +200,8 @@ class MIMOCost:
 # -- starts ------------------------------------------------------------------------------------
 def _continuous_denominator(a: np.ndarray, dt: float, n: int) -> np.ndarray:
     """A monic stable continuous denominator of degree ``n`` from the discrete one ``[1, a1, ..., an]``
-    (:func:`~hammerstein_ctrl.fit._initialize.continuous_poles`; poles on the axis moved just left of it)."""
-    from ._initialize import continuous_poles
+    (:func:`~hammerstein_ctrl.fit._linear_starts.continuous_poles`; poles on the axis moved just left of it)."""
+    from ._linear_starts import continuous_poles
 
     z = np.roots(np.concatenate([[1.0], a]))
     s = continuous_poles(np.where(np.abs(z) < 1e-8, 1e-8, z), dt)

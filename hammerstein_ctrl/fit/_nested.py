@@ -43,7 +43,7 @@ from .. import config
 from ._delay_fit import DelayedCost
 from ..assess._diagnostics import FAILURE, Verdict
 from ._experiments import RecordsCost
-from ._initialize import affine_coefficients
+from ._baselines import affine_coefficients
 from ._lure_fit import LureCost
 from ._wh_fit import WienerHammersteinCost
 from ..blocks._nonlinearities import Polynomial

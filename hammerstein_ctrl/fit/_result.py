@@ -168,7 +168,7 @@ class IdentificationResult(UncertainParameters):
             Start the model from rest, or estimate its initial state on
             ``data`` by least squares through the whole model, output map and
             feedback included (as MATLAB's ``compare`` does;
-            :func:`~hammerstein_ctrl.fit._initialize.estimate_initial_state`).
+            :func:`~hammerstein_ctrl.fit._baselines.estimate_initial_state`).
             Default: ``"estimate"`` if the identification estimated it, else
             ``"zero"``.
         offset : {"model", "estimate"}, default "model"
@@ -208,7 +208,7 @@ class IdentificationResult(UncertainParameters):
 
     def _simulated_on(self, model, data, initial_state, offset: bool):
         """``(simulated output, re-estimated offset or None)`` of ``model`` on ``data``."""
-        from ._initialize import estimate_initial_state
+        from ._baselines import estimate_initial_state
 
         mode = initial_state or self.structure.initial_state
         if mode not in ("zero", "estimate"):

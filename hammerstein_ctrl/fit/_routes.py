@@ -32,7 +32,9 @@ from ..blocks._mimo import MIMOStructure
 from ..blocks._structure import BlockStructure
 from ..blocks._wiener_hammerstein import WienerHammersteinStructure
 from ..exceptions import ParameterError
-from ._auto import auto_delayed, auto_lure, auto_mimo, auto_minimize, auto_records, auto_wiener_hammerstein
+from ._auto import auto_minimize
+from ._auto_records import auto_delayed, auto_mimo, auto_records
+from ._auto_whole import auto_lure, auto_wiener_hammerstein
 from ._delay_fit import DelayedCost
 from ._experiments import RecordsCost
 from ._lure_fit import LureCost
