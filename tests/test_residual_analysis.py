@@ -14,6 +14,7 @@ import pytest
 import scipy.signal
 
 from hammerstein_ctrl.assess import _residuals as RA
+from hammerstein_ctrl.assess._input_tests import COHERENCE_SEGMENTS, SEGMENT_MAX
 from hammerstein_ctrl.exceptions import ParameterError
 from hammerstein_ctrl.assess import residual_analysis
 
@@ -123,7 +124,7 @@ def test_the_test_uses_bounded_memory_on_long_records():
     tracemalloc.stop()
     assert a.passed
     assert peak < 40e6          # segments of at most SEGMENT_MAX samples: a constant, not a multiple of n
-    assert RA.COHERENCE_SEGMENTS * RA.SEGMENT_MAX < n
+    assert COHERENCE_SEGMENTS * SEGMENT_MAX < n
 
 
 def test_lags_past_the_record_are_refused_before_any_sum():

@@ -19,6 +19,7 @@ import scipy.stats
 import hammerstein_ctrl as hc
 from hammerstein_ctrl import config
 from hammerstein_ctrl.assess import _uncertainty as U
+from hammerstein_ctrl.assess import _propagation as P
 from hammerstein_ctrl.exceptions import ParameterError
 from test_known_truth import DT, SYSTEMS, make_case, simulate_truth
 
@@ -82,7 +83,7 @@ def test_white_covariance_matches_linear_regression():
     lo, hi = unc.conf_int([fit.intercept, fit.slope], 0.95)
     t = scipy.stats.t.ppf(0.975, 38)
     np.testing.assert_allclose(hi - lo, 2 * t * unc.stderr)
-    np.testing.assert_allclose(U.white_covariance(J.T @ J, r @ r, 40).covariance, unc.covariance)
+    np.testing.assert_allclose(P.white_covariance(J.T @ J, r @ r, 40).covariance, unc.covariance)
 
 
 def test_a_zero_or_collinear_column_has_an_infinite_standard_error():
@@ -193,7 +194,7 @@ def test_propagation_by_sampling_is_seeded_and_agrees_with_the_linear_one(tanh_f
 
 def test_root_gradients_match_finite_differences():
     c = np.array([1.0, 2.5, 4.0, 1.5])                     # a real root and a complex pair
-    roots, g = U.root_gradients(c, [1, 2, 3])
+    roots, g = P.root_gradients(c, [1, 2, 3])
     for j, pos in enumerate([1, 2, 3]):
         h = 1e-7
         d = c.copy()

@@ -20,8 +20,8 @@ against nested models.
    nested_f_test
 """
 
-from ._uncertainty import (ParameterUncertainty, NoiseModel, UncertainParameters, Propagated, CharacteristicsTable,
-                           estimate_uncertainty, propagate, parameter_covariance, linear_characteristics)
+from ._uncertainty import ParameterUncertainty, NoiseModel, Propagated, estimate_uncertainty, parameter_covariance
+from ._propagation import UncertainParameters, CharacteristicsTable, propagate, linear_characteristics
 from ._diagnostics import Verdict
 from ._residuals import ResidualAnalysis, residual_analysis
 from ._significance import NestedTest, nested_f_test

@@ -42,7 +42,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..blocks._nonlinearities import constant_level
-from ._uncertainty import ParameterUncertainty, linear_roots_by_block, scaled_eigen, t_factor
+from ._uncertainty import ParameterUncertainty, scaled_eigen, t_factor
+from ._propagation import linear_roots_by_block
 
 __all__ = ["Verdict", "identifiability_verdicts", "linear_verdicts", "row_pole_verdicts", "offset_verdict",
            "budget_advice", "late_improvement", "STILL_IMPROVING", "LATE_SHARE",
@@ -389,7 +390,7 @@ def row_pole_verdicts(structure, x, unc, names, *, allow_unstable: bool = False)
     >>> [v.code for v in row_pole_verdicts(s, np.array([2.0, 0.5, 0.7, -1.0, 1, 1, 2, 0.5]), None, ["a", "b"])]
     ['unstable']
     """
-    from ._uncertainty import root_gradients
+    from ._propagation import root_gradients
 
     cov = None if unc is None else unc.covariance
     k = t_factor(VERDICT_LEVEL, unc.dof if unc is not None else 10**9)

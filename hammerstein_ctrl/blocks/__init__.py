@@ -42,8 +42,8 @@ A *structure* maps a parameter vector to a *model*; a model simulates, linearise
    UnitGainBlock
 """
 
-from ._nonlinearities import (Nonlinearity, Tanh, Coulomb, Polynomial, Saturation, DeadZone, PiecewiseLinear, Sigmoid,
-                              Friction, CustomNonlinearity, nonlinearity_from_name, NONLINEARITIES)
+from ._nonlinearities import Nonlinearity
+from ._families import Tanh, Coulomb, Polynomial, Saturation, DeadZone, PiecewiseLinear, Sigmoid, Friction, CustomNonlinearity, nonlinearity_from_name, NONLINEARITIES
 from ._structure import (LinearStructure, BlockStructure, HammersteinStructure, WienerStructure,
                          HammersteinWienerStructure)
 from ._model import BlockModel, HammersteinModel, WienerModel, HammersteinWienerModel

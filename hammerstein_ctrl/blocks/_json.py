@@ -15,7 +15,7 @@ import numpy as np
 
 from ..simulate._export import model_settings
 from ..exceptions import ParameterError
-from ._nonlinearities import NONLINEARITIES, PiecewiseLinear, Polynomial
+from ._families import NONLINEARITIES, PiecewiseLinear, Polynomial
 
 __all__ = ["SCHEMA_VERSION", "MODEL_FORMAT", "RESULT_FORMAT", "model_to_dict", "save_model", "write_json",
            "encode_float", "json_safe", "nonlinearity_to_dict"]

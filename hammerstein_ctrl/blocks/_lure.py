@@ -50,7 +50,8 @@ from ..simulate._discretize import companion_realization
 from ..simulate._lure_map import loop_setup, map_slope, run
 from ..simulate._lure_sim import FEEDBACK_CODES, lure_run, lure_setup
 from ..exceptions import ParameterError
-from ._nonlinearities import Coulomb, Friction, Nonlinearity
+from ._nonlinearities import Nonlinearity
+from ._families import Coulomb, Friction
 from ..simulate._simulate import _check_pair, unstable
 from ._model import _check_linear, _finite_scalar, _state_vector
 from ._structure import INITIAL_STATES, LinearStructure, nuisance_names
@@ -528,7 +529,7 @@ class LureModel:
         [1.0]
         """
         from ._model import HammersteinModel
-        from ._nonlinearities import Polynomial
+        from ._families import Polynomial
 
         return HammersteinModel(self.linearize(), Polynomial(1), [1.0], name=self.name)
 

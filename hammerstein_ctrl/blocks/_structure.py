@@ -463,7 +463,7 @@ class BlockStructure:
         >>> WienerStructure(LinearStructure(1, 2), Tanh(), offset=True).linear_counterpart().param_names
         ('b0', 'a0', 'a1', 'd1', 'y0')
         """
-        from ._nonlinearities import CustomNonlinearity, Polynomial
+        from ._families import CustomNonlinearity, Polynomial
 
         g, h = self.input_nonlinearity, self.output_nonlinearity
         if h is None and (g is None or (isinstance(g, Polynomial) and g.n_params == 1)):

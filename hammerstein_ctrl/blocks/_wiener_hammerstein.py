@@ -385,7 +385,7 @@ class WienerHammersteinStructure:
         >>> wiener_hammerstein_structure((0, 1), None, (1, 2)).linear_counterpart().param_names
         ('b0', 'a0', 'a1', 'a2', 'd1')
         """
-        from ._nonlinearities import CustomNonlinearity, Polynomial
+        from ._families import CustomNonlinearity, Polynomial
         from ._structure import HammersteinStructure
 
         if isinstance(self.nonlinearity, CustomNonlinearity):
@@ -539,7 +539,7 @@ def wiener_hammerstein_structure(first=(0, 2), nonlinearity: Nonlinearity | None
     >>> wiener_hammerstein_structure((0, 1), None, (0, 1)).param_names
     ('g1_a1', 'g2_a1', 'd1', 'd2', 'd3')
     """
-    from ._nonlinearities import Polynomial
+    from ._families import Polynomial
 
     return WienerHammersteinStructure(tuple(first), Polynomial(3) if nonlinearity is None else nonlinearity,
                                       tuple(second), **options)
@@ -659,7 +659,7 @@ class WienerHammersteinModel:
         (``tune_pid``, ``analyze_loop``): a design about ``u0``; check it on the model itself with
         :meth:`simulate`."""
         from ._model import HammersteinModel
-        from ._nonlinearities import Polynomial
+        from ._families import Polynomial
 
         return HammersteinModel(self.linearize(u0), Polynomial(1), [1.0], name=self.name)
 

@@ -244,7 +244,7 @@ def _print_cost_comparison(case, study, out):
 
 def _structure_from_args(args):
     from ..paper import presets
-    from ..blocks._nonlinearities import nonlinearity_from_name
+    from ..blocks._families import nonlinearity_from_name
     from ..blocks._structure import HammersteinStructure, HammersteinWienerStructure, LinearStructure, WienerStructure
 
     if args.structure:
@@ -299,7 +299,7 @@ def _structure_from_args(args):
 def _lure_structure_from_args(args, fixed):
     """``--feedback velocity|output`` with ``--orders`` and ``--nonlinearity friction|coulomb``: a Lur'e loop."""
     from ..blocks._lure import LureStructure
-    from ..blocks._nonlinearities import nonlinearity_from_name
+    from ..blocks._families import nonlinearity_from_name
     from ..blocks._structure import LinearStructure
 
     extra = [flag for flag, given in (("--output-nonlinearity", args.output_nonlinearity),
@@ -318,7 +318,7 @@ def _lure_structure_from_args(args, fixed):
 
 def _wh_structure_from_args(args, fixed):
     """``--orders`` (G1), ``--nonlinearity`` (the map) and ``--second-orders`` (G2): a Wiener-Hammerstein model."""
-    from ..blocks._nonlinearities import nonlinearity_from_name
+    from ..blocks._families import nonlinearity_from_name
     from ..blocks._wiener_hammerstein import WienerHammersteinStructure
 
     extra = [flag for flag, given in (("--output-nonlinearity", args.output_nonlinearity),
@@ -399,7 +399,7 @@ def _mimo_structure_from_args(args, data):
     """A MIMO structure for a record with several channels: --orders for every element, --nonlinearity on every
     input, --output-nonlinearity on every output."""
     from ..blocks._mimo import mimo_structure
-    from ..blocks._nonlinearities import nonlinearity_from_name
+    from ..blocks._families import nonlinearity_from_name
     from ..blocks._structure import LinearStructure
 
     unsupported = [flag for flag, given in (("--structure", args.structure), ("--fix", args.fix),

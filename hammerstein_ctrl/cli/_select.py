@@ -52,7 +52,7 @@ def add_select_parser(subparsers, count, number, writable):
 
 
 def _families(names, degree):
-    from ..blocks._nonlinearities import nonlinearity_from_name
+    from ..blocks._families import nonlinearity_from_name
 
     return [nonlinearity_from_name(n, **({"degree": degree} if n.strip().lower() == "polynomial" else {}))
             for n in names]

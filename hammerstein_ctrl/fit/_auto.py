@@ -123,7 +123,8 @@ def _marginal(cost, x) -> bool:
     pass, outside the budget: it judges a refinement already made).
     """
     from ..assess._diagnostics import linear_verdicts
-    from ..assess._uncertainty import residual_jacobian, white_covariance
+    from ..assess._uncertainty import residual_jacobian
+    from ..assess._propagation import white_covariance
 
     x = np.asarray(x, dtype=float)
     with np.errstate(all="ignore"):

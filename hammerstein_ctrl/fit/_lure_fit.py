@@ -17,7 +17,7 @@ import numpy as np
 from ._output_error import OutputErrorCost
 from ..exceptions import ParameterError
 from ..blocks._lure import DERIVATIVES, LureStructure
-from ..blocks._nonlinearities import Coulomb, Friction, Polynomial
+from ..blocks._families import Coulomb, Friction, Polynomial
 from ..blocks._structure import HammersteinStructure, LinearStructure
 
 __all__ = ["LureCost", "hammerstein_structure_of", "hammerstein_start", "linear_structure_of", "map_starts",

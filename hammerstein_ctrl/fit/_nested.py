@@ -46,7 +46,7 @@ from ._experiments import RecordsCost
 from ._baselines import affine_coefficients
 from ._lure_fit import LureCost
 from ._wh_fit import WienerHammersteinCost
-from ..blocks._nonlinearities import Polynomial
+from ..blocks._families import Polynomial
 from ._initialize import points_for
 from ..optimize import Budget, BudgetExhausted, levenberg_marquardt
 

@@ -17,7 +17,8 @@ from ..data._metrics import channel_report, fit_report
 from ..blocks._model import BlockModel
 from ..assess._residuals import ResidualAnalysis, residual_analysis
 from ..blocks._structure import BlockStructure
-from ..assess._uncertainty import ParameterUncertainty, Propagated, UncertainParameters
+from ..assess._uncertainty import ParameterUncertainty, Propagated
+from ..assess._propagation import UncertainParameters
 
 __all__ = ["IdentificationResult"]
 
@@ -332,7 +333,7 @@ class IdentificationResult(UncertainParameters):
         Propagated
             ``value``, ``stderr``, ``low``, ``high``.
         """
-        from ..assess._uncertainty import propagate
+        from ..assess._propagation import propagate
 
         if self.covariance is None:
             raise ParameterError("this result carries no covariance (identify(..., uncertainty=False), or no model)")
@@ -352,7 +353,7 @@ class IdentificationResult(UncertainParameters):
             Rows ``(quantity, value, stderr, low, high)``; renders in Jupyter,
             ``to_frame()`` gives a DataFrame.
         """
-        from ..assess._uncertainty import linear_characteristics, row_characteristics
+        from ..assess._propagation import linear_characteristics, row_characteristics
 
         if self.covariance is None:
             raise ParameterError("this result carries no covariance (identify(..., uncertainty=False), or no model)")

@@ -24,7 +24,7 @@ import numpy as np
 from ..simulate._batch import simulate_batch
 from ._output_error import OutputErrorCost
 from ..exceptions import ParameterError
-from ..blocks._nonlinearities import Polynomial
+from ..blocks._families import Polynomial
 from ..blocks._structure import HammersteinStructure, LinearStructure
 from ..blocks._wiener_hammerstein import WienerHammersteinStructure, simulate_wh
 

@@ -61,7 +61,7 @@ from ..exceptions import ParameterError, UnknownNameError
 from .._checks import INTERSAMPLE, MAX_MAGNITUDE, check_delay, check_transfer_function
 from ..blocks._json import (MODEL_FORMAT, RESULT_FORMAT, SCHEMA_VERSION, encode_float as _encode, model_to_dict,
                             nonlinearity_to_dict as _nonlinearity_to_dict, save_model, write_json as _write)
-from ..blocks._nonlinearities import NONLINEARITIES
+from ..blocks._families import NONLINEARITIES
 from ..fit._result import IdentificationResult
 
 __all__ = [

@@ -196,7 +196,7 @@ def wh_benchmark_structure(estimation: IOData, knots: int = WH_KNOTS):
     >>> wh_benchmark_structure(rec, knots=5).param_names[:6]
     ('g1_a1', 'g1_a2', 'g1_a3', 'g2_b1', 'g2_b2', 'g2_a1')
     """
-    from ..blocks._nonlinearities import PiecewiseLinear
+    from ..blocks._families import PiecewiseLinear
     from ..blocks._wiener_hammerstein import WienerHammersteinStructure
 
     u = np.asarray(estimation.u, dtype=float).reshape(-1)
@@ -216,7 +216,7 @@ def silverbox_structure():
     ('b0', 'b1', 'b2', 'a1', 'a2', 'a3', 'd1', 'd2', 'd3', 'y0')
     """
     from ..blocks._lure import LureStructure
-    from ..blocks._nonlinearities import Polynomial
+    from ..blocks._families import Polynomial
     from ..blocks._structure import LinearStructure
 
     return LureStructure(LinearStructure(2, 4, monic_numerator=False, fixed={"a0": 0.0}), Polynomial(3),
@@ -233,7 +233,7 @@ def silverbox_duffing_structure():
     ('b0', 'a1', 'd1', 'd2', 'd3', 'y0')
     """
     from ..blocks._lure import LureStructure
-    from ..blocks._nonlinearities import Polynomial
+    from ..blocks._families import Polynomial
     from ..blocks._structure import LinearStructure
 
     return LureStructure(LinearStructure(0, 2, monic_numerator=False, fixed={"a0": 0.0}), Polynomial(3),

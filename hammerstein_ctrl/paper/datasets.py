@@ -229,7 +229,7 @@ def make_trs_reconstruction(
     -------
     IOData
     """
-    from ..blocks._nonlinearities import Tanh
+    from ..blocks._families import Tanh
     from ..simulate._simulate import simulate
 
     rng = np.random.default_rng(seed)

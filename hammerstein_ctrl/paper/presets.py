@@ -24,7 +24,7 @@ import numpy as np
 
 from .datasets import TRS_TRUE_BETA, IOData, load_emps, load_trs
 from ..exceptions import UnknownNameError
-from ..blocks._nonlinearities import Coulomb, Tanh
+from ..blocks._families import Coulomb, Tanh
 from ..fit._objective import HammersteinCost
 from ..blocks._structure import HammersteinStructure, LinearStructure
 
