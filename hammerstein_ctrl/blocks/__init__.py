@@ -43,7 +43,8 @@ A *structure* maps a parameter vector to a *model*; a model simulates, linearise
 """
 
 from ._nonlinearities import Nonlinearity
-from ._families import Tanh, Coulomb, Polynomial, Saturation, DeadZone, PiecewiseLinear, Sigmoid, Friction, CustomNonlinearity, nonlinearity_from_name, NONLINEARITIES
+from ._families import (Tanh, Coulomb, Polynomial, Saturation, DeadZone, PiecewiseLinear, Sigmoid, Friction,
+                        CustomNonlinearity, nonlinearity_from_name, NONLINEARITIES)
 from ._structure import (LinearStructure, BlockStructure, HammersteinStructure, WienerStructure,
                          HammersteinWienerStructure)
 from ._model import BlockModel, HammersteinModel, WienerModel, HammersteinWienerModel
