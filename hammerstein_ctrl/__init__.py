@@ -76,7 +76,7 @@ _MOVES = {
     "nonlinearities": ("blocks._nonlinearities", "blocks._families"), "structure": "blocks._structure",
     "model": "blocks._model",
     "mimo": ("blocks._mimo", "blocks._mimo_model", "blocks._mimo_sim"), "lure": "blocks._lure",
-    "wiener_hammerstein": "blocks._wiener_hammerstein", "_writer": "blocks._json",
+    "wiener_hammerstein": ("blocks._wiener_hammerstein", "blocks._unit_gain"), "_writer": "blocks._json",
     "plots": ("plotting._figures", "plotting._spectra", "plotting._blocks", "plotting._runs", "plotting._results",
               "plotting._studies"),
     "uncertainty": ("assess._uncertainty", "assess._propagation"), "diagnostics": "assess._diagnostics",
@@ -89,7 +89,8 @@ _MOVES = {
     "identify": "fit._identify", "in_loop": "fit._in_loop", "nested": "fit._nested", "result": "fit._result",
     "selection": "fit._selection",
     "control_design": ("design._tune", "design._pid", "design._loops", "design._approximate"),
-    "robust_pid": "design._robust", "operating_point": "design._operating_point", "persistence": "io._persistence",
+    "robust_pid": "design._robust", "operating_point": "design._operating_point",
+    "persistence": ("io._persistence", "io._results"),
     "cli_select": "cli._select", "cli_tune": "cli._tune",
 }
 _MOVED = {

@@ -105,7 +105,7 @@ def test_a_saved_result_keeps_its_covariance_intervals_and_warnings(trs_case, tm
 ])
 def test_a_damaged_covariance_or_warning_list_is_refused(trs_case, tmp_path, change, message):
     res = hc.identify(trs_case.data, trs_case.structure)
-    doc = persistence.result_to_dict(res)
+    doc = hc.io.result_to_dict(res)
     change(doc)
     path = tmp_path / "bad.json"
     path.write_text(json.dumps(doc))
@@ -232,7 +232,7 @@ def test_non_finite_run_figures_are_valid_json(trs_case, tmp_path):
 
 def test_result_with_inconsistent_beta_is_rejected(trs_case, tmp_path):
     res = hc.identify(trs_case.data, trs_case.structure, method="nspsa", x0=trs_case.x0, maxfev=15, seed=0)
-    doc = persistence.result_to_dict(res)
+    doc = hc.io.result_to_dict(res)
     doc["beta"][0] += 1.0
     doc["params"]["b0"] += 1.0
     path = tmp_path / "r.json"
@@ -315,7 +315,7 @@ def test_a_utf8_byte_order_mark_is_tolerated(tmp_path):
 @pytest.fixture(scope="module")
 def result_doc(trs_case):
     res = hc.identify(trs_case.data, trs_case.structure, method="lm", x0=trs_case.x0, maxfev=200)
-    return persistence.result_to_dict(res)
+    return hc.io.result_to_dict(res)
 
 
 @pytest.mark.parametrize("key, value, message", [
@@ -417,7 +417,7 @@ def test_fuzzed_model_files_load_or_fail_clearly(tmp_path_factory, doc):
 def test_fuzzed_bytes_never_raise_anything_but_a_clear_error(tmp_path_factory, data):
     path = tmp_path_factory.mktemp("fuzz") / "m.json"
     path.write_bytes(data)
-    for loader in (hc.load_model, hc.load_result, persistence.load_saved):
+    for loader in (hc.load_model, hc.load_result, hc.io.load_saved):
         _load_or_clear_error(path, loader)
 
 

@@ -52,8 +52,8 @@ from ._mimo import (MIMOStructure, mimo_structure, MIMOHammersteinStructure, MIM
                     MIMOHammersteinWienerStructure)
 from ._mimo_model import MIMOModel
 from ._lure import LureStructure, LureModel, lure_structure
-from ._wiener_hammerstein import (WienerHammersteinStructure, WienerHammersteinModel, wiener_hammerstein_structure,
-                                  UnitGainBlock)
+from ._wiener_hammerstein import WienerHammersteinStructure, WienerHammersteinModel, wiener_hammerstein_structure
+from ._unit_gain import UnitGainBlock
 
 __all__ = [
     "Nonlinearity", "Tanh", "Coulomb", "Polynomial", "Saturation", "DeadZone", "PiecewiseLinear", "Sigmoid",

@@ -2,6 +2,7 @@
 sigmoid, friction), the user's own maps, and the lookup by name."""
 
 from __future__ import annotations
+
 from typing import Callable, Sequence
 import numpy as np
 from ..exceptions import ParameterError, UnknownNameError

@@ -348,7 +348,7 @@ def _family_options(degree, breakpoints) -> dict:
 def _cmd_identify(args) -> int:
     from ..fit._identify import AUTO, identify
     from ..optimize import canonical_method
-    from ..io._persistence import save_result
+    from ..io._results import save_result
     from ..data._records import record_from_args
 
     auto = args.method.strip().lower() == AUTO

@@ -59,7 +59,7 @@ def _families(names, degree):
 
 
 def _cmd_select(args) -> int:
-    from ..io._persistence import save_result
+    from ..io._results import save_result
     from ..data._records import read_record, record_from_args
     from ..fit._selection import candidate_structures, select_structure
 

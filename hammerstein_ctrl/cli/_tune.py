@@ -54,7 +54,7 @@ def add_tune_parser(subparsers):
 
 
 def _model_and_dt(path: str, dt):
-    from ..io._persistence import SavedResult, load_saved
+    from ..io._results import SavedResult, load_saved
 
     saved = load_saved(path)
     if isinstance(saved, SavedResult):

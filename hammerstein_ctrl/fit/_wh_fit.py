@@ -26,7 +26,8 @@ from ._output_error import OutputErrorCost
 from ..exceptions import ParameterError
 from ..blocks._families import Polynomial
 from ..blocks._structure import HammersteinStructure, LinearStructure
-from ..blocks._wiener_hammerstein import WienerHammersteinStructure, simulate_wh
+from ..blocks._wiener_hammerstein import WienerHammersteinStructure
+from ..blocks._unit_gain import simulate_wh
 
 __all__ = ["WienerHammersteinCost", "bla_structure", "splits", "split_starts", "start_record", "PAD_FACTOR",
            "MAX_SPLITS", "SPLIT_STARTS"]
