@@ -65,6 +65,58 @@ def _normalised_rates(F: np.ndarray) -> np.ndarray:
     return rates
 
 
+def _checked(x0, bounds, maxfev, maxiter, pop_size, wep_min, wep_max, include_x0):
+    """``(lo, hi, pop_size, T)``: the box, the population and the iterations of a run, each checked."""
+    box = as_bounds(bounds, x0.size)
+    if box is None:
+        raise ParameterError("amvo-sca needs finite bounds (a box for the universes)")
+    lo, hi = box
+    if not (np.all(np.isfinite(lo)) and np.all(np.isfinite(hi))):
+        raise ParameterError("amvo-sca needs finite bounds on every parameter")
+    if int(pop_size) != pop_size or pop_size < 2:
+        raise ParameterError(f"pop_size must be an integer >= 2, got {pop_size!r}")
+    pop_size = int(pop_size)
+    maxfev, maxiter = check_budget(maxfev, maxiter)
+    if maxfev is None and maxiter is None:
+        raise ParameterError("give maxfev or maxiter")
+    T = math.inf if maxiter is None else int(maxiter)
+    if maxfev is not None:
+        T = min(T, int(maxfev) // pop_size)
+    if T < 1:
+        raise ParameterError(f"budget too small: maxfev={maxfev} with pop_size={pop_size} gives no iteration")
+    if not 0 <= wep_min <= wep_max <= 1:
+        raise ParameterError(f"need 0 <= wep_min <= wep_max <= 1, got {wep_min}, {wep_max}")
+    if include_x0 and (np.any(x0 < lo) or np.any(x0 > hi)):
+        raise ParameterError(f"x0 {x0.tolist()} lies outside the bounds")
+    return lo, hi, pop_size, int(T)
+
+
+def _moved_universes(U, F, best_x, t: int, T: int, rng, lo, hi, wep_min: float, wep_max: float) -> np.ndarray:
+    """The universes of iteration ``t + 1``: white/black-hole exchange, then the sine-cosine move (in place of
+    the wormholes) around the average of the best universe and the population's mean."""
+    pop_size, n = U.shape
+    order = np.argsort(F, kind="stable")
+    Us, rates = U[order], _normalised_rates(F[order])
+    # white/black-hole exchange: universe i takes dimension j from a white hole
+    exchange = rng.random((pop_size, n)) < rates[:, None]
+    weights = 1.0 - rates + 1e-12
+    cdf = np.cumsum(weights) / weights.sum()
+    donors = np.minimum(np.searchsorted(cdf, rng.random((pop_size, n))), pop_size - 1)
+    cols = np.broadcast_to(np.arange(n), (pop_size, n))
+    new = np.where(exchange, Us[donors, cols], Us)
+    # wormholes, replaced by the sine-cosine move around the average point
+    wep = wep_min + t * (wep_max - wep_min) / T
+    r1 = 2.0 * (1.0 - t / T)
+    P = 0.5 * (best_x + Us.mean(axis=0))
+    worm = rng.random((pop_size, n)) < wep
+    r2 = 2.0 * np.pi * rng.random((pop_size, n))
+    r3 = 2.0 * rng.random((pop_size, n))
+    r4 = rng.random((pop_size, n))
+    wave = np.where(r4 < 0.5, np.sin(r2), np.cos(r2))
+    new = np.where(worm, new + r1 * wave * np.abs(r3 * P - new), new)
+    return np.clip(new, lo, hi)
+
+
 def amvo_sca(fun, x0, *, bounds, maxfev: int | None = 5000, maxiter: int | None = None,
              pop_size: int = 50, wep_min: float = 0.2, wep_max: float = 1.0,
              include_x0: bool = False, seed=None, args=(), callback=None):
@@ -104,35 +156,11 @@ def amvo_sca(fun, x0, *, bounds, maxfev: int | None = 5000, maxiter: int | None 
     """
     started = time.perf_counter()
     x0 = as_x0(x0)
-    n = x0.size
-    box = as_bounds(bounds, n)
-    if box is None:
-        raise ParameterError("amvo-sca needs finite bounds (a box for the universes)")
-    lo, hi = box
-    if not (np.all(np.isfinite(lo)) and np.all(np.isfinite(hi))):
-        raise ParameterError("amvo-sca needs finite bounds on every parameter")
-    if int(pop_size) != pop_size or pop_size < 2:
-        raise ParameterError(f"pop_size must be an integer >= 2, got {pop_size!r}")
-    pop_size = int(pop_size)
-    maxfev, maxiter = check_budget(maxfev, maxiter)
-    if maxfev is None and maxiter is None:
-        raise ParameterError("give maxfev or maxiter")
-    T = math.inf if maxiter is None else int(maxiter)
-    if maxfev is not None:
-        T = min(T, int(maxfev) // pop_size)
-    if T < 1:
-        raise ParameterError(f"budget too small: maxfev={maxfev} with pop_size={pop_size} gives no iteration")
-    T = int(T)
-    if not 0 <= wep_min <= wep_max <= 1:
-        raise ParameterError(f"need 0 <= wep_min <= wep_max <= 1, got {wep_min}, {wep_max}")
-    if include_x0 and (np.any(x0 < lo) or np.any(x0 > hi)):
-        raise ParameterError(f"x0 {x0.tolist()} lies outside the bounds")
-
+    lo, hi, pop_size, T = _checked(x0, bounds, maxfev, maxiter, pop_size, wep_min, wep_max, include_x0)
     rng = as_rng(seed)
     obj = CountedObjective(fun, args, maxfev=pop_size * T)
     history = History()
-    width = hi - lo
-    U = lo + width * rng.random((pop_size, n))
+    U = lo + (hi - lo) * rng.random((pop_size, x0.size))
     if include_x0:
         U[0] = x0
     status, message = COMPLETED, f"completed {T} iterations of {pop_size} universes"
@@ -152,26 +180,7 @@ def amvo_sca(fun, x0, *, bounds, maxfev: int | None = 5000, maxiter: int | None 
                 break
             if t == T:
                 break
-            order = np.argsort(F, kind="stable")
-            Us, rates = U[order], _normalised_rates(F[order])
-            # white/black-hole exchange: universe i takes dimension j from a white hole
-            exchange = rng.random((pop_size, n)) < rates[:, None]
-            weights = 1.0 - rates + 1e-12
-            cdf = np.cumsum(weights) / weights.sum()
-            donors = np.minimum(np.searchsorted(cdf, rng.random((pop_size, n))), pop_size - 1)
-            cols = np.broadcast_to(np.arange(n), (pop_size, n))
-            new = np.where(exchange, Us[donors, cols], Us)
-            # wormholes, replaced by the sine-cosine move around the average point
-            wep = wep_min + t * (wep_max - wep_min) / T
-            r1 = 2.0 * (1.0 - t / T)
-            P = 0.5 * (best_x + Us.mean(axis=0))
-            worm = rng.random((pop_size, n)) < wep
-            r2 = 2.0 * np.pi * rng.random((pop_size, n))
-            r3 = 2.0 * rng.random((pop_size, n))
-            r4 = rng.random((pop_size, n))
-            wave = np.where(r4 < 0.5, np.sin(r2), np.cos(r2))
-            new = np.where(worm, new + r1 * wave * np.abs(r3 * P - new), new)
-            U = np.clip(new, lo, hi)
+            U = _moved_universes(U, F, best_x, t, T, rng, lo, hi, wep_min, wep_max)
     if not math.isfinite(best_f):
         status, message = NO_FINITE_VALUE, "no universe had a finite objective value"
     return make_result(

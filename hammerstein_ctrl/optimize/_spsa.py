@@ -57,6 +57,7 @@ Examples
 from __future__ import annotations
 
 import math
+from types import SimpleNamespace
 import time
 
 import numpy as np
@@ -255,33 +256,13 @@ def _gains(variant, obj, theta, scale, kmax, rng, a, c, auto, *, calibrate: bool
     return as_gain(a, StepGain, "a"), as_gain(c, PerturbationGain, "c")
 
 
-def _run(
-    variant: str,
-    fun,
-    x0,
-    *,
-    args=(),
-    a=None,
-    c=None,
-    norm_limit: float | None = None,
-    maxiter: int | None = None,
-    maxfev: int | None = None,
-    divergence_factor: float = 1e6,
-    bounds=None,
-    seed=None,
-    callback=None,
-    monitor: int = 0,
-    scale=None,
-    estimate: str = "best",
-):
-    started = time.perf_counter()
-    theta = as_x0(x0)
+def _plan(variant, theta, *, bounds, maxfev, maxiter, monitor, a, c, norm_limit, divergence_factor, estimate,
+          scale) -> SimpleNamespace:
+    """The checked settings of a run: the start's evaluation, box, calibration, iterations and scale."""
     if estimate not in ESTIMATES:
         raise ParameterError(f"estimate must be one of {ESTIMATES}, got {estimate!r}")
     start = 1 if estimate == "best" else 0      # the evaluation of theta(0)
-    n = theta.size
-    rng = as_rng(seed)
-    box = as_bounds(bounds, n)
+    box = as_bounds(bounds, theta.size)
     if box is not None and (np.any(theta < box[0]) or np.any(theta > box[1])):
         raise ParameterError(f"x0 {theta.tolist()} lies outside the bounds")
     if int(monitor) != monitor or monitor < 0:
@@ -302,69 +283,99 @@ def _run(
     if not divergence_factor > 1:
         raise ParameterError(f"divergence_factor must exceed 1, got {divergence_factor!r}")
     every = max(1, kmax // int(monitor)) if monitor else 0
+    return SimpleNamespace(start=start, box=box, auto=auto, calibration=calibration, kmax=kmax, scale=scale,
+                           every=every)
 
-    radius = divergence_factor * max(1.0, math.sqrt(float(theta @ theta)))
-    obj = CountedObjective(fun, args, maxfev=2 * kmax + 1 + calibration + start)
-    with np.errstate(all="ignore"):
-        f_start = obj(theta) if start else math.nan
-        a, c = _gains(variant, obj, theta, scale, kmax, rng, a, c, auto, calibrate=calibration > 0)
+
+def _divergence(k: int, theta, f_k: float, f_ref, factor: float, radius: float) -> str | None:
+    """Why the run diverged at iteration ``k`` (its objective or its iterate grew without bound), or None."""
+    if f_ref is not None and f_k > factor * f_ref:
+        return (f"diverged at iteration {k}: objective {f_k:.4g} exceeds "
+                f"{factor:g} x its first value {f_ref:.4g}")
+    norm = math.sqrt(float(theta @ theta))
+    if norm > radius:
+        return (f"diverged at iteration {k}: the iterate's norm {norm:.4g} exceeds {radius:.4g} "
+                f"({factor:g} x max(1, ||x0||))")
+    return None
+
+
+def _step(variant, theta, k, obj, a, c, rng, plan, norm_limit, pair):
+    """One iteration: the perturbed pair, its two evaluations and the update ``(new, f+, f-)``."""
+    delta = rng.integers(0, 2, theta.size) * 2.0 - 1.0
+    ak, ck = a(k), c(k)
+    np.add(theta, ck * plan.scale * delta, out=pair[0])
+    np.subtract(theta, ck * plan.scale * delta, out=pair[1])
+    if plan.box is not None:
+        np.clip(pair, plan.box[0], plan.box[1], out=pair)
+    f_plus, f_minus = obj.many(pair)
+    f_plus, f_minus = float(f_plus), float(f_minus)
+    diff = _raw_step(variant, f_plus, f_minus)
+    step = plan.scale * ((ak * diff / (2.0 * ck)) / delta)
+    if variant == "nlspsa":
+        step = _norm_limited(step, diff, delta, norm_limit)
+    new = theta - step
+    if plan.box is not None:
+        np.clip(new, plan.box[0], plan.box[1], out=new)
+    return new, f_plus, f_minus
+
+
+def _iterate(variant, obj, theta, a, c, rng, plan, *, norm_limit, divergence_factor, radius, callback):
+    """The iterations of a run: ``(theta, status, message, nit, history)``."""
     history = History()
-    status, message = COMPLETED, f"completed {kmax} iterations"
+    status, message = COMPLETED, f"completed {plan.kmax} iterations"
     f_ref = None
     nit = 0
-    pair = np.empty((2, n))
+    pair = np.empty((2, theta.size))
+    for k in range(1, plan.kmax + 1):
+        new, f_plus, f_minus = _step(variant, theta, k, obj, a, c, rng, plan, norm_limit, pair)
+        nit = k
+        f_k = _nanmin2(f_plus, f_minus)
+        estimate = obj.peek(new) if plan.every and k % plan.every == 0 and k < plan.kmax else math.nan
+        history.append(k, obj.nfev, f_k, obj.best_fun, estimate)
+        if f_ref is None and math.isfinite(f_k):
+            f_ref = max(abs(f_k), np.finfo(float).tiny)
+        if not np.all(np.isfinite(new)):
+            status = DIVERGED
+            message = (f"diverged at iteration {k}: the update became non-finite "
+                       f"(f+ = {f_plus:.4g}, f- = {f_minus:.4g})")
+            break
+        theta = new
+        why = _divergence(k, theta, f_k, f_ref, divergence_factor, radius)
+        if why is not None:
+            status, message = DIVERGED, why
+            break
+        if call_back(callback, theta, f_k, k, obj.nfev):
+            status, message = CALLBACK_STOP, f"stopped by the callback after {k} iterations"
+            break
+    return theta, status, message, nit, history
+
+
+def _run(variant: str, fun, x0, *, args=(), a=None, c=None, norm_limit: float | None = None,
+         maxiter: int | None = None, maxfev: int | None = None, divergence_factor: float = 1e6, bounds=None,
+         seed=None, callback=None, monitor: int = 0, scale=None, estimate: str = "best"):
+    started = time.perf_counter()
+    theta = as_x0(x0)
+    plan = _plan(variant, theta, bounds=bounds, maxfev=maxfev, maxiter=maxiter, monitor=monitor, a=a, c=c,
+                 norm_limit=norm_limit, divergence_factor=divergence_factor, estimate=estimate, scale=scale)
+    rng = as_rng(seed)
+    radius = divergence_factor * max(1.0, math.sqrt(float(theta @ theta)))
+    obj = CountedObjective(fun, args, maxfev=2 * plan.kmax + 1 + plan.calibration + plan.start)
     with np.errstate(all="ignore"):
-        for k in range(1, kmax + 1):
-            delta = rng.integers(0, 2, n) * 2.0 - 1.0
-            ak, ck = a(k), c(k)
-            np.add(theta, ck * scale * delta, out=pair[0])
-            np.subtract(theta, ck * scale * delta, out=pair[1])
-            if box is not None:
-                np.clip(pair, box[0], box[1], out=pair)
-            f_plus, f_minus = obj.many(pair)
-            f_plus, f_minus = float(f_plus), float(f_minus)
-            diff = _raw_step(variant, f_plus, f_minus)
-            step = scale * ((ak * diff / (2.0 * ck)) / delta)
-            if variant == "nlspsa":
-                step = _norm_limited(step, diff, delta, norm_limit)
-            new = theta - step
-            if box is not None:
-                np.clip(new, box[0], box[1], out=new)
-            nit = k
-            f_k = _nanmin2(f_plus, f_minus)
-            estimate = obj.peek(new) if every and k % every == 0 and k < kmax else math.nan
-            history.append(k, obj.nfev, f_k, obj.best_fun, estimate)
-            if f_ref is None and math.isfinite(f_k):
-                f_ref = max(abs(f_k), np.finfo(float).tiny)
-            if not np.all(np.isfinite(new)):
-                status = DIVERGED
-                message = (f"diverged at iteration {k}: the update became non-finite "
-                           f"(f+ = {f_plus:.4g}, f- = {f_minus:.4g})")
-                break
-            theta = new
-            if f_ref is not None and f_k > divergence_factor * f_ref:
-                status = DIVERGED
-                message = (f"diverged at iteration {k}: objective {f_k:.4g} exceeds "
-                           f"{divergence_factor:g} x its first value {f_ref:.4g}")
-                break
-            if math.sqrt(float(theta @ theta)) > radius:
-                status = DIVERGED
-                message = (f"diverged at iteration {k}: the iterate's norm "
-                           f"{math.sqrt(float(theta @ theta)):.4g} exceeds {radius:.4g} "
-                           f"({divergence_factor:g} x max(1, ||x0||))")
-                break
-            if call_back(callback, theta, f_k, k, obj.nfev):
-                status, message = CALLBACK_STOP, f"stopped by the callback after {k} iterations"
-                break
+        f_start = obj(theta) if plan.start else math.nan
+        a, c = _gains(variant, obj, theta, plan.scale, plan.kmax, rng, a, c, plan.auto,
+                      calibrate=plan.calibration > 0)
+        theta, status, message, nit, history = _iterate(
+            variant, obj, theta, a, c, rng, plan, norm_limit=norm_limit, divergence_factor=divergence_factor,
+            radius=radius, callback=callback)
         fun_final = obj(theta)
     history.set_last_estimate(fun_final)
-    if status == COMPLETED and not math.isfinite(fun_final) and not start:
+    if status == COMPLETED and not math.isfinite(fun_final) and not plan.start:
         message += "; the final estimate has a non-finite objective"
-    if start and math.isfinite(f_start) and not obj.best_fun < f_start:
+    if plan.start and math.isfinite(f_start) and not obj.best_fun < f_start:
         message += f"; no point evaluated improved on the start (J = {f_start:.6g}), which is returned"
     return make_result(
         x=theta, fun=fun_final, obj=obj, nit=nit, status=status, message=message,
-        history=history, method=variant, started=started, keep_last=not start,
+        history=history, method=variant, started=started, keep_last=not plan.start,
         last_x=theta.copy(), last_fun=float(fun_final),
     )
 
