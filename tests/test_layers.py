@@ -210,3 +210,13 @@ def test_the_paper_layer_holds_the_paper_facts():
         assert f"hammerstein_ctrl.paper.{name}" in graph
     for moved in ("presets", "datasets", "study", "report"):
         assert f"hammerstein_ctrl.{moved}" not in graph
+
+
+def test_the_tests_mirror_the_subpackages():
+    """One folder of tests for each public subpackage, and no folder that names none; the foundation's and the
+    package's own tests sit at the top."""
+    tests = Path(__file__).resolve().parent
+    folders = {p.name for p in tests.iterdir() if p.is_dir() and not p.name.startswith(("_", "."))}
+    subpackages = {p.parent.name for p in PACKAGE.glob("*/__init__.py") if not p.parent.name.startswith("_")}
+    assert folders == subpackages, f"test folders {sorted(folders)} against subpackages {sorted(subpackages)}"
+    assert all(any(tests.joinpath(name).glob("test_*.py")) for name in folders)

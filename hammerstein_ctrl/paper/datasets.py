@@ -160,7 +160,7 @@ def load_emps(kind: str = "estimation", duration: float | None = None, path=None
 
     Examples
     --------
-    With the files in ``$HAMMERSTEIN_CTRL_DATA/emps`` (exercised by ``tests/test_datasets.py``)::
+    With the files in ``$HAMMERSTEIN_CTRL_DATA/emps`` (exercised by ``tests/paper/test_datasets.py``)::
 
         d = load_emps(duration=12)      # the paper's first 12 s
         len(d), d.dt                    # (12000, 0.001)

@@ -22,7 +22,7 @@ from hammerstein_ctrl.optimize import lmder
 from hammerstein_ctrl.optimize import _minpack
 from hammerstein_ctrl.optimize._minpack import _qrfac, enorm
 
-REPO = Path(__file__).resolve().parents[1]
+REPO = Path(__file__).resolve().parents[2]
 
 _BARD_Y = np.array([0.14, 0.18, 0.22, 0.25, 0.29, 0.32, 0.35, 0.39, 0.37, 0.58, 0.73, 0.96, 1.34, 2.10, 4.39])
 _MEYER_Y = np.array([34780, 28610, 23650, 19630, 16370, 13720, 11540, 9744, 8261, 7030, 6005, 5147, 4427, 3820,

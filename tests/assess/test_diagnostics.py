@@ -237,7 +237,7 @@ def _verdict_truths():
     import importlib.util
     from pathlib import Path
 
-    path = Path(__file__).resolve().parents[1] / "benchmarks" / "verdict_truths.py"
+    path = Path(__file__).resolve().parents[2] / "benchmarks" / "verdict_truths.py"
     spec = importlib.util.spec_from_file_location("verdict_truths", path)
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)

@@ -21,7 +21,7 @@ from hammerstein_ctrl.cli import main
 from hammerstein_ctrl.exceptions import HammersteinError
 from hammerstein_ctrl.fit import HammersteinCost
 
-from test_known_truth import DT, J_SLACK, K_SIGMA, companion, multilevel_prbs, multisine, standard_errors
+from _truths import DT, J_SLACK, K_SIGMA, companion, multilevel_prbs, multisine, standard_errors
 
 #: Relative agreement of the simulators with python-control / scipy.
 SIM_RTOL = 1e-9

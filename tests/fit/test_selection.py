@@ -8,7 +8,7 @@ import pytest
 import hammerstein_ctrl as hc
 from hammerstein_ctrl.exceptions import ParameterError
 from hammerstein_ctrl.fit._selection import CRITERIA, candidate_structures, information_criterion, select_structure
-from test_known_truth import make_case
+from _truths import make_case
 
 #: Known-truth records (python-control) and a wrong family to offer beside the true one.
 RECORDS = {
