@@ -42,3 +42,19 @@ def test_the_user_guide_covers_every_topic():
     index = (guide / "index.md").read_text()
     for topic in topics:
         assert (guide / f"{topic}.md").is_file() and f"\n{topic}\n" in index
+
+
+SUBPACKAGES = ("data", "optimize", "simulate", "blocks", "plotting", "assess", "fit", "design", "io", "cli")
+
+
+@pytest.mark.parametrize("sub", SUBPACKAGES)
+def test_every_subpackage_states_its_contract(sub):
+    """``__all__``, every name of it documented, and a docstring whose table lists only names of ``__all__``."""
+    import importlib
+
+    module = importlib.import_module(f"hammerstein_ctrl.{sub}")
+    doc = module.__doc__ or ""
+    listed = re.findall(r"^   (\w+)$", doc.split(".. autosummary::", 1)[-1], flags=re.M) if "autosummary" in doc else []
+    assert listed and set(listed) <= set(module.__all__), f"hammerstein_ctrl.{sub}'s docstring table: {listed}"
+    undocumented = [n for n in module.__all__ if not n.isupper() and not inspect.getdoc(getattr(module, n))]
+    assert not undocumented, f"hammerstein_ctrl.{sub}: {undocumented} have no docstring"

@@ -19,6 +19,23 @@ with a finite ``fun``):
 ``SOLVER_FAILED``       4  a solver stopped without converging (scipy's message)
 ``BUDGET_EXHAUSTED``    5  LM or a scipy method ran out of ``maxfev`` first
 =====================  ==  =====================================================
+
+.. autosummary::
+   :nosignatures:
+
+   minimize
+   spsa
+   nlspsa
+   nspsa
+   amvo_sca
+   levenberg_marquardt
+   lmder
+   OptimizeResult
+   Budget
+   History
+   StepGain
+   PerturbationGain
+   GainSequence
 """
 
 from ._common import (BUDGET_EXHAUSTED, CALLBACK_STOP, COMPLETED, DIVERGED, NO_FINITE_VALUE, SOLVER_FAILED,

@@ -249,6 +249,13 @@ def as_rng(seed) -> np.random.Generator:
 
 
 def as_x0(x0) -> np.ndarray:
+    """A starting point as a new, flat float array: real, finite and not empty, else a :class:`ParameterError`.
+
+    Examples
+    --------
+    >>> as_x0([[1, 2], [3, 4]]).tolist()
+    [1.0, 2.0, 3.0, 4.0]
+    """
     x = np.array(as_real_array(x0, "x0")).reshape(-1)
     if x.size == 0:
         raise ParameterError("x0 is empty")

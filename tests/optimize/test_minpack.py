@@ -319,7 +319,7 @@ def test_ill_conditioned_fits_give_the_same_bits_in_three_processes(emps_dir):
     initial state and an offset (the Wiener fits with an estimated state end in MINPACK's hand-over): the same
     bits in three fresh processes.  Through scipy's MINPACK, whose over-read past the Jacobian read the heap, 7 of
     12 such cold runs differed."""
-    env = {**os.environ, "HAMMERSTEIN_CTRL_COMPILED_LOOP": "never"}
+    env = {**os.environ, "HAMMERSTEIN_CTRL_COMPILED_LOOP": "never", "PYTHONPATH": str(REPO / "benchmarks")}
     runs = []
     for _ in range(3):
         proc = subprocess.run([sys.executable, "-c", _ILL_CONDITIONED_FITS, str(emps_dir)], capture_output=True,
