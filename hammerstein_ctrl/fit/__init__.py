@@ -20,6 +20,9 @@ selection and fits inside a known control loop.
    MIMOCost
    LureCost
    WienerHammersteinCost
+   Cost
+   route
+   Route
 """
 
 from ._identify import identify
@@ -32,9 +35,10 @@ from ._experiments import RecordsStructure, RecordsCost
 from ._mimo_fit import MIMOCost
 from ._lure_fit import LureCost
 from ._wh_fit import WienerHammersteinCost
+from ._routes import Cost, Route, route
 
 __all__ = [
     "identify", "IdentificationResult", "identify_in_loop", "KnownLoop", "KnownLoopCost", "select_structure",
     "candidate_structures", "SelectionResult", "information_criterion", "HammersteinCost", "DelayedCost",
-    "RecordsStructure", "RecordsCost", "MIMOCost", "LureCost", "WienerHammersteinCost"
+    "RecordsStructure", "RecordsCost", "MIMOCost", "LureCost", "WienerHammersteinCost", "Cost", "route", "Route",
 ]

@@ -236,6 +236,10 @@ class KnownLoopCost:
                     Y[k], U[k] = np.inf, np.nan
         return Y, U
 
+    def simulate(self, beta) -> np.ndarray:
+        """The loop's output ``y`` around the candidate plant ``beta`` (its input is ``simulate_batch``'s ``U``)."""
+        return self.simulate_batch(beta)[0][0]
+
     def residuals_batch(self, betas) -> np.ndarray:
         Y, U = self.simulate_batch(betas)
         parts = [w * ((self._y - Y) if s == "y" else (self._u - U)) for s, w in zip(self.signals, self.weights)]

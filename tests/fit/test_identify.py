@@ -199,3 +199,41 @@ def test_a_callback_that_stops_auto_stops_it():
     res = auto_minimize(HammersteinCost(data, hc.HammersteinStructure(hc.LinearStructure(1, 2), hc.Tanh())), seed=0,
                         callback=lambda r: calls.append(r.nfev) or True)
     assert len(calls) == 1 and res.nit == 1 and res.nfev < 3000
+
+
+def _records_of_every_family():
+    """A small record, and the structure of each family with the records it takes."""
+    t = np.arange(300) * 0.05
+    u = np.sin(0.7 * t) + 0.5 * np.sin(2.3 * t)
+    y = 0.5 * np.tanh(u) + 0.1 * np.cos(0.3 * t)
+    siso, ham = IOData(u, y, dt=0.05), HammersteinStructure(LinearStructure(0, 1), hc.Tanh())
+    mimo = IOData(np.column_stack([u, -u]), np.column_stack([y, 0.5 * y]), dt=0.05)
+    return {
+        "HammersteinCost": (ham, (siso,)),
+        "DelayedCost": (HammersteinStructure(LinearStructure(0, 1, delay=0.1), hc.Tanh()), (siso,)),
+        "RecordsCost": (ham, (siso, siso)),
+        "MIMOCost": (hc.MIMOHammersteinStructure(LinearStructure(0, 1), [hc.Tanh(), hc.Tanh()], n_outputs=2), (mimo,)),
+        "LureCost": (hc.lure_structure(), (siso,)),
+        "WienerHammersteinCost": (hc.wiener_hammerstein_structure((0, 1), hc.Tanh(), (0, 1)), (siso,)),
+    }
+
+
+@pytest.mark.parametrize("cost_name", sorted(_records_of_every_family()))
+def test_each_family_of_structures_is_routed_to_its_cost_and_every_cost_keeps_the_protocol(cost_name):
+    structure, records = _records_of_every_family()[cost_name]
+    way = hc.fit.route(structure, records)
+    cost = way.make(records, structure)
+    assert type(cost).__name__ == cost_name and isinstance(cost, hc.fit.Cost)
+    x = np.asarray(structure.normalize(np.ones(structure.n_params)) if hasattr(structure, "normalize")
+                   else np.ones(structure.n_params))
+    assert np.isclose(cost(x), float(np.sum(cost.residuals(x) ** 2)), rtol=1e-9, equal_nan=True)
+
+
+def test_a_structure_of_no_family_and_records_a_family_does_not_take_are_refused_in_one_line():
+    siso = IOData(np.ones(50), np.ones(50), dt=0.1)
+    with pytest.raises(ParameterError, match="got the name 'tanh'"):
+        hc.fit.route("tanh", (siso,))
+    with pytest.raises(ParameterError, match="got dict"):
+        hc.fit.route({}, (siso,))
+    with pytest.raises(ParameterError, match="several records in one Lur'e fit"):
+        hc.fit.route(hc.lure_structure(), (siso, siso))

@@ -77,6 +77,8 @@ def test_residuals_stack_the_matched_signals_weighted(match, n_signals):
     np.testing.assert_allclose(R.reshape(n_signals, 300), np.array(expected)[:, None] * np.ones((1, 300)),
                                atol=1e-12)
     assert cost(TRUTH) == pytest.approx(300 * sum(e**2 for e in expected))
+    assert isinstance(cost, hc.fit.Cost)
+    np.testing.assert_allclose(cost.simulate(TRUTH), y, rtol=0, atol=1e-9)
 
 
 @pytest.mark.parametrize("make, error, match", [
