@@ -22,7 +22,7 @@ extensions = [
     "myst_nb",
 ]
 source_suffix = {".rst": "restructuredtext", ".md": "myst-nb", ".ipynb": "myst-nb"}
-exclude_patterns = ["_build", "**.ipynb_checkpoints"]
+exclude_patterns = ["_build", "**.ipynb_checkpoints", "api/_front_door.rst"]
 templates_path = ["_templates"]
 
 html_theme = "pydata_sphinx_theme"

@@ -28,7 +28,7 @@ import sys
 import types
 import warnings
 
-from ._deprecation import MovedModules
+from ._deprecation import MovedModules as _MovedModules
 from .exceptions import (ChannelWarning, DataError, HammersteinError, IdentificationWarning, ParameterError,
                          SimulationWarning, UnknownNameError)
 
@@ -101,8 +101,8 @@ _MOVED = {
 }
 
 #: The documented front door: records, structures, models, nonlinearities, identification and its result,
-#: persistence, errors.  Sub-modules (``hc.plots``, ``hc.control_design``, ``hc.mimo``, ``hc.config``, the paper
-#: layer ``hc.paper`` ...) are reached as attributes and are not star-exported.
+#: persistence, errors.  The subpackages (``hc.data``, ``hc.blocks``, ``hc.fit``, ``hc.design``, ``hc.plotting``, the
+#: paper layer ``hc.paper`` ...) are reached as attributes and are not star-exported.
 __all__ = [
     "IOData", "read_record",
     "LinearStructure", "HammersteinStructure", "WienerStructure", "HammersteinWienerStructure", "BlockStructure",
@@ -143,6 +143,8 @@ def __getattr__(name):
         value = importlib.import_module(f"{__name__}.{_PAPER_MODULES.get(name, name)}")
     elif name in _LAZY_NAMES:
         value = getattr(importlib.import_module(f"{__name__}.{_LAZY_NAMES[name]}"), name)
+    elif name in _MOVED and _MOVED[name][0] is None:         # left the package: hasattr() is False, with why
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}: {_MOVED[name][1]}")
     elif name in _MOVED:
         return importlib.import_module(f"{__name__}.{name}")      # warns
     else:
@@ -169,4 +171,4 @@ class _Package(types.ModuleType):
 
 
 sys.modules[__name__].__class__ = _Package
-MovedModules(__name__, _MOVED).install()
+_MovedModules(__name__, _MOVED).install()

@@ -5,7 +5,30 @@ from __future__ import annotations
 import sys
 import warnings
 
-__all__ = ["renamed", "MovedModules"]
+__all__ = ["renamed", "moved_names", "MovedModules"]
+
+#: The package whose namespace module (its ``__init__``) is no caller: a warning raised through its ``__getattr__``
+#: goes to the line that asked it.
+PACKAGE = __name__.split(".")[0]
+
+
+def _public(module: str) -> str:
+    """The public path of ``module``: the part before its first private component (``a.b._c`` -> ``a.b``)."""
+    parts = module.split(".")
+    cut = next((i for i, p in enumerate(parts) if p.startswith("_")), len(parts))
+    return ".".join(parts[:max(cut, 1)])
+
+
+def _warn(message: str) -> None:
+    """A DeprecationWarning attributed to the user's line (the first frame outside the import system, this module
+    and the package's namespace module), so that Python's default filters show it in ``__main__``."""
+    frame = _caller()
+    if frame is None:
+        warnings.warn(message, DeprecationWarning, stacklevel=2)
+        return
+    warnings.warn_explicit(message, DeprecationWarning, frame.f_code.co_filename, frame.f_lineno,
+                           module=frame.f_globals.get("__name__", "__main__"),
+                           registry=frame.f_globals.setdefault("__warningregistry__", {}))
 
 
 def renamed(module: str, renames: dict):
@@ -26,8 +49,37 @@ def renamed(module: str, renames: dict):
     def __getattr__(name):
         if name in renames:
             new, why = renames[name]
-            warnings.warn(f"{module}.{name} is now {new} ({why})", DeprecationWarning, stacklevel=2)
+            _warn(f"{_public(module)}.{name} is now {new} ({why})")
             return getattr(sys.modules[module], new)
+        raise AttributeError(f"module {module!r} has no attribute {name!r}")
+
+    return __getattr__
+
+
+def moved_names(module: str, moves: dict):
+    """A module-level ``__getattr__`` for ``module``: each name of ``moves`` (``name: (path, why)``) gives the object
+    of that name in the module ``path``, imported on first use, with a DeprecationWarning; any other name is an
+    AttributeError.
+
+    Examples
+    --------
+    >>> import types, warnings
+    >>> home = types.ModuleType("demo_home"); home.THING = 2; sys.modules["demo_home"] = home
+    >>> m = types.ModuleType("demo2"); sys.modules["demo2"] = m
+    >>> m.__getattr__ = moved_names("demo2", {"THING": ("demo_home", "internal")})
+    >>> with warnings.catch_warnings(record=True) as caught:
+    ...     warnings.simplefilter("always")
+    ...     value = m.THING
+    >>> value, str(caught[0].message)
+    (2, 'demo2.THING is deprecated and will be removed (internal)')
+    """
+    def __getattr__(name):
+        if name in moves:
+            import importlib
+
+            path, why = moves[name]
+            _warn(f"{module}.{name} is deprecated and will be removed ({why})")
+            return getattr(importlib.import_module(path), name)
         raise AttributeError(f"module {module!r} has no attribute {name!r}")
 
     return __getattr__
@@ -37,7 +89,8 @@ def _caller():
     """The first frame outside the import system and this module: where a moved module was imported."""
     frame = sys._getframe(1)
     while frame is not None and (frame.f_code.co_filename == __file__ or "importlib" in frame.f_code.co_filename
-                                 or frame.f_code.co_filename.startswith("<frozen")):
+                                 or frame.f_code.co_filename.startswith("<frozen")
+                                 or frame.f_globals.get("__name__") == PACKAGE):
         frame = frame.f_back
     return frame
 
@@ -58,6 +111,7 @@ def _union(name: str, modules: list):
         raise AttributeError(f"module {name!r} has no attribute {attr!r}")
 
     union.__getattr__ = __getattr__
+    union.__dir__ = lambda: sorted(set(union.__all__) | {n for m in modules for n in dir(m) if not n.startswith("_")})
     return union
 
 
@@ -79,8 +133,10 @@ class MovedModules:
     >>> with warnings.catch_warnings(record=True) as caught:
     ...     warnings.simplefilter("always")
     ...     module = importlib.import_module("demo_pkg.old")
-    >>> module.VALUE, module.__name__, str(caught[0].message)
-    (3, 'demo_pkg._new', 'demo_pkg.old is deprecated and will be removed: use demo_pkg._new (renamed)')
+    >>> module.VALUE, module.__name__
+    (3, 'demo_pkg._new')
+    >>> str(caught[0].message)
+    'demo_pkg.old is deprecated and will be removed: it was internal and has no public replacement (renamed)'
     >>> sys.meta_path.remove(finder)
 
     A module split in two:
@@ -115,16 +171,10 @@ class MovedModules:
         new, why = self.moved[spec.name[len(self.package) + 1:]]
         if new is None:
             raise ModuleNotFoundError(f"{spec.name} is no longer part of the package: {why}", name=spec.name)
-        frame = _caller()
         paths = (new,) if isinstance(new, str) else tuple(new)
-        home = paths[0].split(".")[0] if not paths[0].startswith("_") else paths[0]
-        message = f"{spec.name} is deprecated and will be removed: use {self.package}.{home} ({why})"
-        if frame is None:
-            warnings.warn(message, DeprecationWarning, stacklevel=2)
-        else:
-            warnings.warn_explicit(message, DeprecationWarning, frame.f_code.co_filename, frame.f_lineno,
-                                   module=frame.f_globals.get("__name__", "__main__"),
-                                   registry=frame.f_globals.setdefault("__warningregistry__", {}))
+        home = paths[0].split(".")[0] if not paths[0].startswith("_") else None
+        _warn(f"{spec.name} is deprecated and will be removed: " + (
+            f"use {self.package}.{home} ({why})" if home else f"it was internal and has no public replacement ({why})"))
         if len(paths) > 1:
             return _union(spec.name, [importlib.import_module(f"{self.package}.{p}") for p in paths])
         module = importlib.import_module(f"{self.package}.{new}")

@@ -220,3 +220,39 @@ def test_the_tests_mirror_the_subpackages():
     subpackages = {p.parent.name for p in PACKAGE.glob("*/__init__.py") if not p.parent.name.startswith("_")}
     assert folders == subpackages, f"test folders {sorted(folders)} against subpackages {sorted(subpackages)}"
     assert all(any(tests.joinpath(name).glob("test_*.py")) for name in folders)
+
+
+def _namespace_imports(root: Path = PACKAGE) -> list:
+    """``(module, line)`` of every import of the package's lazy namespace itself (``import hammerstein_ctrl``,
+    ``from .. import identify``) by a module below it: the graph above cannot see through it."""
+    modules = _modules(root)
+    found = []
+    for name, path in modules.items():
+        if name == "hammerstein_ctrl":
+            continue
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            if isinstance(node, ast.Import) and any(a.name == "hammerstein_ctrl" for a in node.names):
+                found.append((name, node.lineno))
+            elif isinstance(node, ast.ImportFrom):
+                base = name.split(".") if path.name == "__init__.py" else name.split(".")[:-1]
+                source = (".".join(base[:len(base) - (node.level - 1)] + ([node.module] if node.module else []))
+                          if node.level else node.module or "")
+                if source == "hammerstein_ctrl" and any(f"{source}.{a.name}" not in modules
+                                                        and a.name != "_core" for a in node.names):
+                    found.append((name, node.lineno))
+    return found
+
+
+def test_no_module_imports_the_lazy_namespace():
+    assert _namespace_imports() == []
+
+
+def test_the_namespace_check_finds_a_planted_import(tmp_path):
+    pkg = tmp_path / "hammerstein_ctrl"
+    (pkg / "fit").mkdir(parents=True)
+    (pkg / "__init__.py").write_text("")
+    (pkg / "config.py").write_text("")
+    (pkg / "fit" / "__init__.py").write_text("")
+    (pkg / "fit" / "_a.py").write_text("from .. import config\ndef f():\n    from .. import identify\n")
+    (pkg / "fit" / "_b.py").write_text("import hammerstein_ctrl\n")
+    assert _namespace_imports(pkg) == [("hammerstein_ctrl.fit._a", 3), ("hammerstein_ctrl.fit._b", 1)]

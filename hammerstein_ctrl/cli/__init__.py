@@ -4,10 +4,9 @@
    :nosignatures:
 
    main
+   build_parser
 """
 
-from ._main import main
+from ._main import EXIT_ERROR, PROG, build_parser, main
 
-__all__ = [
-    "main"
-]
+__all__ = ["main", "build_parser", "EXIT_ERROR", "PROG"]

@@ -56,3 +56,13 @@ __all__ = [
     "History", "lmder", "MinpackResult",
     "as_rng", "as_x0",
 ]
+
+
+def __getattr__(name):
+    """The flat layout's sub-modules ``gains``, ``least_squares`` and ``normal_lm`` as attributes, for one release
+    (their old paths import with a DeprecationWarning)."""
+    if name in ("gains", "least_squares", "normal_lm"):
+        import importlib
+
+        return importlib.import_module(f"{__name__}.{name}")
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

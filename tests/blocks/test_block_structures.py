@@ -4,7 +4,7 @@ Every record and every reference output is generated without the package's
 simulator: the static blocks are plain numpy, the linear block is simulated by
 ``control.forced_response`` (first-order hold) or
 ``scipy.signal.lsim(..., interp=False)`` (zero-order hold) on the controllable
-canonical realisation written out in ``tests/test_known_truth.py``.
+canonical realisation written out in ``tests/_truths.py``.
 """
 
 from __future__ import annotations
