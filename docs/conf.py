@@ -102,7 +102,19 @@ DOCUMENTED_MODULES = tuple(f"hammerstein_ctrl.{sub}" for sub in SUBPACKAGES) + (
 
 
 def _lookup(dotted: str):
-    """The object named ``dotted`` (module path then attributes), or None."""
+    """The object named ``dotted`` (module path then attributes), or None; an old name kept for one release counts
+    as none (it has no page)."""
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", DeprecationWarning)
+        try:
+            return _resolve(dotted)
+        except DeprecationWarning:
+            return None
+
+
+def _resolve(dotted: str):
     import importlib
 
     parts = dotted.split(".")

@@ -95,7 +95,7 @@ class Route:
     several : bool
         The cost takes every record (shared blocks, a nuisance set each).
     mimo : bool
-        The result reports each output (:meth:`IdentificationResult.output_fits`).
+        The result reports the fit of each output (its ``output_fits``).
     """
 
     cost: type
