@@ -65,7 +65,8 @@ _LAZY_NAMES = {
 #: Old module paths, kept for one release: each imports its new module with a DeprecationWarning (a module split
 #: in several gives one module holding all their names).
 _MOVES = {
-    "iodata": "data._iodata", "records": "data._records", "metrics": "data._metrics", "display": "data._display",
+    "iodata": "data._iodata", "records": "data._records", "metrics": "data._metrics",
+    "display": ("data._display", "data._inputs"),
     "safe_io": "_safe_io", "executors": "_executors", "kernels": "_kernels",
     "normal_equations": "optimize._normal_equations", "streamed_lstsq": "optimize._streamed_lstsq",
     "optimize.gains": "optimize._gains", "optimize.least_squares": "optimize._least_squares",

@@ -36,7 +36,7 @@ from pathlib import Path
 import numpy as np
 
 from .._checks import (GRID_TOLERANCE, as_channels, as_signal, check_dt, check_intersample, check_tolerance,
-                       finite_float, optional_time, resampling_grid, uniform_grid,)
+                       finite_float, optional_time, resampling_grid, uniform_grid)
 from ..exceptions import DataError, ParameterError
 
 __all__ = ["IOData", "RESAMPLE_METHODS", "DETREND_KINDS", "time_and_input"]

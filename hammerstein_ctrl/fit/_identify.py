@@ -231,7 +231,7 @@ def _as_records(data) -> tuple:
 
 def _as_record(data) -> IOData:
     """An IOData from an IOData or a ``nonlinear_benchmarks``-style record (``u, y, sampling_time``)."""
-    from ..data._display import as_iodata
+    from ..data._inputs import as_iodata
 
     try:
         return as_iodata(data)

@@ -188,7 +188,7 @@ class IdentificationResult(UncertainParameters):
         >>> round(res.validate(new)["fit_percent"]) < 0, round(res.validate(new, offset="estimate")["fit_percent"], 3)
         (True, 100.0)
         """
-        from ..data._display import as_iodata
+        from ..data._inputs import as_iodata
 
         if self.model is None:
             raise ParameterError(f"this identification produced no model, so there is nothing to validate "
@@ -284,7 +284,7 @@ class IdentificationResult(UncertainParameters):
         """
         if self.model is None:
             raise ParameterError(f"this identification produced no model to analyse ({self.message})")
-        from ..data._display import as_iodata
+        from ..data._inputs import as_iodata
 
         if self.is_mimo:
             if initial_state not in (None, "zero"):
@@ -426,7 +426,7 @@ class IdentificationResult(UncertainParameters):
         ``data`` is the estimation record, for a result read from a file (which keeps only its description)."""
         import dataclasses
 
-        from ..data._display import as_iodata
+        from ..data._inputs import as_iodata
         from ..plotting._results import result_figure
 
         result = self if data is None else dataclasses.replace(self, data=as_iodata(data))

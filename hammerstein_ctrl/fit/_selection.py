@@ -261,7 +261,7 @@ def select_structure(data, candidates, validation=None, criterion: str = "aic", 
     >>> sel.best.structure.describe()
     'H(p) = (1)/(p + a0); g = tanh(d0, d1)'
     """
-    from ..data._display import as_iodata
+    from ..data._inputs import as_iodata
     from .._executors import make_executor
 
     criterion = str(criterion).strip().lower()

@@ -10,7 +10,7 @@ import time
 
 import numpy as np
 
-from ..data._display import METHOD_LABELS
+from ..data._inputs import METHOD_LABELS
 
 __all__ = ["study_table", "best_models", "PAPER_TABLES", "time_call", "forced_response_cost"]
 

@@ -4,7 +4,7 @@ range."""
 from __future__ import annotations
 
 import numpy as np
-from ..data._display import as_models, is_identification_result, labelled
+from ..data._inputs import as_models, is_identification_result, labelled
 from ..exceptions import ParameterError
 from ._figures import _WIDTH, _finish, _label, _new_figure, _single_axes
 

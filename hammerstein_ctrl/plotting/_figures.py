@@ -9,9 +9,9 @@ that draw one axes also accept ``ax`` (then they draw into your figure).
 
 Wherever a model is expected you may pass one model, a list, a dict
 ``{label: model}`` or an :class:`~hammerstein_ctrl.fit._identify.IdentificationResult`
-(see :func:`hammerstein_ctrl.data._display.as_models`); wherever a record is expected,
+(see :func:`hammerstein_ctrl.data._inputs.as_models`); wherever a record is expected,
 an :class:`~hammerstein_ctrl.data.IOData` or a ``nonlinear_benchmarks``
-record (see :func:`hammerstein_ctrl.data._display.as_iodata`).
+record (see :func:`hammerstein_ctrl.data._inputs.as_iodata`).
 
 Examples
 --------
@@ -29,7 +29,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..data._display import as_iodata, as_models, register_figure_formatter
+from ..data._display import register_figure_formatter
+from ..data._inputs import as_iodata, as_models
 from ..exceptions import ParameterError
 
 __all__ = ["time_response", "error_response", "MIN_PEAK_BINS", "PEAK_PROMINENCE", "SMOOTH_BINS", "LOG_SPAN"]

@@ -4,7 +4,7 @@ residual analysis."""
 from __future__ import annotations
 
 import numpy as np
-from ..data._display import as_iodata, as_models, is_identification_result, method_label
+from ..data._inputs import as_iodata, as_models, is_identification_result, method_label
 from ..exceptions import ParameterError
 from ._figures import _MEASURED, _WIDTH, _finish, _label, _mark_unusable, _new_figure, _outputs, _rms, _window
 from ._blocks import _has_block, nonlinearity

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import warnings
 import numpy as np
-from ..data._display import is_identification_result, method_label
+from ..data._inputs import is_identification_result, method_label
 from ..exceptions import ParameterError
 from ._figures import LOG_SPAN, _WIDTH, _colors, _finish, _new_figure, _single_axes
 

@@ -4,7 +4,7 @@ signal figure."""
 from __future__ import annotations
 
 import numpy as np
-from ..data._display import as_models
+from ..data._inputs import as_models
 from ..exceptions import ParameterError
 from ._figures import (MIN_PEAK_BINS, NPERSEG, PEAK_PROMINENCE, SMOOTH_BINS, _MEASURED, _WIDTH, _finish, _label,
                        _mark_unusable, _new_figure, _outputs, _single_axes, _siso_record, _window)

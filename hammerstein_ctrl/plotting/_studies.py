@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from pathlib import Path
 import numpy as np
-from ..data._display import as_iodata, method_label
+from ..data._inputs import as_iodata, method_label
 from ._figures import FIGURE_DPI, INPUT_ZOOM_SAMPLES, _WIDTH, _new_figure, error_response, time_response
 from ._spectra import input_signal, psd
 from ._blocks import bode, nonlinearity

@@ -1,4 +1,5 @@
-"""display.py: model/record normalisation, HTML reprs, DataFrames, progress bars, TimeResponseData."""
+"""What users pass in (records, models, results, arrays) normalised, and how results show: HTML reprs, DataFrames,
+progress bars, TimeResponseData."""
 
 import sys
 from html import escape as html_escape
@@ -9,6 +10,7 @@ import pytest
 
 import hammerstein_ctrl as hc
 from hammerstein_ctrl.data import _display as display
+from hammerstein_ctrl.data import _inputs as inputs
 from hammerstein_ctrl.exceptions import DataError, ParameterError
 from hammerstein_ctrl.paper.study import run_study
 
@@ -37,18 +39,18 @@ def study():
 # -- as_models / as_iodata -------------------------------------------------------
 def test_as_models_normalises_every_accepted_form(trs_case, result):
     m = trs_case.structure.model(trs_case.true_beta)
-    assert display.as_models(m) == {"hammerstein": m}
-    assert display.as_models(result) == {"LM*": result.model}
-    assert display.as_models([m, result, result]) == {"model 1": m, "LM*": result.model, "LM* (2)": result.model}
-    assert display.as_models({"a": result}) == {"a": result.model}
-    assert display.as_models(None, allow_empty=True) == {}
+    assert inputs.as_models(m) == {"hammerstein": m}
+    assert inputs.as_models(result) == {"LM*": result.model}
+    assert inputs.as_models([m, result, result]) == {"model 1": m, "LM*": result.model, "LM* (2)": result.model}
+    assert inputs.as_models({"a": result}) == {"a": result.model}
+    assert inputs.as_models(None, allow_empty=True) == {}
     y = np.arange(5.0)
-    np.testing.assert_array_equal(display.as_models({"sim": y}, arrays=True)["sim"], y)
-    assert list(display.as_models(y, arrays=True)) == ["simulated"]
-    assert list(display.as_models([0.0, 1.0], arrays=True)) == ["simulated"]
-    assert list(display.as_models([y, y], arrays=True)) == ["simulated 1", "simulated 2"]
+    np.testing.assert_array_equal(inputs.as_models({"sim": y}, arrays=True)["sim"], y)
+    assert list(inputs.as_models(y, arrays=True)) == ["simulated"]
+    assert list(inputs.as_models([0.0, 1.0], arrays=True)) == ["simulated"]
+    assert list(inputs.as_models([y, y], arrays=True)) == ["simulated 1", "simulated 2"]
     tf = control.tf([1], [1, 1])
-    assert display.as_models([tf], systems=True, need=("linear",)) == {"model 1": tf}
+    assert inputs.as_models([tf], systems=True, need=("linear",)) == {"model 1": tf}
 
 
 @pytest.mark.parametrize("bad, match", [
@@ -59,23 +61,23 @@ def test_as_models_normalises_every_accepted_form(trs_case, result):
 ])
 def test_as_models_rejects_clearly(bad, match):
     with pytest.raises(ParameterError, match=match):
-        display.as_models(bad)
+        inputs.as_models(bad)
 
 
 def test_as_models_checks_what_a_helper_needs():
     tf = control.tf([1], [1, 1])
     with pytest.raises(ParameterError, match="got TransferFunction"):
-        display.as_models(tf, need=("g",))
+        inputs.as_models(tf, need=("g",))
 
 
 def test_benchmark_record_becomes_iodata_and_works_everywhere(trs_case):
     d = trs_case.data
     rec = Input_output_data(d.u.reshape(-1, 1), d.y, sampling_time=d.dt, name="train TRS")
-    data = display.as_iodata(rec)
+    data = inputs.as_iodata(rec)
     assert isinstance(data, hc.IOData) and data.name == "train TRS" and data.dt == d.dt
     np.testing.assert_array_equal(data.u, d.u)
     np.testing.assert_array_equal(data.t, d.t)
-    assert display.as_iodata(d) is d
+    assert inputs.as_iodata(d) is d
     model = trs_case.structure.model(trs_case.true_beta)
     from hammerstein_ctrl import plotting as plots
 
@@ -87,13 +89,13 @@ def test_benchmark_record_becomes_iodata_and_works_everywhere(trs_case):
 
 def test_benchmark_record_errors_are_clear():
     with pytest.raises(DataError, match="no sampling_time"):
-        display.as_iodata(Input_output_data([0, 1, 2], [0, 1, 2]))
+        inputs.as_iodata(Input_output_data([0, 1, 2], [0, 1, 2]))
     with pytest.raises(ParameterError, match="got a tuple of 2"):
-        display.as_iodata((Input_output_data([0, 1], [0, 1], 0.1), Input_output_data([0, 1], [0, 1], 0.1)))
+        inputs.as_iodata((Input_output_data([0, 1], [0, 1], 0.1), Input_output_data([0, 1], [0, 1], 0.1)))
     with pytest.raises(ParameterError, match="u, y and sampling_time"):
-        display.as_iodata(np.zeros((10, 2)))
+        inputs.as_iodata(np.zeros((10, 2)))
     with pytest.raises(DataError, match="length mismatch"):
-        display.as_iodata(Input_output_data([0, 1, 2], [0, 1], sampling_time=0.1))
+        inputs.as_iodata(Input_output_data([0, 1, 2], [0, 1], sampling_time=0.1))
 
 
 # -- progress --------------------------------------------------------------------
