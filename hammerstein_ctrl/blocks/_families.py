@@ -13,7 +13,7 @@ __all__ = ["Tanh", "Coulomb", "Polynomial", "Saturation", "DeadZone", "Piecewise
 
 
 class Tanh(Nonlinearity):
-    r"""Hyperbolic tangent, the TRS nonlinearity (paper Eq. 17).
+    r"""Hyperbolic tangent, the TRS nonlinearity (the paper's equation 17).
 
     .. math:: g(u) = \delta_0 \tanh(\delta_1 u)
 
@@ -67,7 +67,7 @@ class Tanh(Nonlinearity):
 
 
 class Coulomb(Nonlinearity):
-    r"""Linear gain plus Coulomb friction plus offset, the EMPS nonlinearity (Eq. 19).
+    r"""Linear gain plus Coulomb friction plus offset, the EMPS nonlinearity (equation 19).
 
     .. math:: g(u) = \delta_0 u + \delta_1 \operatorname{sign}(u) + \delta_2
 
@@ -106,7 +106,7 @@ class Coulomb(Nonlinearity):
 
 
 class Polynomial(Nonlinearity):
-    r"""Polynomial without constant term (paper Eq. 3 with ``g(0) = 0``).
+    r"""Polynomial without constant term (the paper's equation 3 with ``g(0) = 0``).
 
     .. math:: g(u) = \sum_{i=1}^{M} d_i u^i
 

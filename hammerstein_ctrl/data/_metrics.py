@@ -33,7 +33,7 @@ def _pair(y, yhat):
 
 
 def sse(y, yhat) -> float:
-    """Sum of squared errors ``J = sum (y - yhat)^2`` (paper Eq. 13).
+    """Sum of squared errors ``J = sum (y - yhat)^2`` (the paper's equation 13).
 
     Examples
     --------

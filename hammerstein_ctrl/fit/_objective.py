@@ -1,4 +1,4 @@
-"""The identification objective J(beta) (paper Eq. 13) on a record.
+"""The identification objective J(beta) (the paper's equation 13) on a record.
 
 :class:`HammersteinCost` is what the optimisers minimise.  It is a plain
 callable ``cost(beta) -> float`` with a vectorised ``cost.batch(betas)``, and

@@ -96,7 +96,7 @@ AUTO_A_FRACTION = 0.1
 
 
 def normalized_difference(f_plus: float, f_minus: float) -> float:
-    """N-SPSA's ``hbar`` (paper Eq. 11-12) with the corner cases documented above.
+    """N-SPSA's ``hbar`` (the paper's equation 11-12) with the corner cases documented above.
 
     Examples
     --------
@@ -382,7 +382,7 @@ def _run(variant: str, fun, x0, *, args=(), a=None, c=None, norm_limit: float | 
 
 def spsa(fun, x0, *, a=None, c=None, maxiter=None, maxfev=None, seed=None, args=(),
          bounds=None, callback=None, divergence_factor=1e6, monitor=0, scale=None, estimate="best"):
-    """Spall's SPSA (paper Eq. 6-7).
+    """Spall's SPSA (the paper's equation 6-7).
 
     Parameters
     ----------

@@ -33,12 +33,12 @@ __all__ = ["Preset", "trs", "emps", "get", "PRESETS", "STRUCTURES", "X0",
 
 
 def trs_structure() -> HammersteinStructure:
-    """TRS (Eq. 16-17): ``(p + b0)/(p^2 + a1 p + a0)`` and ``d0 tanh(d1 u)``."""
+    """TRS (equation 16-17): ``(p + b0)/(p^2 + a1 p + a0)`` and ``d0 tanh(d1 u)``."""
     return HammersteinStructure(LinearStructure(1, 2), Tanh())
 
 
 def emps_structure() -> HammersteinStructure:
-    """EMPS (Eq. 18-19): ``1/(p^2 + a1 p)`` and ``d0 u + d1 sign(u) + d2``."""
+    """EMPS (equation 18-19): ``1/(p^2 + a1 p)`` and ``d0 u + d1 sign(u) + d2``."""
     return HammersteinStructure(LinearStructure(0, 2, fixed={"a0": 0.0}), Coulomb())
 
 

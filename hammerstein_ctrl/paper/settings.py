@@ -69,7 +69,7 @@ def emps_methods() -> dict:
 
 
 def eq8_objective(theta) -> float:
-    """The Section 4.1 test function ``f(theta) = ((theta - 1)^T (theta - 1))^3`` (Eq. 8).
+    """The Section 4.1 test function ``f(theta) = ((theta - 1)^T (theta - 1))^3`` (equation 8).
 
     Its minimum is 0 at ``theta = 1``; ``f(0) = 1000`` for ``n = 10``.
     """

@@ -1,4 +1,4 @@
-"""Figures for judging identified models (the paper's Figs. 2-3, 6, 8-12, 14, 16-18).
+"""Figures for judging identified models (the paper's figures 2-3, 6, 8-12, 14, 16-18).
 
 Every helper returns a :class:`matplotlib.figure.Figure` built *without* pyplot,
 so a notebook cell ending in a plot call shows the figure once (Jupyter renders
@@ -155,7 +155,7 @@ def _time_rows(data, zoom, nrows, ax, head):
 
 
 def time_response(data, models=None, *, zoom=None, title=None, ax=None):
-    """Measured output and model outputs over time (Figs. 8, 16), with an optional zoom (Figs. 9, 17).
+    """Measured output and model outputs over time (figures 8, 16), with an optional zoom (figures 9, 17).
 
     Parameters
     ----------
@@ -190,7 +190,7 @@ def _rms(e):
 
 
 def error_response(data, models, *, zoom=None, title=None, ax=None):
-    """Output error ``y - yhat`` of each model (Figs. 10-11, 18): one row of panels per model.
+    """Output error ``y - yhat`` of each model (figures 10-11, 18): one row of panels per model.
 
     The rows share the y axis so the error sizes compare at a glance.  With
     ``ax`` every model is drawn into that one axes, largest RMS error first

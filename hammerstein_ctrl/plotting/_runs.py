@@ -71,7 +71,7 @@ def _median_band(a, label, runs, band, color):
 
 
 def convergence(source, *, quantity: str = "estimate", title=None, ax=None, band: bool = True, ylabel=None):
-    """Objective versus NFE: median and inter-quartile band over runs (Figs. 2-3).
+    """Objective versus NFE: median and inter-quartile band over runs (figures 2-3).
 
     Diverged runs are left out of the medians and of the axis scaling; they are
     counted in the legend and drawn, each on its own, in a lower panel.

@@ -96,7 +96,7 @@ def _peak_text(f_peak, fmin):
 
 def psd(data, models=None, *, nperseg: int = NPERSEG, fmin: float | None = None, logx: bool = False,
         title=None, ax=None):
-    """Welch power spectral density of the measured and simulated outputs (Fig. 12).
+    """Welch power spectral density of the measured and simulated outputs (figure 12).
 
     Each curve's peak (:func:`dominant_frequency`, searched above ``fmin``) is
     marked and given in the legend; the title states the frequency resolution.
@@ -126,7 +126,7 @@ def psd(data, models=None, *, nperseg: int = NPERSEG, fmin: float | None = None,
 
 
 def input_signal(data, *, zoom=None, nperseg: int = NPERSEG, bins: int = 40, title=None):
-    """The excitation (like the paper's Figs. 6 and 14): ``u(t)`` (and a zoom), its histogram and Welch PSD."""
+    """The excitation (like the paper's figures 6 and 14): ``u(t)`` (and a zoom), its histogram and Welch PSD."""
     data = _siso_record(data)
     if int(bins) != bins or bins < 2:
         raise ParameterError(f"bins must be an integer >= 2, got {bins!r}")

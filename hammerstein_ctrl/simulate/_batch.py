@@ -108,7 +108,7 @@ def simulate_batch(num, den, V, dt: float, *, x0=None, offset=None, intersample:
 
 def sse_batch(num, den, V, dt: float, y, *, x0=None, offset=None, intersample: str = "foh",
               output_map=None, reject_unstable: bool = False) -> np.ndarray:
-    """Sum of squared output errors ``J`` (paper Eq. 13) for a batch of candidates.
+    """Sum of squared output errors ``J`` (the paper's equation 13) for a batch of candidates.
 
     Never raises or warns for hostile candidates: a candidate whose
     coefficients, signal or simulated output are non-finite (or, with
