@@ -35,7 +35,8 @@ from ._experiments import RecordsStructure, RecordsCost
 from ._mimo_fit import MIMOCost
 from ._lure_fit import LureCost
 from ._wh_fit import WienerHammersteinCost
-from ._routes import Cost, Route, route
+from ._cost import Cost
+from ._routes import Route, route
 
 __all__ = [
     "identify", "IdentificationResult", "identify_in_loop", "KnownLoop", "KnownLoopCost", "select_structure",

@@ -43,11 +43,12 @@ from ..optimize._normal_equations import (NONFINITE_RESIDUAL, NormalEquations, f
                                           point_and_steps)
 from ..simulate._simulate import unstable
 from ..blocks._structure import BlockStructure
+from ._cost import StructureSized
 
 __all__ = ["DelayedCost", "delay_candidates", "shifted"]
 
 
-class DelayedCost:
+class DelayedCost(StructureSized):
     """Sum of squared output errors of a block structure whose linear block has a dead time.
 
     Parameters
@@ -84,8 +85,6 @@ class DelayedCost:
         self.reject_unstable = bool(reject_unstable)
         self._y = np.ascontiguousarray(data.y, dtype=float)
 
-    n_params = property(lambda self: self.structure.n_params)
-    param_names = property(lambda self: self.structure.param_names)
     n_samples = property(lambda self: len(self.data))
 
     def to_base(self, beta) -> np.ndarray:

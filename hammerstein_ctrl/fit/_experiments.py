@@ -44,6 +44,7 @@ from ..optimize._normal_equations import NormalEquations, point_and_steps
 from ._delay_fit import DelayedCost
 from ._objective import HammersteinCost
 from ..blocks._structure import BlockStructure
+from ._cost import StructureSized
 
 __all__ = ["RecordsStructure", "RecordsCost", "concatenated", "duplicated_records"]
 
@@ -185,7 +186,7 @@ def concatenated(records) -> IOData:
                   intersample=first.intersample)
 
 
-class RecordsCost:
+class RecordsCost(StructureSized):
     """Sum of squared output errors of one block structure over several records.
 
     Parameters
@@ -231,14 +232,6 @@ class RecordsCost:
         self.costs = tuple(single(r, structure, reject_unstable=reject_unstable) for r in self.records)
         self.data = concatenated(self.records)
         self._bounds = np.cumsum([0] + [len(r) for r in self.records])
-
-    @property
-    def n_params(self) -> int:
-        return self.structure.n_params
-
-    @property
-    def param_names(self) -> tuple[str, ...]:
-        return self.structure.param_names
 
     @property
     def n_samples(self) -> int:

@@ -50,6 +50,7 @@ from ..blocks._lure import LoopParts, LureModel, LureStructure, sign_map
 from ..blocks._model import BlockModel
 from ..optimize._normal_equations import NONFINITE_RESIDUAL
 from ..blocks._structure import BlockStructure
+from ._cost import StructureSized
 
 __all__ = ["KnownLoop", "KnownLoopCost", "identify_in_loop", "MATCHES"]
 
@@ -170,7 +171,7 @@ def _friction_only(nonlinearity) -> None:
                              "structure)), or approximate its map by friction")
 
 
-class KnownLoopCost:
+class KnownLoopCost(StructureSized):
     """Weighted least squares of the loop's simulated output and/or control signal against the record.
 
     ``residuals`` stacks ``w_y (y - y_hat)`` and ``w_u (u - u_hat)`` (the
@@ -213,14 +214,6 @@ class KnownLoopCost:
             raise ParameterError(f"weights must be {len(self.signals)} number(s) between 1e-100 and 1e100, one per "
                                  f"matched signal {self.signals}, got {weights!r}")
         return w
-
-    @property
-    def n_params(self) -> int:
-        return self.structure.n_params
-
-    @property
-    def param_names(self) -> tuple[str, ...]:
-        return self.structure.param_names
 
     def simulate_batch(self, betas):
         """``(Y, U)`` of the loop around each candidate plant."""

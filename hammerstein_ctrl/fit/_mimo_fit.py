@@ -43,12 +43,13 @@ from ..data._iodata import IOData
 from ..blocks._mimo import MIMOStructure
 from ..blocks._mimo_sim import simulate_mimo_batch
 from ._objective import NONFINITE_RESIDUAL
+from ._cost import StructureSized
 
 __all__ = ["MIMOCost", "mimo_starts", "stabilized", "completed", "noise_weights", "WEIGHTING_RATIO", "delay_shifts",
            "shifted_inputs", "with_delays"]
 
 
-class MIMOCost:
+class MIMOCost(StructureSized):
     """Sum of squared output errors of a MIMO structure on a record with as many channels.
 
     Parameters
@@ -102,14 +103,6 @@ class MIMOCost:
     def weighted(self, weights) -> "MIMOCost":
         """The same cost with each output's residuals weighted (``None``: unweighted)."""
         return MIMOCost(self.data, self.structure, reject_unstable=self.reject_unstable, weights=weights)
-
-    @property
-    def n_params(self) -> int:
-        return self.structure.n_params
-
-    @property
-    def param_names(self) -> tuple[str, ...]:
-        return self.structure.param_names
 
     @property
     def n_samples(self) -> int:

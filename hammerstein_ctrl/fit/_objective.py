@@ -50,6 +50,7 @@ from ..optimize._normal_equations import (NONFINITE_RESIDUAL, NormalEquations, f
 from ..simulate._simulate import (COMPILED_EXPM_MAX_NORM, GROUPS_MIN_BYTES, normal_factor, normal_pass, output_terms,
                                   simulate_batch, sse_basis_batch, sse_batch, unstable)
 from ..blocks._structure import BlockStructure
+from ._cost import StructureSized
 
 __all__ = ["HammersteinCost", "DirectPass", "EVALUATING_METHODS", "CHUNK_BYTES", "BASIS_MAX_BYTES", "BASIS_BLOCK",
            "EVAL_BLOCK", "NONFINITE_RESIDUAL"]
@@ -126,7 +127,7 @@ class DirectPass(NamedTuple):
         return self.num_pos.size + self.den_pos.size + (self.K if self.has_g else 0)
 
 
-class HammersteinCost:
+class HammersteinCost(StructureSized):
     """Sum of squared output errors of a Hammerstein structure on a record.
 
     Parameters
@@ -183,14 +184,6 @@ class HammersteinCost:
         if self._linear_in_params and probe.size * self._u.size * self._u.itemsize <= BASIS_MAX_BYTES:
             self._basis = np.ascontiguousarray(g.checked_basis(self._u), dtype=float)
         self._direct = self._direct_pass()
-
-    @property
-    def n_params(self) -> int:
-        return self.structure.n_params
-
-    @property
-    def param_names(self) -> tuple[str, ...]:
-        return self.structure.param_names
 
     @property
     def n_samples(self) -> int:

@@ -15,11 +15,12 @@ import numpy as np
 
 from ..exceptions import ParameterError
 from ..optimize._normal_equations import NONFINITE_RESIDUAL
+from ._cost import StructureSized
 
 __all__ = ["OutputErrorCost"]
 
 
-class OutputErrorCost:
+class OutputErrorCost(StructureSized):
     """``J(beta) = sum (y - y_hat(beta))^2`` on one SISO record; subclasses define :meth:`simulate_batch`."""
 
     #: Words naming the structure in a refusal (``"a Lur'e structure"``).
@@ -31,14 +32,6 @@ class OutputErrorCost:
         self._u = np.ascontiguousarray(np.asarray(data.u, dtype=float).reshape(-1))
         self._y = np.ascontiguousarray(np.asarray(data.y, dtype=float).reshape(-1))
         self._dt, self._hold = float(data.dt), data.intersample
-
-    @property
-    def n_params(self) -> int:
-        return self.structure.n_params
-
-    @property
-    def param_names(self) -> tuple[str, ...]:
-        return self.structure.param_names
 
     @property
     def n_samples(self) -> int:

@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import functools
 from dataclasses import dataclass
-from typing import Callable, Protocol, runtime_checkable
+from typing import Callable
 
 import numpy as np
 
@@ -42,43 +42,10 @@ from ._mimo_fit import MIMOCost
 from ._objective import HammersteinCost
 from ._wh_fit import WienerHammersteinCost
 
-__all__ = ["Cost", "Route", "route"]
+__all__ = ["Route", "route"]
 
 STRUCTURES = ("HammersteinStructure, WienerStructure, HammersteinWienerStructure, a MIMO, Lur'e or "
               "Wiener-Hammerstein structure")
-
-
-@runtime_checkable
-class Cost(Protocol):
-    """What every least-squares cost offers the optimisers, :func:`identify` and the verdicts.
-
-    ``J(x) = sum of squared residuals`` of a structure on a record: one point (``cost(x)``, ``residuals(x)``,
-    ``simulate(x)``) or a batch of candidates, one per row (``batch``, ``residuals_batch``).  The costs of the
-    package (:class:`HammersteinCost`, :class:`DelayedCost`, :class:`RecordsCost`, :class:`MIMOCost`,
-    :class:`LureCost`, :class:`WienerHammersteinCost`, :class:`KnownLoopCost`) all keep it.
-
-    Examples
-    --------
-    >>> import hammerstein_ctrl as hc
-    >>> s = hc.HammersteinStructure(hc.LinearStructure(0, 1), hc.Tanh())
-    >>> data = hc.IOData([0.0, 1.0, 0.5, 0.2], [0.0, 0.1, 0.3, 0.2], dt=0.1)
-    >>> isinstance(hc.HammersteinCost(data, s), Cost)
-    True
-    """
-
-    structure: object
-    data: object
-    reject_unstable: bool
-
-    def __call__(self, x) -> float: ...
-
-    def batch(self, X): ...
-
-    def residuals(self, x): ...
-
-    def residuals_batch(self, X): ...
-
-    def simulate(self, x): ...
 
 
 @dataclass(frozen=True)
